@@ -1,0 +1,72 @@
+#pragma once
+/// The cartoon cliff: you fall only once you slow down (paper §4.3; spec effects.md §5).
+///
+/// A ground plane (p0, n) with a gap: the strip a_min <= a.(x - p0) <= a_max along the lateral
+/// unit axis a. The HIP's lateral speed s = |v_t| is low-pass filtered every tick, wherever the
+/// HIP is: s_f += dt/(tau + dt) (s - s_f), s_f = 0 at the start. Two states, from SUPPORTED:
+///   SUPPORTED -> FALLEN  in the strip and s_f < speed_threshold;
+///   FALLEN -> SUPPORTED  at least rearm_height above ground and (outside the strip or
+///                        s_f >= speed_threshold), so a surface never appears with the HIP in it.
+/// Forces: SUPPORTED, a penalty wall on the whole ground (the gap is bridged), no side faces.
+/// FALLEN, no upward force over the strip and fall_force along -n there; outside the strip and
+/// below ground (the HIP went sideways under a ledge) only the ledge's side face pushes, along
+/// +-a toward the strip, k times the distance past the edge.
+
+#include "toonforce/effects/penalty_wall.hpp"
+
+namespace toonforce {
+
+template <Scalar S>
+struct CartoonCliff {
+  using Scalar = S;
+  struct Params {
+    Plane<S> ground;
+    Vec3<S> axis;                       ///< a, unit, perpendicular to the ground normal
+    S gap_min_m{};                      ///< [m] along a from p0 (required, < gap_max)
+    S gap_max_m{};                      ///< [m] (required)
+    typename PenaltyWall<S>::Params wall{};  ///< `stiffness` (required), `damping` (default 0)
+    S speed_threshold_m_per_s{};        ///< [m/s], > 0 (required)
+    S tau_s{};                          ///< filter time constant [s], >= 0 (default 0.02)
+    S rearm_height_m{};                 ///< [m], >= 0 (default 0.001)
+    S fall_force_n{};                   ///< [N], >= 0 (default 0)
+  };
+  struct State {
+    S filtered_speed_m_per_s{};  ///< s_f
+    bool fallen = false;
+  };
+  static constexpr Needs kNeeds = Needs::kVelocity;
+
+  static constexpr Vec3<S> force(const Params& p, State& s, const TickInput<S>& in) noexcept {
+    const Vec3<S>& n = p.ground.normal;
+    const Contact<S> c = p.ground.contact(in);
+    const S lateral_speed = norm(tangential_part(in.velocity_m_per_s, n));
+    // dt/(tau + dt) written with the rate 1/dt: 1 / (1 + tau/dt).
+    constexpr S kOne = scalar_cast<S>(1.0);
+    s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) / (kOne + p.tau_s * in.rate_hz);
+
+    const S across = dot(p.axis, in.position_m - p.ground.point_m);
+    const bool in_strip = p.gap_min_m <= across && across <= p.gap_max_m;
+    const bool slow = s.filtered_speed_m_per_s < p.speed_threshold_m_per_s;
+    if (!s.fallen) {
+      s.fallen = in_strip && slow;
+    } else if (c.penetration_m <= -p.rearm_height_m && (!in_strip || !slow)) {
+      s.fallen = false;
+    }
+
+    if (!s.fallen) return n * PenaltyWall<S>::normal_force(p.wall, c);
+    if (in_strip) return n * (-p.fall_force_n);
+    if (c.penetration_m > S{}) {  // under a ledge: its side face pushes back toward the strip
+      if (across < p.gap_min_m) return p.axis * (p.wall.stiffness_n_per_m * (p.gap_min_m - across));
+      return p.axis * (-(p.wall.stiffness_n_per_m * (across - p.gap_max_m)));
+    }
+    return {};
+  }
+
+  static constexpr void describe(const Params& p, const State& s, const TickInput<S>& in,
+                                 Diagnostics& d) noexcept {
+    if (!s.fallen && p.ground.contact(in).penetration_m > S{}) d.in_contact = true;
+    if (d.cliff_state < 0) d.cliff_state = s.fallen ? 1 : 0;
+  }
+};
+
+}  // namespace toonforce

@@ -1,0 +1,87 @@
+#pragma once
+/// Tangential laws of a surface, applied only while the HIP is in contact and added to the
+/// wall force (spec effects.md §2-3). Each takes the tangential velocity v_t = v - (n.v) n and
+/// the wall's normal force N of the same tick.
+
+#include "toonforce/effects/tick.hpp"
+
+namespace toonforce {
+
+/// No tangential force: a frictionless surface.
+template <Scalar S>
+struct NoTangential {
+  struct Params {};
+  static constexpr Needs kNeeds = Needs::kNone;
+  static constexpr bool kActive = false;
+  static constexpr Vec3<S> force(const Params&, const Vec3<S>&, S) noexcept { return {}; }
+};
+
+/// Realistic friction (paper §4.1 eqs. 1-2; spec §2), both parts add:
+///   viscous:  F_t = mu_v v_t, mu_v <= 0;
+///   Coulomb:  F_t = -mu_c N v_t / max(|v_t|, v_reg).
+/// Below v_reg the Coulomb part is a damper of mu_c N / v_reg, continuous through v_t = 0; too
+/// small a v_reg makes that damper more than a sampled loop renders (it buzzes), hence the
+/// 0.02 m/s default.
+template <Scalar S>
+struct RealisticFriction {
+  struct Params {
+    S viscous_n_s_per_m{};                 ///< mu_v [N s/m], <= 0 (default 0)
+    S coulomb{};                           ///< mu_c [-], >= 0 (default 0)
+    S regularization_speed_m_per_s{};      ///< v_reg [m/s], > 0 (default 0.02)
+  };
+  static constexpr Needs kNeeds = Needs::kVelocity;
+  static constexpr bool kActive = true;
+
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
+                                 S normal_force_n) noexcept {
+    const S speed = max(norm(tangential_velocity), p.regularization_speed_m_per_s);
+    const S coulomb_gain = p.coulomb * normal_force_n / speed;  // [N s/m]
+    return tangential_velocity * (p.viscous_n_s_per_m - coulomb_gain);
+  }
+};
+
+/// The cartoon super-slippery surface (paper §4.1 eq. 3; spec §3): F_t = mu v_t with mu > 0,
+/// pushing along the motion, scaled down (direction kept) to at most max_tangential_force. It
+/// injects energy by design; the safety stage bounds what reaches the device.
+template <Scalar S>
+struct SuperSlippery {
+  struct Params {
+    S mu_n_s_per_m{};               ///< mu [N s/m], > 0 (scene key `mu`, required)
+    S max_tangential_force_n{};     ///< [N], > 0 (default 2)
+  };
+  static constexpr Needs kNeeds = Needs::kVelocity;
+  static constexpr bool kActive = true;
+
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
+                                 S /*normal_force_n*/) noexcept {
+    return limit_magnitude(tangential_velocity * p.mu_n_s_per_m, p.max_tangential_force_n);
+  }
+};
+
+/// Either tangential law or none, chosen at run time (scenes loaded from files).
+template <Scalar S>
+struct AnyTangential {
+  enum class Kind : std::uint8_t { kNone, kFriction, kSlippery };
+  struct Params {
+    Kind kind = Kind::kNone;
+    typename RealisticFriction<S>::Params friction{};
+    typename SuperSlippery<S>::Params slippery{};
+  };
+  static constexpr Needs kNeeds = Needs::kVelocity;
+  static constexpr bool kActive = true;
+
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
+                                 S normal_force_n) noexcept {
+    switch (p.kind) {
+      case Kind::kFriction:
+        return RealisticFriction<S>::force(p.friction, tangential_velocity, normal_force_n);
+      case Kind::kSlippery:
+        return SuperSlippery<S>::force(p.slippery, tangential_velocity, normal_force_n);
+      case Kind::kNone:
+        break;
+    }
+    return {};
+  }
+};
+
+}  // namespace toonforce

@@ -1,0 +1,80 @@
+#pragma once
+/// What every force law sees on one servo tick (spec effects.md §0), and the geometry of the
+/// HIP against a plane. Frame: the scene frame, SI units.
+
+#include <cstdint>
+#include <limits>
+
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+/// Which shared per-tick stages a law needs; a scene's needs are the union of its laws', so a
+/// stage nothing needs is compiled out (the velocity estimator of a spring-only scene).
+enum class Needs : std::uint8_t {
+  kNone = 0,
+  kVelocity = 1,  ///< HIP velocity: estimated unless the device or the input supplies it
+};
+constexpr Needs operator|(Needs a, Needs b) noexcept {
+  return static_cast<Needs>(static_cast<std::uint8_t>(a) | static_cast<std::uint8_t>(b));
+}
+constexpr bool has(Needs set, Needs need) noexcept {
+  return (static_cast<std::uint8_t>(set) & static_cast<std::uint8_t>(need)) != 0;
+}
+
+/// When a tick happened, exact over any run length (spec §0: time is never accumulated in the
+/// scalar type). The servo loop counts integer ticks on a fixed period (skipped ticks
+/// included); replay carries each row's own time stamp.
+struct Instant {
+  std::int64_t tick = 0;  ///< ticks since the start of the run
+  double stamp_s = 0.0;   ///< [s] replay: the row's t; unused on a fixed period
+};
+
+/// The inputs of one tick, already in scalar S (converted once by the caller).
+template <Scalar S>
+struct TickInput {
+  Vec3<S> position_m;        ///< HIP position [m]
+  Vec3<S> velocity_m_per_s;  ///< HIP velocity [m/s] (zero when the scene needs none)
+  /// 1/dt [Hz], dt being the true time since the previous tick. The laws are written with the
+  /// rate, not the period, because integer servo rates are exact in a Q format and their
+  /// periods are not (1 ms is 65.536 counts of Q16.16).
+  S rate_hz;
+  Instant now;
+  /// [s] > 0: ticks are this far apart and times are (k - k0) * period; 0: use the stamps.
+  double period_s = 0.0;
+
+  /// Seconds from `earlier` to this tick, in double (spec §0: "(k - k_trigger) * T, in
+  /// double, converted once"; replay: "t_row - t_trigger").
+  constexpr double seconds_since(Instant earlier) const noexcept {
+    return period_s > 0.0 ? static_cast<double>(now.tick - earlier.tick) * period_s
+                          : now.stamp_s - earlier.stamp_s;
+  }
+};
+
+/// The HIP against one plane on one tick.
+template <Scalar S>
+struct Contact {
+  S penetration_m;          ///< delta = -n.(x - p0); in contact when > 0
+  S normal_speed_m_per_s;   ///< n.v (negative while moving into the solid)
+};
+
+/// A plane with a point and a unit normal pointing out of the solid (spec §0).
+template <Scalar S>
+struct Plane {
+  Vec3<S> point_m;
+  Vec3<S> normal;  ///< unit length (normalised when the scene is loaded)
+
+  constexpr Contact<S> contact(const TickInput<S>& in) const noexcept {
+    return {-dot(normal, in.position_m - point_m), dot(normal, in.velocity_m_per_s)};
+  }
+};
+
+/// What a scene reports about its effects after a tick, for traces and tests (not the loop).
+struct Diagnostics {
+  bool in_contact = false;  ///< the HIP penetrates some surface (or a supported cliff ground)
+  /// [s] time since the trigger of the first running impact transient; NaN if none runs.
+  double impact_time_s = std::numeric_limits<double>::quiet_NaN();
+  int cliff_state = -1;     ///< first cliff: -1 none, 0 supported, 1 fallen
+};
+
+}  // namespace toonforce

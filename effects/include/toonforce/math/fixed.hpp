@@ -1,0 +1,202 @@
+#pragma once
+/// Q-format fixed point for FPU-less targets: a signed 32-bit integer with `FracBits` fraction
+/// bits. Every operation rounds to nearest and saturates instead of wrapping; saturation sets a
+/// sticky flag (like the Q bit of an ARM core's APSR) that the safety stage reports as a fault
+/// (spec effects.md §7). Values are built only explicitly (`from_double`, `from_raw`).
+///
+/// Why not Debian's libfixmath (libfixmath-dev, read before writing this): its `fix16_t` is a
+/// bare `int32_t`, so nothing stops a raw integer from being mixed with a Q value; its C++
+/// wrapper converts from `int` and `float` implicitly; on overflow it returns the sentinel
+/// 0x80000000, which is also the valid value -32768.0, instead of saturating; the plain
+/// `fix16_mul`/`fix16_add` are not saturating; and its trig keeps 80 KB of static caches unless
+/// rebuilt with FIXMATH_NO_CACHE, which Debian's binary is not. We need constexpr, a type of its
+/// own, saturation with a flag, and 64-bit dot products and norms, so this header is ours
+/// (about 200 lines); the tests use libfixmath as an independent oracle for multiplication.
+///
+/// Scaling and overflow: a product or quotient is formed in 64 bits, rounded to nearest
+/// (half away from zero) and saturated to [lowest(), max()]. Sums saturate the same way.
+
+#include <compare>
+#include <cstdint>
+#include <limits>
+#include <type_traits>
+
+namespace toonforce {
+
+namespace detail {
+/// The sticky saturation flag of the calling thread (one servo loop per thread).
+inline thread_local bool fixed_saturated_flag = false;
+}  // namespace detail
+
+/// True if any fixed-point operation on this thread saturated since the last clear.
+inline bool fixed_saturated() noexcept { return detail::fixed_saturated_flag; }
+/// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
+inline bool take_fixed_saturated() noexcept {
+  const bool was = detail::fixed_saturated_flag;
+  detail::fixed_saturated_flag = false;
+  return was;
+}
+
+template <int IntBits, int FracBits>
+class Fixed {
+  static_assert(IntBits + FracBits == 32, "Fixed is a 32-bit Q format");
+  static_assert(FracBits > 0 && FracBits < 31);
+
+ public:
+  using Raw = std::int32_t;
+  using Wide = std::int64_t;
+  static constexpr int kFracBits = FracBits;
+  static constexpr Raw kOneRaw = Raw{1} << FracBits;
+
+  constexpr Fixed() noexcept = default;  // zero
+
+  static constexpr Fixed from_raw(Raw raw) noexcept {
+    Fixed f;
+    f.raw_ = raw;
+    return f;
+  }
+  /// Rounds to nearest; out of range saturates and NaN gives 0, both setting the flag.
+  static constexpr Fixed from_double(double value) noexcept {
+    if (value != value) {  // NaN (std::isnan is not constexpr in C++20)
+      flag_saturation();
+      return Fixed{};
+    }
+    const double scaled = value * static_cast<double>(kOneRaw);
+    if (scaled >= static_cast<double>(std::numeric_limits<Raw>::max())) return saturated(true);
+    if (scaled <= static_cast<double>(std::numeric_limits<Raw>::min())) return saturated(false);
+    const double rounded = scaled >= 0 ? scaled + 0.5 : scaled - 0.5;
+    return from_raw(static_cast<Raw>(rounded));  // truncation after +-0.5 = round half away
+  }
+  /// True if `value` converts without saturating (used by scene loading, spec §7).
+  static constexpr bool representable(double value) noexcept {
+    const double scaled = value * static_cast<double>(kOneRaw);
+    return value == value && scaled < static_cast<double>(std::numeric_limits<Raw>::max()) + 0.5 &&
+           scaled > static_cast<double>(std::numeric_limits<Raw>::min()) - 0.5;
+  }
+  static constexpr Fixed max() noexcept { return from_raw(std::numeric_limits<Raw>::max()); }
+  static constexpr Fixed lowest() noexcept { return from_raw(std::numeric_limits<Raw>::min()); }
+  /// The resolution, 2^-FracBits.
+  static constexpr Fixed epsilon() noexcept { return from_raw(1); }
+
+  constexpr Raw raw() const noexcept { return raw_; }
+  constexpr double to_double() const noexcept {
+    return static_cast<double>(raw_) / static_cast<double>(kOneRaw);
+  }
+
+  /// Saturates a wide intermediate into range, setting the flag when it had to.
+  static constexpr Fixed from_wide(Wide wide) noexcept {
+    if (wide > std::numeric_limits<Raw>::max()) return saturated(true);
+    if (wide < std::numeric_limits<Raw>::min()) return saturated(false);
+    return from_raw(static_cast<Raw>(wide));
+  }
+  /// Rounds a wide value carrying `shift` extra fraction bits to nearest, half away from zero.
+  /// (Written without adding half first, so values near the 64-bit limits cannot overflow.)
+  static constexpr Wide round_shift(Wide wide, int shift) noexcept {
+    const auto up = [shift](Wide w) { return (w >> shift) + ((w >> (shift - 1)) & 1); };
+    return wide >= 0 ? up(wide) : -up(wide == INT64_MIN ? INT64_MAX : -wide);
+  }
+
+  friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
+    return from_wide(Wide{a.raw_} + b.raw_);
+  }
+  friend constexpr Fixed operator-(Fixed a, Fixed b) noexcept {
+    return from_wide(Wide{a.raw_} - b.raw_);
+  }
+  friend constexpr Fixed operator-(Fixed a) noexcept { return from_wide(-Wide{a.raw_}); }
+  friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept {
+    return from_wide(round_shift(Wide{a.raw_} * b.raw_, FracBits));
+  }
+  /// Division by zero saturates toward the sign of the dividend (0/0 gives 0), with the flag.
+  friend constexpr Fixed operator/(Fixed a, Fixed b) noexcept {
+    if (b.raw_ == 0) {
+      if (a.raw_ == 0) {
+        flag_saturation();
+        return Fixed{};
+      }
+      return saturated(a.raw_ > 0);
+    }
+    // Round half away from zero on magnitudes, then restore the sign.
+    const Wide num = Wide{a.raw_} * kOneRaw;  // exact: |a| < 2^31, shifted by FracBits < 31
+    const Wide den = b.raw_;
+    const Wide num_abs = num < 0 ? -num : num;
+    const Wide den_abs = den < 0 ? -den : den;
+    const Wide q_abs = (num_abs + den_abs / 2) / den_abs;
+    const Wide q = ((num < 0) != (den < 0)) ? -q_abs : q_abs;
+    return from_wide(q);
+  }
+  constexpr Fixed& operator+=(Fixed o) noexcept { return *this = *this + o; }
+  constexpr Fixed& operator-=(Fixed o) noexcept { return *this = *this - o; }
+  constexpr Fixed& operator*=(Fixed o) noexcept { return *this = *this * o; }
+  constexpr Fixed& operator/=(Fixed o) noexcept { return *this = *this / o; }
+
+  friend constexpr bool operator==(Fixed, Fixed) noexcept = default;
+  friend constexpr auto operator<=>(Fixed, Fixed) noexcept = default;
+
+  /// Sets the sticky flag: for math functions whose result left the domain (sqrt of < 0).
+  static constexpr void note_saturation() noexcept { flag_saturation(); }
+
+ private:
+  static constexpr void flag_saturation() noexcept {
+    if (!std::is_constant_evaluated()) detail::fixed_saturated_flag = true;
+  }
+  static constexpr Fixed saturated(bool positive) noexcept {
+    flag_saturation();
+    return positive ? max() : lowest();
+  }
+
+  Raw raw_ = 0;
+};
+
+/// Q16.16: +-32768 with a resolution of 2^-16 (about 1.5e-5).
+using Q16_16 = Fixed<16, 16>;
+
+template <class T>
+inline constexpr bool kIsFixed = false;
+template <int I, int F>
+inline constexpr bool kIsFixed<Fixed<I, F>> = true;
+
+// ---- math on Fixed, found by ordinary lookup inside namespace toonforce ---------------------
+
+template <int I, int F>
+constexpr Fixed<I, F> abs(Fixed<I, F> x) noexcept {
+  return x.raw() < 0 ? -x : x;
+}
+template <int I, int F>
+constexpr bool is_finite(Fixed<I, F>) noexcept {
+  return true;  // saturation, not infinity, is how a Q value overflows
+}
+
+namespace detail {
+/// floor(sqrt(v) + 0.5) for a 64-bit unsigned value, by the bitwise method (at most 32 rounds).
+constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+  std::uint64_t result = 0;
+  std::uint64_t bit = std::uint64_t{1} << 62;
+  while (bit > v) bit >>= 2;
+  while (bit != 0) {
+    if (v >= result + bit) {
+      v -= result + bit;
+      result = (result >> 1) + bit;
+    } else {
+      result >>= 1;
+    }
+    bit >>= 2;
+  }
+  // v now holds the remainder r = n - result^2; round up when r > result (n > (result+1/2)^2).
+  return v > result ? result + 1 : result;
+}
+}  // namespace detail
+
+/// Square root; a negative argument gives 0 and sets the saturation flag.
+template <int I, int F>
+constexpr Fixed<I, F> sqrt(Fixed<I, F> x) noexcept {
+  using Q = Fixed<I, F>;
+  if (x.raw() <= 0) {
+    if (x.raw() < 0) Q::note_saturation();
+    return Q{};
+  }
+  // sqrt(raw * 2^-F) * 2^F = sqrt(raw * 2^F): take the integer root of raw << F.
+  const auto shifted = static_cast<std::uint64_t>(x.raw()) << F;
+  return Q::from_wide(static_cast<std::int64_t>(detail::isqrt_round(shifted)));
+}
+
+}  // namespace toonforce

@@ -1,0 +1,96 @@
+#pragma once
+/// A 3-vector in the scene frame (spec effects.md §0: x right, y away from the user, z up;
+/// SI units). For Q types, dot products and norms accumulate raw products in 64 bits and round
+/// once, so a norm is never built from saturated squares (spec §7).
+
+#include <cstdint>
+
+#include "toonforce/math/scalar.hpp"
+
+namespace toonforce {
+
+template <Scalar S>
+struct Vec3 {
+  S x{};
+  S y{};
+  S z{};
+
+  friend constexpr Vec3 operator+(const Vec3& a, const Vec3& b) noexcept {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+  }
+  friend constexpr Vec3 operator-(const Vec3& a, const Vec3& b) noexcept {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+  }
+  friend constexpr Vec3 operator-(const Vec3& a) noexcept { return {-a.x, -a.y, -a.z}; }
+  friend constexpr Vec3 operator*(const Vec3& a, S k) noexcept { return {a.x * k, a.y * k, a.z * k}; }
+  friend constexpr Vec3 operator*(S k, const Vec3& a) noexcept { return {k * a.x, k * a.y, k * a.z}; }
+  constexpr Vec3& operator+=(const Vec3& o) noexcept { return *this = *this + o; }
+  constexpr Vec3& operator-=(const Vec3& o) noexcept { return *this = *this - o; }
+  friend constexpr bool operator==(const Vec3&, const Vec3&) noexcept = default;
+};
+
+/// Converts a double vector (scene files, device readings) into scalar S, once.
+template <Scalar S>
+constexpr Vec3<S> vec_cast(const Vec3<double>& v) noexcept {
+  return {scalar_cast<S>(v.x), scalar_cast<S>(v.y), scalar_cast<S>(v.z)};
+}
+template <Scalar S>
+constexpr Vec3<double> to_double(const Vec3<S>& v) noexcept {
+  return {to_double(v.x), to_double(v.y), to_double(v.z)};
+}
+
+template <Scalar S>
+constexpr S dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
+  if constexpr (kIsFixed<S>) {
+    using W = typename S::Wide;
+    const W px = W{a.x.raw()} * b.x.raw();
+    const W py = W{a.y.raw()} * b.y.raw();
+    const W pz = W{a.z.raw()} * b.z.raw();
+    // Each product fits in 63 bits; their sum may not, and overflowing it can only mean a
+    // result far outside the Q range, so it saturates (toward the sign that overflowed).
+    W partial = 0;
+    if (__builtin_add_overflow(px, py, &partial)) return S::from_wide(px > 0 ? INT64_MAX : INT64_MIN);
+    W sum = 0;
+    if (__builtin_add_overflow(partial, pz, &sum)) return S::from_wide(pz > 0 ? INT64_MAX : INT64_MIN);
+    return S::from_wide(S::round_shift(sum, S::kFracBits));
+  } else {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+  }
+}
+
+template <Scalar S>
+constexpr S norm(const Vec3<S>& v) noexcept {
+  if constexpr (kIsFixed<S>) {
+    // Raw squares in unsigned 64 bits: each < 2^62, three of them < 2^64. The root of a value
+    // in units of 2^-2F is the norm in units of 2^-F, which is the raw result.
+    const auto sq = [](typename S::Raw r) {
+      const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
+      return m * m;
+    };
+    const std::uint64_t sum = sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw());
+    return S::from_wide(static_cast<std::int64_t>(detail::isqrt_round(sum)));
+  } else {
+    return sqrt(dot(v, v));
+  }
+}
+
+template <Scalar S>
+constexpr bool is_finite(const Vec3<S>& v) noexcept {
+  return is_finite(v.x) && is_finite(v.y) && is_finite(v.z);
+}
+
+/// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
+template <Scalar S>
+constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
+  const S magnitude = norm(v);
+  if (magnitude <= max_magnitude) return v;
+  return v * (max_magnitude / magnitude);
+}
+
+/// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
+template <Scalar S>
+constexpr Vec3<S> tangential_part(const Vec3<S>& v, const Vec3<S>& n) noexcept {
+  return v - n * dot(n, v);
+}
+
+}  // namespace toonforce
