@@ -1,0 +1,85 @@
+#pragma once
+/// The safety stage every force passes on its way out (spec effects.md §6), in this order:
+///   1. non-finite guard: a non-finite input or scene force gives exactly 0, bypassing the rate
+///      limit, and the previous output becomes 0 (the caller sets the fault and keeps states);
+///   2. force-rate limit: |F_k - F_{k-1}| <= max_force_rate * dt, the step scaled down along
+///      its direction, measured from the previous output;
+///   3. force clamp, last: |F| <= max_force, direction kept. Clamping last keeps the limit hard
+///      even when it drops (thermal derating).
+/// Without limits (a scene with no [device] table) none applies.
+
+#include <cstdint>
+
+#include "toonforce/control/faults.hpp"
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+/// Limits in double as configured; ForceSafety converts them once.
+struct ForceLimits {
+  double max_force_n = 0.0;             ///< used when has_max_force
+  double max_force_rate_n_per_s = 0.0;  ///< used when has_max_force_rate
+  bool has_max_force = false;
+  bool has_max_force_rate = false;
+};
+
+template <Scalar S>
+class ForceSafety {
+ public:
+  struct Output {
+    Vec3<S> force_n;
+    std::uint8_t limits = 0;  ///< Limit bits
+  };
+
+  constexpr explicit ForceSafety(const ForceLimits& limits = {}) noexcept
+      : max_force_n_(scalar_cast<S>(limits.max_force_n)),
+        max_force_rate_n_per_s_(scalar_cast<S>(limits.max_force_rate_n_per_s)),
+        has_max_force_(limits.has_max_force),
+        has_max_force_rate_(limits.has_max_force_rate) {}
+
+  /// Step 1: the output of a tick whose input or scene force is not finite.
+  constexpr Output zero() noexcept {
+    previous_n_ = Vec3<S>{};
+    return {};
+  }
+
+  /// Steps 2 and 3 on a finite scene force; `rate_hz` is 1/dt since the previous output.
+  constexpr Output limit(const Vec3<S>& scene_force_n, S rate_hz) noexcept {
+    Output out{scene_force_n, 0};
+    if (has_max_force_rate_) {
+      const Vec3<S> step = out.force_n - previous_n_;
+      const S max_step = max_force_rate_n_per_s_ / rate_hz;  // max_force_rate * dt
+      const S step_size = norm(step);
+      if (step_size > max_step) {
+        out.force_n = previous_n_ + step * (max_step / step_size);
+        out.limits = out.limits | Limit::kRateLimited;
+      }
+    }
+    if (has_max_force_) {
+      const S magnitude = norm(out.force_n);
+      if (magnitude > max_force_n_) {
+        out.force_n = out.force_n * (max_force_n_ / magnitude);
+        out.limits = out.limits | Limit::kClamped;
+      }
+    }
+    previous_n_ = out.force_n;
+    return out;
+  }
+
+  /// Lowers (or raises) the clamp at run time, e.g. for thermal derating; never above the
+  /// configured one is the caller's business.
+  constexpr void set_max_force(S max_force_n) noexcept {
+    max_force_n_ = max_force_n;
+    has_max_force_ = true;
+  }
+  constexpr const Vec3<S>& previous_output() const noexcept { return previous_n_; }
+
+ private:
+  S max_force_n_;
+  S max_force_rate_n_per_s_;
+  bool has_max_force_;
+  bool has_max_force_rate_;
+  Vec3<S> previous_n_{};
+};
+
+}  // namespace toonforce

@@ -1,0 +1,50 @@
+#pragma once
+/// Velocity estimator for devices and inputs that give no velocity (spec effects.md §0): a
+/// first-order low-pass of the backward difference,
+///   v_k = v_{k-1} + a ((x_k - x_{k-1})/dt - v_{k-1}),  a = dt / (dt + 1/(2 pi f_c)),
+/// written with the rate 1/dt (see TickInput::rate_hz): a = 1 / (1 + rate / (2 pi f_c)).
+/// The first update gives 0.
+
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+template <Scalar S>
+class VelocityEstimator {
+ public:
+  static constexpr double kDefaultCutoffHz = 50.0;
+
+  constexpr explicit VelocityEstimator(double cutoff_hz = kDefaultCutoffHz) noexcept
+      : time_constant_s_(scalar_cast<S>(1.0 / (2.0 * 3.14159265358979323846 * cutoff_hz))) {}
+
+  /// The estimate at this tick, from the position and 1/dt since the previous update.
+  constexpr Vec3<S> update(const Vec3<S>& position_m, S rate_hz) noexcept {
+    if (!started_) {
+      started_ = true;
+      previous_m_ = position_m;
+      return velocity_;
+    }
+    constexpr S kOne = scalar_cast<S>(1.0);
+    const S a = kOne / (kOne + rate_hz * time_constant_s_);
+    const Vec3<S> difference = (position_m - previous_m_) * rate_hz;
+    velocity_ += (difference - velocity_) * a;
+    previous_m_ = position_m;
+    return velocity_;
+  }
+  constexpr const Vec3<S>& velocity() const noexcept { return velocity_; }
+
+ private:
+  S time_constant_s_;  ///< 1/(2 pi f_c) [s]
+  Vec3<S> previous_m_{};
+  Vec3<S> velocity_{};
+  bool started_ = false;
+};
+
+/// Stands in for the estimator in scenes that need no velocity: no state, no work.
+template <Scalar S>
+struct NoVelocityEstimator {
+  constexpr explicit NoVelocityEstimator(double = 0.0) noexcept {}
+  constexpr Vec3<S> update(const Vec3<S>&, S) noexcept { return {}; }
+};
+
+}  // namespace toonforce
