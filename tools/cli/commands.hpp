@@ -1,0 +1,14 @@
+#pragma once
+// Subcommands of the toonforce command line. Each add_* registers a subcommand whose callback
+// runs it and stores the process exit status.
+#include <CLI/CLI.hpp>
+
+namespace toonforce::cli {
+
+void add_replay(CLI::App& app);
+
+/// The exit status the subcommand that ran asked for.
+int exit_code();
+void set_exit_code(int code);
+
+}  // namespace toonforce::cli

@@ -1,0 +1,21 @@
+// toonforce: the command line (spec interfaces.md). Each subcommand lives in its own file and
+// registers itself here; this file only parses and dispatches.
+#include <cstdio>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"toonforce: expressive, cartoon-inspired haptic rendering (Haptics Symposium 2010)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
+  toonforce::cli::add_replay(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  return toonforce::cli::exit_code();
+}

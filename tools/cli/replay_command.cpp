@@ -1,0 +1,49 @@
+// toonforce replay --scene S.toml --input motion.csv --output forces.csv [--scalar ...] [--sine ...]
+#include <cstdio>
+#include <map>
+#include <memory>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "toonforce/replay/replay.hpp"
+
+namespace toonforce::cli {
+namespace {
+int g_exit_code = 0;
+}
+
+int exit_code() { return g_exit_code; }
+void set_exit_code(int code) { g_exit_code = code; }
+
+void add_replay(CLI::App& app) {
+  auto options = std::make_shared<ReplayOptions>();
+  auto quiet = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand("replay", "Forces for a given motion, open loop (one row = one servo tick)");
+  cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_option("--input", options->input_path, "Motion CSV: t,x,y,z[,vx,vy,vz]")->required();
+  cmd->add_option("--output", options->output_path, "Forces CSV to write ('-' for standard output)")->required();
+  const std::map<std::string, ScalarKind> scalars{
+      {"double", ScalarKind::kDouble}, {"float", ScalarKind::kFloat}, {"q16.16", ScalarKind::kQ16_16}};
+  cmd->add_option("--scalar", options->scalar, "Scalar type of the computation")
+      ->transform(CLI::CheckedTransformer(scalars, CLI::ignore_case));
+  const std::map<std::string, SineMethod> sines{{"library", SineMethod::kLibrary},
+                                                {"polynomial", SineMethod::kPolynomial},
+                                                {"table", SineMethod::kTable}};
+  cmd->add_option("--sine", options->sine, "Sine method of impact transients (overrides the scene)")
+      ->transform(CLI::CheckedTransformer(sines, CLI::ignore_case));
+  cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors");
+  cmd->callback([options, quiet] {
+    const auto summary = run_replay(*options);
+    if (!summary) {
+      std::fputs(summary.error().c_str(), stderr);
+      if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
+      set_exit_code(1);
+      return;
+    }
+    if (!*quiet) std::fputs(format_summary(summary.value(), *options).c_str(), options->output_path == "-" ? stderr : stdout);
+    set_exit_code(0);
+  });
+}
+
+}  // namespace toonforce::cli

@@ -1,0 +1,95 @@
+#pragma once
+/// Reading TOML files that people write by hand (scenes, hand scripts) with errors that name
+/// the file, the line and the key, and that reject what they do not know: an unknown key, a
+/// wrong type, a non-finite number, a value out of range. All errors of a file are collected
+/// so one run shows them all. Numbers may be written as integers or floats.
+
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <toml++/toml.h>
+
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+/// The scalar type a file's numbers must fit (spec effects.md §7: a value outside the Q16.16
+/// range is an error at load).
+enum class ScalarKind { kDouble, kFloat, kQ16_16 };
+std::optional<ScalarKind> parse_scalar_kind(std::string_view name);
+std::string_view scalar_kind_name(ScalarKind kind);
+
+/// Where errors go: "FILE:LINE: WHERE.KEY: PROBLEM".
+class ErrorList {
+ public:
+  explicit ErrorList(std::string file) : file_(std::move(file)) {}
+  void add(const toml::source_region& where, std::string_view path, std::string_view problem);
+  void add(std::uint32_t line, std::string_view path, std::string_view problem);
+  bool empty() const noexcept { return messages_.empty(); }
+  const std::vector<std::string>& messages() const noexcept { return messages_; }
+  std::string text() const;  ///< one error per line
+  const std::string& file() const noexcept { return file_; }
+
+ private:
+  std::string file_;
+  std::vector<std::string> messages_;
+};
+
+/// What a number must satisfy.
+enum class Range { kAny, kPositive, kNonNegative, kNonPositive };
+
+/// Reads the keys of one table, each at most once; `finish()` reports every key never read.
+class TableReader {
+ public:
+  /// `path` names the table in messages ("surface[2].impact"; empty for the root).
+  TableReader(const toml::table& table, std::string path, ErrorList& errors, ScalarKind scalar);
+
+  /// A required number; nullopt (and an error) if missing or invalid.
+  std::optional<double> required_number(std::string_view key, Range range, std::string_view unit);
+  /// An optional number with a default; the default on error (the error is recorded).
+  double number_or(std::string_view key, double fallback, Range range);
+  /// An optional number without a default.
+  std::optional<double> optional_number(std::string_view key, Range range);
+  /// A required 3-vector of numbers.
+  std::optional<Vec3<double>> required_vec3(std::string_view key, std::string_view unit);
+  std::optional<std::string> optional_string(std::string_view key);
+  /// An optional sub-table (`[parent.key]`).
+  const toml::table* optional_table(std::string_view key);
+  /// An optional array of tables (`[[key]]`); its elements, or empty.
+  std::vector<const toml::table*> array_of_tables(std::string_view key);
+
+  /// Records an error about `key` (or about the table itself when `key` is empty).
+  void error(std::string_view key, std::string_view problem);
+  /// Line of `key`, or of the table when absent.
+  std::uint32_t line_of(std::string_view key) const;
+  std::uint32_t line() const;
+  const std::string& path() const noexcept { return path_; }
+  ErrorList& errors() noexcept { return errors_; }
+  ScalarKind scalar() const noexcept { return scalar_; }
+  /// Reports keys that were never read, suggesting the nearest known one.
+  void finish();
+
+ private:
+  const toml::node* take(std::string_view key);
+  std::optional<double> to_number(std::string_view key, const toml::node& node, Range range);
+  std::string key_path(std::string_view key) const;
+
+  const toml::table& table_;
+  std::string path_;
+  ErrorList& errors_;
+  ScalarKind scalar_;
+  std::vector<std::string> known_;  // every key asked for, present or not
+  std::vector<std::string> read_;   // keys present and read
+};
+
+/// The known key nearest to `key` by edit distance, if it is a plausible typo.
+std::optional<std::string> nearest_key(std::string_view key, std::span<const std::string> known);
+
+/// Parses a TOML file; on a syntax error, records it and returns nullopt.
+std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors);
+std::optional<toml::table> parse_toml_text(std::string_view text, ErrorList& errors);
+
+}  // namespace toonforce

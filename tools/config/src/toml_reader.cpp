@@ -1,0 +1,289 @@
+#include "toonforce/config/toml_reader.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include <fmt/format.h>
+
+namespace toonforce {
+
+std::optional<ScalarKind> parse_scalar_kind(std::string_view name) {
+  if (name == "double") return ScalarKind::kDouble;
+  if (name == "float") return ScalarKind::kFloat;
+  if (name == "q16.16") return ScalarKind::kQ16_16;
+  return std::nullopt;
+}
+
+std::string_view scalar_kind_name(ScalarKind kind) {
+  switch (kind) {
+    case ScalarKind::kDouble: return "double";
+    case ScalarKind::kFloat: return "float";
+    case ScalarKind::kQ16_16: return "q16.16";
+  }
+  return "?";
+}
+
+void ErrorList::add(const toml::source_region& where, std::string_view path, std::string_view problem) {
+  add(where.begin.line, path, problem);
+}
+
+void ErrorList::add(std::uint32_t line, std::string_view path, std::string_view problem) {
+  if (path.empty()) {
+    messages_.push_back(fmt::format("{}:{}: {}", file_, line, problem));
+  } else {
+    messages_.push_back(fmt::format("{}:{}: {}: {}", file_, line, path, problem));
+  }
+}
+
+std::string ErrorList::text() const {
+  std::string out;
+  for (const auto& m : messages_) {
+    out += m;
+    out += '\n';
+  }
+  return out;
+}
+
+namespace {
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0U : 1U)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string_view type_name(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::table: return "a table";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a number";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::date: return "a date";
+    case toml::node_type::time: return "a time";
+    case toml::node_type::date_time: return "a date-time";
+    case toml::node_type::none: break;
+  }
+  return "nothing";
+}
+
+std::string_view range_text(Range range) {
+  switch (range) {
+    case Range::kPositive: return "> 0";
+    case Range::kNonNegative: return ">= 0";
+    case Range::kNonPositive: return "<= 0";
+    case Range::kAny: break;
+  }
+  return "";
+}
+
+bool in_range(double v, Range range) {
+  switch (range) {
+    case Range::kPositive: return v > 0.0;
+    case Range::kNonNegative: return v >= 0.0;
+    case Range::kNonPositive: return v <= 0.0;
+    case Range::kAny: break;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::optional<std::string> nearest_key(std::string_view key, std::span<const std::string> known) {
+  std::optional<std::string> best;
+  std::size_t best_distance = 0;
+  for (const auto& candidate : known) {
+    const std::size_t d = edit_distance(key, candidate);
+    if (!best || d < best_distance) {
+      best = candidate;
+      best_distance = d;
+    }
+  }
+  // A typo changes a few characters; beyond that a suggestion is noise.
+  if (best && best_distance <= std::max<std::size_t>(2, key.size() / 3)) return best;
+  return std::nullopt;
+}
+
+TableReader::TableReader(const toml::table& table, std::string path, ErrorList& errors, ScalarKind scalar)
+    : table_(table), path_(std::move(path)), errors_(errors), scalar_(scalar) {}
+
+std::string TableReader::key_path(std::string_view key) const {
+  if (path_.empty()) return std::string(key);
+  if (key.empty()) return path_;
+  return fmt::format("{}.{}", path_, key);
+}
+
+std::uint32_t TableReader::line() const { return table_.source().begin.line; }
+
+std::uint32_t TableReader::line_of(std::string_view key) const {
+  if (const toml::node* node = table_.get(key)) return node->source().begin.line;
+  return line();
+}
+
+void TableReader::error(std::string_view key, std::string_view problem) {
+  errors_.add(line_of(key), key_path(key), problem);
+}
+
+const toml::node* TableReader::take(std::string_view key) {
+  known_.emplace_back(key);
+  const toml::node* node = table_.get(key);
+  if (node != nullptr) read_.emplace_back(key);
+  return node;
+}
+
+std::optional<double> TableReader::to_number(std::string_view key, const toml::node& node, Range range) {
+  double value = 0.0;
+  if (const auto* f = node.as_floating_point()) {
+    value = f->get();
+  } else if (const auto* i = node.as_integer()) {
+    value = static_cast<double>(i->get());
+  } else {
+    error(key, fmt::format("must be a number, not {}", type_name(node)));
+    return std::nullopt;
+  }
+  if (!std::isfinite(value)) {
+    error(key, fmt::format("must be a finite number (got {})", value));
+    return std::nullopt;
+  }
+  if (!in_range(value, range)) {
+    error(key, fmt::format("must be {} (got {})", range_text(range), value));
+    return std::nullopt;
+  }
+  if (scalar_ == ScalarKind::kQ16_16) {
+    if (!representable<Q16_16>(value)) {
+      error(key, fmt::format("{} is outside the Q16.16 range (about +-32768)", value));
+      return std::nullopt;
+    }
+    if (value != 0.0 && Q16_16::from_double(value).raw() == 0) {
+      error(key, fmt::format("{} rounds to 0 in Q16.16 (resolution 1.5e-5)", value));
+      return std::nullopt;
+    }
+  } else if (scalar_ == ScalarKind::kFloat) {
+    if (!representable<float>(value)) {
+      error(key, fmt::format("{} is outside the float range", value));
+      return std::nullopt;
+    }
+    if (value != 0.0 && static_cast<float>(value) == 0.0F) {
+      error(key, fmt::format("{} rounds to 0 in float", value));
+      return std::nullopt;
+    }
+  }
+  return value;
+}
+
+std::optional<double> TableReader::required_number(std::string_view key, Range range, std::string_view unit) {
+  const toml::node* node = take(key);
+  if (node == nullptr) {
+    error("", fmt::format("missing required key '{}'{}{}", key, unit.empty() ? "" : " ", unit));
+    return std::nullopt;
+  }
+  return to_number(key, *node, range);
+}
+
+double TableReader::number_or(std::string_view key, double fallback, Range range) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return fallback;
+  return to_number(key, *node, range).value_or(fallback);
+}
+
+std::optional<double> TableReader::optional_number(std::string_view key, Range range) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return std::nullopt;
+  return to_number(key, *node, range);
+}
+
+std::optional<Vec3<double>> TableReader::required_vec3(std::string_view key, std::string_view unit) {
+  const toml::node* node = take(key);
+  if (node == nullptr) {
+    error("", fmt::format("missing required key '{}'{}{}", key, unit.empty() ? "" : " ", unit));
+    return std::nullopt;
+  }
+  const toml::array* array = node->as_array();
+  if (array == nullptr || array->size() != 3) {
+    error(key, fmt::format("must be an array of three numbers{}{}, like [0.0, 0.0, 1.0]",
+                           unit.empty() ? "" : " ", unit));
+    return std::nullopt;
+  }
+  double v[3] = {};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto component = to_number(key, *array->get(i), Range::kAny);
+    if (!component) return std::nullopt;
+    v[i] = *component;
+  }
+  return Vec3<double>{v[0], v[1], v[2]};
+}
+
+std::optional<std::string> TableReader::optional_string(std::string_view key) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return std::nullopt;
+  if (const auto* s = node->as_string()) return s->get();
+  error(key, fmt::format("must be a string, not {}", type_name(*node)));
+  return std::nullopt;
+}
+
+const toml::table* TableReader::optional_table(std::string_view key) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return nullptr;
+  if (const auto* t = node->as_table()) return t;
+  error(key, fmt::format("must be a table ([{}]), not {}", key_path(key), type_name(*node)));
+  return nullptr;
+}
+
+std::vector<const toml::table*> TableReader::array_of_tables(std::string_view key) {
+  std::vector<const toml::table*> tables;
+  const toml::node* node = take(key);
+  if (node == nullptr) return tables;
+  const toml::array* array = node->as_array();
+  if (array == nullptr || !array->is_array_of_tables()) {
+    error(key, fmt::format("must be an array of tables: write each as [[{}]]", key_path(key)));
+    return tables;
+  }
+  for (const auto& element : *array) tables.push_back(element.as_table());
+  return tables;
+}
+
+void TableReader::finish() {
+  for (const auto& [key, node] : table_) {
+    const std::string name(key.str());
+    if (std::find(read_.begin(), read_.end(), name) != read_.end()) continue;
+    std::string problem = fmt::format("unknown key '{}'", name);
+    if (auto near = nearest_key(name, known_)) problem += fmt::format(" (did you mean '{}'?)", *near);
+    errors_.add(key.source().begin.line != 0 ? key.source().begin.line : node.source().begin.line,
+                path_, problem);
+  }
+}
+
+std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors) {
+  try {
+    return toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    if (e.source().begin.line == 0) {
+      errors.add(0, "", fmt::format("cannot read the file: {}", e.description()));
+    } else {
+      errors.add(e.source(), "", fmt::format("TOML syntax: {}", e.description()));
+    }
+    return std::nullopt;
+  }
+}
+
+std::optional<toml::table> parse_toml_text(std::string_view text, ErrorList& errors) {
+  try {
+    return toml::parse(text, errors.file());
+  } catch (const toml::parse_error& e) {
+    errors.add(e.source(), "", fmt::format("TOML syntax: {}", e.description()));
+    return std::nullopt;
+  }
+}
+
+}  // namespace toonforce

@@ -1,0 +1,33 @@
+#pragma once
+/// Motion files for `toonforce replay` (spec interfaces.md): a header row, then one row per
+/// servo tick with columns t,x,y,z [s, m] and optionally all three of vx,vy,vz [m/s], in any
+/// order. Lines starting with '#' are comments. `t` must be finite and strictly increasing; a
+/// non-finite position or velocity is a valid row (the safety stage gives zero force for it).
+/// Other columns are allowed (a `sim` trace replays as it is) and reported as ignored.
+
+#include <string>
+#include <vector>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+struct MotionRow {
+  double t_s = 0.0;
+  Vec3<double> position_m;
+  Vec3<double> velocity_m_per_s;  ///< meaningful only when the motion has velocity
+  std::size_t line = 0;           ///< line in the file, for messages
+};
+
+struct Motion {
+  bool has_velocity = false;
+  std::vector<MotionRow> rows;
+  std::vector<std::string> ignored_columns;
+};
+
+/// Reads and checks a whole motion file; errors name the file, the line and the column.
+Result<Motion> read_motion_csv(const std::string& path);
+Result<Motion> parse_motion_csv(const std::string& text, const std::string& source_name);
+
+}  // namespace toonforce

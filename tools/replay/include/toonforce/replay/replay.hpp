@@ -1,0 +1,50 @@
+#pragma once
+/// `toonforce replay`: forces for a given motion, open loop (spec interfaces.md). Each input row
+/// is one servo tick through the same Controller the servo loop runs (velocity estimate unless
+/// given, scene forces, safety stage), in the chosen scalar type.
+
+#include <cstdio>
+#include <optional>
+#include <string>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/config/scene_file.hpp"
+
+namespace toonforce {
+
+struct ReplayOptions {
+  std::string scene_path;
+  std::string input_path;
+  std::string output_path;  ///< "-" writes to standard output
+  ScalarKind scalar = ScalarKind::kDouble;
+  std::optional<SineMethod> sine;  ///< overrides the scene's sine method
+};
+
+/// What a replay did, for the summary printed at the end.
+struct ReplaySummary {
+  std::string scene_name;
+  std::size_t surfaces = 0;
+  std::size_t cliffs = 0;
+  std::size_t rows = 0;
+  double duration_s = 0.0;
+  double median_rate_hz = 0.0;
+  bool given_velocity = false;
+  std::vector<std::string> ignored_columns;
+  double peak_force_n = 0.0;
+  double peak_force_t_s = 0.0;
+  double peak_scene_force_n = 0.0;
+  std::size_t ticks_in_contact = 0;
+  std::size_t impacts = 0;       ///< transients triggered
+  std::size_t cliff_falls = 0;   ///< SUPPORTED -> FALLEN transitions
+  std::size_t rate_limited = 0;  ///< ticks
+  std::size_t clamped = 0;       ///< ticks
+  std::size_t fault_ticks = 0;
+  std::uint32_t fault_bits = 0;  ///< union over the run
+};
+
+Result<ReplaySummary> run_replay(const ReplayOptions& options);
+
+/// The summary as a few lines for a person.
+std::string format_summary(const ReplaySummary& summary, const ReplayOptions& options);
+
+}  // namespace toonforce
