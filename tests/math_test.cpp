@@ -1,0 +1,148 @@
+// The Q16.16 type, vectors and the sine methods.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+
+extern "C" {
+#include <libfixmath/fix16.h>
+}
+
+#include "toonforce/math/sine.hpp"
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+namespace {
+
+using Q = Q16_16;
+constexpr double kLsb = 1.0 / 65536.0;
+
+TEST(Fixed, ConvertsFromDoubleRoundingToNearest) {
+  EXPECT_EQ(Q::from_double(1.0).raw(), 65536);
+  EXPECT_EQ(Q::from_double(0.4 * kLsb).raw(), 0);
+  EXPECT_EQ(Q::from_double(0.6 * kLsb).raw(), 1);
+  EXPECT_EQ(Q::from_double(-0.6 * kLsb).raw(), -1);
+  EXPECT_EQ(Q::from_double(-2.5 * kLsb).raw(), -3);  // half away from zero
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
+TEST(Fixed, SaturatesInsteadOfWrappingAndRaisesTheStickyFlag) {
+  static_cast<void>(take_fixed_saturated());
+  const Q big = Q::from_double(30000.0);
+  EXPECT_FALSE(fixed_saturated());
+  EXPECT_EQ(big + big, Q::max());
+  EXPECT_TRUE(fixed_saturated());
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_FALSE(fixed_saturated());
+  EXPECT_EQ(-big - big, Q::lowest());
+  EXPECT_EQ(big * Q::from_double(-2.0), Q::lowest());
+  EXPECT_EQ(Q::from_double(1e9), Q::max());
+  EXPECT_EQ(Q::from_double(std::nan("")), Q{});
+  EXPECT_TRUE(take_fixed_saturated());
+}
+
+TEST(Fixed, DivisionRoundsAndSaturatesOnZero) {
+  EXPECT_EQ((Q::from_double(1.0) / Q::from_double(3.0)).raw(), 21845);  // 0.33333 -> 21845.33
+  EXPECT_EQ((Q::from_double(2.0) / Q::from_double(3.0)).raw(), 43691);  // 43690.67 rounds up
+  EXPECT_EQ((Q::from_double(-2.0) / Q::from_double(3.0)).raw(), -43691);
+  EXPECT_FALSE(take_fixed_saturated());
+  EXPECT_EQ(Q::from_double(1.0) / Q{}, Q::max());
+  EXPECT_TRUE(take_fixed_saturated());
+}
+
+TEST(Fixed, MultiplicationAgreesWithLibfixmath) {
+  // libfixmath (Debian's libfixmath-dev) as an independent oracle: it rounds to nearest too;
+  // the two may differ by one LSB only on exact ties, which they round differently.
+  std::mt19937_64 rng(42);
+  std::uniform_int_distribution<std::int32_t> raw(-(1 << 23), 1 << 23);
+  for (int i = 0; i < 100000; ++i) {
+    const std::int32_t a = raw(rng);
+    const std::int32_t b = raw(rng);
+    const std::int64_t product = std::int64_t{a} * b;
+    const std::int32_t ours = (Q::from_raw(a) * Q::from_raw(b)).raw();
+    const fix16_t theirs = fix16_smul(a, b);
+    const bool tie = (std::llabs(product) & 0xFFFF) == 0x8000;
+    if (tie) {
+      EXPECT_LE(std::abs(ours - theirs), 1);
+    } else {
+      ASSERT_EQ(ours, theirs) << a << " * " << b;
+    }
+  }
+  EXPECT_EQ((Q::max() * Q::from_double(2.0)).raw(), fix16_smul(fix16_maximum, fix16_from_int(2)));
+  static_cast<void>(take_fixed_saturated());
+}
+
+TEST(Fixed, SquareRootIsWithinHalfAnLsbAndAgreesWithLibfixmath) {
+  for (const double v : {0.0, 1e-4, 0.25, 2.0, 1234.5678, 32767.0}) {
+    const Q q = Q::from_double(v);
+    const double exact = std::sqrt(q.to_double());
+    EXPECT_LE(std::abs(sqrt(q).to_double() - exact), 0.5 * kLsb + 1e-12) << v;
+    EXPECT_LE(std::abs(sqrt(q).raw() - fix16_sqrt(q.raw())), 1) << v;
+  }
+  EXPECT_EQ(sqrt(Q::from_double(-1.0)), Q{});
+  EXPECT_TRUE(take_fixed_saturated());
+}
+
+TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {
+  // Each square (40000) is outside Q16.16; the norm (346.41) is not (spec §7).
+  const Vec3<Q> v{Q::from_double(200.0), Q::from_double(200.0), Q::from_double(200.0)};
+  EXPECT_NEAR(norm(v).to_double(), std::sqrt(3.0) * 200.0, kLsb);
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
+TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {
+  const Vec3<Q> a{Q::from_double(300.0), Q::from_double(300.0), Q::from_double(0.001)};
+  const Vec3<Q> b{Q::from_double(300.0), Q::from_double(-300.0), Q::from_double(0.001)};
+  // 90000 - 90000 + 1e-6: each product alone would saturate.
+  EXPECT_NEAR(dot(a, b).to_double(), 1e-6, kLsb);
+  EXPECT_FALSE(take_fixed_saturated());
+  const Vec3<Q> c{Q::from_double(300.0), Q::from_double(300.0), Q{}};
+  EXPECT_EQ(dot(c, c), Q::max());  // 180000 does not fit: saturates, with the flag
+  EXPECT_TRUE(take_fixed_saturated());
+}
+
+TEST(Vec3, LimitMagnitudeKeepsDirection) {
+  const Vec3<double> v{3.0, 4.0, 0.0};
+  const auto w = limit_magnitude(v, 2.5);
+  EXPECT_NEAR(norm(w), 2.5, 1e-15);
+  EXPECT_NEAR(w.x / w.y, 0.75, 1e-15);
+  EXPECT_EQ(limit_magnitude(v, 6.0), v);
+}
+
+/// Max |sin_turns - sin| over a dense grid of two turns (negative phases included).
+template <Scalar S>
+double sine_error(SineMethod method) {
+  double worst = 0.0;
+  for (int i = -20000; i <= 20000; ++i) {
+    const double turns = i / 10000.0 + 0.5e-5;
+    const S value = sin_turns(scalar_cast<S>(turns), method);
+    // Compare with the sine of the phase as the scalar holds it (input rounding is not the
+    // method's error).
+    const double exact = std::sin(2.0 * M_PI * to_double(scalar_cast<S>(turns)));
+    worst = std::max(worst, std::abs(to_double(value) - exact));
+  }
+  return worst;
+}
+
+// The bounds stated in math/sine.hpp, checked.
+TEST(Sine, DoubleMethodsMeetTheirStatedErrors) {
+  EXPECT_LT(sine_error<double>(SineMethod::kLibrary), 1e-15);
+  EXPECT_LT(sine_error<double>(SineMethod::kPolynomial), 6e-7);
+  EXPECT_LT(sine_error<double>(SineMethod::kTable), 5e-6);
+}
+
+TEST(Sine, FloatMethodsMeetTheirStatedErrors) {
+  EXPECT_LT(sine_error<float>(SineMethod::kLibrary), 2e-6);  // 2 pi p rounds in float
+  EXPECT_LT(sine_error<float>(SineMethod::kPolynomial), 1e-6);
+  EXPECT_LT(sine_error<float>(SineMethod::kTable), 5e-6);
+}
+
+TEST(Sine, Q16MethodsStayNearTheFormatResolution) {
+  EXPECT_LT(sine_error<Q>(SineMethod::kPolynomial), 1 * kLsb);
+  EXPECT_LT(sine_error<Q>(SineMethod::kTable), 3 * kLsb);
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
+}  // namespace
+}  // namespace toonforce
