@@ -1,0 +1,99 @@
+#pragma once
+/// The device seam (after modm's Bmi088Transport concept and libfranka's RobotControl): the
+/// servo loop is a template over a `ServoDevice`, so the host simulation inlines in tests and
+/// benchmarks; `DeviceDriver` is the one virtual interface for choosing a backend at run time,
+/// and `DriverRef` adapts it to the concept (one indirect call each way per tick).
+///
+/// Everything crosses the seam in the scene frame of effects.md §0 (x right, y away from the
+/// user, z up, origin at the workspace centre) and SI units; each backend converts its own
+/// frame. read() and write() are the tick's only system calls: no allocation, no exceptions.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+/// The outcome of one device exchange. Anything but kOk means: command zero force this tick.
+enum class DeviceStatus : std::uint8_t {
+  kOk = 0,
+  kNotReady,       ///< connected but not usable yet (not homed, not calibrated)
+  kTimeout,        ///< no reply in time
+  kDisconnected,   ///< unplugged or gone
+  kProtocolError,  ///< a garbled or unexpected frame
+  kDeviceFault,    ///< the device or its driver reported an error
+};
+
+constexpr std::string_view to_string(DeviceStatus s) noexcept {
+  switch (s) {
+    case DeviceStatus::kOk: return "ok";
+    case DeviceStatus::kNotReady: return "not ready";
+    case DeviceStatus::kTimeout: return "timeout";
+    case DeviceStatus::kDisconnected: return "disconnected";
+    case DeviceStatus::kProtocolError: return "protocol error";
+    case DeviceStatus::kDeviceFault: return "device fault";
+  }
+  return "?";
+}
+
+/// One reading of the device.
+struct DeviceReading {
+  Vec3<double> position_m;        ///< HIP position, scene frame [m]
+  Vec3<double> velocity_m_per_s;  ///< valid when has_velocity
+  bool has_velocity = false;      ///< the device measures velocity itself: no estimator runs
+  std::uint32_t buttons = 0;      ///< bit i = button i pressed
+};
+
+/// What a device is and can do, known once it is open.
+struct DeviceInfo {
+  std::string name;                        ///< for messages: "Novint Falcon (serial ...)"
+  double max_force_n = 0.0;                ///< nominal peak force
+  double max_continuous_force_n = 0.0;     ///< what the motors sustain (thermal model input)
+  Vec3<double> workspace_min_m;            ///< scene frame
+  Vec3<double> workspace_max_m;
+  double nominal_rate_hz = 1000.0;
+  bool self_clocked = false;  ///< the device's own scheduler calls the tick (OpenHaptics)
+};
+
+template <class D>
+concept ServoDevice = requires(D& device, DeviceReading& reading, const Vec3<double>& force_n) {
+  { device.read(reading) } noexcept -> std::same_as<DeviceStatus>;
+  { device.write(force_n) } noexcept -> std::same_as<DeviceStatus>;
+};
+
+/// The run-time seam: one backend behind a virtual interface.
+class DeviceDriver {
+ public:
+  virtual ~DeviceDriver() = default;
+  DeviceDriver() = default;
+  DeviceDriver(const DeviceDriver&) = delete;
+  DeviceDriver& operator=(const DeviceDriver&) = delete;
+
+  /// Reads the device for this tick.
+  virtual DeviceStatus read(DeviceReading& reading) noexcept = 0;
+  /// Commands a force [N] in the scene frame.
+  virtual DeviceStatus write(const Vec3<double>& force_n) noexcept = 0;
+  /// Commands zero force now, best effort, from any thread: the watchdog outside the servo
+  /// thread and the fatal-signal path call it. Must not block indefinitely.
+  virtual void emergency_zero() noexcept = 0;
+  virtual const DeviceInfo& info() const noexcept = 0;
+  /// A person-readable explanation of the last non-ok status: what happened, what to do.
+  virtual std::string last_error() const { return {}; }
+};
+
+/// Adapts a DeviceDriver to the ServoDevice concept.
+class DriverRef {
+ public:
+  explicit DriverRef(DeviceDriver& driver) noexcept : driver_(&driver) {}
+  DeviceStatus read(DeviceReading& reading) noexcept { return driver_->read(reading); }
+  DeviceStatus write(const Vec3<double>& force_n) noexcept { return driver_->write(force_n); }
+  DeviceDriver& driver() const noexcept { return *driver_; }
+
+ private:
+  DeviceDriver* driver_;
+};
+static_assert(ServoDevice<DriverRef>);
+
+}  // namespace toonforce
