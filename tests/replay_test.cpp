@@ -132,8 +132,8 @@ std::vector<oracle::Row> random_motion(std::mt19937_64& rng, int rows, bool with
   for (int k = 0; k < rows; ++k) {
     t += 1e-3 * (0.8 + 0.4 * u(rng));
     oracle::Row r{t, {}, {}};
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) {
+    for (std::size_t i = 0; i < 3; ++i) {
+      for (std::size_t j = 0; j < 3; ++j) {
         const double w = 6.283185307179586 * freq[i][j];
         r.x[i] += amp[i][j] * std::sin(w * t + phase[i][j]);
         r.v[i] += amp[i][j] * w * std::cos(w * t + phase[i][j]);

@@ -143,7 +143,9 @@ TEST(ScalarAgreement, CartoonWallImpactTransient) {
   auto clear = [](int k) { return std::abs(strikes(k * kDt).x.z) > 4 * kLsb; };
   const auto d = forces<double>("cartoon_wall", ScalarKind::kDouble, strikes, kTicks, true);
   int transient_ticks_out_of_contact = 0;  // the transient really ran (not a wall-only run)
-  for (int k = 0; k < kTicks; ++k) transient_ticks_out_of_contact += strikes(k * kDt).x.z > 0 && norm(d[k]) > 1.0;
+  for (std::size_t k = 0; k < d.size(); ++k) {
+    transient_ticks_out_of_contact += strikes(static_cast<double>(k) * kDt).x.z > 0 && norm(d[k]) > 1.0;
+  }
   EXPECT_GT(transient_ticks_out_of_contact, 100);
   // float: t and the phase f t round at 1e-7 relative; the transient's scale
   // v_i d (k_r + k_osc) = 18 N times 1e-6 bounds it.
