@@ -53,6 +53,7 @@ std::string check_servo_config(const ServoConfig& config) {
     if (!limits.has_max_force) problem("the thermal model needs a max_force (from the scene or the device)");
   }
   if (!finite_positive(s.passivity.budget_j)) problem("passivity_budget must be > 0");
+  if (!finite_positive(s.passivity.max_damping_n_s_per_m)) problem("passivity_max_damping must be > 0");
   return problems;
 }
 

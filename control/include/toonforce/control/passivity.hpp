@@ -16,6 +16,13 @@
 /// the rate 1/dt), so the cartoon effects play in full until they have injected their budget
 /// and runaway energy cannot build up. The work is measured, not predicted: whatever the
 /// clamp, the rate limit or the hand did to the damping shows in the next tick's E_i.
+/// The damping coefficient is capped at max_damping: HR's alpha grows without bound as v -> 0,
+/// and a large damper acting on a filtered, one-tick-late velocity on a light handle reverses
+/// its motion within a few ticks and chatters, injecting energy instead (seen in the tests on
+/// a 0.1 kg handle: +-7 N at 0.03 m/s). With the cap the controller removes at most
+/// max_damping |v|^2 per second: an effect that injects faster than that (alpha > max_damping)
+/// exceeds its budget until it stops or the hand speeds up. The slippery surface needs alpha
+/// = |F_t|/|v| <= mu, so max_damping >= mu holds it to its budget.
 /// Below kMinSpeed the velocity is noise and nothing is dissipated (the excess waits).
 /// An episode's debt is dropped when the episode ends (the effect no longer injects); a new
 /// episode starts at zero.
@@ -31,6 +38,9 @@ namespace toonforce {
 struct PassivityConfig {
   bool controller = true;  ///< scene key passivity_controller
   double budget_j = 0.5;   ///< [J] per active effect and episode (scene key passivity_budget)
+  /// [N s/m] the largest damping the controller applies (scene key passivity_max_damping);
+  /// keep it at or below the device's nominal maximum damping (CHAI3D: Falcon 20, Omni 5).
+  double max_damping_n_s_per_m = 10.0;
 };
 
 /// Hannaford-Ryu observer, zero-order-hold form.
@@ -62,6 +72,7 @@ class PassivityController {
         budget_(Wide<S>::from_double(config.budget_j)),
         max_excess_(scalar_cast<S>(kMaxExcessJ)),
         min_speed_(scalar_cast<S>(kMinSpeedMPerS)),
+        max_damping_n_s_per_m_(scalar_cast<S>(config.max_damping_n_s_per_m)),
         max_force_n_(scalar_cast<S>(max_force_n)) {}
 
   /// Books the interval that just ended: the previous tick's forces, times `applied` (the share
@@ -80,6 +91,7 @@ class PassivityController {
                            S rate_hz) noexcept {
     const S speed = norm(velocity_m_per_s);
     const bool can_damp = enabled_ && speed > min_speed_;
+    const S cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
     Vec3<S> total{};
     for (std::size_t i = 0; i < slots; ++i) {
       Slot& s = slots_[i];
@@ -92,7 +104,7 @@ class PassivityController {
       // |F| = X / (|v| dt) = X rate / |v|, capped; along -v.
       const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
       const S power = excess * rate_hz;
-      const S magnitude = power < max_force_n_ * speed ? power / speed : max_force_n_;
+      const S magnitude = power < cap * speed ? power / speed : cap;
       s.damping_n = velocity_m_per_s * (-(magnitude / speed));
       total += s.damping_n;
     }
@@ -124,6 +136,7 @@ class PassivityController {
   Wide<S> budget_;
   S max_excess_;
   S min_speed_;
+  S max_damping_n_s_per_m_;
   S max_force_n_;
   std::array<Slot, (kSlots > 0 ? kSlots : 1)> slots_{};
 };
