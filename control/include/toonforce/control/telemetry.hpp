@@ -62,13 +62,16 @@ class SpscRing {
 
   /// Producer: copies `item` in, or counts a drop and returns false when full.
   bool push(const T& item) noexcept {
+    if (try_push(item)) return true;
+    dropped_.store(dropped_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    return false;
+  }
+  /// Producer: like push() but a full ring is not counted as a drop (the caller retries).
+  bool try_push(const T& item) noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);
     if (head - tail_cache_ == Capacity) {
       tail_cache_ = tail_.load(std::memory_order_acquire);
-      if (head - tail_cache_ == Capacity) {
-        dropped_.store(dropped_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
-        return false;
-      }
+      if (head - tail_cache_ == Capacity) return false;
     }
     slots_[head & (Capacity - 1)] = item;
     head_.store(head + 1, std::memory_order_release);
