@@ -222,7 +222,7 @@ std::string json_string(std::string_view s) {
 std::string json_latency(const LatencySummary& s) {
   const auto us = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-3; };
   return fmt::format(
-      "{{\"count\": {}, \"min\": {}, \"median\": {}, \"p99\": {}, \"p99_9\": {}, \"max\": {}, \"below_zero\": {}, "
+      "{{\"count\": {}, \"min\": {:.3f}, \"median\": {:.3f}, \"p99\": {:.3f}, \"p99_9\": {:.3f}, \"max\": {:.3f}, \"below_zero\": {}, "
       "\"overflow\": {}}}",
       s.count, us(s.min_ns), us(s.median_ns), us(s.p99_ns), us(s.p999_ns), us(s.max_ns), s.below_zero, s.overflow);
 }
