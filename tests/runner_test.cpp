@@ -28,6 +28,7 @@
 
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
 
 extern char** environ;
 
@@ -188,6 +189,34 @@ TEST(RunCommand, FalconAndOmniFailClearlyUntilTheirBackendsLand) {
   }
 }
 
+// ---- the trace writer (shared with toonforce sim) -------------------------------------------------
+
+TEST(TraceWriter, StartsWithTheSpecColumnsAndWritesNumbersThatReadBackExactly) {
+  const auto path = temp_path("trace.csv");
+  {
+    auto w = TraceWriter::open(path.string(), {"extra_a", "extra_b"});
+    ASSERT_TRUE(w) << w.error();
+    const TraceCore core{0.1, {1.0 / 3.0, -2e-7, 0.0}, {1e-300, 5.5, -0.0}, {8.0, 0.1 + 0.2, 1e10}};
+    EXPECT_TRUE(w.value()->write(core, std::vector<double>{std::nan(""), 42.0}));
+    EXPECT_FALSE(w.value()->write(core, std::vector<double>{1.0})) << "a row must match the header";
+    EXPECT_FALSE(w.value()->close()) << "the failed row makes close() report failure";
+  }
+  const auto lines = lines_of(path);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(lines[0], "t,x,y,z,vx,vy,vz,fx,fy,fz,extra_a,extra_b");
+  const auto row = fields(lines[1]);
+  ASSERT_EQ(row.size(), 12U);
+  EXPECT_EQ(row[1], 1.0 / 3.0);
+  EXPECT_EQ(row[4], 1e-300);
+  EXPECT_EQ(row[8], 0.1 + 0.2);
+  EXPECT_NE(lines[1].find(",nan,42"), std::string::npos) << lines[1];
+  std::filesystem::remove(path);
+}
+
+TEST(TraceWriter, TelemetryColumnsMatchWhatWriteFrameWrites) {
+  EXPECT_EQ(telemetry_columns().size(), kTelemetryExtraColumns);
+}
+
 // ---- the real binary as a child process ---------------------------------------------------------
 
 struct Child {
@@ -243,7 +272,8 @@ TEST_P(StopSignal, LeavesTheForceZeroAndATraceValidToItsLastRow) {
   for (int i = 0; i < 6000; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
     std::error_code ec;
-    if (std::filesystem::file_size(trace, ec) > 300 * 150) break;
+    const auto size = std::filesystem::file_size(trace, ec);  // (uintmax_t)-1 while it does not exist
+    if (!ec && size > 300 * 150) break;
     int status = 0;
     ASSERT_EQ(waitpid(child.pid, &status, WNOHANG), 0) << "exited early:\n" << slurp(output);
   }
