@@ -20,14 +20,17 @@ namespace toonforce::host_sim {
 /// handle rigidly, so its mass moves with the device's.
 ///
 /// Default values, from the human-arm literature as we recall it (we could not open the papers
-/// here: treat them as order-of-magnitude figures, each uncertain by a factor of about two):
+/// here: treat them as order-of-magnitude figures, each uncertain by a factor of about two).
+/// People set their arm's impedance by co-contraction (Hogan, IEEE T-AC 29(8), 1984), so a
+/// script may change them: a relaxed stroke is softer, a firm tap stiffer and more damped.
 /// - stiffness 200 N/m: the low end of the static endpoint stiffness of the arm in the
 ///   horizontal plane, a few hundred to about a thousand N/m (Mussa-Ivaldi, Hogan & Bizzi,
 ///   J. Neurosci. 5(10), 1985; Tsuji, Morasso, Goto & Ito, Biol. Cybern. 72, 1995), because
 ///   stiffness during movement is lower than in posture (Gomi & Kawato, Biol. Cybern. 76, 1997)
-///   and a relaxed pen grasp adds finger compliance in series.
-/// - damping 4 N s/m: endpoint viscosities of a few to about 20 N s/m (Tsuji et al. 1995;
-///   Dolan, Friedman & Nagurka, IEEE T-SMC 23(3), 1993), lower end for a relaxed grasp.
+///   and a pen grasp adds finger compliance in series.
+/// - damping 8 N s/m: endpoint viscosities of a few to about 20 N s/m (Tsuji et al. 1995;
+///   Dolan, Friedman & Nagurka, IEEE T-SMC 23(3), 1993). With the Falcon-class device this
+///   gives a damping ratio of about 0.55: well damped, not sluggish.
 /// - mass 0.1 kg: what moves with a stylus held in a pen grasp is mostly fingers and hand
 ///   rotating at the wrist, far less than the 1-2 kg endpoint inertia of the whole arm
 ///   (Tsuji et al. 1995); Kuchenbecker, Park & Niemeyer (Haptics Symp. 2003) model the wrist
@@ -35,7 +38,7 @@ namespace toonforce::host_sim {
 struct HandImpedance {
   double mass_kg = 0.1;
   double stiffness_n_per_m = 200.0;
-  double damping_n_s_per_m = 4.0;
+  double damping_n_s_per_m = 8.0;
 };
 
 enum class SegmentKind : std::uint8_t {
