@@ -107,6 +107,9 @@ class Controller {
   constexpr Diagnostics diagnostics() const noexcept {
     return started_ ? scene_.diagnostics(states_[current_], last_input_) : Diagnostics{};
   }
+  /// What the scene saw on the last good tick (position, the velocity it used: estimated,
+  /// given, or zero when the scene needs none), for traces; not needed by the loop.
+  constexpr const TickInput<S>& last_input() const noexcept { return last_input_; }
   constexpr const SceneT& scene() const noexcept { return scene_; }
   constexpr ForceSafety<S>& safety() noexcept { return safety_; }
 
