@@ -70,6 +70,7 @@ Plant::Plant(const DeviceParams& device, HandIntent intent, const PlantOptions& 
   for (std::size_t grasping = 0; grasping < 2; ++grasping) {
     Linear& l = linear_[grasping];
     l.mass_kg = device_.mass_kg + (grasping != 0 ? hand.mass_kg : 0.0);
+    l.inverse_mass_per_kg = 1.0 / l.mass_kg;
     l.stiffness_n_per_m = grasping != 0 ? hand.stiffness_n_per_m : 0.0;
     l.hand_damping_n_s_per_m = grasping != 0 ? hand.damping_n_s_per_m : 0.0;
     l.damping_n_s_per_m = device_.damping_n_s_per_m + l.hand_damping_n_s_per_m;
@@ -127,6 +128,17 @@ double Plant::hand_omega_rad_per_s() const noexcept {
   return std::sqrt(linear_[1].stiffness_n_per_m / linear_[1].mass_kg);
 }
 
+const HandTarget& Plant::target_at(double t_s) const noexcept {
+  for (const Remembered& r : remembered_) {
+    if (r.t_s == t_s) return r.target;
+  }
+  Remembered& slot = remembered_[next_slot_];
+  next_slot_ = 1 - next_slot_;
+  slot.t_s = t_s;
+  slot.target = intent_.at(t_s);
+  return slot.target;
+}
+
 Vec3<double> Plant::coulomb(const Vec3<double>& v) const noexcept {
   if (!(device_.coulomb_n > 0.0)) return {};
   const double smoothing = device_.coulomb_smoothing_m_per_s;
@@ -137,7 +149,7 @@ Vec3<double> Plant::input(const Linear& l, bool grasping, double t_s, const Vec3
                           const Vec3<double>& v) const noexcept {
   Vec3<double> u = force_n - coulomb(v);
   if (grasping) {
-    const HandTarget target = intent_.at(t_s);
+    const HandTarget& target = target_at(t_s);
     u += target.position_m * l.stiffness_n_per_m + target.velocity_m_per_s * l.hand_damping_n_s_per_m +
          target.force_n;
   }
@@ -147,7 +159,7 @@ Vec3<double> Plant::input(const Linear& l, bool grasping, double t_s, const Vec3
 Vec3<double> Plant::acceleration(const Linear& l, bool grasping, double t_s, const Vec3<double>& force_n,
                                  const Vec3<double>& x, const Vec3<double>& v) const noexcept {
   const Vec3<double> total = input(l, grasping, t_s, force_n, v) - x * l.stiffness_n_per_m - v * l.damping_n_s_per_m;
-  return total * (1.0 / l.mass_kg);
+  return total * l.inverse_mass_per_kg;
 }
 
 void Plant::substep(const Linear& l, bool grasping, double t, const Vec3<double>& f) noexcept {
@@ -189,8 +201,8 @@ void Plant::substep(const Linear& l, bool grasping, double t, const Vec3<double>
       const Vec3<double> u0 = input(l, grasping, t, f, v0);
       Vec3<double> slope{};
       if (grasping) {
-        const HandTarget a = intent_.at(t);
-        const HandTarget b = intent_.at(t + h);
+        const HandTarget a = target_at(t);
+        const HandTarget b = target_at(t + h);
         const auto pull = [&l](const HandTarget& target) {
           return target.position_m * l.stiffness_n_per_m + target.velocity_m_per_s * l.hand_damping_n_s_per_m +
                  target.force_n;
@@ -211,7 +223,7 @@ void Plant::step(std::int64_t tick, const Vec3<double>& force_n) noexcept {
   for (int j = 0; j < options_.substeps; ++j) {
     // Times from integers, never accumulated (the same rule as effects.md §0).
     const double t = t0 + static_cast<double>(j) * h_s_;
-    const bool grasping = intent_.at(t).grasping;
+    const bool grasping = target_at(t).grasping;
     substep(linear_[grasping ? 1 : 0], grasping, t, force_n);
   }
 }

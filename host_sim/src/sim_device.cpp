@@ -56,6 +56,11 @@ Vec3<double> SimDevice::shape_force(const Vec3<double>& force_n) const noexcept 
   return f;
 }
 
+void SimDevice::set_state(const Vec3<double>& position_m, const Vec3<double>& velocity_m_per_s) noexcept {
+  plant_.set_state(position_m, velocity_m_per_s);
+  samples_[slot(tick_)] = measure(position_m);
+}
+
 DeviceStatus SimDevice::read(DeviceReading& reading) noexcept {
   const std::int64_t sampled = std::max<std::int64_t>(0, tick_ - plant_.device().io_delay_ticks);
   reading.position_m = samples_[slot(sampled)];

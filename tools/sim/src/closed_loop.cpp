@@ -105,6 +105,7 @@ std::int64_t SimSession::ticks_for(double duration_s) const noexcept {
 }
 
 const host_sim::SimDevice& SimSession::device() const noexcept { return impl_->device; }
+host_sim::SimDevice& SimSession::device() noexcept { return impl_->device; }
 const SimConfig& SimSession::config() const noexcept { return impl_->config; }
 const ControllerConfig& SimSession::controller_config() const noexcept { return impl_->controller_config; }
 

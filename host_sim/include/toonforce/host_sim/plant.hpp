@@ -43,7 +43,7 @@ class Plant {
     v_ = velocity_m_per_s;
   }
   /// The hand's intent at time t.
-  HandTarget hand(double t_s) const noexcept { return intent_.at(t_s); }
+  HandTarget hand(double t_s) const noexcept { return target_at(t_s); }
   const HandIntent& intent() const noexcept { return intent_; }
   /// Kinetic energy of the moving mass plus the hand spring's energy about its reference [J].
   double mechanical_energy_j(double t_s) const noexcept;
@@ -62,6 +62,7 @@ class Plant {
   /// (x0, v0, u0, du), the input u(s) = u0 + du s over the sub-step.
   struct Linear {
     double mass_kg = 0.0;
+    double inverse_mass_per_kg = 0.0;
     double stiffness_n_per_m = 0.0;
     double damping_n_s_per_m = 0.0;  ///< device plus hand
     double hand_damping_n_s_per_m = 0.0;
@@ -69,6 +70,11 @@ class Plant {
   };
 
   Plant(const DeviceParams& device, HandIntent intent, const PlantOptions& options);
+
+  /// The intent at t, remembering the last two instants asked for: RK4 asks for the middle
+  /// of a sub-step twice and for its end again as the next one's start, so a tick of s
+  /// sub-steps evaluates the intent 2 s + 1 times instead of 5 s.
+  const HandTarget& target_at(double t_s) const noexcept;
 
   Vec3<double> coulomb(const Vec3<double>& v) const noexcept;
   /// Everything but the linear part's -k x - b v: device force, friction, the hand's pull
@@ -88,6 +94,12 @@ class Plant {
   Vec3<double> x_;
   Vec3<double> v_;
   double work_j_ = 0.0;
+  struct Remembered {
+    double t_s = -1.0;  // the intent is only asked for t >= 0
+    HandTarget target;
+  };
+  mutable std::array<Remembered, 2> remembered_{};
+  mutable std::size_t next_slot_ = 0;
 };
 
 /// exp(A) of a 4x4 matrix by scaling and squaring of its Taylor series (start-up code; exposed

@@ -27,6 +27,10 @@ class SimDevice {
   DeviceStatus read(DeviceReading& reading) noexcept;
   DeviceStatus write(const Vec3<double>& force_n) noexcept;
 
+  /// Puts the handle at `position_m` moving at `velocity_m_per_s` now (set-up code: tests
+  /// start from a chosen state), and re-measures the current tick's reading.
+  void set_state(const Vec3<double>& position_m, const Vec3<double>& velocity_m_per_s) noexcept;
+
   /// While set, every write applies zero force (the single-threaded form; SimDriver latches
   /// it from any thread).
   void force_zero(bool zero) noexcept { zero_force_ = zero; }

@@ -60,6 +60,8 @@ class SimSession {
   /// Ticks in `duration_s` at this period (rounded to the nearest tick).
   std::int64_t ticks_for(double duration_s) const noexcept;
   const host_sim::SimDevice& device() const noexcept;
+  /// The simulated device, to set a starting state before the first step (tests).
+  host_sim::SimDevice& device() noexcept;
   const SimConfig& config() const noexcept;
   /// The controller's force limits (the smaller of the scene's and the device's maximum).
   const ControllerConfig& controller_config() const noexcept;

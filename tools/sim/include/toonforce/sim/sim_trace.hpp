@@ -58,12 +58,14 @@ class SimTraceWriter {
   struct FileCloser {
     void operator()(std::FILE* f) const noexcept;
   };
-  SimTraceWriter() = default;
+  SimTraceWriter();
   void flush();
+  void append(std::string_view text);
 
   std::unique_ptr<std::FILE, FileCloser> file_;
   std::string path_;
-  fmt::memory_buffer buffer_;
+  std::unique_ptr<char[]> buffer_;  ///< fixed size: flushed before a row might not fit
+  std::size_t used_ = 0;
   std::string memory_;
   bool to_memory_ = false;
   bool failed_ = false;
