@@ -121,6 +121,12 @@ def plot_wall(c, fig):
     ax.plot(t, [z * MM for z in c["hand_z"]], color="0.3", ls="--", label="hand's aim")
     ax.axhline(0.0, color="k", lw=1.2, label="wall surface")
     ax.set_ylabel("height z [mm]")
+    # Zoom on the contact: the approach leaves the top, the rebound and oscillation fill it.
+    contact_z = [z * MM for z, contact in zip(c["true_z"], c["contact"]) if contact == 1.0]
+    first = next((i for i, contact in enumerate(c["contact"]) if contact == 1.0), None)
+    if contact_z and first is not None:
+        after = [z * MM for z in c["true_z"][first:]] + [z * MM for z in c["hand_z"][first:]]
+        ax.set_ylim(min(after) - 1.0, max(15.0, max(after) + 2.0))
     axes[1].plot(t, c["fz"], color="tab:green", label="commanded $f_z$")
     axes[1].plot(t, c["device_fz"], color="tab:olive", lw=0.8, ls=":", label="device (saturated, quantised)")
     axes[1].set_ylabel("force [N]")
