@@ -72,10 +72,16 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   summary.script_name = hand->script.name;
   summary.device_name = std::string(session->config().device.name);
   summary.script_duration_s = hand->intent.duration_s();
+  const auto& device = session->config().device;
+  const auto inside = [&device](const Vec3<double>& p) {
+    return p.x >= device.workspace_min_m.x && p.x <= device.workspace_max_m.x && p.y >= device.workspace_min_m.y &&
+           p.y <= device.workspace_max_m.y && p.z >= device.workspace_min_m.z && p.z <= device.workspace_max_m.z;
+  };
   for (std::int64_t k = 0; k < ticks; ++k) {
     const SimRecord record = session->step();
     trace->write(record);
     add_to_summary(summary, record);
+    if (!inside(record.true_position_m)) ++summary.ticks_outside_workspace;
   }
   summary.duration_s = static_cast<double>(ticks) * session->config().plant.period_s;
   summary.final_position_m = session->device().plant().position_m();
@@ -119,6 +125,11 @@ std::string format_sim_summary(const SimSummary& s, const SimOptions& options) {
                       s.fault_ticks);
   text += fmt::format("end     handle at [{:.4g}, {:.4g}, {:.4g}] m\n", s.final_position_m.x, s.final_position_m.y,
                       s.final_position_m.z);
+  if (s.ticks_outside_workspace > 0) {
+    text += fmt::format("note    the handle was outside the device's workspace for {} ticks: the simulated device "
+                        "has no end stops, a real one would have stopped it\n",
+                        s.ticks_outside_workspace);
+  }
   if (options.trace_path != "-") text += fmt::format("trace   {}\n", options.trace_path);
   if (!options.plot_path.empty()) text += fmt::format("plot    {}\n", options.plot_path);
   return text;

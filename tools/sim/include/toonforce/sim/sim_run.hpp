@@ -47,6 +47,7 @@ struct SimSummary {
   Vec3<double> final_position_m;
   double device_work_j = 0.0;
   int last_cliff_state = -1;  ///< to count SUPPORTED -> FALLEN transitions
+  std::int64_t ticks_outside_workspace = 0;  ///< the handle beyond the device's workspace
 };
 
 /// Accumulates the summary from records (shared by the CLI, the figures and the benchmark).
