@@ -175,8 +175,10 @@ type = "stroke"
 to = [0.004, 0.0, 0.01]
 speed = 0.2
 force = 1.0
+label = "nudge"
 )");
   EXPECT_NE(e.find(at(9, "segment[2].to") + "the path is 0.004 m long"), std::string::npos) << e;
+  EXPECT_NE(e.find("(segment 'nudge')"), std::string::npos) << e;
 }
 
 TEST_F(HandScriptFileTest, MissingHandTableAndBadStart) {

@@ -183,7 +183,9 @@ Result<HandScriptFile> describe(const toml::table& root, ErrorList& errors, std:
     const toml::table& t = *segments[plan_error.segment];
     const toml::node* node = t.get(plan_error.key);
     const std::uint32_t line = node != nullptr ? node->source().begin.line : t.source().begin.line;
-    errors.add(line, fmt::format("segment[{}].{}", plan_error.segment + 1, plan_error.key), plan_error.problem);
+    const std::string& label = script.segments[plan_error.segment].label;
+    errors.add(line, fmt::format("segment[{}].{}", plan_error.segment + 1, plan_error.key),
+               label.empty() ? plan_error.problem : fmt::format("{} (segment '{}')", plan_error.problem, label));
     return Error{errors.text()};
   }
   file.intent = std::move(*intent);

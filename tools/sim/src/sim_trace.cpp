@@ -2,6 +2,7 @@
 
 
 #include <fmt/compile.h>
+#include <fmt/format.h>
 
 namespace toonforce {
 

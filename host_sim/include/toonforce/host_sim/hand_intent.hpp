@@ -14,6 +14,7 @@
 /// - hold, release: the reference stays where it is; release ends the grasp.
 /// The press force (along -normal) changes linearly from its previous value to the segment's
 /// over `force_ramp` seconds. After the last segment the hand keeps its last intent.
+/// Not thread-safe: at() moves a cursor (one simulation per thread, as the servo loop runs).
 
 #include <cstddef>
 #include <optional>

@@ -64,7 +64,7 @@ struct HandSegment {
   std::optional<double> force_n;      ///< press force along -normal (stroke, cross, hold)
   Vec3<double> normal{0.0, 0.0, 1.0};  ///< unit; out of the surface pressed on
   double force_ramp_s = 0.05;         ///< [s] how long the press force takes to change
-  std::string label;                  ///< optional, for plots and messages
+  std::string label;                  ///< optional name for the reader; quoted in plan errors
   std::uint32_t line = 0;             ///< where it was written (for messages)
 };
 

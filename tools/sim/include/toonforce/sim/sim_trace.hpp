@@ -23,8 +23,6 @@
 #include <string>
 #include <string_view>
 
-#include <fmt/format.h>
-
 #include "toonforce/sim/closed_loop.hpp"
 
 namespace toonforce {
