@@ -24,7 +24,10 @@ struct DeviceParams {
   double damping_n_s_per_m = 0.0;       ///< viscous friction
   double coulomb_n = 0.0;               ///< Coulomb (dry) friction magnitude
   /// [m/s] Coulomb friction is smoothed below this speed, F = -f_c v / sqrt(|v|^2 + v_s^2),
-  /// so the integrators see a smooth force (a step would cost RK4 its order).
+  /// so the integrators see a smooth force (a step would cost RK4 its order). 2 mm/s is a
+  /// tenth of the Falcon's one-count-per-tick speed (20 um per 1 ms): slower than anything
+  /// its controller can resolve, yet its damping (f_c / v_s, 100 N s/m) stays integrable
+  /// with a 0.25 ms step.
   double coulomb_smoothing_m_per_s = 0.002;
   double max_force_n = 0.0;             ///< force saturation (magnitude); 0: none
   double encoder_step_m = 0.0;          ///< position quantisation per axis; 0: none
@@ -80,7 +83,9 @@ DeviceParams falcon_params() noexcept;
 /// - damping 0.05 N s/m: ESTIMATE, a lighter capstan drive than the Falcon's;
 /// - one tick of I/O delay: ESTIMATE; hdBeginFrame latches the state and hdEndFrame writes the
 ///   force in the same 1 kHz tick (§2.2), plus the transport;
-/// - workspace about 160 x 120 x 70 mm (quoted, unverified).
+/// - workspace about 160 x 120 x 70 mm (quoted, unverified);
+/// - no velocity in the reading: OpenHaptics does report a smoothed velocity (omni.md §2.2),
+///   but its filter is not documented, so the controller estimates velocity as for the Falcon.
 DeviceParams omni_params() noexcept;
 
 DeviceParams device_params(DevicePreset preset) noexcept;
