@@ -50,7 +50,7 @@ class ScalarLoop final : public Loop {
     record.limits = result.limits;
     record.has_diagnostics = !result.faults.has(Fault::kNonFiniteInput) && !result.faults.has(Fault::kNonFiniteForce);
     if (record.has_diagnostics) {
-      record.velocity_m_per_s = to_double(controller_.last_input().velocity_m_per_s);
+      record.velocity_m_per_s = to_double(controller_.last_velocity_m_per_s());
       record.diagnostics = controller_.diagnostics();
     }
     static_cast<void>(device.write(force));
