@@ -192,6 +192,28 @@ TEST(Controller, Q16SaturationRaisesItsFault) {
   EXPECT_EQ(r.force_n.z, Q16_16::max());                         // saturated, not wrapped
 }
 
+TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
+  // Found by tests/fuzz/tick_fuzz.cpp: scaling a 30000 N request down to a 13 N step by the
+  // ratio 13/30000, itself rounded to an LSB (29 LSB, 2% off), overshot the rate limit by
+  // 0.2 N. The limits scale by (v * limit) / |v| in 64 bits instead.
+  const auto scene = parse_scene("[device]\nmax_force = 20\nmax_force_rate = 2000\n[[surface]]\npoint = [0, 0, 0]\n"
+                                 "normal = [0, 0, 1]\nstiffness = 30000\n",
+                                 "huge.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(scene) << scene.error();
+  Controller ctl(make_runtime_scene<Q16_16>(scene.value()), controller_config(scene.value(), 0.0));
+  constexpr double kLsb = 1.0 / 65536.0;
+  Sample s = sample(0, {0, 0, -0.999});  // asks for 29970 N
+  s.dt_s = 0.0066;                       // allows 13.2 N per tick
+  const auto first = ctl.tick(s);
+  EXPECT_LE(first.force_n.z.to_double(), 2000.0 * 0.0066 + 2 * kLsb);
+  EXPECT_GE(first.force_n.z.to_double(), 2000.0 * 0.0066 - 2 * kLsb);
+  s = sample(1, {0, 0, -0.999});
+  s.dt_s = 0.0066;
+  const auto second = ctl.tick(s);
+  EXPECT_LE(second.force_n.z.to_double(), 20.0 + 2 * kLsb);  // then the clamp holds
+  EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
+}
+
 /// A tick of every bundled scene, in every scalar type, allocates nothing.
 template <Scalar S>
 void expect_no_allocation(const std::string& name, ScalarKind kind) {

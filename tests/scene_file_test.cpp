@@ -150,8 +150,23 @@ const Malformed kMalformed[] = {
     {"unknown key in device", "[device]\nmax_froce = 8\n", "device: unknown key 'max_froce' (did you mean 'max_force'?)", 2},
     {"TOML syntax error", "[[surface]]\npoint = [0, 0, 0\n", "TOML syntax", 2},
     {"boolean where a number goes", "[device]\nvelocity_cutoff = true\n", "must be a number, not a boolean", 2},
+    // Found by tests/fuzz/scene_file_fuzz.cpp: toml++ 3.3 (Debian 12's) reaches undefined
+    // behaviour on these (its issues #190 and #295); the loader rejects them first.
+    {"non-ASCII outside comments and strings", "# \xc2\xa7 in a comment is fine\n[device]\nmax_force = 8 \xc2\xa7\n",
+     "a non-ASCII character outside a comment or a string", 3},
+    {"a combining mark at the top level (toml++ #295)", "name = \"ok\"\n\xcc\xaa\n",
+     "a non-ASCII character outside a comment or a string", 2},
+    {"invalid UTF-8, even in a comment", "name = \"ok\"\n# caf\xc3\x28\n", "invalid UTF-8 (byte 0xC3)", 2},
+    {"non-ASCII after a line-ending backslash", "name = \"\"\"\\\n\xc2\xa7\"\"\"\n",
+     "a non-ASCII character outside a comment or a string", 2},
 };
 INSTANTIATE_TEST_SUITE_P(SceneFile, MalformedScene, ::testing::ValuesIn(kMalformed));
+
+TEST(SceneFile, AcceptsNonAsciiInCommentsAndStrings) {
+  const auto scene = parse_scene("# ice \xe2\x9d\x84 (paper \xc2\xa7" "4.1)\nname = \"glace \xc3\xa0 la \xc2\xa7\"\n", "utf8.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  EXPECT_EQ(scene->name, "glace \xc3\xa0 la \xc2\xa7");
+}
 
 TEST(SceneFile, ReportsEveryErrorOfAFileAtOnce) {
   const auto scene = parse_scene(std::string(kSurface) + "colour = \"red\"\n[[surface]]\npoint = [0, 0, 0]\n", "bad.toml");

@@ -308,7 +308,7 @@ class ServoLoop {
       has_position_ = true;
     }
 
-    VelocityEstimator<S> estimator = estimator_;
+    Vec3<S> estimate{};
     bool estimated = false;
     if (reading.has_velocity) {
       sample.velocity_m_per_s = reading.velocity_m_per_s;
@@ -317,7 +317,8 @@ class ServoLoop {
       // 1/dt since the last committed tick, as the controller's own estimator would.
       const std::int64_t since = has_commit_ ? k - last_commit_ : gap;
       const S rate = scalar_cast<S>(1.0 / (static_cast<double>(since) * period_s_));
-      sample.velocity_m_per_s = to_double(estimator.update(x, rate));
+      estimate = estimator_.estimate(x, rate);  // committed below once the tick is good
+      sample.velocity_m_per_s = to_double(estimate);
       sample.has_velocity = true;
       estimated = true;
     }
@@ -363,7 +364,7 @@ class ServoLoop {
       applied_ = S{};
       return result;
     }
-    if (estimated) estimator_ = estimator;
+    if (estimated) estimator_.commit(x, estimate);
     last_commit_ = k;
     has_commit_ = true;
     if (!sample.has_velocity) velocity_m_per_s_ = Vec3<S>{};
