@@ -6,6 +6,7 @@
 namespace toonforce::cli {
 
 void add_replay(CLI::App& app);
+void add_run(CLI::App& app);
 void add_doctor(CLI::App& app);
 void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);

@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
   toonforce::cli::add_replay(app);
+  toonforce::cli::add_run(app);
   toonforce::cli::add_doctor(app);
   toonforce::cli::add_sim(app);
   toonforce::cli::add_figures(app);

@@ -226,6 +226,35 @@ std::optional<Vec3<double>> TableReader::required_vec3(std::string_view key, std
   return Vec3<double>{v[0], v[1], v[2]};
 }
 
+std::optional<Vec3<double>> TableReader::optional_vec3(std::string_view key, std::string_view unit) {
+  if (table_.get(key) == nullptr) {
+    known_.emplace_back(key);
+    return std::nullopt;
+  }
+  return required_vec3(key, unit);
+}
+
+std::optional<std::int64_t> TableReader::optional_integer(std::string_view key, std::int64_t min_value) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return std::nullopt;
+  std::optional<std::int64_t> value;
+  if (const auto* i = node->as_integer()) {
+    value = i->get();
+  } else if (const auto* f = node->as_floating_point()) {
+    const double v = f->get();
+    if (std::isfinite(v) && v == std::floor(v) && std::abs(v) < 9e15) value = static_cast<std::int64_t>(v);
+  }
+  if (!value) {
+    error(key, fmt::format("must be a whole number, not {}", node->is_number() ? "a fraction" : type_name(*node)));
+    return std::nullopt;
+  }
+  if (*value < min_value) {
+    error(key, fmt::format("must be >= {} (got {})", min_value, *value));
+    return std::nullopt;
+  }
+  return value;
+}
+
 std::optional<std::string> TableReader::optional_string(std::string_view key) {
   const toml::node* node = take(key);
   if (node == nullptr) return std::nullopt;

@@ -8,6 +8,11 @@
 /// scene force, gives exactly zero force that tick and a fault bit; effect and estimator
 /// states stay as they were (time still advances). The next good tick's rate 1/dt then spans
 /// the time since the last good one, so a dropped sample does not double the velocity estimate.
+///
+/// The servo loop's safety layer hooks in between the scene force and the safety stage through
+/// `tick(sample, stage)`: the stage sees the committed scene force, the tick's inputs and the
+/// effects' new state, and returns the force to limit (ramp, passivity damping) or a cut (zero
+/// now, bypassing the rate limit like the non-finite guard). `tick(sample)` is the identity stage.
 
 #include <cmath>
 #include <type_traits>
@@ -43,6 +48,21 @@ struct TickResult {
   std::uint8_t limits = 0;  ///< Limit bits
 };
 
+/// What a stage makes of a finite scene force before the rate limit and the clamp.
+template <Scalar S>
+struct Shaped {
+  Vec3<S> force_n;   ///< the force to pass through the rate limit and the clamp
+  bool cut = false;  ///< command exactly zero this tick, bypassing the rate limit
+};
+
+/// The stage of `Controller::tick(sample)`: the scene force as it is.
+struct IdentityStage {
+  template <Scalar S, class In, class State>
+  constexpr Shaped<S> operator()(const Vec3<S>& scene_force_n, const In&, const State&) const noexcept {
+    return {scene_force_n, false};
+  }
+};
+
 template <SceneType SceneT>
 class Controller {
  public:
@@ -53,7 +73,13 @@ class Controller {
   constexpr Controller(const SceneT& scene, const ControllerConfig& config) noexcept
       : scene_(scene), config_(config), safety_(config.limits), estimator_(config.velocity_cutoff_hz) {}
 
-  constexpr TickResult<S> tick(const Sample& sample) noexcept {
+  constexpr TickResult<S> tick(const Sample& sample) noexcept { return tick(sample, IdentityStage{}); }
+
+  /// One tick with `stage(scene_force, TickInput<S>, const SceneT::State&) -> Shaped<S>` called
+  /// once on a finite scene force, after the effects' states are committed. It is not called on
+  /// a non-finite tick (the output is zero then anyway).
+  template <class Stage>
+  constexpr TickResult<S> tick(const Sample& sample, Stage&& stage) noexcept {
     if constexpr (kIsFixed<S>) static_cast<void>(take_fixed_saturated());  // this tick's flag only
     TickResult<S> result{};
     const bool inputs_finite = is_finite(sample.position_m) &&
@@ -99,10 +125,16 @@ class Controller {
     dropped_since_commit_ = false;
     started_ = true;
 
-    const auto out = safety_.limit(scene_force, tick_rate_hz);
-    result.force_n = out.force_n;
     result.scene_force_n = scene_force;
-    result.limits = out.limits;
+    const Shaped<S> shaped = stage(scene_force, static_cast<const TickInput<S>&>(in),
+                                   static_cast<const typename SceneT::State&>(states_[current_]));
+    if (shaped.cut) {
+      safety_.zero();
+    } else {
+      const auto out = safety_.limit(shaped.force_n, tick_rate_hz);
+      result.force_n = out.force_n;
+      result.limits = out.limits;
+    }
     if constexpr (kIsFixed<S>) {
       if (take_fixed_saturated()) result.faults.set(Fault::kFixedSaturation);
     }
@@ -124,6 +156,8 @@ class Controller {
   constexpr const Vec3<S>& last_velocity_m_per_s() const noexcept { return last_velocity_m_per_s_; }
   constexpr const SceneT& scene() const noexcept { return scene_; }
   constexpr ForceSafety<S>& safety() noexcept { return safety_; }
+  constexpr const ForceSafety<S>& safety() const noexcept { return safety_; }
+  constexpr const ControllerConfig& config() const noexcept { return config_; }
 
  private:
   SceneT scene_;

@@ -72,6 +72,8 @@ class ForceSafety {
     max_force_n_ = max_force_n;
     has_max_force_ = true;
   }
+  constexpr S max_force() const noexcept { return max_force_n_; }
+  constexpr bool has_max_force() const noexcept { return has_max_force_; }
   constexpr const Vec3<S>& previous_output() const noexcept { return previous_n_; }
 
  private:

@@ -12,6 +12,7 @@
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/toml_reader.hpp"
 #include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_config.hpp"
 #include "toonforce/effects/scene.hpp"
 
 namespace toonforce {
@@ -73,6 +74,10 @@ struct SceneDescription {
   /// [device]
   ForceLimits limits;
   double velocity_cutoff_hz = VelocityEstimator<double>::kDefaultCutoffHz;
+  /// [device] keys of the servo loop's safety layer (toonforce extensions, interfaces.md),
+  /// defaults filled in; replay ignores them. Workspace and continuous force stay unset
+  /// (has_workspace false, continuous_force_n 0) unless the file sets them: the device fills them.
+  SafetyConfig safety;
   std::vector<Surface> surfaces;
   std::vector<Cliff> cliffs;
   std::vector<Entry> order;  ///< all effects in file order (their forces add in this order)
@@ -86,6 +91,10 @@ Result<SceneDescription> parse_scene(std::string_view text, std::string_view sou
 
 /// The controller settings a scene asks for ([device] table), for a run at `period_s` (0: stamped time).
 ControllerConfig controller_config(const SceneDescription& scene, double period_s);
+
+/// The servo loop's settings a scene asks for, at servo period `period_s` > 0 (before the
+/// device fills what the file leaves open: see with_device).
+ServoConfig servo_config(const SceneDescription& scene, double period_s);
 
 /// Builds the run-time scene; `sine` overrides every impact's sine method when set. The
 /// description must have been loaded for S (the loader checked its values fit S).

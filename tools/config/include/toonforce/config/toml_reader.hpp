@@ -4,6 +4,7 @@
 /// wrong type, a non-finite number, a value out of range. All errors of a file are collected
 /// so one run shows them all. Numbers may be written as integers or floats.
 
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string>
@@ -55,6 +56,10 @@ class TableReader {
   std::optional<double> optional_number(std::string_view key, Range range);
   /// A required 3-vector of numbers.
   std::optional<Vec3<double>> required_vec3(std::string_view key, std::string_view unit);
+  /// An optional 3-vector of numbers.
+  std::optional<Vec3<double>> optional_vec3(std::string_view key, std::string_view unit);
+  /// An optional whole number >= `min_value` (a count, not a quantity: no scalar-range check).
+  std::optional<std::int64_t> optional_integer(std::string_view key, std::int64_t min_value);
   std::optional<std::string> optional_string(std::string_view key);
   /// An optional boolean (true/false).
   std::optional<bool> optional_bool(std::string_view key);

@@ -1,0 +1,144 @@
+#pragma once
+/// Passivity observer and controller (Hannaford and Ryu, "Time-domain passivity control of
+/// haptic interfaces", IEEE T-RA 18(1), 2002; shared/reference/realtime-safety-stability.md).
+///
+/// Observer: the energy the virtual environment has absorbed, E_obs = -sum F_{k-1}.(x_k -
+/// x_{k-1}), the zero-order-hold form (the force commanded at tick k-1 acts while the HIP
+/// moves to x_k; Ryu, Kim and Hannaford, ICRA 2004 use the same). It needs no velocity
+/// estimate, so filter lag cannot hide energy. E_obs >= 0 means passive so far; the
+/// super-slippery surface and the impact transient drive it down by design.
+///
+/// Controller (spec effects.md §6): each active effect (ActiveEffects slots) has an energy
+/// budget per episode (a contact, a transient). Its episode energy E_i is the work its own
+/// force did on the HIP (the share of it that reached the device), minus what the controller
+/// dissipated on its behalf. Only the excess X_i = E_i - budget is dissipated, by a damping
+/// force along -v of magnitude X_i / (|v| dt) (the HR rule alpha = X / (v^2 dt), written with
+/// the rate 1/dt), so the cartoon effects play in full until they have injected their budget
+/// and runaway energy cannot build up. The work is measured, not predicted: whatever the
+/// clamp, the rate limit or the hand did to the damping shows in the next tick's E_i.
+/// The damping coefficient is capped at max_damping: HR's alpha grows without bound as v -> 0,
+/// and a large damper acting on a filtered, one-tick-late velocity on a light handle reverses
+/// its motion within a few ticks and chatters, injecting energy instead (seen in the tests on
+/// a 0.1 kg handle: +-7 N at 0.03 m/s). With the cap the controller removes at most
+/// max_damping |v|^2 per second: an effect that injects faster than that (alpha > max_damping)
+/// exceeds its budget until it stops or the hand speeds up. The slippery surface needs alpha
+/// = |F_t|/|v| <= mu, so max_damping >= mu holds it to its budget.
+/// Below kMinSpeed the velocity is noise and nothing is dissipated (the excess waits).
+/// An episode's debt is dropped when the episode ends (the effect no longer injects); a new
+/// episode starts at zero.
+
+#include <array>
+#include <cstddef>
+
+#include "toonforce/control/active_effects.hpp"
+#include "toonforce/control/wide.hpp"
+
+namespace toonforce {
+
+struct PassivityConfig {
+  bool controller = true;  ///< scene key passivity_controller
+  double budget_j = 0.5;   ///< [J] per active effect and episode (scene key passivity_budget)
+  /// [N s/m] the largest damping the controller applies (scene key passivity_max_damping);
+  /// keep it at or below the device's nominal maximum damping (CHAI3D: Falcon 20, Omni 5).
+  double max_damping_n_s_per_m = 10.0;
+};
+
+/// Hannaford-Ryu observer, zero-order-hold form.
+template <Scalar S>
+class PassivityObserver {
+ public:
+  /// `held_force_n` acted on the HIP while it moved by `displacement_m`.
+  constexpr void observe(const Vec3<S>& held_force_n, const Vec3<S>& displacement_m) noexcept {
+    energy_ -= Wide<S>::dot(held_force_n, displacement_m);
+  }
+  /// E_obs [J]: >= 0 passive so far.
+  constexpr Wide<S> energy() const noexcept { return energy_; }
+
+ private:
+  Wide<S> energy_{};
+};
+
+template <Scalar S, std::size_t kSlots>
+class PassivityController {
+ public:
+  /// [m/s] below this speed no damping is applied.
+  static constexpr double kMinSpeedMPerS = 1e-3;
+  /// [J] an excess is capped here before it is turned into a force (keeps X * rate in range).
+  static constexpr double kMaxExcessJ = 1.0;
+
+  /// `max_force_n` caps each slot's damping force (the clamp caps the sum anyway).
+  PassivityController(const PassivityConfig& config, double max_force_n) noexcept
+      : enabled_(config.controller),
+        budget_(Wide<S>::from_double(config.budget_j)),
+        max_excess_(scalar_cast<S>(kMaxExcessJ)),
+        min_speed_(scalar_cast<S>(kMinSpeedMPerS)),
+        max_damping_n_s_per_m_(scalar_cast<S>(config.max_damping_n_s_per_m)),
+        max_force_n_(scalar_cast<S>(max_force_n)) {}
+
+  /// Books the interval that just ended: the previous tick's forces, times `applied` (the share
+  /// of the wanted force that reached the device, 0..1), moved the HIP by `displacement_m`.
+  constexpr void account(const Vec3<S>& displacement_m, S applied, std::size_t slots) noexcept {
+    for (std::size_t i = 0; i < slots; ++i) {
+      Slot& s = slots_[i];
+      if (!s.in_episode) continue;
+      s.energy += Wide<S>::dot((s.force_n + s.damping_n) * applied, displacement_m);
+    }
+  }
+
+  /// This tick's active forces (`slots` entries) and HIP velocity: tracks episodes and returns
+  /// the damping force for the excess energies (zero when the controller is off).
+  constexpr Vec3<S> update(const ActiveForce<S>* forces, std::size_t slots, const Vec3<S>& velocity_m_per_s,
+                           S rate_hz) noexcept {
+    const S speed = norm(velocity_m_per_s);
+    const bool can_damp = enabled_ && speed > min_speed_;
+    const S cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
+    Vec3<S> total{};
+    for (std::size_t i = 0; i < slots; ++i) {
+      Slot& s = slots_[i];
+      const ActiveForce<S>& f = forces[i];
+      if (f.in_episode && (!s.in_episode || f.triggered)) s.energy = Wide<S>{};  // a new episode
+      s.in_episode = f.in_episode;
+      s.force_n = f.force_n;
+      s.damping_n = Vec3<S>{};
+      if (!s.in_episode || !can_damp || !(s.energy > budget_)) continue;
+      // |F| = X / (|v| dt) = X rate / |v|, capped; along -v.
+      const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
+      const S power = excess * rate_hz;
+      const S magnitude = power < cap * speed ? power / speed : cap;
+      s.damping_n = velocity_m_per_s * (-(magnitude / speed));
+      total += s.damping_n;
+    }
+    return total;
+  }
+
+  /// The largest episode energy among running episodes [J] (0 if none).
+  constexpr Wide<S> max_episode_energy(std::size_t slots) const noexcept {
+    Wide<S> most{};
+    for (std::size_t i = 0; i < slots; ++i) {
+      if (slots_[i].in_episode && slots_[i].energy > most) most = slots_[i].energy;
+    }
+    return most;
+  }
+  constexpr Wide<S> episode_energy(std::size_t slot) const noexcept { return slots_[slot].energy; }
+  constexpr bool in_episode(std::size_t slot) const noexcept { return slots_[slot].in_episode; }
+  constexpr bool enabled() const noexcept { return enabled_; }
+  constexpr Wide<S> budget() const noexcept { return budget_; }
+
+ private:
+  struct Slot {
+    Wide<S> energy{};     ///< E_i of the running episode [J]
+    Vec3<S> force_n{};    ///< the effect's force on the previous tick
+    Vec3<S> damping_n{};  ///< the damping applied on its behalf on the previous tick
+    bool in_episode = false;
+  };
+
+  bool enabled_;
+  Wide<S> budget_;
+  S max_excess_;
+  S min_speed_;
+  S max_damping_n_s_per_m_;
+  S max_force_n_;
+  std::array<Slot, (kSlots > 0 ? kSlots : 1)> slots_{};
+};
+
+}  // namespace toonforce

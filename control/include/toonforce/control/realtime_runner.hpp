@@ -1,0 +1,94 @@
+#pragma once
+/// The self-timed real-time runner behind `toonforce run` (Linux): a dedicated thread at
+/// SCHED_FIFO where permitted, memory locked (mlockall), optionally pinned to a CPU, waking on
+/// absolute deadlines (clock_nanosleep TIMER_ABSTIME on CLOCK_MONOTONIC, as cyclictest does).
+/// Deadlines missed while the thread was late are skipped and counted, never bursted: after a
+/// late wake-up the tick runs at the latest deadline that has passed, so its integer time (and
+/// the loop's dt) tells the truth. Per tick it records wake-up latency, compute time and slack
+/// in fixed histograms. A watchdog thread outside the loop commands zero force through
+/// `EmergencyZero` when the loop's heartbeat stops for `watchdog_periods` periods.
+///
+/// The runner knows nothing of scenes or devices: it drives a `PeriodicTask`. One tick is the
+/// task's `tick(k)`; the runner measures around it, then calls `publish(k, timing)` (telemetry),
+/// and at the end, or when `stop` becomes non-zero (a signal), `shutdown(k)`, which must
+/// command zero force. A self-clocked device calls the servo loop's tick itself and does not
+/// use this runner.
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/control/latency_histogram.hpp"
+#include "toonforce/control/telemetry.hpp"
+
+namespace toonforce {
+
+class PeriodicTask {
+ public:
+  virtual ~PeriodicTask() = default;
+  /// One servo tick at integer time k (k increases; skipped deadlines make it jump).
+  virtual void tick(std::int64_t k) noexcept = 0;
+  /// After the tick, with its timing (outside the measured compute time).
+  virtual void publish(std::int64_t k, const TickTiming& timing) noexcept = 0;
+  /// The last call: command zero force now.
+  virtual void shutdown(std::int64_t k) noexcept = 0;
+};
+
+/// Zero force from another thread or a signal handler, best effort (DeviceDriver::emergency_zero).
+struct EmergencyZero {
+  void (*zero)(void* context) noexcept = nullptr;
+  void* context = nullptr;
+  void operator()() const noexcept {
+    if (zero != nullptr) zero(context);
+  }
+};
+
+struct RealtimeOptions {
+  double rate_hz = 1000.0;          ///< 500 .. 10000
+  std::int64_t deadlines = 0;       ///< how many periods to run; 0: until stopped
+  int priority = 80;                ///< SCHED_FIFO priority (1..99)
+  int cpu = -1;                     ///< pin the servo thread to this CPU; -1: do not pin
+  bool allow_non_realtime = false;  ///< run at normal priority when SCHED_FIFO is refused
+  bool lock_memory = true;          ///< mlockall(MCL_CURRENT | MCL_FUTURE)
+  std::int64_t watchdog_periods = 30;
+};
+
+/// What the runner could set up, in words a person can act on.
+struct RealtimeSetup {
+  bool fifo = false;
+  int priority = 0;
+  bool memory_locked = false;
+  int cpu = -1;
+  std::string notes;  ///< one line per thing that was not as asked, with how to fix it
+};
+
+struct RunReport {
+  RealtimeSetup setup;
+  std::int64_t ticks = 0;           ///< ticks run
+  std::int64_t missed = 0;          ///< deadlines skipped
+  std::int64_t watchdog_trips = 0;  ///< heartbeat watchdog commanded zero force
+  int stop_signal = 0;              ///< the signal that stopped the run, 0 if none
+  double elapsed_s = 0.0;
+  LatencyHistogram wake{1000, 20000};     ///< 1 us bins to 20 ms
+  LatencyHistogram compute{100, 20000};   ///< 0.1 us bins to 2 ms
+  LatencyHistogram slack{1000, 10000};    ///< 1 us bins to 10 ms; < 0 counted apart
+};
+
+/// Runs `task` until `options.deadlines` periods have passed or `stop` is non-zero (its value
+/// is reported as the stop signal). Returns an error, before any tick, if the options are
+/// invalid or SCHED_FIFO is refused and not allowed to go without it.
+Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& options, EmergencyZero emergency,
+                               const std::atomic<int>& stop);
+
+/// The advice printed when SCHED_FIFO is refused.
+std::string realtime_permission_advice(int priority);
+
+/// SIGINT and SIGTERM store their number in `stop` (async-signal-safe); a second one while
+/// the first is being handled exits at once. Fatal signals (SIGSEGV, SIGBUS, SIGFPE, SIGILL,
+/// SIGABRT) call `emergency` (best effort: it should be a single device write), then re-raise
+/// with the default action. `restore_signals()` puts the default handlers back.
+void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency);
+void restore_signals();
+
+}  // namespace toonforce

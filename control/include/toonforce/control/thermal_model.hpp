@@ -1,0 +1,81 @@
+#pragma once
+/// A first-order motor thermal model per device (after OpenHaptics' predicted
+/// HD_MOTOR_TEMPERATURE, shared/reference/realtime-safety-stability.md §5). Copper losses grow
+/// with the current squared, and the current with the force, so with theta the temperature
+/// rise normalised to the rated one (0 cold, 1 rated):
+///     tau dtheta/dt = (|F| / F_c)^2 - theta,
+/// where F_c is the continuous force (held forever it settles exactly at the rated
+/// temperature) and tau the thermal time constant. Discretised exactly for a force held over
+/// each tick (zero-order hold): theta <- u + (theta - u) r^n, u = (|F|/F_c)^2, r = exp(-T/tau),
+/// n the ticks the force was held (skipped ticks included), so at tick times it equals the
+/// continuous closed form theta(t) = u + (theta_0 - u) exp(-t/tau).
+///
+/// Derating: the allowed force falls linearly from max_force at theta = derate_start to F_c at
+/// theta = 1 and stays at F_c above: at F_c the temperature cannot rise past rated, so a user
+/// pushing hard forever ends at the continuous force instead of burning the motors. The servo
+/// loop gives the allowed force to the clamp (ForceSafety::set_max_force), which stays last.
+/// With F_c >= max_force there is nothing to derate.
+
+#include <cmath>
+#include <cstdint>
+
+#include "toonforce/control/wide.hpp"
+
+namespace toonforce {
+
+struct ThermalConfig {
+  double continuous_force_n = 0.0;  ///< F_c [N]; 0 turns the model off
+  double time_constant_s = 60.0;    ///< tau [s] (scene key thermal_time_constant)
+  double derate_start = 0.8;        ///< theta where derating begins, in [0, 1)
+  constexpr bool enabled() const noexcept { return continuous_force_n > 0.0; }
+};
+
+template <Scalar S>
+class ThermalModel {
+ public:
+  /// `max_force_n` > 0 is the undrated limit; `period_s` the servo period.
+  ThermalModel(const ThermalConfig& config, double period_s, double max_force_n) noexcept
+      : enabled_(config.enabled() && config.continuous_force_n < max_force_n),
+        max_force_n_(scalar_cast<S>(max_force_n)),
+        continuous_force_n_(scalar_cast<S>(enabled_ ? config.continuous_force_n : max_force_n)),
+        inverse_continuous_n_(scalar_cast<S>(enabled_ ? 1.0 / config.continuous_force_n : 0.0)),
+        derate_start_(scalar_cast<S>(config.derate_start)),
+        derate_span_inverse_(scalar_cast<S>(1.0 / (1.0 - config.derate_start))),
+        decay_per_tick_(Decay<S>::from_double(std::exp(-period_s / config.time_constant_s))) {}
+
+  /// The force `held_force_n` acted over the last `ticks` periods: heat or cool toward it.
+  constexpr void advance(const Vec3<S>& held_force_n, std::int64_t ticks) noexcept {
+    if (!enabled_ || ticks <= 0) return;
+    const Vec3<S> relative = held_force_n * inverse_continuous_n_;
+    const Wide<S> target = Wide<S>::dot(relative, relative);  // u = (|F| / F_c)^2
+    temperature_ = target + (temperature_ - target) * decay_per_tick_.power(ticks);
+  }
+
+  /// The clamp the temperature allows now [N].
+  constexpr S allowed_force() const noexcept {
+    if (!enabled_) return max_force_n_;
+    const S theta = temperature_.to_scalar();
+    if (!(theta > derate_start_)) return max_force_n_;
+    constexpr S kOne = scalar_cast<S>(1.0);
+    const S fraction = min(kOne, (theta - derate_start_) * derate_span_inverse_);
+    return max_force_n_ - (max_force_n_ - continuous_force_n_) * fraction;
+  }
+
+  constexpr bool enabled() const noexcept { return enabled_; }
+  /// theta: 0 cold, 1 rated.
+  constexpr Wide<S> temperature() const noexcept { return temperature_; }
+  /// Starts from a known temperature (tests; a warm restart).
+  constexpr void set_temperature(Wide<S> theta) noexcept { temperature_ = theta; }
+
+ private:
+  bool enabled_;
+  S max_force_n_;
+  S continuous_force_n_;
+  S inverse_continuous_n_;
+  S derate_start_;
+  S derate_span_inverse_;
+  Decay<S> decay_per_tick_;
+  Wide<S> temperature_{};
+};
+
+}  // namespace toonforce

@@ -1,0 +1,291 @@
+// The real-time runner (Linux). See realtime_runner.hpp for the contract; the method follows
+// cyclictest (rt-tests): absolute CLOCK_MONOTONIC deadlines with clock_nanosleep(TIMER_ABSTIME),
+// SCHED_FIFO, mlockall, and latency = wake-up time - deadline.
+#include "toonforce/control/realtime_runner.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <signal.h>
+#include <sys/mman.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <future>
+#include <thread>
+
+#include <fmt/format.h>
+
+namespace toonforce {
+namespace {
+
+constexpr std::int64_t kNsPerS = 1'000'000'000;
+
+std::int64_t now_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * kNsPerS + ts.tv_nsec;
+}
+
+timespec to_timespec(std::int64_t ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(ns / kNsPerS);
+  ts.tv_nsec = static_cast<long>(ns % kNsPerS);
+  return ts;
+}
+
+/// Sleeps until the absolute CLOCK_MONOTONIC time `ns` (retrying after signals).
+void sleep_until(std::int64_t ns) noexcept {
+  const timespec ts = to_timespec(ns);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+constexpr bool kSanitized =
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    true;
+#else
+    false;
+#endif
+
+/// Touches a stack region so its pages are mapped (and locked) before the first tick.
+void prefault_stack() noexcept {
+  constexpr std::size_t kBytes = 256 * 1024;
+  unsigned char buffer[kBytes];
+  for (std::size_t i = 0; i < kBytes; i += 4096) static_cast<volatile unsigned char*>(buffer)[i] = 0;
+  asm volatile("" : : "r"(buffer) : "memory");  // keep the writes
+}
+
+/// Makes the calling thread SCHED_FIFO at `priority`; errno value on failure, 0 on success.
+int make_fifo(int priority) noexcept {
+  sched_param param{};
+  param.sched_priority = priority;
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+}
+
+int pin_to(int cpu) noexcept {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(static_cast<std::size_t>(cpu), &set);
+  return pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+}
+
+/// The watchdog outside the servo thread: zero force when the heartbeat stops.
+struct Watchdog {
+  const std::atomic<std::int64_t>& heartbeat;
+  const std::atomic<bool>& done;
+  EmergencyZero emergency;
+  std::int64_t timeout_ns;
+  std::atomic<std::int64_t> trips{0};
+
+  void run() noexcept {
+    const std::int64_t poll_ns = std::max<std::int64_t>(timeout_ns / 4, 100'000);
+    std::int64_t last_beat = heartbeat.load(std::memory_order_acquire);
+    std::int64_t last_change = now_ns();
+    bool tripped = false;
+    while (!done.load(std::memory_order_acquire)) {
+      timespec ts = to_timespec(poll_ns);
+      nanosleep(&ts, nullptr);
+      const std::int64_t beat = heartbeat.load(std::memory_order_acquire);
+      const std::int64_t now = now_ns();
+      if (beat != last_beat) {
+        last_beat = beat;
+        last_change = now;
+        tripped = false;
+      } else if (beat > 0 && !tripped && now - last_change > timeout_ns) {
+        emergency();  // the loop stalled: zero force from outside it
+        trips.fetch_add(1, std::memory_order_relaxed);
+        tripped = true;
+      }
+    }
+  }
+};
+
+}  // namespace
+
+std::string realtime_permission_advice(int priority) {
+  return fmt::format(
+      "SCHED_FIFO priority {} was refused: this user may not use real-time scheduling.\n"
+      "  To grant it, either\n"
+      "    - allow real-time priorities for your user or group in /etc/security/limits.d/99-realtime.conf:\n"
+      "        @realtime  -  rtprio   {}\n"
+      "        @realtime  -  memlock  unlimited\n"
+      "      (sudo groupadd -f realtime && sudo usermod -aG realtime $USER, then log in again), or\n"
+      "    - give the binary the capabilities: sudo setcap cap_sys_nice,cap_ipc_lock+ep $(command -v toonforce)\n"
+      "  or run again with --allow-non-rt to run WITHOUT real-time scheduling (timing will be poor).",
+      priority, std::max(priority, 95));
+}
+
+Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& options, EmergencyZero emergency,
+                               const std::atomic<int>& stop) {
+  if (!(options.rate_hz >= 500.0 && options.rate_hz <= 10000.0)) {
+    return Error{fmt::format("rate {} Hz is outside 500..10000 Hz", options.rate_hz)};
+  }
+  if (options.priority < 1 || options.priority > 98) {
+    return Error{fmt::format("priority {} is outside 1..98 (99 is left for the watchdog)", options.priority)};
+  }
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / options.rate_hz));
+  const long cpus = sysconf(_SC_NPROCESSORS_ONLN);
+  if (options.cpu >= 0 && options.cpu >= cpus) {
+    return Error{fmt::format("--cpu {}: this machine has CPUs 0..{}", options.cpu, cpus - 1)};
+  }
+
+  auto report = std::make_unique<RunReport>();  // histograms allocated here, before the loop
+  RealtimeSetup& setup = report->setup;
+  if (options.lock_memory) {
+    if (kSanitized) {
+      setup.notes += "memory not locked: sanitizer builds map terabytes of shadow memory\n";
+    } else if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+      setup.memory_locked = true;
+    } else {
+      setup.notes += fmt::format(
+          "mlockall failed ({}): page faults may stall the loop; raise 'memlock' in "
+          "/etc/security/limits.d or grant CAP_IPC_LOCK\n",
+          std::strerror(errno));
+    }
+  }
+
+  std::atomic<std::int64_t> heartbeat{0};
+  std::atomic<bool> done{false};
+  std::promise<std::string> ready;  // the servo thread's set-up result ("" = go)
+  std::future<std::string> ready_result = ready.get_future();
+
+  const auto servo = [&]() noexcept {
+    pthread_setname_np(pthread_self(), "toonforce-servo");
+    const int fifo_error = make_fifo(options.priority);
+    if (fifo_error == 0) {
+      setup.fifo = true;
+      setup.priority = options.priority;
+    } else if (!options.allow_non_realtime) {
+      ready.set_value(realtime_permission_advice(options.priority));
+      return;
+    } else {
+      setup.notes += fmt::format("running WITHOUT real-time scheduling: SCHED_FIFO {} refused ({})\n",
+                                 options.priority, std::strerror(fifo_error));
+    }
+    if (options.cpu >= 0) {
+      const int pin_error = pin_to(options.cpu);
+      if (pin_error == 0) {
+        setup.cpu = options.cpu;
+      } else {
+        setup.notes += fmt::format("not pinned to CPU {} ({})\n", options.cpu, std::strerror(pin_error));
+      }
+    }
+    prefault_stack();
+    ready.set_value("");
+
+    // Start two periods from now, so the first deadline is in the future.
+    const std::int64_t start = now_ns() + 2 * period_ns;
+    std::int64_t k = 0;
+    std::int64_t missed = 0;
+    std::int64_t ticks = 0;
+    while (stop.load(std::memory_order_acquire) == 0 && (options.deadlines == 0 || k < options.deadlines)) {
+      const std::int64_t deadline = start + k * period_ns;
+      sleep_until(deadline);
+      const std::int64_t woke = now_ns();
+      if (stop.load(std::memory_order_acquire) != 0) break;
+      // Woke a whole period or more late: those deadlines are gone. Run at the latest one that
+      // has passed, so the tick's integer time (and dt) tells the truth; never burst.
+      const std::int64_t behind = (woke - deadline) / period_ns;
+      if (behind > 0) {
+        k += behind;
+        missed += behind;
+        if (options.deadlines != 0 && k >= options.deadlines) {
+          missed -= k - (options.deadlines - 1);  // deadlines past the end were never due
+          k = options.deadlines - 1;
+        }
+      }
+      task.tick(k);
+      heartbeat.store(k + 1, std::memory_order_release);
+      const std::int64_t done_at = now_ns();
+      ++ticks;
+      TickTiming timing;
+      timing.wake_latency_ns = woke - deadline;
+      timing.compute_ns = done_at - woke;
+      timing.slack_ns = start + (k + 1) * period_ns - done_at;
+      timing.missed_total = missed;
+      report->wake.record(timing.wake_latency_ns);
+      report->compute.record(timing.compute_ns);
+      report->slack.record(timing.slack_ns);
+      task.publish(k, timing);
+      ++k;
+    }
+    task.shutdown(k);  // zero force first; everything else afterwards
+    heartbeat.store(k + 1, std::memory_order_release);
+    report->ticks = ticks;
+    report->missed = missed;
+    report->elapsed_s = static_cast<double>(now_ns() - start) / 1e9;
+  };
+
+  Watchdog watchdog{heartbeat, done, emergency, options.watchdog_periods * period_ns};
+  std::thread servo_thread(servo);
+  const std::string refused = ready_result.get();
+  if (!refused.empty()) {
+    servo_thread.join();
+    return Error{refused};
+  }
+  std::thread watchdog_thread([&watchdog, &setup, &options] {
+    pthread_setname_np(pthread_self(), "toonforce-wdog");
+    // Above the servo thread, so a runaway loop cannot starve its own watchdog.
+    if (setup.fifo) static_cast<void>(make_fifo(options.priority + 1));
+    watchdog.run();
+  });
+  servo_thread.join();
+  done.store(true, std::memory_order_release);
+  watchdog_thread.join();
+  report->watchdog_trips = watchdog.trips.load();
+  report->stop_signal = stop.load();
+  return std::move(*report);
+}
+
+// ---- signals -----------------------------------------------------------------------------------
+
+namespace {
+
+std::atomic<int>* g_stop = nullptr;
+EmergencyZero g_emergency;
+
+extern "C" void on_stop_signal(int signo) {
+  if (g_stop == nullptr) return;
+  int expected = 0;
+  if (!g_stop->compare_exchange_strong(expected, signo)) {
+    // Asked twice: the loop did not stop. Zero force and leave now.
+    g_emergency();
+    _exit(128 + signo);
+  }
+}
+
+extern "C" void on_fatal_signal(int signo) {
+  g_emergency();  // best effort: the process state is unknown
+  signal(signo, SIG_DFL);
+  raise(signo);
+}
+
+constexpr int kStopSignals[] = {SIGINT, SIGTERM};
+constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+
+}  // namespace
+
+void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
+  g_stop = &stop;
+  g_emergency = emergency;
+  struct sigaction action{};
+  sigemptyset(&action.sa_mask);
+  action.sa_handler = on_stop_signal;
+  for (const int s : kStopSignals) sigaction(s, &action, nullptr);
+  action.sa_handler = on_fatal_signal;
+  action.sa_flags = static_cast<int>(SA_RESETHAND);
+  for (const int s : kFatalSignals) sigaction(s, &action, nullptr);
+}
+
+void restore_signals() {
+  for (const int s : kStopSignals) signal(s, SIG_DFL);
+  for (const int s : kFatalSignals) signal(s, SIG_DFL);
+  g_stop = nullptr;
+  g_emergency = EmergencyZero{};
+}
+
+}  // namespace toonforce

@@ -1,0 +1,332 @@
+// The real-time runner and `toonforce run`, asserting counts and file contents, never times
+// (this VM has multi-millisecond hypervisor stalls: shared/reference/test-environment.md §4).
+// In process: every deadline is either ticked or counted as missed; a stalled tick trips the
+// heartbeat watchdog; a sim run writes one trace row per tick plus the final zero-force row.
+// As a child process: SIGINT and SIGTERM stop the real binary with the force zeroed first and
+// a trace valid to its last row; falcon and omni fail with a clear message.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/run/run.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
+
+extern char** environ;
+
+namespace toonforce {
+namespace {
+
+std::filesystem::path temp_path(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string file = std::string("toonforce_") + info->test_suite_name() + "_" + info->name() + "_" +
+                     std::to_string(getpid()) + "_" + name;
+  std::replace(file.begin(), file.end(), '/', '_');  // parameterised names contain '/'
+  return std::filesystem::temp_directory_path() / file;
+}
+
+std::vector<std::string> lines_of(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::vector<double> fields(const std::string& line) {
+  std::vector<double> out;
+  std::stringstream ss(line);
+  for (std::string cell; std::getline(ss, cell, ',');) {
+    char* end = nullptr;
+    const double v = std::strtod(cell.c_str(), &end);
+    out.push_back(end != cell.c_str() && *end == '\0' ? v : std::nan("bad"));
+  }
+  return out;
+}
+
+// ---- the runner with a counting task ---------------------------------------------------------
+
+struct CountingTask final : PeriodicTask {
+  std::vector<std::int64_t> ticks;
+  std::int64_t publishes = 0;
+  std::int64_t shutdowns = 0;
+  std::int64_t shutdown_at = -1;
+  std::int64_t stall_at = -1;  ///< this tick sleeps 100 ms
+  void tick(std::int64_t k) noexcept override {
+    ticks.push_back(k);  // reserved beforehand: no allocation here
+    if (k == stall_at) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  void publish(std::int64_t, const TickTiming&) noexcept override { ++publishes; }
+  void shutdown(std::int64_t k) noexcept override {
+    ++shutdowns;
+    shutdown_at = k;
+  }
+};
+
+RealtimeOptions quick(std::int64_t deadlines) {
+  RealtimeOptions o;
+  o.rate_hz = 2000.0;
+  o.deadlines = deadlines;
+  o.allow_non_realtime = true;  // the test must run where SCHED_FIFO is refused, too
+  o.lock_memory = false;
+  return o;
+}
+
+TEST(RealtimeRunner, EveryDeadlineIsEitherTickedOrCountedAsMissedAndTimeOnlyMovesForward) {
+  CountingTask task;
+  task.ticks.reserve(1000);
+  std::atomic<int> stop{0};
+  const auto report = run_realtime(task, quick(600), EmergencyZero{}, stop);
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report->ticks + report->missed, 600);
+  EXPECT_EQ(static_cast<std::int64_t>(task.ticks.size()), report->ticks);
+  EXPECT_EQ(task.publishes, report->ticks);
+  EXPECT_EQ(task.shutdowns, 1);
+  EXPECT_EQ(task.shutdown_at, 600);
+  for (std::size_t i = 1; i < task.ticks.size(); ++i) ASSERT_GT(task.ticks[i], task.ticks[i - 1]);
+  EXPECT_EQ(report->wake.count(), report->ticks);
+  EXPECT_EQ(report->stop_signal, 0);
+}
+
+std::atomic<int> g_emergency_calls{0};
+void count_emergency(void*) noexcept { g_emergency_calls.fetch_add(1); }
+
+TEST(RealtimeRunner, AStalledTickIsSkippedNotBurstedAndTripsTheHeartbeatWatchdog) {
+  CountingTask task;
+  task.ticks.reserve(1000);
+  task.stall_at = 100;
+  g_emergency_calls = 0;
+  std::atomic<int> stop{0};
+  RealtimeOptions o = quick(600);
+  o.watchdog_periods = 30;  // 15 ms at 2 kHz, well under the 100 ms stall
+  const auto report = run_realtime(task, o, EmergencyZero{count_emergency, nullptr}, stop);
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report->ticks + report->missed, 600);
+  EXPECT_GE(report->missed, 199) << "100 ms at 2 kHz is 200 periods";
+  const auto after = std::find(task.ticks.begin(), task.ticks.end(), 100);
+  ASSERT_NE(after + 1, task.ticks.end());
+  EXPECT_GE(*(after + 1) - 100, 200) << "the next tick runs at the latest passed deadline";
+  EXPECT_GE(report->watchdog_trips, 1);
+  EXPECT_GE(g_emergency_calls.load(), 1);
+}
+
+TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {
+  CountingTask task;
+  task.ticks.reserve(100000);
+  std::atomic<int> stop{0};
+  std::thread stopper([&stop] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    stop.store(SIGTERM);
+  });
+  const auto report = run_realtime(task, quick(0), EmergencyZero{}, stop);
+  stopper.join();
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report->stop_signal, SIGTERM);
+  EXPECT_EQ(task.shutdowns, 1);
+  EXPECT_GT(report->ticks, 0);
+}
+
+TEST(RealtimeRunner, RejectsRatesOutsideItsRange) {
+  CountingTask task;
+  std::atomic<int> stop{0};
+  RealtimeOptions o = quick(10);
+  o.rate_hz = 20000.0;
+  EXPECT_FALSE(run_realtime(task, o, EmergencyZero{}, stop));
+}
+
+// ---- toonforce run in process ------------------------------------------------------------------
+
+TEST(RunCommand, ASimRunWritesOneTraceRowPerTickPlusTheFinalZeroForceRow) {
+  RunOptions o;
+  o.device = "sim";
+  o.scene_path = TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml";
+  o.duration_s = 0.5;
+  o.trace_path = temp_path("trace.csv").string();
+  o.allow_non_realtime = true;
+  o.lock_memory = false;
+  o.handle_signals = false;
+  o.interactive = false;
+  const auto summary = run_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_EQ(summary->report.ticks + summary->report.missed, 500);
+  EXPECT_EQ(summary->frames_dropped, 0U) << "16384 frames cannot fill in 500 ticks";
+  EXPECT_EQ(summary->frames_written, static_cast<std::uint64_t>(summary->report.ticks + 1));
+  const auto lines = lines_of(o.trace_path);
+  ASSERT_EQ(lines.size(), summary->frames_written + 1);
+  EXPECT_EQ(lines[0].rfind("t,x,y,z,vx,vy,vz,fx,fy,fz,", 0), 0U) << lines[0];
+  const auto last = fields(lines.back());
+  EXPECT_EQ(last[7], 0.0);
+  EXPECT_EQ(last[8], 0.0);
+  EXPECT_EQ(last[9], 0.0);
+  const auto json = stats_json(summary.value(), o);
+  EXPECT_NE(json.find("\"frames_dropped\": 0"), std::string::npos);
+  std::filesystem::remove(o.trace_path);
+}
+
+TEST(RunCommand, FalconAndOmniFailClearlyUntilTheirBackendsLand) {
+  for (const char* name : {"falcon", "omni"}) {
+    const auto device = open_device(name);
+    ASSERT_FALSE(device);
+    EXPECT_NE(device.error().find("not part of this build yet"), std::string::npos) << device.error();
+    EXPECT_NE(device.error().find("--device sim"), std::string::npos) << device.error();
+  }
+}
+
+// ---- the trace writer (shared with toonforce sim) -------------------------------------------------
+
+TEST(TraceWriter, StartsWithTheSpecColumnsAndWritesNumbersThatReadBackExactly) {
+  const auto path = temp_path("trace.csv");
+  {
+    auto w = TraceWriter::open(path.string(), {"extra_a", "extra_b"});
+    ASSERT_TRUE(w) << w.error();
+    const TraceCore core{0.1, {1.0 / 3.0, -2e-7, 0.0}, {1e-300, 5.5, -0.0}, {8.0, 0.1 + 0.2, 1e10}};
+    EXPECT_TRUE(w.value()->write(core, std::vector<double>{std::nan(""), 42.0}));
+    EXPECT_FALSE(w.value()->write(core, std::vector<double>{1.0})) << "a row must match the header";
+    EXPECT_FALSE(w.value()->close()) << "the failed row makes close() report failure";
+  }
+  const auto lines = lines_of(path);
+  ASSERT_EQ(lines.size(), 2U);
+  EXPECT_EQ(lines[0], "t,x,y,z,vx,vy,vz,fx,fy,fz,extra_a,extra_b");
+  const auto row = fields(lines[1]);
+  ASSERT_EQ(row.size(), 12U);
+  EXPECT_EQ(row[1], 1.0 / 3.0);
+  EXPECT_EQ(row[4], 1e-300);
+  EXPECT_EQ(row[8], 0.1 + 0.2);
+  EXPECT_NE(lines[1].find(",nan,42"), std::string::npos) << lines[1];
+  std::filesystem::remove(path);
+}
+
+TEST(TraceWriter, TelemetryColumnsMatchWhatWriteFrameWrites) {
+  EXPECT_EQ(telemetry_columns().size(), kTelemetryExtraColumns);
+}
+
+// ---- the real binary as a child process ---------------------------------------------------------
+
+struct Child {
+  pid_t pid = -1;
+  int status = 0;
+};
+
+Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  Child child;
+  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  EXPECT_EQ(rc, 0) << std::strerror(rc);
+  if (rc != 0) child.pid = -1;
+  return child;
+}
+
+/// Never signals or waits for anything but a child this test started: kill(-1) or kill(0)
+/// would hit every process of the user or the whole group.
+bool started(const Child& c) { return c.pid > 0; }
+
+int wait_exit(Child& c) {
+  if (!started(c)) return -1;
+  EXPECT_EQ(waitpid(c.pid, &c.status, 0), c.pid);
+  return WIFEXITED(c.status) ? WEXITSTATUS(c.status) : 128 + WTERMSIG(c.status);
+}
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class StopSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(StopSignal, LeavesTheForceZeroAndATraceValidToItsLastRow) {
+  const auto trace = temp_path("trace.csv");
+  const auto stats = temp_path("stats.json");
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                       "--trace", trace.string(), "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"},
+                      output);
+  ASSERT_TRUE(started(child));
+  // Wait (without a time assertion) until the run is well under way: 300 trace rows.
+  for (int i = 0; i < 6000; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(trace, ec);  // (uintmax_t)-1 while it does not exist
+    if (!ec && size > 300 * 150) break;
+    int status = 0;
+    ASSERT_EQ(waitpid(child.pid, &status, WNOHANG), 0) << "exited early:\n" << slurp(output);
+  }
+  ASSERT_TRUE(started(child));
+  ASSERT_EQ(kill(child.pid, GetParam()), 0);
+  EXPECT_EQ(wait_exit(child), 0) << slurp(output);
+
+  const auto lines = lines_of(trace);
+  ASSERT_GT(lines.size(), 300U);
+  const auto header = fields(lines[0]);
+  EXPECT_EQ(lines[0].rfind("t,x,y,z,vx,vy,vz,fx,fy,fz,", 0), 0U);
+  double previous_t = -1.0;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto row = fields(lines[i]);
+    ASSERT_EQ(row.size(), header.size()) << "row " << i << ": " << lines[i];
+    for (std::size_t c = 0; c < 10; ++c) ASSERT_TRUE(std::isfinite(row[c])) << "row " << i << " column " << c;
+    ASSERT_GT(row[0], previous_t) << "row " << i;
+    previous_t = row[0];
+  }
+  const auto last = fields(lines.back());
+  EXPECT_EQ(last[7], 0.0);
+  EXPECT_EQ(last[8], 0.0);
+  EXPECT_EQ(last[9], 0.0);
+  EXPECT_EQ(last[19], 0.0) << "the last row is the shut-down loop: idle";
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"stop_signal\": " + std::to_string(GetParam())), std::string::npos) << json;
+  EXPECT_NE(json.find("\"frames_written\": " + std::to_string(lines.size() - 1)), std::string::npos) << json;
+  EXPECT_NE(slurp(output).find(GetParam() == SIGINT ? "stopped by SIGINT" : "stopped by SIGTERM"), std::string::npos);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+INSTANTIATE_TEST_SUITE_P(RunCommand, StopSignal, ::testing::Values(SIGINT, SIGTERM),
+                         [](const auto& p) { return p.param == SIGINT ? "Sigint" : "Sigterm"; });
+
+TEST(RunCommand, TheBinaryRefusesAnUnbuiltDeviceWithAMessage) {
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "falcon", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml"},
+                      output);
+  ASSERT_TRUE(started(child));
+  EXPECT_EQ(wait_exit(child), 2);
+  EXPECT_NE(slurp(output).find("Novint Falcon backend is not part of this build yet"), std::string::npos) << slurp(output);
+  std::filesystem::remove(output);
+}
+
+TEST(RunCommand, TheBinaryRejectsARateOutsideItsRange) {
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                       "--rate", "20000"},
+                      output);
+  ASSERT_TRUE(started(child));
+  EXPECT_NE(wait_exit(child), 0);
+  EXPECT_NE(slurp(output).find("--rate"), std::string::npos) << slurp(output);
+  std::filesystem::remove(output);
+}
+
+}  // namespace
+}  // namespace toonforce

@@ -1,0 +1,407 @@
+// The servo loop's safety layer, one behaviour at a time (spec effects.md §6, issue 3), in
+// double and in Q16.16 (the firmware scalar): clamp, rate limit, soft start, engage, velocity
+// limit, workspace, watchdog latch and re-arm, device silence, e-stop, enable, homing, lights,
+// integer time.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "servo_support.hpp"
+
+namespace toonforce::test {
+namespace {
+
+template <class S>
+class ServoSafety : public ::testing::Test {};
+TYPED_TEST_SUITE(ServoSafety, ServoScalars);
+
+constexpr Vec3<double> kAbove{0.0, 0.0, 0.01};
+
+// ---- clamp and rate limit (effects.md §6, the controller's stage, through the loop) -------
+
+TYPED_TEST(ServoSafety, ClampsTheForceToMaxForceKeepingItsDirection) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);  // engage outside the wall
+  const TickStatus s = rig.at({0.0, 0.0, -0.02});  // 20 N asked
+  EXPECT_NEAR(rig.force().z, 8.0, kForceTol<TypeParam>);
+  EXPECT_NEAR(rig.force().x, 0.0, 1e-12);
+  EXPECT_TRUE(has(s.limits, Limit::kClamped));
+  EXPECT_EQ(s.state, LoopState::kActive);
+  EXPECT_FALSE(s.faults);
+}
+
+TYPED_TEST(ServoSafety, LimitsTheForceRateAndASkippedTickAllowsTwiceTheStep) {
+  ServoConfig c = bare_config();
+  c.controller.limits.has_max_force_rate = true;
+  c.controller.limits.max_force_rate_n_per_s = 1000.0;  // 1 N per 1 ms tick
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  rig.at({0, 0, -0.006});  // a 6 N step
+  EXPECT_NEAR(rig.force().z, 1.0, kForceTol<TypeParam>);
+  rig.k += 1;  // the next deadline is skipped: dt = 2T
+  const TickStatus s = rig.at({0, 0, -0.006});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+  EXPECT_TRUE(has(s.limits, Limit::kRateLimited));
+}
+
+// ---- engage and soft start ---------------------------------------------------------------
+
+TYPED_TEST(ServoSafety, DoesNotEngageInsideAWallUntilTheSceneForceIsBelowEngageForce) {
+  ServoConfig c = bare_config();
+  c.safety.engage_force_n = 0.2;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  for (int i = 0; i < 50; ++i) {
+    const TickStatus s = rig.at({0, 0, -0.005});  // 5 N inside the wall
+    EXPECT_EQ(rig.force(), (Vec3<double>{})) << i;
+    EXPECT_EQ(s.state, LoopState::kEngaging);
+    EXPECT_TRUE(has(s.limits, Limit::kEngaging));
+  }
+  rig.at({0, 0, -0.0003});  // 0.3 N: still above 0.2 N
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  rig.at({0, 0, -0.0001});  // 0.1 N: engages (soft start 0: full force at once)
+  EXPECT_NEAR(rig.force().z, 0.1, kForceTol<TypeParam>);
+  rig.at({0, 0, -0.005});  // and stays engaged back in the wall
+  EXPECT_NEAR(rig.force().z, 5.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, SoftStartRampsLinearlyFromTheEngagingTick) {
+  ServoConfig c = bare_config();
+  c.safety.soft_start_s = 0.1;  // 100 ticks
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);  // engages at k = 0: gain 0
+  for (int k = 1; k <= 120; ++k) {
+    const TickStatus s = rig.at({0, 0, -0.004});  // 4 N
+    const double gain = std::min(1.0, k * kPeriodS / 0.1);
+    EXPECT_NEAR(rig.force().z, 4.0 * gain, kForceTol<TypeParam>) << k;
+    EXPECT_EQ(has(s.limits, Limit::kSoftStart), gain < 1.0) << k;
+    EXPECT_EQ(s.state, gain < 1.0 ? LoopState::kRamping : LoopState::kActive) << k;
+  }
+}
+
+TYPED_TEST(ServoSafety, RampsAgainFromZeroAfterEveryFault) {
+  ServoConfig c = bare_config();
+  c.safety.soft_start_s = 0.01;  // 10 ticks
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  for (int i = 0; i < 20; ++i) rig.at({0, 0, -0.004});
+  EXPECT_NEAR(rig.force().z, 4.0, kForceTol<TypeParam>);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const TickStatus bad = rig.at({0, 0, nan});
+  EXPECT_TRUE(bad.faults.has(Fault::kNonFiniteInput));
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  for (int i = 0; i <= 10; ++i) {  // gain 0, 0.1, ... 1 on the ticks after the fault
+    rig.at({0, 0, -0.004});
+    EXPECT_NEAR(rig.force().z, 0.4 * i, kForceTol<TypeParam>) << i;
+  }
+}
+
+// ---- velocity limit and workspace ----------------------------------------------------------
+
+TYPED_TEST(ServoSafety, ForceIsOffAboveMaxVelocityAndComesBackThroughTheRamp) {
+  ServoConfig c = bare_config();
+  c.safety.has_max_velocity = true;
+  c.safety.max_velocity_m_per_s = 1.0;
+  c.safety.soft_start_s = 0.002;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.device.has_velocity = true;  // the device measures velocity
+  rig.at(kAbove);
+  for (int i = 0; i < 5; ++i) rig.at({0, 0, -0.002});
+  EXPECT_NEAR(rig.force().z, 2.0, kForceTol<TypeParam>);
+  rig.device.velocity_m_per_s = {1.5, 0.0, 0.0};
+  const TickStatus fast = rig.at({0, 0, -0.002});
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  EXPECT_TRUE(fast.faults.has(Fault::kOverspeed));
+  EXPECT_FALSE(fast.faults.latched());
+  rig.device.velocity_m_per_s = {0.5, 0.0, 0.0};
+  rig.at({0, 0, -0.002});
+  EXPECT_NEAR(rig.force().z, 0.0, kForceTol<TypeParam>);  // gain 0 on the first tick after
+  rig.at({0, 0, -0.002});
+  EXPECT_NEAR(rig.force().z, 1.0, kForceTol<TypeParam>);  // gain 0.5
+  rig.at({0, 0, -0.002});
+  EXPECT_NEAR(rig.force().z, 2.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, VelocityLimitAlsoWorksOnTheEstimateWhenTheDeviceGivesNone) {
+  ServoConfig c = bare_config();
+  c.safety.has_max_velocity = true;
+  c.safety.max_velocity_m_per_s = 1.0;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);  // a spring-only scene needs no velocity itself
+  rig.at(kAbove);
+  bool cut = false;
+  double x = 0.0;
+  for (int i = 0; i < 100 && !cut; ++i) {
+    x += 0.002;  // 2 m/s along x, 2 mm under the floor
+    cut = rig.at({x, 0, -0.002}).faults.has(Fault::kOverspeed);
+  }
+  EXPECT_TRUE(cut) << "the filtered estimate should pass 1 m/s within 100 ms";
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+}
+
+TYPED_TEST(ServoSafety, ForceIsOffOutsideTheWorkspace) {
+  ServoConfig c = bare_config();
+  c.safety.has_workspace = true;
+  c.safety.workspace_min_m = {-0.05, -0.05, -0.05};
+  c.safety.workspace_max_m = {0.05, 0.05, 0.05};
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  rig.at({0.049, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+  const TickStatus out = rig.at({0.051, 0, -0.003});
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  EXPECT_TRUE(out.faults.has(Fault::kOutsideWorkspace));
+  rig.at({0.049, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);  // soft start 0 here: back at once
+}
+
+// ---- watchdog, device silence, e-stop, enable ------------------------------------------------
+
+TYPED_TEST(ServoSafety, WatchdogLatchesOnAGapBeyondItsPeriodsUntilReArmed) {
+  ServoConfig c = bare_config();
+  c.safety.watchdog_periods = 30;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  rig.k += 29;  // a gap of exactly 30 periods is tolerated
+  EXPECT_FALSE(rig.at({0, 0, -0.003}).faults);
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+  rig.k += 30;  // 31 periods: latched
+  const TickStatus tripped = rig.at({0, 0, -0.003});
+  EXPECT_TRUE(tripped.faults.has(Fault::kWatchdog));
+  EXPECT_EQ(tripped.state, LoopState::kFaulted);
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  for (int i = 0; i < 100; ++i) {  // regular ticks again: still latched
+    EXPECT_TRUE(rig.at({0, 0, -0.003}).faults.has(Fault::kWatchdog));
+    EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  }
+  rig.loop.request_rearm();
+  const TickStatus rearmed = rig.at({0, 0, -0.003});  // re-armed, but inside the wall: engaging
+  EXPECT_FALSE(rearmed.faults);
+  EXPECT_EQ(rearmed.state, LoopState::kEngaging);
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, ASilentDeviceLatchesAfterItsTimeoutAndReArmWaitsForIt) {
+  ServoConfig c = bare_config();
+  c.safety.device_timeout_periods = 10;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  rig.device.read_status = DeviceStatus::kTimeout;
+  for (int i = 1; i < 10; ++i) {
+    const TickStatus s = rig.at({0, 0, -0.003});
+    EXPECT_TRUE(s.faults.has(Fault::kDeviceError));
+    EXPECT_FALSE(s.faults.has(Fault::kDeviceSilent)) << i;
+    EXPECT_EQ(rig.force(), (Vec3<double>{})) << "a failed read commands zero";
+  }
+  EXPECT_TRUE(rig.at({0, 0, -0.003}).faults.has(Fault::kDeviceSilent));
+  rig.loop.request_rearm();
+  EXPECT_TRUE(rig.at({0, 0, -0.003}).rearm_refused);
+  rig.device.read_status = DeviceStatus::kOk;
+  EXPECT_TRUE(rig.at(kAbove).faults.has(Fault::kDeviceSilent)) << "answering again is not a re-arm";
+  rig.loop.request_rearm();
+  EXPECT_FALSE(rig.at(kAbove).faults);
+  rig.at({0, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, EstopZeroesTheForceInTheSameTickAndLatchesUntilReleasedAndReArmed) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  ASSERT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+  rig.pins.estop = PinLevel::kActive;
+  const TickStatus s = rig.at({0, 0, -0.003});
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));  // this very tick
+  EXPECT_TRUE(s.faults.has(Fault::kEstop));
+  rig.loop.request_rearm();
+  EXPECT_TRUE(rig.at({0, 0, -0.003}).rearm_refused);
+  rig.pins.estop = PinLevel::kInactive;
+  EXPECT_TRUE(rig.at({0, 0, -0.003}).faults.has(Fault::kEstop)) << "released is not re-armed";
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  rig.loop.request_rearm();
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, AnEstopReadErrorCountsAsEngaged) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);
+  rig.pins.estop = PinLevel::kError;
+  EXPECT_TRUE(rig.at({0, 0, -0.003}).faults.has(Fault::kEstop));
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+}
+
+TYPED_TEST(ServoSafety, EnableActsAsADeadmanAndReEngagesWhenPressedAgain) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);
+  rig.at({0, 0, -0.003});
+  rig.pins.enable = PinLevel::kInactive;
+  const TickStatus released = rig.at({0, 0, -0.003});
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  EXPECT_EQ(released.state, LoopState::kIdle);
+  EXPECT_FALSE(released.faults) << "releasing the deadman is not a fault";
+  rig.pins.enable = PinLevel::kActive;
+  EXPECT_EQ(rig.at({0, 0, -0.003}).state, LoopState::kEngaging) << "enabling inside the wall waits";
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  rig.at({0, 0, 0.001});
+  rig.at({0, 0, -0.003});
+  EXPECT_NEAR(rig.force().z, 3.0, kForceTol<TypeParam>);
+}
+
+TYPED_TEST(ServoSafety, AHomingDeviceGetsNoForceAndEngagesOnceReady) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.device.read_status = DeviceStatus::kNotReady;
+  for (int i = 0; i < 20; ++i) {  // longer than the device timeout: homing is not silence
+    const TickStatus s = rig.at({0, 0, -0.003});
+    EXPECT_EQ(s.state, LoopState::kHoming);
+    EXPECT_FALSE(s.faults);
+    EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  }
+  EXPECT_EQ(rig.pins.light, LightState::kHoming);
+  rig.device.read_status = DeviceStatus::kOk;
+  EXPECT_EQ(rig.at(kAbove).state, LoopState::kActive);
+  EXPECT_EQ(rig.pins.light, LightState::kArmed);
+}
+
+TYPED_TEST(ServoSafety, TogglesTheTickPinEveryTickAndShowsLightsOnlyOnChange) {
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  for (int i = 0; i < 10; ++i) rig.at(kAbove);
+  EXPECT_EQ(rig.pins.toggles, 10);
+  EXPECT_EQ(rig.pins.light, LightState::kArmed);
+  EXPECT_EQ(rig.pins.light_changes, 1);
+  rig.pins.estop = PinLevel::kActive;
+  rig.at(kAbove);
+  rig.at(kAbove);
+  EXPECT_EQ(rig.pins.light, LightState::kFault);
+  EXPECT_EQ(rig.pins.light_changes, 2);
+}
+
+TYPED_TEST(ServoSafety, AFailedWriteIsADeviceErrorAndLatchesWhenItPersists) {
+  ServoConfig c = bare_config();
+  c.safety.device_timeout_periods = 3;
+  Rig<TypeParam> rig(floor_toml(1000.0), c);
+  rig.at(kAbove);
+  rig.device.write_status = DeviceStatus::kDisconnected;
+  EXPECT_TRUE(rig.at(kAbove).faults.has(Fault::kDeviceError));
+  EXPECT_FALSE(rig.at(kAbove).faults.has(Fault::kDeviceSilent));
+  EXPECT_TRUE(rig.at(kAbove).faults.has(Fault::kDeviceSilent));
+}
+
+// ---- integer time ---------------------------------------------------------------------------
+
+TEST(ServoLoop, EffectTimeAfterADayIsAsExactAsInTheFirstSecond) {
+  // An impact transient triggered at tick k0 reads t = (k - k0) T: the same at k0 = 0 and at
+  // k0 = 86.4 million (a day at 1 kHz), bit for bit.
+  const std::string toml = floor_toml(1000.0,
+                                      "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
+                                      "  duration = 0.15\n  frequency = 30.0\n");
+  const auto run_from = [&](std::int64_t k0) {
+    Rig<double> rig(toml, bare_config());
+    rig.k = k0;
+    rig.device.has_velocity = true;
+    rig.device.velocity_m_per_s = {0, 0, -0.2};
+    rig.at({0, 0, 0.0004});
+    rig.at({0, 0, 0.0002});
+    std::vector<double> forces;
+    for (int i = 0; i < 120; ++i) {
+      rig.at({0, 0, -0.0002});
+      forces.push_back(rig.force().z);
+    }
+    return forces;
+  };
+  EXPECT_EQ(run_from(0), run_from(86'400'000));
+}
+
+TEST(ServoLoop, TickWithoutArgumentTakesTheNextIntegerTime) {
+  Rig<double> rig(floor_toml(), bare_config());
+  rig.loop.tick(41);
+  rig.loop.tick();
+  EXPECT_EQ(rig.loop.last_tick(), 42);
+}
+
+// ---- the device seam with a mock driver (libfranka's MockRobotControl pattern) -----------------
+
+class MockDriver : public DeviceDriver {
+ public:
+  MOCK_METHOD(DeviceStatus, read, (DeviceReading&), (noexcept, override));
+  MOCK_METHOD(DeviceStatus, write, (const Vec3<double>&), (noexcept, override));
+  MOCK_METHOD(void, emergency_zero, (), (noexcept, override));
+  MOCK_METHOD(const DeviceInfo&, info, (), (const, noexcept, override));
+};
+
+TEST(ServoLoop, ReadsThenWritesOnceAPerTickThroughTheDriverSeam) {
+  using ::testing::_;
+  using ::testing::DoAll;
+  using ::testing::InSequence;
+  using ::testing::Return;
+  using ::testing::SetArgReferee;
+  MockDriver driver;
+  DeviceReading inside;
+  inside.position_m = {0, 0, -0.003};
+  DeviceReading above;
+  above.position_m = {0, 0, 0.01};
+  {
+    InSequence order;
+    EXPECT_CALL(driver, read(_)).WillOnce(DoAll(SetArgReferee<0>(above), Return(DeviceStatus::kOk)));
+    EXPECT_CALL(driver, write(Vec3<double>{})).WillOnce(Return(DeviceStatus::kOk));
+    EXPECT_CALL(driver, read(_)).WillOnce(DoAll(SetArgReferee<0>(inside), Return(DeviceStatus::kOk)));
+    EXPECT_CALL(driver, write(::testing::Field(&Vec3<double>::z, ::testing::DoubleNear(3.0, 1e-12))))
+        .WillOnce(Return(DeviceStatus::kOk));
+    EXPECT_CALL(driver, read(_)).WillOnce(Return(DeviceStatus::kDisconnected));
+    EXPECT_CALL(driver, write(Vec3<double>{})).WillOnce(Return(DeviceStatus::kOk));  // zero at once
+  }
+  EXPECT_CALL(driver, emergency_zero()).Times(0);
+  ServoLoop<DriverRef, RuntimeScene<double>> loop(DriverRef(driver), scene_from<double>(floor_toml(1000.0)),
+                                                  bare_config());
+  EXPECT_TRUE(loop.tick(0).ok());
+  EXPECT_TRUE(loop.tick(1).ok());
+  const TickStatus lost = loop.tick(2);
+  EXPECT_EQ(lost.read, DeviceStatus::kDisconnected);
+  EXPECT_TRUE(lost.faults.has(Fault::kDeviceError));
+}
+
+TEST(ServoLoop, ShutdownCommandsZeroAtOnceAndGoesIdle) {
+  Rig<double> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);
+  rig.at({0, 0, -0.005});
+  ASSERT_NEAR(rig.force().z, 5.0, 1e-9);
+  const TickStatus s = rig.loop.shutdown(rig.k);
+  EXPECT_EQ(rig.force(), (Vec3<double>{}));
+  EXPECT_EQ(s.state, LoopState::kIdle);
+  TelemetryFrame f;
+  rig.loop.fill_frame(f);
+  EXPECT_EQ(f.force_n, (Vec3<double>{}));
+  EXPECT_EQ(f.tick, 2);
+}
+
+TEST(ServoConfig, TheDeviceLimitsWhatTheSceneLeavesOpenAndTheSmallerClampWins) {
+  ServoConfig c;
+  c.controller.period_s = 1e-3;
+  c.controller.limits.has_max_force = true;
+  c.controller.limits.max_force_n = 10.0;
+  DeviceInfo omni;
+  omni.max_force_n = 3.3;
+  omni.max_continuous_force_n = 0.88;
+  omni.workspace_min_m = {-0.08, -0.06, -0.035};
+  omni.workspace_max_m = {0.08, 0.06, 0.035};
+  const ServoConfig merged = with_device(c, omni);
+  EXPECT_EQ(merged.controller.limits.max_force_n, 3.3);
+  EXPECT_TRUE(merged.safety.has_workspace);
+  EXPECT_EQ(merged.safety.workspace_max_m, omni.workspace_max_m);
+  EXPECT_EQ(merged.safety.thermal.continuous_force_n, 0.88);
+  EXPECT_EQ(check_servo_config(merged), "");
+  c.controller.limits.max_force_n = 2.0;
+  EXPECT_EQ(with_device(c, omni).controller.limits.max_force_n, 2.0);
+  c.safety.thermal.derate_start = 1.0;
+  c.safety.thermal.continuous_force_n = 1.0;
+  EXPECT_NE(check_servo_config(c).find("thermal_derate_start"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace toonforce::test

@@ -1,0 +1,65 @@
+// toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
+//               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
+#include <cstdio>
+#include <map>
+#include <memory>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "toonforce/run/run.hpp"
+
+namespace toonforce::cli {
+
+void add_run(CLI::App& app) {
+  auto options = std::make_shared<RunOptions>();
+  auto quiet = std::make_shared<bool>(false);
+  auto no_mlock = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand("run", "The servo loop on a device in real time, with a timing summary at the end");
+  cmd->add_option("--device", options->device, "sim (a temporary simulated device), falcon or omni")
+      ->required()
+      ->check(CLI::IsMember({"sim", "falcon", "omni"}));
+  cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(CLI::Range(500.0, 10000.0))
+      ->capture_default_str();
+  cmd->add_option("--duration", options->duration_s, "Seconds to run; 0 runs until Ctrl-C (SIGINT) or SIGTERM")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--trace", options->trace_path, "Trace CSV to write (t,x,y,z,vx,vy,vz,fx,fy,fz, then the rest)");
+  cmd->add_option("--stats-json", options->stats_json_path, "Timing statistics and counts as JSON");
+  cmd->add_option("--cpu", options->cpu, "Pin the servo thread to this CPU")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--priority", options->priority, "SCHED_FIFO priority of the servo thread (1..98)")
+      ->check(CLI::Range(1, 98))
+      ->capture_default_str();
+  cmd->add_flag("--allow-non-rt", options->allow_non_realtime,
+                "Run at normal priority if SCHED_FIFO is refused (timing will be poor)");
+  cmd->add_flag("--no-mlock", *no_mlock, "Do not lock memory (mlockall)");
+  const std::map<std::string, ScalarKind> scalars{
+      {"double", ScalarKind::kDouble}, {"float", ScalarKind::kFloat}, {"q16.16", ScalarKind::kQ16_16}};
+  cmd->add_option("--scalar", options->scalar, "Scalar type of the servo loop (a firmware build has q16.16 only)")
+      ->transform(CLI::CheckedTransformer(scalars, CLI::ignore_case));
+  cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors and fault messages");
+  cmd->callback([options, quiet, no_mlock] {
+    options->lock_memory = !*no_mlock;
+    const auto summary = run_servo(*options);
+    if (!summary) {
+      std::fputs(summary.error().c_str(), stderr);
+      if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
+      set_exit_code(2);
+      return;
+    }
+    if (!options->stats_json_path.empty()) {
+      std::FILE* f = std::fopen(options->stats_json_path.c_str(), "wb");
+      const std::string json = stats_json(summary.value(), *options);
+      if (f == nullptr || std::fwrite(json.data(), 1, json.size(), f) != json.size() || std::fclose(f) != 0) {
+        fmt::print(stderr, "{}: cannot write the statistics\n", options->stats_json_path);
+        set_exit_code(1);
+        return;
+      }
+    }
+    if (!*quiet) std::fputs(format_run_summary(summary.value(), *options).c_str(), stdout);
+    set_exit_code(0);
+  });
+}
+
+}  // namespace toonforce::cli

@@ -1,0 +1,71 @@
+#pragma once
+/// `toonforce run`: the servo loop on a device in real time (spec interfaces.md), as a library
+/// so tests drive it without a process. Loads the scene, opens the device, merges the scene's
+/// and the device's limits, runs ServoLoop under the real-time runner with a telemetry ring to
+/// a writer thread (trace CSV, fault messages), and reports timing statistics.
+
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/config/toml_reader.hpp"
+#include "toonforce/control/faults.hpp"
+#include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/hal/device.hpp"
+
+namespace toonforce {
+
+struct RunOptions {
+  std::string device;               ///< sim | falcon | omni
+  std::string scene_path;
+  double rate_hz = 1000.0;          ///< 500 .. 10000
+  double duration_s = 0.0;          ///< 0: until SIGINT/SIGTERM (or 'q' on a terminal)
+  std::string trace_path;           ///< empty: no trace
+  std::string stats_json_path;      ///< empty: none
+  int cpu = -1;
+  int priority = 80;
+  bool allow_non_realtime = false;
+  bool lock_memory = true;
+  ScalarKind scalar = default_run_scalar();
+  bool handle_signals = true;       ///< install the SIGINT/SIGTERM/fatal-signal handlers
+  bool interactive = true;          ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
+  std::FILE* messages = stderr;     ///< fault messages during the run
+
+  /// q16.16 in a firmware build (TOONFORCE_FIRMWARE=ON), else double.
+  static ScalarKind default_run_scalar() noexcept;
+};
+
+/// What a run did.
+struct RunSummary {
+  RunReport report;
+  std::string scene_name;
+  std::size_t surfaces = 0;
+  std::size_t cliffs = 0;
+  std::string device_name;
+  std::uint64_t frames_written = 0;
+  std::uint64_t frames_dropped = 0;  ///< telemetry ring full: frames not written
+  std::int64_t fault_ticks = 0;      ///< frames with any fault bit
+  std::uint32_t fault_bits = 0;      ///< union over the run
+  std::uint32_t latched_at_end = 0;
+  std::int64_t rearms = 0;           ///< latched faults cleared during the run
+  double peak_force_n = 0.0;
+};
+
+/// The stop value of a 'q' typed on the terminal (signals use their own numbers).
+inline constexpr int kStopByUser = 1000;
+
+/// Opens a device backend by name. Falcon and Omni fail with a message until their backends
+/// land (hal/falcon, hal/omni will provide factories returning std::unique_ptr<DeviceDriver>).
+Result<std::unique_ptr<DeviceDriver>> open_device(std::string_view name);
+
+/// Runs; errors (bad scene, no device, real time refused) come back before the first tick.
+Result<RunSummary> run_servo(const RunOptions& options);
+
+std::string format_run_summary(const RunSummary& summary, const RunOptions& options);
+std::string stats_json(const RunSummary& summary, const RunOptions& options);
+/// "watchdog (missed ticks), emergency stop" (empty for none).
+std::string describe_faults(std::uint32_t bits);
+
+}  // namespace toonforce
