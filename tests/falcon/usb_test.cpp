@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "alloc_counter.hpp"
+#include "run_command.hpp"
 #include "synthetic_firmware.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
@@ -339,6 +340,50 @@ TEST_F(FalconUsb, EmergencyZeroGoesOutAsOneUsbfsBulkIoctl) {
     EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
     EXPECT_TRUE(e.last_command().flags & kHomingRequest);
   });
+}
+
+// ---- the command line against emulated Falcons ----
+
+TEST_F(FalconUsb, DevicesCommandListsFalconsAndWhatTheyNeed) {
+  bed_->add_falcon({}, "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* line : {"Novint Falcon: 2 found\n",
+                           "  usb 001/005 (/dev/bus/usb/001/005)  serial FTEMU0001\n    this user may open it: yes\n",
+                           "  usb 001/006 (/dev/bus/usb/001/006)  serial FTEMU0002\n",
+                           "[missing] firmware of the Novint Falcon at usb 001/005 (/dev/bus/usb/001/005): not loaded",
+                           "to fix: load it with `toonforce falcon firmware FILE`",
+                           "[ok] firmware of the Novint Falcon at usb 001/006 (/dev/bus/usb/001/006): running"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  EXPECT_GT(bed_->ioctls(0), 0u) << "the child process went through the emulated usbfs";
+
+  const toonforce::test::CommandRun quick = toonforce::test::run_toonforce("devices --no-probe");
+  EXPECT_EQ(quick.output.find("firmware of the Novint Falcon"), std::string::npos) << quick.output;
+}
+
+TEST_F(FalconUsb, DevicesCommandWithNoFalconSaysWhatToCheck) {
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("Novint Falcon: 0 found\n  none found: check its power supply"), std::string::npos)
+      << r.output;
+}
+
+TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) {
+  bed_->add_falcon();
+  const auto path = std::filesystem::temp_directory_path() / ("toonforce_cli_usb_" + std::to_string(::getpid()));
+  const auto bytes = test::make_boot_image({4231});
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  }
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("falcon firmware " + path.string());
+  std::filesystem::remove(path);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("matches no known Falcon firmware image"), std::string::npos) << r.output;
+  EXPECT_EQ(bed_->ioctls(0), 0u);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.state(), BootState::kBootRom); });
 }
 
 }  // namespace

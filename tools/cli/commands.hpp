@@ -6,6 +6,8 @@
 namespace toonforce::cli {
 
 void add_replay(CLI::App& app);
+void add_devices(CLI::App& app);
+void add_falcon(CLI::App& app);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();
