@@ -9,6 +9,8 @@
 #include <numbers>
 
 #include "alloc_counter.hpp"
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/controller.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/emulator_transport.hpp"
 #include "toonforce/hal/falcon/emulator/falcon_emulator.hpp"
@@ -213,6 +215,45 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
   EXPECT_NEAR(info.workspace_max_m.z, 0.060, 1e-12);
 }
 
+TEST(FalconDriver, ServoLoopRendersTheWallSceneOnTheEmulatedFalcon) {
+  // The whole tick: read -> Controller (scenes/wall.toml: floor z = 0, 1500 N/m, safety stage)
+  // -> write, against an emulated grip pushed 10 mm into the floor by a 200 N/m hand. The
+  // floor must hold it at the force balance: 1500 d = 200 (0.010 - d), d = 1.18 mm, 1.76 N up.
+  auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/wall.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  Controller<RuntimeScene<double>> controller(make_runtime_scene<double>(scene.value()),
+                                              controller_config(scene.value(), 0.001));
+  EmulatorOptions o = Rig::with_firmware();
+  o.hand_stiffness_n_per_m = 200.0;
+  o.hand_damping_n_s_per_m = 6.0;
+  Rig rig(o);
+  rig.home();
+  const Vec3<double> above = scene_to_falcon({0, 0, 0.02}, kCentre);
+  rig.emu.set_grip_position(above);
+  for (int k = 0; k < 300; ++k) rig.tick();
+  rig.emu.set_grip_position(scene_to_falcon({0, 0, -0.010}, kCentre));  // the hand pushes down
+  DeviceReading reading;
+  TickResult<double> last{};
+  for (int k = 0; k < 1500; ++k) {
+    const DeviceStatus s = rig.driver->read(reading);
+    ASSERT_EQ(s, DeviceStatus::kOk) << k << ": " << rig.driver->last_error();
+    Sample sample;
+    sample.position_m = reading.position_m;
+    sample.now = Instant{k, 0.001 * k};
+    sample.dt_s = 0.001;
+    last = controller.tick(sample);
+    ASSERT_EQ(rig.driver->write(last.force_n), DeviceStatus::kOk) << k;
+  }
+  const double penetration = -reading.position_m.z;
+  EXPECT_NEAR(penetration, 0.010 * 200.0 / 1700.0, 0.15e-3);
+  EXPECT_NEAR(last.force_n.z, 1500.0 * penetration, 0.05);
+  // The device pushes the grip up (scene +z = Falcon +y) with the scene's force.
+  const Vec3<double> pushed = rig.emu.motor_force_n();
+  EXPECT_NEAR(pushed.y, last.force_n.z, 0.05);
+  EXPECT_NEAR(pushed.x, 0.0, 0.05);
+  EXPECT_NEAR(pushed.z, 0.0, 0.05);
+}
+
 // ---- replies split or merged across USB packets (falcon.md §3) ----
 
 TEST(FalconDriver, RepliesSplitAcrossTransfersAreReassembled) {
@@ -347,8 +388,13 @@ TEST(FalconDriver, EmergencyZeroSendsAZeroForceCommandAtOnce) {
   EXPECT_EQ(rig.transport->emergency_writes(), 1u);
   EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
   EXPECT_EQ(rig.emu.last_command().flags, kHomingRequest | kLedGreen);
-  // The extra reply is absorbed: the exchange goes on.
+  // The extra reply is absorbed: the exchange goes on, and readings are not a tick behind.
   for (int k = 0; k < 5; ++k) EXPECT_EQ(rig.tick(), DeviceStatus::kOk);
+  rig.emu.set_grip_position({0.012, 0.0, 0.11});
+  rig.tick();  // this tick's command samples the new position
+  DeviceReading r;
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  EXPECT_NEAR(r.position_m.x, 0.012, kCountTolerance_m) << "the reply to the last command, not an older one";
 }
 
 TEST(FalconDriver, ClosingSendsZeroForce) {

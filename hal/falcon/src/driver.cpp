@@ -100,6 +100,10 @@ DeviceStatus FalconDriver::read(DeviceReading& reading) noexcept {
     if (const DeviceStatus s = send(command_); s != DeviceStatus::kOk) return s;
   }
 
+  // An emergency_zero() command draws a reply too: collect it as well, or every later read
+  // would take the previous tick's reply for this one's.
+  in_flight_ += extra_replies_.exchange(0);
+
   const std::size_t garbage_before = assembler_.discarded();
   bool got = false;
   Status latest{};
@@ -201,7 +205,10 @@ void FalconDriver::emergency_zero() noexcept {
   Command zero;
   zero.flags = static_cast<std::uint8_t>(kHomingRequest | led_flags_.load());
   const Frame frame = encode_command(zero);
-  if (transport_->emergency_write(frame)) ++stats_.emergency_zeros;
+  if (transport_->emergency_write(frame)) {
+    extra_replies_.fetch_add(1);
+    ++stats_.emergency_zeros;
+  }
 }
 
 std::string FalconDriver::last_error() const {

@@ -88,6 +88,7 @@ class FalconDriver final : public DeviceDriver {
   std::array<std::uint8_t, kUsbPacketBytes> raw_{};
   std::array<std::uint8_t, kUsbPacketBytes> payload_{};
   int in_flight_ = 0;  ///< commands sent whose reply has not arrived (0 or 1 in normal flow)
+  std::atomic<int> extra_replies_{0};  ///< replies emergency_zero() will cause, for read() to absorb
 
   Status status_{};
   Command command_{};
