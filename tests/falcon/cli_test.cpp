@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include "run_command.hpp"
@@ -23,7 +24,9 @@ TEST(FalconCli, UdevRuleIsTheRepositoryFileGrantingPlugdevNotEveryone) {
   const Result r = run("falcon udev-rule");
   ASSERT_EQ(r.status, 0) << r.output;
   std::ifstream in(std::string(TOONFORCE_SOURCE_DIR) + "/hal/falcon/udev/60-novint-falcon.rules");
-  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string file = text.str();
   EXPECT_EQ(r.output, file);
   EXPECT_EQ(std::string(falcon_udev_rule()), file);
   // The one rule line: matches the Falcon, group plugdev, mode 0660 (not world-writable).

@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
-#include <iterator>
 #include <sys/stat.h>
 
 #include "toonforce/hal/falcon/ftdi.hpp"
@@ -204,8 +203,9 @@ Result<FirmwareImage> read_firmware_file(const std::string& path, std::span<cons
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{"cannot open firmware file " + path + " for reading"};
-  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return Error{"error while reading firmware file " + path};
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(st.st_size));
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  if (in.gcount() != static_cast<std::streamsize>(bytes.size())) return Error{"error while reading firmware file " + path};
   return validate_firmware(std::move(bytes), path, allowlist);
 }
 
