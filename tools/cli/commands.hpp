@@ -10,6 +10,8 @@ void add_run(CLI::App& app);
 void add_doctor(CLI::App& app);
 void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);
+void add_devices(CLI::App& app);
+void add_falcon(CLI::App& app);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

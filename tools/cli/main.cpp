@@ -16,6 +16,8 @@ int main(int argc, char** argv) {
   toonforce::cli::add_doctor(app);
   toonforce::cli::add_sim(app);
   toonforce::cli::add_figures(app);
+  toonforce::cli::add_devices(app);
+  toonforce::cli::add_falcon(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

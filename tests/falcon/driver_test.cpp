@@ -1,0 +1,411 @@
+// FalconDriver (the DeviceDriver) against the emulated Falcon over the in-process transport:
+// homing, positions in the scene frame, force -> motor words, split and merged replies, and
+// each fault (dropped, garbled, USB timeout, unplugged). The same scenarios run over the real
+// libusb path under umockdev in usb_test.cpp.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <numbers>
+
+#include "alloc_counter.hpp"
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/controller.hpp"
+#include "toonforce/hal/falcon/driver.hpp"
+#include "toonforce/hal/falcon/emulator/emulator_transport.hpp"
+#include "toonforce/hal/falcon/emulator/falcon_emulator.hpp"
+#include "toonforce/hal/falcon/ftdi.hpp"
+
+namespace toonforce::falcon {
+namespace {
+
+using emulator::EmulatorOptions;
+using emulator::EmulatorTransport;
+using emulator::FalconEmulator;
+
+const Vec3<double> kCentre{0.0, 0.0, 0.110};
+constexpr double kCountTolerance_m = 1e-4;  // a few encoder counts anywhere in the workspace
+
+struct Rig {
+  explicit Rig(EmulatorOptions o = with_firmware(), FalconOptions f = {}) : emu(std::move(o)), options(f) {
+    auto t = std::make_unique<EmulatorTransport>(emu);
+    transport = t.get();
+    EXPECT_EQ(ftdi::enter_normal_mode(*t), TransportStatus::kOk);
+    driver = std::make_unique<FalconDriver>(std::move(t), options, "Novint Falcon (emulated)");
+  }
+  static EmulatorOptions with_firmware() {
+    EmulatorOptions o;
+    o.firmware_loaded = true;
+    return o;
+  }
+  DeviceStatus tick(const Vec3<double>& force = {}) {
+    const DeviceStatus s = driver->read(reading);
+    last_write = driver->write(s == DeviceStatus::kOk ? force : Vec3<double>{});
+    return s;
+  }
+  /// Pull the grip all the way out, push it back in (falcon.md §4). With a hand model the
+  /// grip follows its target over some ticks.
+  void home() {
+    emu.set_grip_position({0, 0, 0.178});
+    for (int i = 0; i < 2000 && emu.grip_position().z < 0.172; ++i) tick();
+    tick();
+    emu.set_grip_position({0, 0, 0.09});
+    for (int i = 0; i < 2000 && !driver->homed(); ++i) tick();
+    emu.set_grip_position(kCentre);
+    for (int i = 0; i < 3; ++i) tick();
+    ASSERT_TRUE(driver->homed());
+  }
+
+  FalconEmulator emu;
+  FalconOptions options;
+  EmulatorTransport* transport = nullptr;
+  std::unique_ptr<FalconDriver> driver;
+  DeviceReading reading;
+  DeviceStatus last_write = DeviceStatus::kOk;
+};
+
+// ---- homing (falcon.md §4) ----
+
+TEST(FalconDriver, NotReadyWithRedLedUntilHomedThenGreenAndPositions) {
+  Rig rig;
+  EXPECT_EQ(rig.tick({1, 2, 3}), DeviceStatus::kNotReady);
+  EXPECT_EQ(rig.driver->fault(), FalconFault::kNotHomed);
+  EXPECT_NE(rig.driver->last_error().find("pull the grip all the way out"), std::string::npos);
+  EXPECT_EQ(rig.emu.last_command().flags, kHomingRequest | kLedRed);
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "no force before homing";
+
+  rig.emu.set_grip_position({0, 0, 0.175});  // all the way out
+  EXPECT_EQ(rig.tick(), DeviceStatus::kNotReady);
+  EXPECT_FALSE(rig.emu.homed());
+  rig.emu.set_grip_position({0.0, 0.0, 0.095});  // straight back in
+  rig.tick();  // this command is the one that completes homing in the emulator
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk);
+  EXPECT_TRUE(rig.driver->homed());
+  EXPECT_EQ(rig.emu.last_command().flags, kHomingRequest | kLedGreen);
+  const Vec3<double> expected = falcon_to_scene({0.0, 0.0, 0.095}, kCentre);
+  EXPECT_NEAR(rig.reading.position_m.x, expected.x, kCountTolerance_m);
+  EXPECT_NEAR(rig.reading.position_m.y, expected.y, kCountTolerance_m);
+  EXPECT_NEAR(rig.reading.position_m.z, expected.z, kCountTolerance_m);
+  EXPECT_NEAR(rig.reading.position_m.y, 0.015, kCountTolerance_m) << "pushed in = away from the user";
+  EXPECT_TRUE(rig.driver->last_error().empty());
+}
+
+TEST(FalconDriver, EveryCommandHoldsTheHomingBit) {
+  Rig rig;
+  rig.home();
+  for (int k = 0; k < 50; ++k) rig.tick({0.5, 0, 0});
+  rig.driver->emergency_zero();
+  for (const Command& c : rig.emu.command_log()) ASSERT_TRUE(c.flags & kHomingRequest);
+  EXPECT_EQ(rig.emu.homing_bit_dropped(), 0u);
+  EXPECT_TRUE(rig.emu.homed());
+}
+
+TEST(FalconDriver, EncodersBeforeHomingAreRelativeAndNotUsed) {
+  Rig rig;
+  rig.tick();
+  EXPECT_EQ(rig.driver->last_status().encoder, rig.emu.encoder_counts());
+  EXPECT_FALSE(rig.driver->last_status().homed());
+  rig.home();
+  // After homing the offsets are gone: the counts are absolute.
+  Angles t{};
+  ASSERT_TRUE(inverse_kinematics(FalconGeometry{}, kCentre, t));
+  EXPECT_NEAR(rig.driver->last_status().encoder[0], theta1_rad_to_encoder(t[0]), 0.5);
+}
+
+// ---- a few hundred ticks: read, write, force -> motor words ----
+
+TEST(FalconDriver, ServoTicksTrackThePositionAndSendTheTransposedForce) {
+  Rig rig;
+  rig.home();
+  const auto path = [](int k) {
+    const double phase = 2 * std::numbers::pi * k / 400.0;
+    return Vec3<double>{0.03 * std::cos(phase), 0.02 * std::sin(phase), 0.11 + 0.02 * std::sin(2 * phase)};
+  };
+  rig.emu.set_grip_position(path(0));
+  rig.tick();
+  rig.tick();
+  Vec3<double> sampled = path(0);  // where the grip was when the device answered the last command
+  for (int k = 0; k < 400; ++k) {
+    // read() returns the reply to the previous tick's command: the grip as it was then.
+    ASSERT_EQ(rig.driver->read(rig.reading), DeviceStatus::kOk) << k << ": " << rig.driver->last_error();
+    ASSERT_LT(norm(rig.reading.position_m - falcon_to_scene(sampled, kCentre)), kCountTolerance_m) << k;
+    const double phase = 2 * std::numbers::pi * k / 400.0;
+    const Vec3<double> grip = path(k + 1);
+    rig.emu.set_grip_position(grip);
+    sampled = grip;
+    const Vec3<double> force{1.5 * std::sin(phase), -1.0, 2.0 * std::cos(phase)};  // scene frame [N]
+    ASSERT_EQ(rig.driver->write(force), DeviceStatus::kOk) << k;
+    // The words on the wire are -10000 J^T F at the estimated pose, F in the Falcon frame...
+    Mat3 j;
+    ASSERT_TRUE(position_jacobian(FalconGeometry{}, rig.driver->position_falcon_m(), j));
+    const MotorWords w = force_to_motor_words(j, scene_force_to_falcon(force));
+    ASSERT_EQ(rig.emu.last_command().motor, w.word) << k;
+    // ...and the emulated motors push the grip with that force (J^-T tau at the true pose,
+    // which moved by under a millimetre since the estimate).
+    const Vec3<double> applied = rig.emu.motor_force_n();
+    const Vec3<double> wanted = scene_force_to_falcon(force);
+    ASSERT_LT(norm(applied - wanted), 0.03 * norm(wanted) + 0.005) << k;
+  }
+  const FalconStats& s = rig.driver->stats();
+  EXPECT_EQ(s.timeouts + s.protocol_errors, 0u);
+  EXPECT_LE(s.max_fk_iterations, 6);  // the first tick after homing starts from the centre
+}
+
+TEST(FalconDriver, TicksDoNotAllocate) {
+  Rig rig;
+  rig.home();
+  for (int k = 0; k < 10; ++k) rig.tick({0, 0, 1});
+  test::AllocationScope scope;
+  for (int k = 0; k < 500; ++k) {
+    rig.emu.set_grip_position({0.0001 * (k % 50), 0.0, 0.11});
+    rig.tick({0.2, 0.1, 1.0});
+  }
+  EXPECT_EQ(scope.count(), 0u);
+}
+
+TEST(FalconDriver, ClosedLoopForceMovesTheHeldGripAlongTheSceneAxis) {
+  // The grip is held by a 200 N/m hand; a constant scene force F settles it at F/k from the
+  // hand's target, along F: this checks frame conversion and transpose end to end.
+  struct Case {
+    Vec3<double> force_scene;
+  };
+  for (const Case c : {Case{{0, 0, 2}}, Case{{0, 2, 0}}, Case{{2, 0, 0}}, Case{{-1.2, 1.2, -1.2}}}) {
+    EmulatorOptions o = Rig::with_firmware();
+    o.hand_stiffness_n_per_m = 200.0;
+    o.hand_damping_n_s_per_m = 6.0;
+    Rig rig(o);
+    rig.home();
+    for (int k = 0; k < 200; ++k) rig.tick();  // settle at the hand's target
+    const Vec3<double> rest = rig.reading.position_m;
+    for (int k = 0; k < 800; ++k) ASSERT_EQ(rig.tick(c.force_scene), DeviceStatus::kOk) << k;
+    const Vec3<double> moved = rig.reading.position_m - rest;
+    const Vec3<double> expected = c.force_scene * (1.0 / 200.0);
+    EXPECT_LT(norm(moved - expected), 0.05 * norm(expected))
+        << moved.x << " " << moved.y << " " << moved.z << " for " << c.force_scene.x << " " << c.force_scene.y << " "
+        << c.force_scene.z;
+  }
+}
+
+TEST(FalconDriver, GripButtonsArriveInTheReading) {
+  Rig rig;
+  rig.home();
+  rig.emu.set_buttons(kButtonCentre | kButtonMinus);
+  rig.tick();  // the command that samples the buttons
+  ASSERT_EQ(rig.tick(), DeviceStatus::kOk);
+  EXPECT_EQ(rig.reading.buttons, std::uint32_t{kButtonCentre | kButtonMinus});
+  rig.emu.set_buttons(kButtonPlus);
+  rig.tick();
+  rig.tick();
+  EXPECT_EQ(rig.reading.buttons, std::uint32_t{kButtonPlus});
+}
+
+TEST(FalconDriver, InfoIsInTheSceneFrame) {
+  Rig rig;
+  const DeviceInfo& info = rig.driver->info();
+  EXPECT_EQ(info.name, "Novint Falcon (emulated)");
+  EXPECT_EQ(info.nominal_rate_hz, 1000.0);
+  EXPECT_FALSE(info.self_clocked);
+  EXPECT_GT(info.max_force_n, 0.0);
+  // The HDAL box (-60..60, -60..60, 75..175) mm about z = 110 mm, as (x, -z, y).
+  EXPECT_NEAR(info.workspace_min_m.x, -0.060, 1e-12);
+  EXPECT_NEAR(info.workspace_max_m.x, 0.060, 1e-12);
+  EXPECT_NEAR(info.workspace_min_m.y, -0.065, 1e-12);
+  EXPECT_NEAR(info.workspace_max_m.y, 0.035, 1e-12);
+  EXPECT_NEAR(info.workspace_min_m.z, -0.060, 1e-12);
+  EXPECT_NEAR(info.workspace_max_m.z, 0.060, 1e-12);
+}
+
+TEST(FalconDriver, ServoLoopRendersTheWallSceneOnTheEmulatedFalcon) {
+  // The whole tick: read -> Controller (scenes/wall.toml: floor z = 0, 1500 N/m, safety stage)
+  // -> write, against an emulated grip pushed 10 mm into the floor by a 200 N/m hand. The
+  // floor must hold it at the force balance: 1500 d = 200 (0.010 - d), d = 1.18 mm, 1.76 N up.
+  auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/wall.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  Controller<RuntimeScene<double>> controller(make_runtime_scene<double>(scene.value()),
+                                              controller_config(scene.value(), 0.001));
+  EmulatorOptions o = Rig::with_firmware();
+  o.hand_stiffness_n_per_m = 200.0;
+  o.hand_damping_n_s_per_m = 6.0;
+  Rig rig(o);
+  rig.home();
+  const Vec3<double> above = scene_to_falcon({0, 0, 0.02}, kCentre);
+  rig.emu.set_grip_position(above);
+  for (int k = 0; k < 300; ++k) rig.tick();
+  rig.emu.set_grip_position(scene_to_falcon({0, 0, -0.010}, kCentre));  // the hand pushes down
+  DeviceReading reading;
+  TickResult<double> last{};
+  for (int k = 0; k < 1500; ++k) {
+    const DeviceStatus s = rig.driver->read(reading);
+    ASSERT_EQ(s, DeviceStatus::kOk) << k << ": " << rig.driver->last_error();
+    Sample sample;
+    sample.position_m = reading.position_m;
+    sample.now = Instant{k, 0.001 * k};
+    sample.dt_s = 0.001;
+    last = controller.tick(sample);
+    ASSERT_EQ(rig.driver->write(last.force_n), DeviceStatus::kOk) << k;
+  }
+  const double penetration = -reading.position_m.z;
+  EXPECT_NEAR(penetration, 0.010 * 200.0 / 1700.0, 0.15e-3);
+  EXPECT_NEAR(last.force_n.z, 1500.0 * penetration, 0.05);
+  // The device pushes the grip up (scene +z = Falcon +y) with the scene's force.
+  const Vec3<double> pushed = rig.emu.motor_force_n();
+  EXPECT_NEAR(pushed.y, last.force_n.z, 0.05);
+  EXPECT_NEAR(pushed.x, 0.0, 0.05);
+  EXPECT_NEAR(pushed.z, 0.0, 0.05);
+}
+
+// ---- replies split or merged across USB packets (falcon.md §3) ----
+
+TEST(FalconDriver, RepliesSplitAcrossTransfersAreReassembled) {
+  Rig rig;
+  rig.home();
+  rig.emu.set_max_payload_per_transfer(5);  // a frame over 4 transfers: within a tick's budget
+  for (int k = 0; k < 50; ++k) ASSERT_EQ(rig.tick({0, 0, 1}), DeviceStatus::kOk) << k;
+  EXPECT_EQ(rig.driver->stats().timeouts, 0u);
+}
+
+TEST(FalconDriver, AReplyTooSplitForOneTickCompletesOnTheNext) {
+  Rig rig;
+  rig.home();
+  rig.emu.set_max_payload_per_transfer(3);  // 6 transfers per frame, 4 allowed per tick
+  EXPECT_EQ(rig.tick(), DeviceStatus::kTimeout);
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk) << "the rest of the frame was kept";
+}
+
+TEST(FalconDriver, MergedRepliesKeepTheNewest) {
+  Rig rig;
+  rig.home();
+  rig.emu.delay_replies(1);
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk);  // the previous reply; this tick's is held back
+  rig.emu.set_grip_position({0.01, 0, 0.11});
+  EXPECT_EQ(rig.tick(), DeviceStatus::kTimeout);  // nothing; this tick's command releases both
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk);       // two replies in one packet: the newest wins
+  EXPECT_NEAR(rig.reading.position_m.x, 0.01, kCountTolerance_m);
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk);
+}
+
+// ---- faults: the status says what, the force goes to zero, last_error says what to do ----
+
+TEST(FalconDriver, DroppedReplyIsATimeoutWithZeroForceThenRecovers) {
+  Rig rig;
+  rig.home();
+  rig.tick({0, 0, 2});
+  ASSERT_NE(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  rig.emu.drop_replies(1);
+  rig.tick({0, 0, 2});  // this command's reply is dropped
+  DeviceReading r;
+  EXPECT_EQ(rig.driver->read(r), DeviceStatus::kTimeout);
+  EXPECT_EQ(rig.driver->fault(), FalconFault::kNoReply);
+  EXPECT_NE(rig.driver->last_error().find("did not answer the last command"), std::string::npos);
+  // The loop would send zero; even if it asks for force, the driver sends zero.
+  EXPECT_EQ(rig.driver->write({0, 0, 2}), DeviceStatus::kNotReady);
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  EXPECT_EQ(rig.tick({0, 0, 2}), DeviceStatus::kOk);
+  EXPECT_EQ(rig.driver->stats().timeouts, 1u);
+}
+
+TEST(FalconDriver, GarbledReplyIsAProtocolErrorThenRecovers) {
+  Rig rig;
+  rig.home();
+  rig.emu.garble_replies(1);
+  rig.tick({1, 0, 0});
+  EXPECT_EQ(rig.tick({1, 0, 0}), DeviceStatus::kProtocolError);
+  EXPECT_EQ(rig.driver->fault(), FalconFault::kGarbled);
+  EXPECT_NE(rig.driver->last_error().find("sent 16 bytes that did not form a valid 16-byte frame"), std::string::npos)
+      << rig.driver->last_error();
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  EXPECT_EQ(rig.tick({1, 0, 0}), DeviceStatus::kOk);
+  EXPECT_EQ(rig.driver->stats().garbled_bytes, 16u);
+}
+
+TEST(FalconDriver, StalledUsbReadIsATimeoutNamingTheBridge) {
+  Rig rig;
+  rig.home();
+  rig.emu.stall_in_transfers(1);
+  EXPECT_EQ(rig.tick(), DeviceStatus::kTimeout);
+  EXPECT_EQ(rig.driver->fault(), FalconFault::kUsbTimeout);
+  EXPECT_NE(rig.driver->last_error().find("the FTDI USB bridge stopped answering"), std::string::npos);
+  EXPECT_EQ(rig.tick(), DeviceStatus::kOk);  // the late reply or the next one
+}
+
+TEST(FalconDriver, RepeatedFaultsCountTicksInARow) {
+  Rig rig;
+  rig.home();
+  rig.emu.drop_replies(3);
+  rig.tick();
+  for (int k = 0; k < 3; ++k) rig.tick();
+  EXPECT_NE(rig.driver->last_error().find("(3 ticks in a row)"), std::string::npos) << rig.driver->last_error();
+}
+
+TEST(FalconDriver, UnplugIsLatchedAsDisconnected) {
+  Rig rig;
+  rig.home();
+  rig.tick({0, 0, 1});
+  rig.emu.unplug();
+  DeviceReading r;
+  EXPECT_EQ(rig.driver->read(r), DeviceStatus::kDisconnected);
+  EXPECT_EQ(rig.driver->write({0, 0, 1}), DeviceStatus::kDisconnected);
+  EXPECT_EQ(rig.driver->read(r), DeviceStatus::kDisconnected);
+  const std::string e = rig.driver->last_error();
+  EXPECT_NE(e.find("LIBUSB_ERROR_NO_DEVICE"), std::string::npos) << e;
+  EXPECT_NE(e.find("Plug it back in"), std::string::npos) << e;
+  EXPECT_NE(e.find("toonforce falcon firmware FILE"), std::string::npos) << e;
+}
+
+TEST(FalconDriver, NonFiniteForceSendsZero) {
+  Rig rig;
+  rig.home();
+  rig.tick({0, 0, 1});
+  DeviceReading r;
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  EXPECT_EQ(rig.driver->write({std::nan(""), 0, 0}), DeviceStatus::kNotReady);
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+}
+
+TEST(FalconDriver, OneCommandOutstanding) {
+  Rig rig;
+  rig.home();
+  DeviceReading r;
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  const std::size_t before = rig.emu.commands_received();
+  EXPECT_EQ(rig.driver->write({0, 0, 1}), DeviceStatus::kOk);
+  EXPECT_EQ(rig.driver->write({0, 0, 2}), DeviceStatus::kOk);  // the first is still outstanding
+  EXPECT_EQ(rig.emu.commands_received(), before + 1);
+  EXPECT_EQ(rig.driver->stats().deferred_writes, 1u);
+  // Two reads in a row: the second sends a zero-force command to have a reply to wait for.
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  EXPECT_EQ(rig.emu.commands_received(), before + 2);
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+}
+
+TEST(FalconDriver, EmergencyZeroSendsAZeroForceCommandAtOnce) {
+  Rig rig;
+  rig.home();
+  rig.tick({0, 0, 3});
+  ASSERT_NE(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  rig.driver->emergency_zero();
+  EXPECT_EQ(rig.transport->emergency_writes(), 1u);
+  EXPECT_EQ(rig.emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  EXPECT_EQ(rig.emu.last_command().flags, kHomingRequest | kLedGreen);
+  // The extra reply is absorbed: the exchange goes on, and readings are not a tick behind.
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(rig.tick(), DeviceStatus::kOk);
+  rig.emu.set_grip_position({0.012, 0.0, 0.11});
+  rig.tick();  // this tick's command samples the new position
+  DeviceReading r;
+  ASSERT_EQ(rig.driver->read(r), DeviceStatus::kOk);
+  EXPECT_NEAR(r.position_m.x, 0.012, kCountTolerance_m) << "the reply to the last command, not an older one";
+}
+
+TEST(FalconDriver, ClosingSendsZeroForce) {
+  EmulatorOptions o = Rig::with_firmware();
+  auto rig = std::make_unique<Rig>(o);
+  rig->home();
+  rig->tick({0, 0, 3});
+  FalconEmulator& emu = rig->emu;
+  rig->driver.reset();
+  EXPECT_EQ(emu.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+}
+
+}  // namespace
+}  // namespace toonforce::falcon

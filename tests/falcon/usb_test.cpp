@@ -1,0 +1,390 @@
+// The real libusb backend (LibusbTransport, open_falcon, detect_falcons, the toonforce CLI)
+// against emulated Falcons at the usbfs boundary through umockdev. CTest runs this binary
+// under tests/falcon/run_under_umockdev; run by hand without it, every test skips.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <unistd.h>
+
+#include "alloc_counter.hpp"
+#include "run_command.hpp"
+#include "synthetic_firmware.hpp"
+#include "toonforce/hal/falcon/driver.hpp"
+#include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
+#include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/falcon/firmware.hpp"
+#include "toonforce/hal/falcon/ftdi.hpp"
+#include "toonforce/hal/falcon/usb.hpp"
+
+namespace toonforce::falcon {
+namespace {
+
+using emulator::BootState;
+using emulator::EmulatorOptions;
+using emulator::FalconEmulator;
+using emulator::UsbfsEmulator;
+
+const Vec3<double> kCentre{0.0, 0.0, 0.110};
+
+EmulatorOptions with_firmware() {
+  EmulatorOptions o;
+  o.firmware_loaded = true;
+  return o;
+}
+
+class FalconUsb : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!UsbfsEmulator::available()) {
+      if (std::getenv("TOONFORCE_REQUIRE_UMOCKDEV") != nullptr) {
+        FAIL() << "umockdev's preload library is not active although the test runner asked for it";
+      }
+      GTEST_SKIP() << "needs umockdev: run under umockdev-wrapper (CTest does)";
+    }
+    bed_ = std::make_unique<UsbfsEmulator>();
+  }
+
+  /// open_falcon() as `toonforce run --device falcon` will call it, as our driver type.
+  std::unique_ptr<FalconDriver> open(const FalconOptions& options = {}) {
+    auto opened = open_falcon(options);
+    EXPECT_TRUE(opened) << opened.error();
+    if (!opened) return nullptr;
+    auto* driver = dynamic_cast<FalconDriver*>(opened.value().get());
+    EXPECT_NE(driver, nullptr);
+    opened.value().release();
+    return std::unique_ptr<FalconDriver>(driver);
+  }
+
+  DeviceStatus tick(FalconDriver& d, DeviceReading& r, const Vec3<double>& force = {}) {
+    const DeviceStatus s = d.read(r);
+    (void)d.write(s == DeviceStatus::kOk ? force : Vec3<double>{});
+    return s;
+  }
+
+  void home(FalconDriver& d, std::size_t falcon = 0) {
+    DeviceReading r;
+    for (const Vec3<double>& p : {Vec3<double>{0, 0, 0.178}, Vec3<double>{0, 0, 0.09}, kCentre}) {
+      bed_->with(falcon, [&](FalconEmulator& e) { e.set_grip_position(p); });
+      for (int i = 0; i < 3; ++i) tick(d, r);
+    }
+    ASSERT_TRUE(d.homed()) << d.last_error();
+  }
+
+  std::unique_ptr<UsbfsEmulator> bed_;
+};
+
+// ---- finding and opening ----
+
+TEST_F(FalconUsb, NoFalconIsAClearError) {
+  auto opened = open_falcon({});
+  ASSERT_FALSE(opened);
+  EXPECT_NE(opened.error().find("no Novint Falcon found on USB (vendor 0403, product cb48)"), std::string::npos)
+      << opened.error();
+  EXPECT_NE(opened.error().find("lsusb -d 0403:cb48"), std::string::npos);
+}
+
+TEST_F(FalconUsb, DetectListsEachFalconWithSerialAndFirmwareState) {
+  bed_->add_falcon({}, "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const FalconDetection found = detect_falcons();
+  ASSERT_EQ(found.devices.size(), 2u);
+  EXPECT_EQ(found.devices[0].kind, "Novint Falcon");
+  EXPECT_EQ(found.devices[0].location, "usb 001/005 (/dev/bus/usb/001/005)");
+  EXPECT_EQ(found.devices[0].serial, "FTEMU0001");
+  EXPECT_TRUE(found.devices[0].can_open);
+  EXPECT_EQ(found.devices[1].serial, "FTEMU0002");
+  int firmware_checks = 0;
+  for (const Prerequisite& p : found.prerequisites) {
+    if (p.name == "firmware of the Novint Falcon at usb 001/005 (/dev/bus/usb/001/005)") {
+      ++firmware_checks;
+      EXPECT_FALSE(p.ok);
+      EXPECT_NE(p.fix.find("toonforce falcon firmware FILE"), std::string::npos);
+    }
+    if (p.name == "firmware of the Novint Falcon at usb 001/006 (/dev/bus/usb/001/006)") {
+      ++firmware_checks;
+      EXPECT_TRUE(p.ok);
+      EXPECT_EQ(p.detail, "running");
+    }
+  }
+  EXPECT_EQ(firmware_checks, 2);
+  EXPECT_GT(bed_->ioctls(0), 0u) << "through usbfs";
+}
+
+TEST_F(FalconUsb, OpensBySerialOrIndex) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  FalconOptions by_serial;
+  by_serial.serial = "FTEMU0002";
+  auto d = open(by_serial);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->info().name, "Novint Falcon (serial FTEMU0002, usb 001/006 (/dev/bus/usb/001/006))");
+  d.reset();
+  FalconOptions by_index;
+  by_index.index = 1;
+  d = open(by_index);
+  ASSERT_NE(d, nullptr);
+  EXPECT_NE(d->info().name.find("FTEMU0002"), std::string::npos);
+  d.reset();
+
+  FalconOptions missing;
+  missing.serial = "NOPE";
+  auto none = open_falcon(missing);
+  ASSERT_FALSE(none);
+  EXPECT_NE(none.error().find("no Novint Falcon with serial number NOPE"), std::string::npos) << none.error();
+  EXPECT_NE(none.error().find("usb 001/005 (/dev/bus/usb/001/005): serial FTEMU0001"), std::string::npos);
+  FalconOptions too_far;
+  too_far.index = 2;
+  EXPECT_NE(open_falcon(too_far).error().find("only 2 Novint Falcon(s) are connected"), std::string::npos);
+}
+
+TEST_F(FalconUsb, OpeningWithoutFirmwareSaysHowToLoadIt) {
+  bed_->add_falcon();
+  auto opened = open_falcon({});
+  ASSERT_FALSE(opened);
+  EXPECT_NE(opened.error().find("has no firmware running"), std::string::npos) << opened.error();
+  EXPECT_NE(opened.error().find("toonforce falcon firmware FILE"), std::string::npos) << opened.error();
+  // The FTDI went to normal mode through libusb vendor requests for the probe.
+  bed_->with(0, [](FalconEmulator& e) {
+    EXPECT_EQ(e.ftdi().divisor, ftdi::kDivisorNormal);
+    EXPECT_EQ(e.ftdi().latency_ms, ftdi::kLatencyNormalMs);
+    EXPECT_EQ(e.ftdi().data_format, ftdi::k8N1);
+  });
+}
+
+// ---- firmware over libusb ----
+
+TEST_F(FalconUsb, LoadsFirmwareThroughLibusb) {
+  bed_->add_falcon();
+  const auto bytes = test::make_boot_image({900, 120}, 11);
+  const test::TestAllowlist allow({bytes});
+  auto image = validate_firmware(bytes, "synthetic.bin", allow.entries);
+  ASSERT_TRUE(image) << image.error();
+  auto transport = open_falcon_transport({});
+  ASSERT_TRUE(transport) << transport.error();
+  EXPECT_FALSE(probe_firmware(*transport.value()).loaded);
+  auto report = load_firmware(*transport.value(), image.value());
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report.value().attempts, 1);
+  bed_->with(0, [&](FalconEmulator& e) {
+    EXPECT_EQ(e.state(), BootState::kRunning);
+    EXPECT_EQ(e.loaded_image(), bytes);
+  });
+  transport.value().reset();
+  auto d = open();  // the firmware survives closing and reopening
+  ASSERT_NE(d, nullptr);
+}
+
+TEST_F(FalconUsb, BadEchoIsRetriedThroughLibusb) {
+  EmulatorOptions o;
+  o.handshake_failures = 3;
+  o.handshake_leading_zero = true;
+  bed_->add_falcon(o);
+  bed_->with(0, [](FalconEmulator& e) { e.corrupt_echo_at(77); });
+  const auto bytes = test::make_boot_image({400}, 12);
+  const test::TestAllowlist allow({bytes});
+  auto image = validate_firmware(bytes, "synthetic.bin", allow.entries);
+  ASSERT_TRUE(image);
+  auto transport = open_falcon_transport({});
+  ASSERT_TRUE(transport) << transport.error();
+  auto report = load_firmware(*transport.value(), image.value());
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report.value().attempts, 2);
+  EXPECT_NE(report.value().failures.at(0).find("echo mismatch at image byte 77"), std::string::npos);
+}
+
+TEST_F(FalconUsb, UnknownFirmwareIsRefusedBeforeTheDeviceIsTouched) {
+  bed_->add_falcon();
+  const auto path = std::filesystem::temp_directory_path() / ("toonforce_nvent_size_" + std::to_string(::getpid()));
+  const auto bytes = test::make_boot_image({4231});  // nvent_firmware.bin's size, other content
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  }
+  auto r = load_falcon_firmware(path.string(), {}, false);
+  std::filesystem::remove(path);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().find("matches no known Falcon firmware image"), std::string::npos) << r.error();
+  EXPECT_EQ(bed_->ioctls(0), 0u);
+}
+
+TEST_F(FalconUsb, ProbeDetectsLoadedFirmwareThroughLibusb) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon({}, "FTEMU0002", 6);
+  FalconOptions second;
+  second.index = 1;
+  auto loaded = open_falcon_transport({});
+  auto empty = open_falcon_transport(second);
+  ASSERT_TRUE(loaded && empty);
+  EXPECT_TRUE(probe_firmware(*loaded.value()).loaded);
+  EXPECT_FALSE(probe_firmware(*empty.value()).loaded);
+}
+
+// ---- the servo exchange through libusb ----
+
+TEST_F(FalconUsb, HomingThenHundredsOfTicksWithForcesAndNoAllocation) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  DeviceReading r;
+  EXPECT_EQ(tick(*d, r, {0, 0, 1}), DeviceStatus::kNotReady);
+  EXPECT_NE(d->last_error().find("not homed"), std::string::npos);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().flags, kHomingRequest | kLedRed); });
+  home(*d);
+
+  Vec3<double> sampled = kCentre;
+  toonforce::test::AllocationScope scope;
+  for (int k = 0; k < 300; ++k) {
+    ASSERT_EQ(d->read(r), DeviceStatus::kOk) << k << ": " << d->last_error();
+    ASSERT_LT(norm(r.position_m - falcon_to_scene(sampled, kCentre)), 1e-4) << k;
+    const double phase = 2 * std::numbers::pi * k / 300.0;
+    const Vec3<double> grip{0.02 * std::sin(phase), 0.015 * (1 - std::cos(phase)), 0.11};
+    bed_->with(0, [&](FalconEmulator& e) { e.set_grip_position(grip); });
+    sampled = grip;
+    const Vec3<double> force{0.0, 1.0 * std::sin(phase), 2.0};
+    ASSERT_EQ(d->write(force), DeviceStatus::kOk) << k;
+    Mat3 j;
+    ASSERT_TRUE(position_jacobian(FalconGeometry{}, d->position_falcon_m(), j));
+    const MotorWords expected = force_to_motor_words(j, scene_force_to_falcon(force));
+    bed_->with(0, [&](FalconEmulator& e) {
+      ASSERT_EQ(e.last_command().motor, expected.word) << k;
+      ASSERT_EQ(e.last_command().flags, kHomingRequest | kLedGreen) << k;
+    });
+  }
+  EXPECT_EQ(scope.count(), 0u) << "no operator new in 300 ticks through libusb";
+  EXPECT_EQ(d->stats().timeouts, 0u);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.homing_bit_dropped(), 0u); });
+}
+
+TEST_F(FalconUsb, SplitRepliesAreReassembledThroughLibusb) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  bed_->with(0, [](FalconEmulator& e) { e.set_max_payload_per_transfer(6); });
+  DeviceReading r;
+  for (int k = 0; k < 20; ++k) ASSERT_EQ(tick(*d, r, {0, 0, 1}), DeviceStatus::kOk) << k;
+}
+
+// ---- faults through libusb ----
+
+TEST_F(FalconUsb, DroppedAndGarbledRepliesBecomeFaultsWithZeroForce) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  DeviceReading r;
+  ASSERT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
+  bed_->with(0, [](FalconEmulator& e) { e.drop_replies(1); });
+  ASSERT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);  // this tick's reply is dropped
+  EXPECT_EQ(d->read(r), DeviceStatus::kTimeout);
+  EXPECT_NE(d->last_error().find("did not answer"), std::string::npos);
+  EXPECT_EQ(d->write({0, 0, 2}), DeviceStatus::kNotReady);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  ASSERT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
+
+  bed_->with(0, [](FalconEmulator& e) { e.garble_replies(1); });
+  ASSERT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
+  EXPECT_EQ(d->read(r), DeviceStatus::kProtocolError);
+  EXPECT_EQ(d->fault(), FalconFault::kGarbled);
+  EXPECT_EQ(d->write({0, 0, 2}), DeviceStatus::kNotReady);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  EXPECT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
+}
+
+TEST_F(FalconUsb, StalledInTransferTimesOutInLibusbAndIsDiscarded) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  bed_->with(0, [](FalconEmulator& e) { e.stall_in_transfers(1); });
+  DeviceReading r;
+  EXPECT_EQ(tick(*d, r), DeviceStatus::kTimeout);
+  EXPECT_EQ(d->fault(), FalconFault::kUsbTimeout);
+  EXPECT_NE(d->last_error().find("a USB transfer timed out after 4 ms"), std::string::npos) << d->last_error();
+  EXPECT_EQ(bed_->discarded_urbs(0), 1u) << "libusb cancelled the timed-out URB (DISCARDURB)";
+  EXPECT_EQ(tick(*d, r), DeviceStatus::kOk);
+}
+
+TEST_F(FalconUsb, UnplugBecomesDisconnected) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  DeviceReading r;
+  ASSERT_EQ(tick(*d, r, {0, 0, 1}), DeviceStatus::kOk);
+  bed_->unplug(0);
+  EXPECT_EQ(d->read(r), DeviceStatus::kDisconnected);
+  EXPECT_EQ(d->write({0, 0, 1}), DeviceStatus::kDisconnected);
+  EXPECT_NE(d->last_error().find("LIBUSB_ERROR_NO_DEVICE"), std::string::npos) << d->last_error();
+  EXPECT_NE(d->last_error().find("usb 001/005"), std::string::npos) << d->last_error();
+}
+
+TEST_F(FalconUsb, EmergencyZeroGoesOutAsOneUsbfsBulkIoctl) {
+  bed_->add_falcon(with_firmware());
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  DeviceReading r;
+  ASSERT_EQ(tick(*d, r, {0, 0, 3}), DeviceStatus::kOk);
+  ASSERT_EQ(tick(*d, r, {0, 0, 3}), DeviceStatus::kOk);
+  bed_->with(0, [](FalconEmulator& e) { ASSERT_NE(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  d->emergency_zero();
+  EXPECT_EQ(d->stats().emergency_zeros, 1u);
+  bed_->with(0, [](FalconEmulator& e) {
+    EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+    EXPECT_TRUE(e.last_command().flags & kHomingRequest);
+  });
+}
+
+// ---- the command line against emulated Falcons ----
+
+TEST_F(FalconUsb, DevicesCommandListsFalconsAndWhatTheyNeed) {
+  bed_->add_falcon({}, "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* line : {"Novint Falcon: 2 found\n",
+                           "  usb 001/005 (/dev/bus/usb/001/005)  serial FTEMU0001\n    this user may open it: yes\n",
+                           "  usb 001/006 (/dev/bus/usb/001/006)  serial FTEMU0002\n",
+                           "[missing] firmware of the Novint Falcon at usb 001/005 (/dev/bus/usb/001/005): not loaded",
+                           "to fix: load it with `toonforce falcon firmware FILE`",
+                           "[ok] firmware of the Novint Falcon at usb 001/006 (/dev/bus/usb/001/006): running"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  EXPECT_GT(bed_->ioctls(0), 0u) << "the child process went through the emulated usbfs";
+
+  const toonforce::test::CommandRun quick = toonforce::test::run_toonforce("devices --no-probe");
+  EXPECT_EQ(quick.output.find("firmware of the Novint Falcon"), std::string::npos) << quick.output;
+}
+
+TEST_F(FalconUsb, DevicesCommandWithNoFalconSaysWhatToCheck) {
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("Novint Falcon: 0 found\n  none found: check its power supply"), std::string::npos)
+      << r.output;
+}
+
+TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) {
+  bed_->add_falcon();
+  const auto path = std::filesystem::temp_directory_path() / ("toonforce_cli_usb_" + std::to_string(::getpid()));
+  const auto bytes = test::make_boot_image({4231});
+  {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  }
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("falcon firmware " + path.string());
+  std::filesystem::remove(path);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("matches no known Falcon firmware image"), std::string::npos) << r.output;
+  EXPECT_EQ(bed_->ioctls(0), 0u);
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.state(), BootState::kBootRom); });
+}
+
+}  // namespace
+}  // namespace toonforce::falcon
