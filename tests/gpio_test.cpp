@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <optional>
 #include <thread>
 #include <type_traits>
 
@@ -438,6 +439,21 @@ TEST_F(GpioEmulation, LightsShowOneLedAndWriteOnlyWhenTheStateChanges) {
   pins.lights.show(LightState::kHoming);    // no homing LED: all off
   EXPECT_EQ(emu().line(0, 6).physical, 0);
   EXPECT_EQ(emu().line(0, 7).physical, 1);
+}
+
+TEST_F(GpioEmulation, ClosingTheSessionSwitchesTheLightsOff) {
+  GpioOptions o;
+  o.led_pins = {"armed=LED_ARMED", "fault=LED_FAULT:active-low"};
+  {
+    std::optional<gpio::GpioSession> first(open(o));
+    const gpio::GpioSession session = std::move(*first);
+    auto pins = session.pins();
+    pins.lights.show(LightState::kArmed);
+    first.reset();
+    EXPECT_EQ(emu().line(0, 6).physical, 1) << "a moved-from session touches nothing";
+  }
+  EXPECT_EQ(emu().line(0, 6).physical, 0) << "no 'armed' light after the run";
+  EXPECT_EQ(emu().line(0, 7).physical, 1) << "active-low fault light off";
 }
 
 TEST_F(GpioEmulation, AbsentPinsBehaveLikeTheNullPinsAndTouchNoDevice) {

@@ -50,4 +50,13 @@ void GpioLights::write(LightState state) noexcept {
   }
 }
 
+void GpioLights::all_off() noexcept {
+  bool ok = true;
+  for (auto* line : lines_) {
+    if (line != nullptr) ok = detail::write_line(line, 0) && ok;
+  }
+  if (!ok) ++write_errors_;
+  shown_ = static_cast<LightState>(0xFF);
+}
+
 }  // namespace toonforce::gpio

@@ -9,8 +9,10 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 #include <gpiod.h>
@@ -20,9 +22,29 @@ namespace toonforce::gpio {
 void GpioSession::ChipCloser::operator()(gpiod_chip* chip) const noexcept {
   gpiod_chip_close(chip);  // releases every line requested through it
 }
-GpioSession::GpioSession(GpioSession&&) noexcept = default;
-GpioSession& GpioSession::operator=(GpioSession&&) noexcept = default;
-GpioSession::~GpioSession() = default;
+// A moved-from session owns no chip and must not touch the lines it used to name.
+GpioSession::GpioSession(GpioSession&& other) noexcept
+    : chips_(std::move(other.chips_)),
+      pins_(std::exchange(other.pins_, GpioPins{})),
+      summary_(std::move(other.summary_)) {}
+GpioSession& GpioSession::operator=(GpioSession&& other) noexcept {
+  if (this != &other) {
+    close();
+    chips_ = std::move(other.chips_);
+    pins_ = std::exchange(other.pins_, GpioPins{});
+    summary_ = std::move(other.summary_);
+  }
+  return *this;
+}
+GpioSession::~GpioSession() { close(); }
+
+void GpioSession::close() noexcept {
+  // The kernel leaves an output at its last level when the line is released: an "armed"
+  // light must not stay lit after the run, so every light goes off first.
+  if (!chips_.empty()) pins_.lights.all_off();
+  pins_ = GpioPins{};
+  chips_.clear();
+}
 
 namespace {
 
@@ -43,8 +65,10 @@ std::vector<std::string> chip_paths() {
       if (!name.starts_with("gpiochip") || name.size() == 8) continue;
       const auto digits = name.substr(8);
       if (digits.find_first_not_of("0123456789") != std::string_view::npos) continue;
-      found.emplace_back(static_cast<unsigned>(std::stoul(std::string(digits))),
-                         fmt::format("/dev/{}", name));
+      unsigned number = 0;
+      const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), number);
+      if (ec != std::errc{} || end != digits.data() + digits.size()) continue;
+      found.emplace_back(number, fmt::format("/dev/{}", name));
     }
     closedir(dir);
   }

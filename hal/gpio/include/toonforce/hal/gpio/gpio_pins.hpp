@@ -99,6 +99,9 @@ class GpioLights {
     if (state == shown_) return;
     if (present()) write(state);
   }
+  /// Every LED off (end of a run); afterwards the next show() writes again.
+  void all_off() noexcept;
+
   bool present() const noexcept {
     for (const auto* l : lines_) {
       if (l != nullptr) return true;

@@ -33,8 +33,8 @@ class GpioSession;
 Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consumer = kConsumer);
 
 /// The chips and requested lines of one run. Keep it alive while any copy of its pins is in
-/// use: closing it releases the lines (outputs keep their last level, as the kernel leaves
-/// them).
+/// use. Closing it switches every light off and releases the lines (the kernel leaves an
+/// output at its last level, so the tick pin stays where it was).
 class GpioSession {
  public:
   GpioSession(GpioSession&&) noexcept;
@@ -52,6 +52,7 @@ class GpioSession {
     void operator()(gpiod_chip* chip) const noexcept;
   };
   GpioSession() = default;
+  void close() noexcept;
   friend Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consumer);
 
   std::vector<std::unique_ptr<gpiod_chip, ChipCloser>> chips_;
