@@ -22,19 +22,9 @@
 #include "toonforce/hal/gpio/emulated_gpio.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
 
-namespace {
-
-thread_local std::size_t g_allocations = 0;
-
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+namespace toonforce::bench {
+std::size_t new_calls() noexcept;  // count_new.cpp
+}  // namespace toonforce::bench
 
 namespace toonforce::gpio {
 namespace {
@@ -62,9 +52,9 @@ void BM_TickToggle(benchmark::State& state) {
   auto session = open_bench_pins();
   if (!session) return state.SkipWithError(session.error().c_str());
   GpioPins pins = session->pins();
-  const std::size_t before = g_allocations;
+  const std::size_t before = bench::new_calls();
   for (auto _ : state) pins.tick.toggle();
-  report_allocations(state, g_allocations - before);
+  report_allocations(state, bench::new_calls() - before);
   if (pins.tick.write_errors() != 0) state.SkipWithError("write errors");
 }
 BENCHMARK(BM_TickToggle)->Unit(benchmark::kMicrosecond);
@@ -73,9 +63,9 @@ void BM_InputRead(benchmark::State& state) {
   auto session = open_bench_pins();
   if (!session) return state.SkipWithError(session.error().c_str());
   GpioPins pins = session->pins();
-  const std::size_t before = g_allocations;
+  const std::size_t before = bench::new_calls();
   for (auto _ : state) benchmark::DoNotOptimize(pins.estop.read());
-  report_allocations(state, g_allocations - before);
+  report_allocations(state, bench::new_calls() - before);
 }
 BENCHMARK(BM_InputRead)->Unit(benchmark::kMicrosecond);
 
@@ -88,9 +78,9 @@ void BM_CxxWrapperSetValue(benchmark::State& state) {
     gpiod::line line = chip.get_line(spec->offset);
     line.request({"toonforce-bench", gpiod::line_request::DIRECTION_OUTPUT, 0}, 0);
     int value = 0;
-    const std::size_t before = g_allocations;
+    const std::size_t before = bench::new_calls();
     for (auto _ : state) line.set_value(value ^= 1);
-    report_allocations(state, g_allocations - before);
+    report_allocations(state, bench::new_calls() - before);
     line.release();
   } catch (const std::exception& e) {
     state.SkipWithError(e.what());
