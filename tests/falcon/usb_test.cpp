@@ -1,6 +1,6 @@
 // The real libusb backend (LibusbTransport, open_falcon, detect_falcons, the toonforce CLI)
 // against emulated Falcons at the usbfs boundary through umockdev. CTest runs this binary
-// under tests/falcon/run_under_umockdev; run by hand without it, every test skips.
+// under tests/support/run_under_umockdev; run by hand without it, every test skips.
 #include <gtest/gtest.h>
 
 #include <cstdio>
