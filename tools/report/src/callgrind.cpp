@@ -68,7 +68,9 @@ Result<CallgrindResult> count_instructions(const CallgrindOptions& options) {
   if (!fs::is_regular_file(options.tick_count, ec)) {
     return Error{fmt::format("callgrind: {} is missing (build the toonforce_tick_count target)", options.tick_count)};
   }
-  std::string pattern = (fs::temp_directory_path(ec) / "toonforce-callgrind-XXXXXX").string();
+  // Thousands of small dumps: in memory (/dev/shm) when there is one, it halves the run time.
+  const fs::path base = access("/dev/shm", W_OK) == 0 ? fs::path("/dev/shm") : fs::temp_directory_path(ec);
+  std::string pattern = (base / "toonforce-callgrind-XXXXXX").string();
   if (mkdtemp(pattern.data()) == nullptr) return Error{fmt::format("callgrind: cannot create {}", pattern)};
   const fs::path dir = pattern;
   const std::vector<std::string> argv{options.valgrind,
