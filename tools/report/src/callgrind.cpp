@@ -86,7 +86,15 @@ Result<CallgrindResult> count_instructions(const CallgrindOptions& options) {
                                       "--ticks",
                                       std::to_string(options.branch_ticks)};
   CallgrindResult result;
-  result.command = shell_line(argv);
+  // For people: the same command with a placeholder output directory and paths relative to
+  // the current directory where they are inside it.
+  std::vector<std::string> shown = argv;
+  shown[4] = "--callgrind-out-file=DIR/cg.out";
+  for (const std::size_t i : {std::size_t{5}, std::size_t{7}}) {
+    const fs::path relative = fs::path(shown[i]).lexically_relative(fs::current_path(ec));
+    if (!relative.empty() && relative.native().rfind("..", 0) != 0) shown[i] = relative.string();
+  }
+  result.command = shell_line(shown);
   const fs::path list = dir / "cases.tsv";
   auto status = run_process(argv, list.string(), true);
   const auto cleanup = [&dir] {

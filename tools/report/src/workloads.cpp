@@ -265,15 +265,15 @@ std::vector<TickInput<S>> scenario_inputs(std::string_view scene) {
 }
 
 /// The same scenario as device samples (positions only: the controller estimates velocity).
-std::vector<Sample> scenario_samples(std::string_view scene) {
+std::vector<Sample> scenario_samples(std::string_view scene, double rate_hz = kRateHz) {
   const KeyframePath path = paper_scenario(scene);
-  const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * kRateHz));
+  const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * rate_hz));
   std::vector<Sample> samples;
   for (std::int64_t k = 0; k < ticks; ++k) {
     Sample s;
-    s.position_m = path.at(static_cast<double>(k) / kRateHz).position_m;
+    s.position_m = path.at(static_cast<double>(k) / rate_hz).position_m;
     s.now = Instant{k, 0.0};
-    s.dt_s = 1.0 / kRateHz;
+    s.dt_s = 1.0 / rate_hz;
     samples.push_back(s);
   }
   return samples;
@@ -569,7 +569,38 @@ Result<bool> add_scalar(const std::string& root, std::vector<std::unique_ptr<Tic
   return true;
 }
 
+template <Scalar S>
+std::unique_ptr<TickCase> controller_case(const SceneDescription& desc, std::string_view scene, double rate_hz,
+                                          std::optional<SineMethod> sine) {
+  ControllerWork<RuntimeScene<S>> work{
+      Controller<RuntimeScene<S>>(make_runtime_scene<S>(desc, sine), controller_config(desc, 1.0 / rate_hz)),
+      scenario_samples(scene, rate_hz), {}};
+  CaseInfo info;
+  info.level = Level::kController;
+  info.scalar = kind_of<S>();
+  info.subject = std::string(scene);
+  info.branch = "scenario";
+  info.form = "runtime";
+  info.ticks_per_pass = work.samples.size();
+  info.id = fmt::format("controller/{}/{}/{:g}Hz/{}", scene, scalar_kind_name(info.scalar), rate_hz,
+                        sine ? sine_method_name(*sine) : std::string_view("default"));
+  return make_case(std::move(info), std::move(work));
+}
+
 }  // namespace
+
+Result<std::unique_ptr<TickCase>> make_controller_case(const std::string& root, std::string_view scene,
+                                                       ScalarKind scalar, double rate_hz,
+                                                       std::optional<SineMethod> sine) {
+  auto desc = load(root, scene, scalar);
+  if (!desc) return Error{desc.error()};
+  switch (scalar) {
+    case ScalarKind::kDouble: return controller_case<double>(desc.value(), scene, rate_hz, sine);
+    case ScalarKind::kFloat: return controller_case<float>(desc.value(), scene, rate_hz, sine);
+    case ScalarKind::kQ16_16: return controller_case<Q16_16>(desc.value(), scene, rate_hz, sine);
+  }
+  return Error{"unknown scalar type"};
+}
 
 Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root) {
   std::vector<std::unique_ptr<TickCase>> cases;

@@ -17,11 +17,13 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/toml_reader.hpp"
+#include "toonforce/math/sine.hpp"
 
 namespace toonforce::report {
 
@@ -101,6 +103,13 @@ class TickCase {
 /// the paper scenes (compile-time and runtime) and the Controller, each for double, float and
 /// Q16.16. `root` holds scenes/ (the bundled paper scenes). Start-up code.
 Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root);
+
+/// The Controller (RuntimeScene of a paper scene's file, velocity estimated) on that scene's
+/// scenario at `rate_hz`, with the impacts' sine method overridden when `sine` is set: what
+/// the precision report times for each of its configurations.
+Result<std::unique_ptr<TickCase>> make_controller_case(const std::string& root, std::string_view scene,
+                                                       ScalarKind scalar, double rate_hz,
+                                                       std::optional<SineMethod> sine);
 
 /// Whether `id` is selected by `filter`: empty selects all; otherwise any of its
 /// comma-separated parts is a substring of `id`.
