@@ -1,6 +1,8 @@
 // The extreme cases of shared/reference/realtime-safety-stability.md §4, each with the safety
 // layer on: the servo loop (ServoLoop: engage, soft start, velocity limit, workspace, watchdog,
-// passivity observer and controller, force-rate limit, clamp last) on the host simulation's
+// passivity observer and controller, thermal model, force-rate limit, clamp last; configured
+// as `toonforce run --device sim` configures it, so the thermal model is inert: the simulated
+// device's continuous force is its peak) on the host simulation's
 // device (host_sim::SimDevice: mass, damping, friction, encoder and DAC steps, I/O delay,
 // saturation) held by a simulated hand. Every test checks what the issue asks: the commanded
 // force stays within the clamp, the energy stays bounded, nothing becomes NaN, and the loop
@@ -126,6 +128,7 @@ class Rig {
     DeviceInfo info;
     info.name = "simulated";
     info.max_force_n = device.max_force_n;
+    info.max_continuous_force_n = device.max_force_n;  // as host_sim::SimDriver: no thermal limit
     info.workspace_min_m = device.workspace_min_m;
     info.workspace_max_m = device.workspace_max_m;
     config_ = with_device(servo_config(description_, period_s), info);
@@ -232,7 +235,7 @@ TEST(ExtremeCases, StiffWallsBeyondTheBoundStayBoundedAtEveryPeriodEvenWithoutDa
 /// or off.
 template <Scalar S = double>
 double stroked_episode_energy(const std::string& scene, const DeviceParams& device, double stroke_speed,
-                              double press_n, bool controller, Rig<S>** keep = nullptr) {
+                              double press_n, bool controller) {
   HandSegment stroke;
   stroke.kind = SegmentKind::kStroke;
   stroke.to_m = {0.04, 0.0, -0.001};

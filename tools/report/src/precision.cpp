@@ -282,6 +282,37 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   if (!plot_dir.empty()) {
     md += fmt::format("![work-precision diagram]({}/work_precision.png)\n\n", plot_dir);
   }
+  // The summary: what the rate costs in error (double, held RMS, worst scene) against what the
+  // scalar type costs (max vs double at the same rate, worst scene and sine method).
+  md += "Summary, worst over the five scenes (and sine methods):\n\n| | ";
+  for (const double rate : r.options.rates_hz) md += fmt::format("{:g} Hz | ", rate);
+  md += "\n| --- |";
+  for (std::size_t i = 0; i < r.options.rates_hz.size(); ++i) md += " ---: |";
+  md += "\n";
+  const auto summary_row = [&](const char* label, auto pick) {
+    md += fmt::format("| {} |", label);
+    for (const double rate : r.options.rates_hz) {
+      double worst = 0.0;
+      for (const auto& row : r.rows) {
+        if (row.rate_hz == rate) worst = std::max(worst, pick(row));
+      }
+      md += fmt::format(" {} |", sci(worst));
+    }
+    md += "\n";
+  };
+  summary_row("double: RMS held error vs the 40 kHz reference [N]",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.held_rms_error_n : 0.0; });
+  summary_row("double: max sampled error vs the reference [N]",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.max_error_n : 0.0; });
+  summary_row("float: max error vs double at the same rate [N]",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kFloat ? row.same_rate_max_error_n : 0.0; });
+  summary_row("q16.16: max error vs double at the same rate [N]",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.same_rate_max_error_n : 0.0; });
+  summary_row("double: mean ns per tick",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.mean_ns : 0.0; });
+  summary_row("q16.16: mean ns per tick",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; });
+  md += "\n";
   std::string scene;
   for (const auto& row : r.rows) {
     if (row.scene != scene) {
