@@ -597,7 +597,9 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
   if (reading_status_ == DeviceStatus::kOk && !ending && !emergency && scale > 0.0) {
     out = requested_n_ * scale;
     const double magnitude = std::sqrt(dot(out, out));
-    if (magnitude > limits_.force_cap_n) out = out * (limits_.force_cap_n / magnitude);
+    // Scaled to a hair under the cap: rounding must never put the norm above the device's own
+    // limit, which the library checks (HD_EXCEEDED_MAX_FORCE).
+    if (magnitude > limits_.force_cap_n) out = out * (limits_.force_cap_n * (1.0 - 1e-12) / magnitude);
   }
   const Vec3<double> device_n = omni::Frame::device_force_n(out);
   const double command[3] = {device_n.x, device_n.y, device_n.z};
