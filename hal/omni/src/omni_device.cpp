@@ -444,27 +444,30 @@ void OmniDevice::drain_errors() noexcept {
 
 void OmniDevice::hold_force(std::int64_t ticks) noexcept {
   held_ = true;
-  hold_until_tick_ = std::max(hold_until_tick_, tick_ + ticks);
+  // `ticks` whole frames of zero force after this one (whose force may have gone out already).
+  hold_until_tick_ = std::max(hold_until_tick_, tick_ + 1 + ticks);
 }
 
 void OmniDevice::check_calibration() noexcept {
   const hd::HdFunctions& f = *hd_;
-  const hd::HDenum state = f.hdCheckCalibration();
+  hd::HDenum state = f.hdCheckCalibration();
+  // Auto and inkwell devices update in the servo thread, as sawSensablePhantom does
+  // (mtsSensableHD.cpp), then check again; an encoder reset only makes sense in the reset
+  // pose, so it happens at open.
+  const int style = limits_.calibration_style;
+  if (state != hd::kCalibrationOk && (style == hd::kCalibrationAuto || style == hd::kCalibrationInkwell)) {
+    f.hdUpdateCalibration(static_cast<hd::HDenum>(style));
+    state = f.hdCheckCalibration();
+  }
   published_.calibration = state;
-  if (state == hd::kCalibrationOk) {
-    if (!calibrated_) {
-      calibrated_ = true;
-      ramp_start_tick_ = tick_;
-      ramp_ticks_ = ticks_for(options_.enable_ramp_s, period_s_);
-    }
+  if (state != hd::kCalibrationOk) {
+    calibrated_ = false;
     return;
   }
-  calibrated_ = false;
-  // Auto and inkwell devices update in the servo thread, as sawSensablePhantom does
-  // (mtsSensableHD.cpp); an encoder reset only makes sense in the reset pose (done at open).
-  const int style = limits_.calibration_style;
-  if (style == hd::kCalibrationAuto || style == hd::kCalibrationInkwell) {
-    f.hdUpdateCalibration(static_cast<hd::HDenum>(style));
+  if (!calibrated_) {
+    calibrated_ = true;
+    ramp_start_tick_ = tick_;
+    ramp_ticks_ = ticks_for(options_.enable_ramp_s, period_s_);
   }
 }
 

@@ -369,9 +369,10 @@ void simulate(Fake& f, double dt) {
       }
     }
   }
-  // Motor thermal model: warms toward (|F| / F_continuous)^2 with a 20 s time constant.
+  // Motor thermal model: warms toward (|F| / F_continuous)^2 with a 60 s time constant, so
+  // the peak force can be held for seconds, not minutes.
   const double load = norm(f.applied) / f.max_continuous_force_n;
-  f.temperature += (load * load - f.temperature) * (dt / (20.0 + dt));
+  f.temperature += (load * load - f.temperature) * (dt / (60.0 + dt));
 }
 
 // ---- the scheduler ----------------------------------------------------------------------------
