@@ -105,7 +105,8 @@ TEST_F(OmniLoading, AMissingDependencyIsNamedWithItsFix) {
   EXPECT_EQ(out.library, nullptr);
   EXPECT_EQ(out.problem, hd::LoadProblem::kDependencyMissing);
   EXPECT_THAT(out.message, HasSubstr("needs libPhantomIOLib42.so"));
-  EXPECT_THAT(out.message, HasSubstr("install the 3D Systems Touch Device Driver"));
+  EXPECT_THAT(out.fix, HasSubstr("install the 3D Systems Touch Device Driver"));
+  EXPECT_THAT(out.message, HasSubstr("Install the 3D Systems Touch Device Driver"));
 }
 
 TEST_F(OmniLoading, AFileThatIsNotALibraryIsReportedAsSuch) {

@@ -130,8 +130,12 @@ Attempt try_open(const std::string& candidate) {
   return a;
 }
 
-LoadOutcome fail(LoadProblem problem, std::string message) {
-  return LoadOutcome{nullptr, problem, std::move(message)};
+LoadOutcome fail(LoadProblem problem, std::string what, std::string fix) {
+  const auto upper = [](char c) { return static_cast<char>(std::toupper(static_cast<unsigned char>(c))); };
+  std::string message = what + ". " + fix + ".";
+  message[0] = upper(message[0]);
+  message[what.size() + 2] = upper(message[what.size() + 2]);
+  return LoadOutcome{nullptr, problem, std::move(message), std::move(what), std::move(fix)};
 }
 
 }  // namespace
@@ -190,56 +194,49 @@ LoadOutcome load_library(std::string_view path) {
   } else {
     for (const char* name : kDefaultLibraryNames) candidates.emplace_back(name);
   }
-  const bool searched = path.empty() && origin.empty();
+  const bool searched = origin.empty();
 
   Attempt found;
   std::string opened;
   for (const std::string& candidate : candidates) {
     Attempt a = try_open(candidate);
-    if (a.handle != nullptr) {
+    // Loaded, or there but unusable: either is the answer (rather than trying on).
+    if (a.handle != nullptr || a.problem != LoadProblem::kNotFound) {
       found = std::move(a);
       opened = candidate;
       break;
     }
-    // A file that exists but cannot be used is the answer: say so rather than trying on.
-    if (a.problem != LoadProblem::kNotFound) {
-      found = std::move(a);
-      opened = candidate;
-      break;
-    }
+    found = std::move(a);
   }
 
   if (found.handle == nullptr) {
     switch (found.problem) {
       case LoadProblem::kDependencyMissing:
         return fail(LoadProblem::kDependencyMissing,
-                    fmt::format("{} was found but needs {}, which the dynamic loader cannot find: {}. "
+                    fmt::format("{} was found but needs {}, which the dynamic loader cannot find "
                                 "(dlopen said: {})",
-                                opened, found.dependency, dependency_fix(found.dependency), found.detail));
+                                opened, found.dependency, found.detail),
+                    dependency_fix(found.dependency));
       case LoadProblem::kNotLoadable:
-        return fail(LoadProblem::kNotLoadable,
-                    fmt::format("{} could not be loaded: {}. It must be OpenHaptics' libHD.so for "
-                                "this machine (64-bit x86-64 Linux).",
-                                opened, found.detail));
+        return fail(LoadProblem::kNotLoadable, fmt::format("{} could not be loaded: {}", opened, found.detail),
+                    "it must be OpenHaptics' libHD.so for this machine (64-bit x86-64 Linux)");
       default:
         break;
     }
     if (searched) {
       return fail(LoadProblem::kNotFound,
-                  fmt::format("OpenHaptics is not installed, or not where the dynamic loader looks: "
-                              "none of libHD.so, libHD.so.3.4, libHD.so.3.0 was found. {}. If libHD.so "
-                              "is installed elsewhere, set {}=/path/to/libHD.so.",
+                  "OpenHaptics is not installed, or not where the dynamic loader looks: none of "
+                  "libHD.so, libHD.so.3.4, libHD.so.3.0 was found",
+                  fmt::format("{}. If libHD.so is installed elsewhere, set {}=/path/to/libHD.so",
                               kInstallAdvice, kLibraryEnvVar));
     }
-    return fail(LoadProblem::kNotFound,
-                fmt::format("{} does not exist or cannot be read. Point it at OpenHaptics' libHD.so "
-                            "(the installer puts it in /usr/lib), or leave it unset to search "
-                            "libHD.so, libHD.so.3.4 and libHD.so.3.0.",
-                            origin));
+    return fail(LoadProblem::kNotFound, fmt::format("{} does not exist or cannot be read", origin),
+                "point it at OpenHaptics' libHD.so (the installer puts it in /usr/lib), or leave it "
+                "unset to search libHD.so, libHD.so.3.4 and libHD.so.3.0");
   }
 
   const std::string resolved = loaded_path(found.handle, opened);
-  if (auto it = loaded().find(resolved); it != loaded().end()) return LoadOutcome{it->second, {}, {}};
+  if (auto it = loaded().find(resolved); it != loaded().end()) return LoadOutcome{it->second, {}, {}, {}, {}};
 
   // Version in the file name (libHD.so.3.4.0): refuse another major version before use.
   const std::string file_version =
@@ -247,25 +244,24 @@ LoadOutcome load_library(std::string_view path) {
   if (!file_version.empty() && major_version(file_version) != kSupportedMajorVersion) {
     return fail(LoadProblem::kWrongVersion,
                 fmt::format("{} is OpenHaptics HD library version {}, but toonforce needs version {} "
-                            "(3.4 for the Touch, 3.0 for the FireWire Omni). {}, or set {} to its "
-                            "libHD.so.",
-                            resolved, file_version, kSupportedMajorVersion, kInstallAdvice,
-                            kLibraryEnvVar));
+                            "(3.4 for the Touch, 3.0 for the FireWire Omni)",
+                            resolved, file_version, kSupportedMajorVersion),
+                fmt::format("{}, or set {} to its libHD.so", kInstallAdvice, kLibraryEnvVar));
   }
 
   HdFunctions functions;
   const std::vector<std::string> missing = bind_all(found.handle, functions);
   if (!missing.empty()) {
     return fail(LoadProblem::kSymbolMissing,
-                fmt::format("{} is not a usable OpenHaptics HD library: it does not export {} ({} of the "
-                            "{} HD functions toonforce uses are missing). Install OpenHaptics 3.0 or "
-                            "later, or point {} at its libHD.so.",
-                            resolved, join(missing), missing.size(), kFunctionCount, kLibraryEnvVar));
+                fmt::format("{} is not a usable OpenHaptics HD library: it does not export {} ({} of "
+                            "the {} HD functions toonforce uses)",
+                            resolved, join(missing), missing.size(), kFunctionCount),
+                fmt::format("Install OpenHaptics 3.0 or later, or point {} at its libHD.so", kLibraryEnvVar));
   }
 
   const auto* library = new Library(found.handle, resolved, file_version, functions);
   loaded().emplace(resolved, library);
-  return LoadOutcome{library, {}, {}};
+  return LoadOutcome{library, {}, {}, {}, {}};
 }
 
 }  // namespace toonforce::hd

@@ -63,7 +63,9 @@ class Library {
 struct LoadOutcome {
   const Library* library = nullptr;  ///< set on success
   LoadProblem problem = LoadProblem::kNone;
-  std::string message;  ///< what went wrong and what to do; empty on success
+  std::string message;  ///< what went wrong and what to do: "<what>. <Fix>."; empty on success
+  std::string what;     ///< what went wrong, alone
+  std::string fix;      ///< what to install or change, alone
 };
 
 /// Loads the HD library (see the search order above); `path` empty means "no explicit path".
