@@ -4,6 +4,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <thread>
 
@@ -229,6 +230,26 @@ TEST_F(OmniDeviceTest, TheTickClockCountsPeriodsFromZero) {
     EXPECT_DOUBLE_EQ(probe.records[i].clock.dt_s, 1e-3);
     EXPECT_DOUBLE_EQ(probe.records[i].clock.period_s, 1e-3);
   }
+}
+
+TEST_F(OmniDeviceTest, StopsCleanlyWhileTheSchedulerRunsFreely) {
+  // The fake's scheduler ticks on its own clock here, as the vendor's does: stop() must end
+  // the run from the owner thread through the closing frame. The deadline only guards
+  // against a hang; no timing is asserted.
+  fake.set_manual(0);
+  OmniDevice& d = start_probe();
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (d.status_version() < 50 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_GE(d.status_version(), 50U);
+  d.stop(std::chrono::seconds(5));
+  EXPECT_FALSE(d.running());
+  const TfFakeHdStats s = fake.stats();
+  EXPECT_EQ(s.scheduler_running, 0);
+  EXPECT_EQ(s.async_callbacks, 0);
+  EXPECT_EQ(s.force_output_enabled, 0);
+  EXPECT_EQ(d.status().phase, OmniPhase::kStopped);
 }
 
 TEST_F(OmniDeviceTest, StartTwiceIsRefusedAndStopIsIdempotent) {
