@@ -6,6 +6,7 @@
 namespace toonforce::cli {
 
 void add_replay(CLI::App& app);
+void add_doctor(CLI::App& app);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

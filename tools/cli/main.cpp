@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
   toonforce::cli::add_replay(app);
+  toonforce::cli::add_doctor(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

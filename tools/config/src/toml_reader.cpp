@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -264,20 +266,128 @@ void TableReader::finish() {
   }
 }
 
-std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors) {
-  try {
-    return toml::parse_file(path);
-  } catch (const toml::parse_error& e) {
-    if (e.source().begin.line == 0) {
-      errors.add(0, "", fmt::format("cannot read the file: {}", e.description()));
-    } else {
-      errors.add(e.source(), "", fmt::format("TOML syntax: {}", e.description()));
+namespace {
+
+/// Length of the valid UTF-8 sequence at text[i], or 0 if it is not one (overlong forms,
+/// surrogates and code points above U+10FFFF are invalid).
+std::size_t utf8_length(std::string_view text, std::size_t i) {
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
+  const unsigned char b = byte(i);
+  std::size_t n = 0;
+  std::uint32_t cp = 0;
+  if (b < 0x80) return 1;
+  if (b >= 0xC2 && b <= 0xDF) {
+    n = 2;
+    cp = b & 0x1FU;
+  } else if (b >= 0xE0 && b <= 0xEF) {
+    n = 3;
+    cp = b & 0x0FU;
+  } else if (b >= 0xF0 && b <= 0xF4) {
+    n = 4;
+    cp = b & 0x07U;
+  } else {
+    return 0;
+  }
+  if (i + n > text.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((byte(i + k) & 0xC0U) != 0x80U) return 0;
+    cp = (cp << 6) | (byte(i + k) & 0x3FU);
+  }
+  const bool overlong = (n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000);
+  if (overlong || (cp >= 0xD800 && cp <= 0xDFFF) || cp > 0x10FFFF) return 0;
+  return n;
+}
+
+/// Checks what toml++ 3.3 (Debian 12's) cannot be trusted with: invalid UTF-8, and non-ASCII
+/// characters where the parser classifies whitespace (outside comments and strings, and right
+/// after a line-ending backslash in a multi-line string). There its whitespace lookup reaches
+/// an "unreachable" branch, which is undefined behaviour (toml++ issues #190 and #295, found
+/// here by tests/fuzz/scene_file_fuzz.cpp). TOML allows non-ASCII only in comments and strings
+/// anyway, so rejecting it elsewhere, with its line, costs a valid file nothing.
+bool check_text(std::string_view text, ErrorList& errors) {
+  enum class State { kNormal, kComment, kBasic, kLiteral, kMultiBasic, kMultiLiteral, kLineEndingBackslash };
+  State state = State::kNormal;
+  std::uint32_t line = 1;
+  const auto starts = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  std::size_t i = 0;
+  // Moves past the current character and n - 1 more, counting the newlines among the others.
+  const auto skip = [&](std::size_t n) {
+    for (std::size_t k = i + 1; k < i + n && k < text.size(); ++k) line += text[k] == '\n' ? 1U : 0U;
+    i += n;
+  };
+  while (i < text.size()) {
+    const char c = text[i];
+    if (static_cast<unsigned char>(c) >= 0x80) {
+      const std::size_t n = utf8_length(text, i);
+      if (n == 0) {
+        errors.add(line, "", fmt::format("invalid UTF-8 (byte 0x{:02X}); save the file as UTF-8",
+                                         static_cast<unsigned char>(c)));
+        return false;
+      }
+      if (state == State::kNormal || state == State::kLineEndingBackslash) {
+        errors.add(line, "", "a non-ASCII character outside a comment or a string; TOML keys and values are ASCII "
+                             "unless quoted");
+        return false;
+      }
+      i += n;
+      continue;
     }
+    if (c == '\n') ++line;
+    switch (state) {
+      case State::kNormal:
+        if (c == '#') state = State::kComment;
+        else if (starts(i, "\"\"\"")) { state = State::kMultiBasic; skip(3); continue; }
+        else if (starts(i, "'''")) { state = State::kMultiLiteral; skip(3); continue; }
+        else if (c == '"') state = State::kBasic;
+        else if (c == '\'') state = State::kLiteral;
+        break;
+      case State::kComment:
+        if (c == '\n') state = State::kNormal;
+        break;
+      case State::kBasic:
+        if (c == '\\') { skip(2); continue; }
+        if (c == '"' || c == '\n') state = State::kNormal;
+        break;
+      case State::kLiteral:
+        if (c == '\'' || c == '\n') state = State::kNormal;
+        break;
+      case State::kMultiBasic:
+        if (starts(i, "\"\"\"")) { state = State::kNormal; skip(3); continue; }
+        if (c == '\\') {
+          std::size_t k = i + 1;
+          while (k < text.size() && (text[k] == ' ' || text[k] == '\t' || text[k] == '\r')) ++k;
+          if (k < text.size() && text[k] == '\n') { state = State::kLineEndingBackslash; skip(1); continue; }
+          skip(2);
+          continue;
+        }
+        break;
+      case State::kLineEndingBackslash:  // whitespace and newlines, up to the next character
+        if (c != ' ' && c != '\t' && c != '\r' && c != '\n') { state = State::kMultiBasic; continue; }
+        break;
+      case State::kMultiLiteral:
+        if (starts(i, "'''")) { state = State::kNormal; skip(3); continue; }
+        break;
+    }
+    skip(1);
+  }
+  return true;
+}
+
+}  // namespace
+
+std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) {
+    errors.add(0, "", "cannot open the file for reading");
     return std::nullopt;
   }
+  std::stringstream text;
+  text << file.rdbuf();
+  return parse_toml_text(text.str(), errors);
 }
 
 std::optional<toml::table> parse_toml_text(std::string_view text, ErrorList& errors) {
+  if (!check_text(text, errors)) return std::nullopt;
   try {
     return toml::parse(text, errors.file());
   } catch (const toml::parse_error& e) {

@@ -60,23 +60,26 @@ class Controller {
                                (!sample.has_velocity || is_finite(sample.velocity_m_per_s));
     if (!inputs_finite) {
       result.faults.set(Fault::kNonFiniteInput);
+      dropped_since_commit_ = true;
       safety_.zero();
       return result;
     }
 
-    // 1/dt for the laws and the estimator spans the time since the last committed tick.
+    // 1/dt of this tick, for the force-rate limit; the laws and the estimator take 1/dt since
+    // the last committed tick, the same unless ticks were dropped as non-finite.
+    const S tick_rate_hz = scalar_cast<S>(1.0 / sample.dt_s);
     TickInput<S> in{};
     in.now = sample.now;
     in.period_s = config_.period_s;
-    const double dt_since_commit_s = started_ ? in.seconds_since(last_commit_) : sample.dt_s;
-    in.rate_hz = scalar_cast<S>(1.0 / dt_since_commit_s);
+    in.rate_hz = tick_rate_hz;
+    if (started_ && dropped_since_commit_) in.rate_hz = scalar_cast<S>(1.0 / in.seconds_since(last_commit_));
     in.position_m = vec_cast<S>(sample.position_m);
 
-    Estimator estimator = estimator_;
+    const bool estimate = !sample.has_velocity && has(scene_.needs(), Needs::kVelocity);
     if (sample.has_velocity) {
       in.velocity_m_per_s = vec_cast<S>(sample.velocity_m_per_s);
-    } else if (has(scene_.needs(), Needs::kVelocity)) {
-      in.velocity_m_per_s = estimator.update(in.position_m, in.rate_hz);
+    } else if (estimate) {
+      in.velocity_m_per_s = estimator_.estimate(in.position_m, in.rate_hz);
     }
 
     typename SceneT::State& next = states_[1 - current_];
@@ -84,16 +87,19 @@ class Controller {
     const Vec3<S> scene_force = scene_.force(in, next);
     if (!is_finite(scene_force)) {
       result.faults.set(Fault::kNonFiniteForce);
+      dropped_since_commit_ = true;
       safety_.zero();
       return result;
     }
     current_ = 1 - current_;  // commit the effects' and the estimator's new states
-    estimator_ = estimator;
+    if (estimate) estimator_.commit(in.position_m, in.velocity_m_per_s);
     last_commit_ = sample.now;
-    last_input_ = in;
+    last_position_m_ = in.position_m;
+    last_velocity_m_per_s_ = in.velocity_m_per_s;
+    dropped_since_commit_ = false;
     started_ = true;
 
-    const auto out = safety_.limit(scene_force, scalar_cast<S>(1.0 / sample.dt_s));
+    const auto out = safety_.limit(scene_force, tick_rate_hz);
     result.force_n = out.force_n;
     result.scene_force_n = scene_force;
     result.limits = out.limits;
@@ -105,7 +111,13 @@ class Controller {
 
   /// What the effects report after the last good tick (for traces; not needed by the loop).
   constexpr Diagnostics diagnostics() const noexcept {
-    return started_ ? scene_.diagnostics(states_[current_], last_input_) : Diagnostics{};
+    if (!started_) return Diagnostics{};
+    TickInput<S> in{};
+    in.position_m = last_position_m_;
+    in.velocity_m_per_s = last_velocity_m_per_s_;
+    in.now = last_commit_;
+    in.period_s = config_.period_s;
+    return scene_.diagnostics(states_[current_], in);
   }
   constexpr const SceneT& scene() const noexcept { return scene_; }
   constexpr ForceSafety<S>& safety() noexcept { return safety_; }
@@ -118,7 +130,9 @@ class Controller {
   typename SceneT::State states_[2]{};
   int current_ = 0;
   Instant last_commit_{};
-  TickInput<S> last_input_{};
+  Vec3<S> last_position_m_{};        // of the last committed tick, for diagnostics()
+  Vec3<S> last_velocity_m_per_s_{};
+  bool dropped_since_commit_ = false;  // a tick since the last commit was non-finite
   bool started_ = false;
 };
 

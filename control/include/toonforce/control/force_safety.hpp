@@ -51,14 +51,14 @@ class ForceSafety {
       const S max_step = max_force_rate_n_per_s_ / rate_hz;  // max_force_rate * dt
       const S step_size = norm(step);
       if (step_size > max_step) {
-        out.force_n = previous_n_ + step * (max_step / step_size);
+        out.force_n = previous_n_ + scale_by_ratio(step, max_step, step_size);
         out.limits = out.limits | Limit::kRateLimited;
       }
     }
     if (has_max_force_) {
       const S magnitude = norm(out.force_n);
       if (magnitude > max_force_n_) {
-        out.force_n = out.force_n * (max_force_n_ / magnitude);
+        out.force_n = scale_by_ratio(out.force_n, max_force_n_, magnitude);
         out.limits = out.limits | Limit::kClamped;
       }
     }

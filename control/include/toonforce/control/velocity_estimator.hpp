@@ -17,19 +17,25 @@ class VelocityEstimator {
   constexpr explicit VelocityEstimator(double cutoff_hz = kDefaultCutoffHz) noexcept
       : time_constant_s_(scalar_cast<S>(1.0 / (2.0 * 3.14159265358979323846 * cutoff_hz))) {}
 
-  /// The estimate at this tick, from the position and 1/dt since the previous update.
-  constexpr Vec3<S> update(const Vec3<S>& position_m, S rate_hz) noexcept {
-    if (!started_) {
-      started_ = true;
-      previous_m_ = position_m;
-      return velocity_;
-    }
+  /// The estimate at this tick, from the position and 1/dt since the last committed update.
+  /// Does not change the estimator: `commit` does, once the tick is known to be good.
+  constexpr Vec3<S> estimate(const Vec3<S>& position_m, S rate_hz) const noexcept {
+    if (!started_) return velocity_;
     constexpr S kOne = scalar_cast<S>(1.0);
     const S a = kOne / (kOne + rate_hz * time_constant_s_);
-    const Vec3<S> difference = (position_m - previous_m_) * rate_hz;
-    velocity_ += (difference - velocity_) * a;
+    return velocity_ + ((position_m - previous_m_) * rate_hz - velocity_) * a;
+  }
+  /// Makes `estimate`'s result the estimator's state.
+  constexpr void commit(const Vec3<S>& position_m, const Vec3<S>& velocity_m_per_s) noexcept {
+    started_ = true;
     previous_m_ = position_m;
-    return velocity_;
+    velocity_ = velocity_m_per_s;
+  }
+  /// estimate + commit.
+  constexpr Vec3<S> update(const Vec3<S>& position_m, S rate_hz) noexcept {
+    const Vec3<S> v = estimate(position_m, rate_hz);
+    commit(position_m, v);
+    return v;
   }
   constexpr const Vec3<S>& velocity() const noexcept { return velocity_; }
 
@@ -44,6 +50,8 @@ class VelocityEstimator {
 template <Scalar S>
 struct NoVelocityEstimator {
   constexpr explicit NoVelocityEstimator(double = 0.0) noexcept {}
+  constexpr Vec3<S> estimate(const Vec3<S>&, S) const noexcept { return {}; }
+  constexpr void commit(const Vec3<S>&, const Vec3<S>&) noexcept {}
   constexpr Vec3<S> update(const Vec3<S>&, S) noexcept { return {}; }
 };
 

@@ -1,0 +1,256 @@
+// The per-tick controller: velocity estimator, the safety stage of effects.md §6, the
+// non-finite guard, determinism, and no allocation in a tick.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/controller.hpp"
+
+namespace toonforce {
+namespace {
+
+constexpr double kDt = 1e-3;
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+using Floor = Scene<Surface<PenaltyWall<double>>>;
+Floor floor_scene(double k = 1000.0, double b = 0.0) {
+  return Floor(Surface<PenaltyWall<double>>::Params{{{0, 0, 0}, {0, 0, 1}}, {k, b}, {}, {}});
+}
+
+Sample sample(std::int64_t k, Vec3<double> x) {
+  Sample s;
+  s.position_m = x;
+  s.now = Instant{k, 0.0};
+  s.dt_s = kDt;
+  return s;
+}
+
+ControllerConfig config(ForceLimits limits = {}) {
+  ControllerConfig c;
+  c.limits = limits;
+  c.period_s = kDt;
+  return c;
+}
+
+TEST(ForceSafety, ClampsTheMagnitudeKeepingDirection) {
+  Controller ctl(floor_scene(1000.0), config({8.0, 0.0, true, false}));
+  const auto r = ctl.tick(sample(0, {0, 0, -0.02}));  // 20 N asked
+  EXPECT_NEAR(r.force_n.z, 8.0, 1e-12);
+  EXPECT_NEAR(r.scene_force_n.z, 20.0, 1e-12);
+  EXPECT_EQ(r.limits, static_cast<std::uint8_t>(Limit::kClamped));
+}
+
+TEST(ForceSafety, LimitsTheRateOfChangeFromThePreviousOutput) {
+  Controller ctl(floor_scene(1000.0), config({0.0, 2000.0, false, true}));  // 2 N per 1 ms tick
+  double previous = 0.0;
+  for (int k = 0; k < 5; ++k) {
+    const auto r = ctl.tick(sample(k, {0, 0, -0.007}));  // a 7 N step
+    EXPECT_NEAR(r.force_n.z, std::min(7.0, previous + 2.0), 1e-12) << k;
+    previous = r.force_n.z;
+  }
+  EXPECT_NEAR(previous, 7.0, 1e-12);
+}
+
+TEST(ForceSafety, RateLimitScalesTheStepAlongItsDirection) {
+  Surface<PenaltyWall<double>>::Params a{{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}, {}, {}};
+  Surface<PenaltyWall<double>>::Params b{{{0, 0, 0}, {1, 0, 0}}, {1000.0, 0.0}, {}, {}};
+  Controller ctl(Scene<Surface<PenaltyWall<double>>, Surface<PenaltyWall<double>>>(a, b),
+                 config({0.0, 1000.0, false, true}));
+  const auto r = ctl.tick(sample(0, {-0.003, 0, -0.004}));  // (3, 0, 4) N asked, 1 N allowed
+  EXPECT_NEAR(r.force_n.x, 0.6, 1e-12);
+  EXPECT_NEAR(r.force_n.z, 0.8, 1e-12);
+}
+
+TEST(ForceSafety, ClampsAfterTheRateLimit) {
+  // Rate limit allows 5 N/tick from 0; the clamp at 3 N must still hold.
+  Controller ctl(floor_scene(1000.0), config({3.0, 5000.0, true, true}));
+  const auto r = ctl.tick(sample(0, {0, 0, -0.01}));
+  EXPECT_NEAR(r.force_n.z, 3.0, 1e-12);
+  EXPECT_EQ(r.limits, static_cast<std::uint8_t>(Limit::kRateLimited) | Limit::kClamped);
+}
+
+TEST(ForceSafety, AppliesNothingWithoutLimits) {
+  Controller ctl(floor_scene(1e6), config());
+  EXPECT_NEAR(ctl.tick(sample(0, {0, 0, -0.1})).force_n.z, 1e5, 1e-6);
+}
+
+TEST(NonFiniteGuard, NanPositionGivesExactlyZeroAndAFault) {
+  Controller ctl(floor_scene(1000.0), config({8.0, 2000.0, true, true}));
+  for (int k = 0; k < 10; ++k) ctl.tick(sample(k, {0, 0, -0.005}));
+  const auto r = ctl.tick(sample(10, {0, kNan, -0.005}));
+  EXPECT_EQ(r.force_n, (Vec3<double>{}));  // bypasses the rate limit
+  EXPECT_TRUE(r.faults.has(Fault::kNonFiniteInput));
+  // The previous output became 0: the next tick ramps from 0 at the rate limit.
+  EXPECT_NEAR(ctl.tick(sample(11, {0, 0, -0.005})).force_n.z, 2.0, 1e-12);
+}
+
+TEST(NonFiniteGuard, InfiniteVelocityInputIsAFault) {
+  Controller ctl(floor_scene(1000.0), config());
+  Sample s = sample(0, {0, 0, -0.001});
+  s.has_velocity = true;
+  s.velocity_m_per_s = {std::numeric_limits<double>::infinity(), 0, 0};
+  const auto r = ctl.tick(s);
+  EXPECT_EQ(r.force_n, (Vec3<double>{}));
+  EXPECT_TRUE(r.faults.has(Fault::kNonFiniteInput));
+}
+
+TEST(NonFiniteGuard, NonFiniteSceneForceGivesZeroAndKeepsEffectStates) {
+  // A finite but absurd position overflows the wall force to infinity.
+  using Wall = Surface<PenaltyWall<double>, NoTangential<double>, ImpactTransient<double>>;
+  Wall::Params p{};
+  p.plane = {{0, 0, 0}, {0, 0, 1}};
+  p.wall = {1000.0, 0.0};
+  p.impact = {300.0, 600.0, 0.15, 30.0, 0.05, 0.001, SineMethod::kLibrary};
+  Controller ctl(Scene<Wall>(p), config());
+  Sample s = sample(0, {0, 0, 0.001});
+  s.has_velocity = true;
+  s.velocity_m_per_s = {0, 0, -0.2};
+  ctl.tick(s);
+  s = sample(1, {0, 0, -1e306});
+  s.has_velocity = true;
+  s.velocity_m_per_s = {0, 0, -0.2};
+  const auto bad = ctl.tick(s);
+  EXPECT_EQ(bad.force_n, (Vec3<double>{}));
+  EXPECT_TRUE(bad.faults.has(Fault::kNonFiniteForce));
+  // Had the impact state advanced on the bad tick, this entry would not count as one.
+  s = sample(2, {0, 0, -0.0001});
+  s.has_velocity = true;
+  s.velocity_m_per_s = {0, 0, -0.2};
+  const auto r = ctl.tick(s);
+  EXPECT_NEAR(r.force_n.z, 0.1 + 0.2 * 0.15 * 300.0, 1e-9);
+  EXPECT_FALSE(r.faults);
+}
+
+TEST(VelocityEstimator, FollowsTheSpecsLowPassOfTheBackwardDifference) {
+  // A damped wall makes the estimate visible in the force: F = k delta - b (n.v).
+  const double b = 10.0;
+  Controller ctl(floor_scene(1000.0, b), config());
+  const double a = kDt / (kDt + 1.0 / (2.0 * M_PI * 50.0));
+  double v = 0.0;
+  double z_previous = -0.001;
+  for (int k = 0; k < 50; ++k) {
+    const double z = -0.001 - 0.05 * k * kDt;  // moving in at 5 cm/s
+    const auto r = ctl.tick(sample(k, {0, 0, z}));
+    if (k > 0) v += a * ((z - z_previous) / kDt - v);  // first tick: 0
+    z_previous = z;
+    EXPECT_NEAR(r.force_n.z, std::max(0.0, -1000.0 * z - b * v), 1e-9) << k;
+  }
+  EXPECT_NEAR(v, -0.05, 0.01);  // it has converged toward the true speed
+}
+
+TEST(VelocityEstimator, AfterADroppedSampleUsesTheTimeSinceTheLastGoodOne) {
+  Controller ctl(floor_scene(1000.0, 10.0), config());
+  const double a1 = kDt / (kDt + 1.0 / (2.0 * M_PI * 50.0));
+  const double a2 = 2 * kDt / (2 * kDt + 1.0 / (2.0 * M_PI * 50.0));
+  ctl.tick(sample(0, {0, 0, -0.001}));
+  ctl.tick(sample(1, {0, 0, -0.0011}));  // v1 = a1 * (-0.1)
+  ctl.tick(sample(2, {0, 0, kNan}));
+  const auto r = ctl.tick(sample(3, {0, 0, -0.0013}));  // 0.2 mm in 2 ms: still -0.1 m/s
+  const double v1 = a1 * -0.1;
+  const double v3 = v1 + a2 * (-0.1 - v1);
+  EXPECT_NEAR(r.force_n.z, 1.3 - 10.0 * v3, 1e-9);
+}
+
+TEST(Controller, GivenVelocityIsUsedAsItIs) {
+  Controller ctl(floor_scene(1000.0, 10.0), config());
+  Sample s = sample(0, {0, 0, -0.001});
+  s.has_velocity = true;
+  s.velocity_m_per_s = {0, 0, -0.3};
+  EXPECT_NEAR(ctl.tick(s).force_n.z, 1.0 + 3.0, 1e-12);  // no estimator: first tick is not 0
+}
+
+TEST(Controller, SameInputsGiveBitIdenticalForces) {
+  const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/cartoon_wall.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  std::vector<Vec3<double>> first, second;
+  for (auto* out : {&first, &second}) {
+    Controller ctl(make_runtime_scene<double>(scene.value()), controller_config(scene.value(), kDt));
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> noise(0.0, 2e-5);
+    for (int k = 0; k < 5000; ++k) {
+      const double z = 0.01 * std::cos(k * 0.004) - 0.004 + noise(rng);
+      out->push_back(ctl.tick(sample(k, {0, 0, z})).force_n);
+    }
+  }
+  ASSERT_EQ(first.size(), second.size());
+  for (std::size_t i = 0; i < first.size(); ++i) ASSERT_EQ(first[i], second[i]) << i;
+}
+
+TEST(Controller, Q16SaturationRaisesItsFault) {
+  const auto scene = parse_scene("[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 20000\n",
+                                 "stiff.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(scene) << scene.error();
+  Controller ctl(make_runtime_scene<Q16_16>(scene.value()), controller_config(scene.value(), kDt));
+  EXPECT_FALSE(ctl.tick(sample(0, {0, 0, -0.001})).faults);     // 20 N fits
+  const auto r = ctl.tick(sample(1, {0, 0, -2.0}));              // 40000 N does not
+  EXPECT_TRUE(r.faults.has(Fault::kFixedSaturation));
+  EXPECT_EQ(r.force_n.z, Q16_16::max());                         // saturated, not wrapped
+}
+
+TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
+  // Found by tests/fuzz/tick_fuzz.cpp: scaling a 30000 N request down to a 13 N step by the
+  // ratio 13/30000, itself rounded to an LSB (29 LSB, 2% off), overshot the rate limit by
+  // 0.2 N. The limits scale by (v * limit) / |v| in 64 bits instead.
+  const auto scene = parse_scene("[device]\nmax_force = 20\nmax_force_rate = 2000\n[[surface]]\npoint = [0, 0, 0]\n"
+                                 "normal = [0, 0, 1]\nstiffness = 30000\n",
+                                 "huge.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(scene) << scene.error();
+  Controller ctl(make_runtime_scene<Q16_16>(scene.value()), controller_config(scene.value(), 0.0));
+  constexpr double kLsb = 1.0 / 65536.0;
+  Sample s = sample(0, {0, 0, -0.999});  // asks for 29970 N
+  s.dt_s = 0.0066;                       // allows 13.2 N per tick
+  const auto first = ctl.tick(s);
+  EXPECT_LE(first.force_n.z.to_double(), 2000.0 * 0.0066 + 2 * kLsb);
+  EXPECT_GE(first.force_n.z.to_double(), 2000.0 * 0.0066 - 2 * kLsb);
+  s = sample(1, {0, 0, -0.999});
+  s.dt_s = 0.0066;
+  const auto second = ctl.tick(s);
+  EXPECT_LE(second.force_n.z.to_double(), 20.0 + 2 * kLsb);  // then the clamp holds
+  EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
+}
+
+/// A tick of every bundled scene, in every scalar type, allocates nothing.
+template <Scalar S>
+void expect_no_allocation(const std::string& name, ScalarKind kind) {
+  const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/" + name + ".toml", kind);
+  ASSERT_TRUE(scene) << scene.error();
+  Controller ctl(make_runtime_scene<S>(scene.value()), controller_config(scene.value(), kDt));
+  test::AllocationScope scope;
+  for (int k = 0; k < 10000; ++k) {
+    // Sweeps across the gap, into and out of the floor, through the impact transient.
+    const double x = -0.03 + 0.06 * std::fmod(k * 1e-3, 1.0);
+    const double z = 0.006 * std::sin(k * 0.02) - 0.002;
+    static_cast<void>(ctl.tick(sample(k, {x, 0.0, k % 997 == 0 ? kNan : z})));
+  }
+  EXPECT_EQ(scope.count(), 0U) << name << " " << scalar_kind_name(kind);
+}
+
+TEST(Controller, TicksOfEveryBundledSceneAllocateNothing) {
+  for (const char* name : {"wall", "realistic_friction", "slippery", "cartoon_wall", "cliff"}) {
+    expect_no_allocation<double>(name, ScalarKind::kDouble);
+    expect_no_allocation<float>(name, ScalarKind::kFloat);
+    expect_no_allocation<Q16_16>(name, ScalarKind::kQ16_16);
+  }
+}
+
+TEST(Controller, TicksOfCompileTimeScenesAllocateNothing) {
+  Controller ctl(floor_scene(1000.0, 1.0), config({8.0, 2000.0, true, true}));
+  test::AllocationScope scope;
+  for (int k = 0; k < 10000; ++k) static_cast<void>(ctl.tick(sample(k, {0, 0, 0.003 * std::sin(k * 0.01)})));
+  EXPECT_EQ(scope.count(), 0U);
+}
+
+TEST(AllocationCounter, SeesAnAllocation) {  // the counter itself can fail
+  test::AllocationScope scope;
+  void* p = ::operator new(16);  // a direct call: not elidable like a new-expression
+  ::operator delete(p);
+  EXPECT_EQ(scope.count(), 1U);
+}
+
+}  // namespace
+}  // namespace toonforce

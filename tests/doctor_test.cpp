@@ -1,0 +1,199 @@
+// toonforce doctor against faked /sys, /proc and /dev trees: each check finds what the tree
+// says, fails or warns with a fix, and the exit status says whether the host is ready.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "toonforce/doctor/doctor.hpp"
+
+namespace toonforce {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A fake root of a well-configured real-time host; tests spoil one thing at a time.
+class FakeHost : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            fmt::format("toonforce_doctor_{}_{}", ::getpid(), ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    write("sys/kernel/realtime", "1\n");
+    write("proc/sys/kernel/osrelease", "6.1.0-28-rt-amd64\n");
+    write("proc/sys/kernel/version", "#1 SMP PREEMPT_RT Debian 6.1.119-1\n");
+    write("proc/sys/kernel/sched_rt_runtime_us", "-1\n");
+    write("sys/devices/system/cpu/isolated", "3\n");
+    write("sys/devices/system/clocksource/clocksource0/current_clocksource", "tsc\n");
+    for (int cpu = 0; cpu < 4; ++cpu) write(fmt::format("sys/devices/system/cpu/cpu{}/cpufreq/scaling_governor", cpu), "performance\n");
+    node_gid_ = gid_of_new_files();
+    status(1000, {node_gid_}, "0000000000000000");
+    limits("95", "unlimited");
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  void write(const std::string& relative, const std::string& text) {
+    fs::create_directories((root_ / relative).parent_path());
+    std::ofstream(root_ / relative) << text;
+  }
+  std::uint32_t gid_of_new_files() {
+    write("probe", "");
+    struct stat st {};
+    ::stat((root_ / "probe").c_str(), &st);
+    return st.st_gid;
+  }
+  void status(std::uint32_t uid, std::vector<std::uint32_t> groups, const std::string& cap_eff) {
+    std::string g;
+    for (auto id : groups) g += fmt::format("{} ", id);
+    write("proc/self/status", fmt::format("Name:\ttoonforce\nUid:\t{0}\t{0}\t{0}\t{0}\nGid:\t{1}\t{1}\t{1}\t{1}\nGroups:\t{2}\n"
+                                          "CapEff:\t{3}\n",
+                                          uid, 5000, g, cap_eff));
+  }
+  void limits(const std::string& rtprio, const std::string& memlock) {
+    write("proc/self/limits", fmt::format("Limit                     Soft Limit           Hard Limit           Units     \n"
+                                          "Max locked memory         {0:<21}{0:<21}bytes     \n"
+                                          "Max realtime priority     {1:<21}{1:<21}\n",
+                                          memlock, rtprio));
+  }
+  void falcon(const std::string& usb_dir, int bus, int dev, fs::perms mode) {
+    write(fmt::format("sys/bus/usb/devices/{}/idVendor", usb_dir), "0403\n");
+    write(fmt::format("sys/bus/usb/devices/{}/idProduct", usb_dir), "cb48\n");
+    write(fmt::format("sys/bus/usb/devices/{}/busnum", usb_dir), fmt::format("{}\n", bus));
+    write(fmt::format("sys/bus/usb/devices/{}/devnum", usb_dir), fmt::format("{}\n", dev));
+    const std::string node = fmt::format("dev/bus/usb/{:03}/{:03}", bus, dev);
+    write(node, "");
+    fs::permissions(root_ / node, mode);
+  }
+  std::vector<Finding> run() {
+    DoctorOptions o;
+    o.root = root_.string();
+    return run_doctor(o);
+  }
+  static const Finding& find(const std::vector<Finding>& all, const std::string& check, std::size_t nth = 0) {
+    for (const auto& f : all) {
+      if (f.check == check && nth-- == 0) return f;
+    }
+    static const Finding kMissing{"missing", Verdict::kFail, "no such check", ""};
+    return kMissing;
+  }
+
+  fs::path root_;
+  std::uint32_t node_gid_ = 0;
+};
+
+TEST_F(FakeHost, AWellConfiguredRealTimeHostIsReady) {
+  falcon("1-1", 1, 5, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write);
+  const auto f = run();
+  EXPECT_TRUE(host_ready(f)) << format_findings(f);
+  EXPECT_EQ(find(f, "kernel").verdict, Verdict::kOk);
+  EXPECT_NE(find(f, "SCHED_FIFO").finding.find("priority 95"), std::string::npos);
+  EXPECT_EQ(find(f, "mlockall").verdict, Verdict::kOk);
+  EXPECT_EQ(find(f, "CPU frequency").verdict, Verdict::kOk);
+  EXPECT_NE(find(f, "isolated CPUs").finding.find("3"), std::string::npos);
+  EXPECT_EQ(find(f, "Falcon USB").verdict, Verdict::kOk);
+  EXPECT_NE(find(f, "Falcon USB").finding.find("/dev/bus/usb/001/005"), std::string::npos);
+}
+
+TEST_F(FakeHost, AKernelWithoutPreemptRtIsNotReady) {
+  fs::remove(root_ / "sys/kernel/realtime");
+  write("proc/sys/kernel/version", "#1 SMP PREEMPT_DYNAMIC Debian 6.1.119-1\n");
+  const auto f = run();
+  EXPECT_FALSE(host_ready(f));
+  EXPECT_EQ(find(f, "kernel").verdict, Verdict::kFail);
+  EXPECT_NE(find(f, "kernel").fix.find("linux-image-rt-amd64"), std::string::npos);
+}
+
+TEST_F(FakeHost, TheRtVersionStringAloneIsEnough) {
+  fs::remove(root_ / "sys/kernel/realtime");  // older RT kernels lack the file
+  EXPECT_EQ(find(run(), "kernel").verdict, Verdict::kOk);
+}
+
+TEST_F(FakeHost, NoRtprioAndNoCapabilityMeansNoSchedFifo) {
+  limits("0", "unlimited");
+  const auto f = run();
+  EXPECT_FALSE(host_ready(f));
+  EXPECT_EQ(find(f, "SCHED_FIFO").verdict, Verdict::kFail);
+  EXPECT_NE(find(f, "SCHED_FIFO").fix.find("limits.d"), std::string::npos);
+  EXPECT_NE(find(f, "SCHED_FIFO").fix.find("cap_sys_nice"), std::string::npos);
+}
+
+TEST_F(FakeHost, CapSysNiceGrantsSchedFifoWithoutRtprio) {
+  limits("0", "unlimited");
+  status(1000, {node_gid_}, fmt::format("{:016x}", 1ULL << 23));
+  EXPECT_EQ(find(run(), "SCHED_FIFO").verdict, Verdict::kOk);
+}
+
+TEST_F(FakeHost, AnRtprioBelowTheLoopsPriorityWarns) {
+  limits("50", "unlimited");
+  const auto& fifo = find(run(), "SCHED_FIFO");
+  EXPECT_EQ(fifo.verdict, Verdict::kWarn);
+  EXPECT_NE(fifo.finding.find("50"), std::string::npos);
+}
+
+TEST_F(FakeHost, ASmallMemlockLimitFailsUnlessCapIpcLock) {
+  limits("95", "8388608");
+  EXPECT_EQ(find(run(), "mlockall").verdict, Verdict::kFail);
+  status(1000, {node_gid_}, fmt::format("{:016x}", 1ULL << 14));
+  EXPECT_EQ(find(run(), "mlockall").verdict, Verdict::kOk);
+}
+
+TEST_F(FakeHost, AScalingGovernorWarnsNamingTheCpu) {
+  write("sys/devices/system/cpu/cpu2/cpufreq/scaling_governor", "powersave\n");
+  const auto& g = find(run(), "CPU frequency");
+  EXPECT_EQ(g.verdict, Verdict::kWarn);
+  EXPECT_NE(g.finding.find("cpu2: powersave"), std::string::npos) << g.finding;
+  EXPECT_NE(g.fix.find("performance"), std::string::npos);
+}
+
+TEST_F(FakeHost, NoIsolatedCpuWarns) {
+  write("sys/devices/system/cpu/isolated", "\n");
+  const auto& i = find(run(), "isolated CPUs");
+  EXPECT_EQ(i.verdict, Verdict::kWarn);
+  EXPECT_NE(i.fix.find("isolcpus"), std::string::npos);
+}
+
+TEST_F(FakeHost, AFalconThisUserCannotOpenFailsWithTheUdevFix) {
+  // Owned by root, group not ours, world read-only: the default for an unknown USB device.
+  falcon("1-2", 2, 7, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
+  status(1000, {}, "0000000000000000");
+  const auto f = run();
+  EXPECT_FALSE(host_ready(f));
+  const auto& d = find(f, "Falcon USB");
+  EXPECT_EQ(d.verdict, Verdict::kFail);
+  EXPECT_NE(d.finding.find("/dev/bus/usb/002/007"), std::string::npos);
+  EXPECT_NE(d.fix.find("plugdev"), std::string::npos);
+  EXPECT_NE(d.fix.find("udev"), std::string::npos);
+}
+
+TEST_F(FakeHost, GpioChipsAreCheckedOneByOne) {
+  write("dev/gpiochip0", "");
+  write("dev/gpiochip1", "");
+  fs::permissions(root_ / "dev/gpiochip0", fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read |
+                                                fs::perms::group_write);
+  fs::permissions(root_ / "dev/gpiochip1", fs::perms::owner_read | fs::perms::owner_write);
+  const auto f = run();
+  EXPECT_EQ(find(f, "GPIO", 0).verdict, Verdict::kOk);
+  EXPECT_EQ(find(f, "GPIO", 1).verdict, Verdict::kFail);
+  EXPECT_NE(find(f, "GPIO", 1).finding.find("/dev/gpiochip1"), std::string::npos);
+}
+
+TEST_F(FakeHost, TheCommandsExitStatusSaysWhetherTheHostIsReady) {
+  const auto run_binary = [this] {
+    const std::string cmd = fmt::format("'{}' doctor --root '{}' > /dev/null", TOONFORCE_BINARY, root_.string());
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  EXPECT_EQ(run_binary(), 0);
+  write("proc/sys/kernel/version", "#1 SMP PREEMPT_DYNAMIC\n");
+  fs::remove(root_ / "sys/kernel/realtime");
+  EXPECT_EQ(run_binary(), 1);
+}
+
+}  // namespace
+}  // namespace toonforce

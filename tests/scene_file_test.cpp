@@ -1,0 +1,225 @@
+// Scene files (spec interfaces.md): every bundled scene loads for every scalar type, and
+// malformed files are rejected with the file, the line and the key in the message.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "toonforce/config/scene_file.hpp"
+
+namespace toonforce {
+namespace {
+
+const std::string kScenes = std::string(TOONFORCE_SOURCE_DIR) + "/scenes/";
+
+TEST(SceneFile, EveryBundledSceneLoadsForEveryScalar) {
+  for (const char* name : {"wall", "realistic_friction", "slippery", "cartoon_wall", "cliff"}) {
+    for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16}) {
+      const auto scene = load_scene_file(kScenes + name + ".toml", kind);
+      EXPECT_TRUE(scene) << name << ": " << scene.error();
+    }
+  }
+}
+
+TEST(SceneFile, ReadsTheExampleOfTheSpecWithItsDefaults) {
+  const auto scene = parse_scene(R"(name = "cartoon ice"
+[device]
+max_force = 8.0
+[[surface]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 2.0]
+stiffness = 1500
+  [surface.slippery]
+  mu = 4.0
+  [surface.impact]
+  recoil_gain = 300.0
+  oscillation_gain = 600.0
+  duration = 0.15
+  frequency = 30.0
+[[cliff]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+axis = [2.0, 0.0, 0.0]
+gap_min = -0.01
+gap_max = 0.01
+stiffness = 1500.0
+speed_threshold = 0.08
+)", "example.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  const SceneDescription& s = scene.value();
+  EXPECT_EQ(s.name, "cartoon ice");
+  EXPECT_TRUE(s.limits.has_max_force);
+  EXPECT_FALSE(s.limits.has_max_force_rate);  // absent: no rate limit
+  EXPECT_EQ(s.velocity_cutoff_hz, 50.0);
+  ASSERT_EQ(s.surfaces.size(), 1U);
+  EXPECT_EQ(s.surfaces[0].plane.normal.z, 1.0);  // normalised
+  EXPECT_EQ(s.surfaces[0].stiffness_n_per_m, 1500.0);  // an integer is a number
+  EXPECT_EQ(s.surfaces[0].damping_n_s_per_m, 0.0);
+  EXPECT_EQ(s.surfaces[0].slippery->max_tangential_force_n, 2.0);
+  EXPECT_EQ(s.surfaces[0].impact->min_impact_speed_m_per_s, 0.05);
+  EXPECT_EQ(s.surfaces[0].impact->rearm_distance_m, 0.001);
+  ASSERT_EQ(s.cliffs.size(), 1U);
+  EXPECT_EQ(s.cliffs[0].axis.x, 1.0);
+  EXPECT_EQ(s.cliffs[0].tau_s, 0.02);
+  EXPECT_EQ(s.cliffs[0].rearm_height_m, 0.001);
+  EXPECT_EQ(s.cliffs[0].fall_force_n, 0.0);
+}
+
+TEST(SceneFile, KeepsFileOrderAcrossSurfacesAndCliffs) {
+  const auto scene = parse_scene(R"(
+[[cliff]]
+point = [0, 0, 0]
+normal = [0, 0, 1]
+axis = [1, 0, 0]
+gap_min = 0.0
+gap_max = 0.01
+stiffness = 100
+speed_threshold = 0.1
+[[surface]]
+point = [0, 0, 0.05]
+normal = [0, 0, -1]
+stiffness = 100
+)", "order.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  ASSERT_EQ(scene->order.size(), 2U);
+  EXPECT_EQ(scene->order[0].kind, SceneDescription::Kind::kCliff);
+  EXPECT_EQ(scene->order[1].kind, SceneDescription::Kind::kSurface);
+}
+
+struct Malformed {
+  const char* what;
+  const char* text;
+  const char* expected;  // must appear in the message, with "bad.toml:<line>:"
+  int line;
+};
+
+constexpr const char* kSurface = "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n";
+
+class MalformedScene : public ::testing::TestWithParam<Malformed> {};
+
+TEST_P(MalformedScene, IsRejectedNamingFileLineAndKey) {
+  const Malformed& m = GetParam();
+  const auto scene = parse_scene(m.text, "bad.toml");
+  ASSERT_FALSE(scene) << m.what;
+  const std::string& message = scene.error();
+  EXPECT_NE(message.find(std::string("bad.toml:") + std::to_string(m.line) + ":"), std::string::npos)
+      << m.what << ": " << message;
+  EXPECT_NE(message.find(m.expected), std::string::npos) << m.what << ": " << message;
+}
+
+const Malformed kMalformed[] = {
+    {"typo in a key", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstifness = 1500\n",
+     "unknown key 'stifness' (did you mean 'stiffness'?)", 4},
+    {"missing required key", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\n",
+     "surface[1]: missing required key 'stiffness'", 1},
+    {"wrong type", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = \"stiff\"\n",
+     "surface[1].stiffness: must be a number, not a string", 4},
+    {"non-finite number", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = inf\n",
+     "surface[1].stiffness: must be a finite number", 4},
+    {"zero normal", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\nstiffness = 1500\n",
+     "surface[1].normal: must not be a zero vector", 3},
+    {"vector of two", "[[surface]]\npoint = [0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n",
+     "surface[1].point: must be an array of three numbers", 2},
+    {"negative stiffness", "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = -5\n",
+     "surface[1].stiffness: must be > 0 (got -5)", 4},
+    {"friction and slippery together",
+     "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.friction]\ncoulomb = 0.3\n"
+     "[surface.slippery]\nmu = 4.0\n",
+     "contradict each other", 7},
+    {"positive viscous friction",
+     "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.friction]\nviscous = 2.0\n",
+     "surface[1].friction.viscous: must be <= 0 (got 2)", 6},
+    {"unknown top-level table", "[[surfaces]]\npoint = [0, 0, 0]\n", "unknown key 'surfaces' (did you mean 'surface'?)", 1},
+    {"surface written as a single table", "[surface]\npoint = [0, 0, 0]\n", "surface: must be an array of tables", 1},
+    {"cliff axis along the normal",
+     "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 1]\ngap_min = 0\ngap_max = 0.02\n"
+     "stiffness = 1500\nspeed_threshold = 0.08\n",
+     "cliff[1].axis: must be perpendicular to the normal", 4},
+    {"cliff gap the wrong way round",
+     "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = 0.02\ngap_max = 0.0\n"
+     "stiffness = 1500\nspeed_threshold = 0.08\n",
+     "cliff[1].gap_max: must be greater than gap_min", 6},
+    {"impact without duration",
+     "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.impact]\nrecoil_gain = 300\n"
+     "oscillation_gain = 600\nfrequency = 30\n",
+     "surface[1].impact: missing required key 'duration'", 5},
+    {"unknown sine method",
+     "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.impact]\nrecoil_gain = 300\n"
+     "oscillation_gain = 600\nduration = 0.1\nfrequency = 30\nsine = \"cordic\"\n",
+     "surface[1].impact.sine: unknown sine method 'cordic'", 10},
+    {"device limit of zero", "[device]\nmax_force = 0\n", "device.max_force: must be > 0 (got 0)", 2},
+    {"unknown key in device", "[device]\nmax_froce = 8\n", "device: unknown key 'max_froce' (did you mean 'max_force'?)", 2},
+    {"TOML syntax error", "[[surface]]\npoint = [0, 0, 0\n", "TOML syntax", 2},
+    {"boolean where a number goes", "[device]\nvelocity_cutoff = true\n", "must be a number, not a boolean", 2},
+    // Found by tests/fuzz/scene_file_fuzz.cpp: toml++ 3.3 (Debian 12's) reaches undefined
+    // behaviour on these (its issues #190 and #295); the loader rejects them first.
+    {"non-ASCII outside comments and strings", "# \xc2\xa7 in a comment is fine\n[device]\nmax_force = 8 \xc2\xa7\n",
+     "a non-ASCII character outside a comment or a string", 3},
+    {"a combining mark at the top level (toml++ #295)", "name = \"ok\"\n\xcc\xaa\n",
+     "a non-ASCII character outside a comment or a string", 2},
+    {"invalid UTF-8, even in a comment", "name = \"ok\"\n# caf\xc3\x28\n", "invalid UTF-8 (byte 0xC3)", 2},
+    {"non-ASCII after a line-ending backslash", "name = \"\"\"\\\n\xc2\xa7\"\"\"\n",
+     "a non-ASCII character outside a comment or a string", 2},
+};
+INSTANTIATE_TEST_SUITE_P(SceneFile, MalformedScene, ::testing::ValuesIn(kMalformed));
+
+TEST(SceneFile, AcceptsNonAsciiInCommentsAndStrings) {
+  const auto scene = parse_scene("# ice \xe2\x9d\x84 (paper \xc2\xa7" "4.1)\nname = \"glace \xc3\xa0 la \xc2\xa7\"\n", "utf8.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  EXPECT_EQ(scene->name, "glace \xc3\xa0 la \xc2\xa7");
+}
+
+TEST(SceneFile, ReportsEveryErrorOfAFileAtOnce) {
+  const auto scene = parse_scene(std::string(kSurface) + "colour = \"red\"\n[[surface]]\npoint = [0, 0, 0]\n", "bad.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find("bad.toml:5: surface[1]: unknown key 'colour'"), std::string::npos) << scene.error();
+  EXPECT_NE(scene.error().find("bad.toml:6: surface[2]: missing required key 'normal'"), std::string::npos)
+      << scene.error();
+}
+
+TEST(SceneFile, RejectsValuesOutsideTheQ16Range) {
+  const std::string text = "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 50000\n";
+  EXPECT_TRUE(parse_scene(text, "big.toml", ScalarKind::kDouble));
+  const auto q = parse_scene(text, "big.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("big.toml:4: surface[1].stiffness: 50000 is outside the Q16.16 range"), std::string::npos)
+      << q.error();
+}
+
+TEST(SceneFile, RejectsAPositiveValueThatRoundsToZeroInQ16) {
+  const std::string text = std::string(kSurface) + "[surface.friction]\nregularization_speed = 1e-6\n";
+  EXPECT_TRUE(parse_scene(text, "tiny.toml", ScalarKind::kDouble));
+  const auto q = parse_scene(text, "tiny.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("tiny.toml:6: surface[1].friction.regularization_speed: 1e-06 rounds to 0 in Q16.16"),
+            std::string::npos)
+      << q.error();
+}
+
+TEST(SceneFile, RejectsTheLibrarySineForQ16) {
+  const std::string text = std::string(kSurface) +
+                           "[surface.impact]\nrecoil_gain = 1\noscillation_gain = 1\nduration = 0.1\nfrequency = 30\n"
+                           "sine = \"library\"\n";
+  EXPECT_TRUE(parse_scene(text, "sine.toml", ScalarKind::kFloat));
+  const auto q = parse_scene(text, "sine.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("sine.toml:10: surface[1].impact.sine: 'library' needs a floating-point scalar"),
+            std::string::npos)
+      << q.error();
+}
+
+TEST(SceneFile, SaysWhenTheFileIsMissing) {
+  const auto scene = load_scene_file("/nonexistent/scene.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find("/nonexistent/scene.toml: no such scene file"), std::string::npos) << scene.error();
+}
+
+TEST(SceneFile, RefusesMoreSurfacesThanASceneHolds) {
+  std::string text;
+  for (std::size_t i = 0; i <= RuntimeScene<double>::kMaxSurfaces; ++i) text += kSurface;
+  const auto scene = parse_scene(text, "many.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find("more than the 16 a scene holds"), std::string::npos) << scene.error();
+}
+
+}  // namespace
+}  // namespace toonforce

@@ -1,0 +1,25 @@
+// toonforce doctor [--root DIR] [--priority P]: is this host ready for a real-time loop?
+#include <cstdio>
+#include <memory>
+
+#include "commands.hpp"
+#include "toonforce/doctor/doctor.hpp"
+
+namespace toonforce::cli {
+
+void add_doctor(CLI::App& app) {
+  auto options = std::make_shared<DoctorOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "doctor", "Check what decides real-time behaviour on this host; exit status 0 when ready, 1 when not");
+  cmd->add_option("--root", options->root, "Read /sys, /proc and /dev under this directory (for testing)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--priority", options->priority, "SCHED_FIFO priority the loop will ask for")
+      ->check(CLI::Range(1, 99));
+  cmd->callback([options] {
+    const auto findings = run_doctor(*options);
+    std::fputs(format_findings(findings).c_str(), stdout);
+    set_exit_code(host_ready(findings) ? 0 : 1);
+  });
+}
+
+}  // namespace toonforce::cli

@@ -1,0 +1,36 @@
+#pragma once
+/// `toonforce doctor`: what decides real-time behaviour on this host, each with its finding and
+/// its fix. Everything is read through a root directory (default "/") so tests point it at a
+/// faked /sys, /proc and /dev tree: the kernel, the limits and capabilities of this process
+/// (/proc/self/limits, /proc/self/status), RT throttling, CPU governors, isolated CPUs, the
+/// clock source, and the device nodes of each backend with this user's permission on them.
+
+#include <string>
+#include <vector>
+
+namespace toonforce {
+
+enum class Verdict { kOk, kInfo, kWarn, kFail };
+
+struct Finding {
+  std::string check;    ///< "kernel", "SCHED_FIFO", ...
+  Verdict verdict = Verdict::kOk;
+  std::string finding;  ///< what was found
+  std::string fix;      ///< what to do (empty when nothing)
+};
+
+struct DoctorOptions {
+  std::string root = "/";       ///< where sys/, proc/ and dev/ are
+  int priority = 80;            ///< the SCHED_FIFO priority `toonforce run` asks for
+  bool check_clock = true;      ///< clock_getres of this host (not part of the root tree)
+};
+
+std::vector<Finding> run_doctor(const DoctorOptions& options);
+
+/// The host is ready when nothing failed.
+bool host_ready(const std::vector<Finding>& findings);
+
+/// The report for a person, one check per line with its fix underneath.
+std::string format_findings(const std::vector<Finding>& findings);
+
+}  // namespace toonforce

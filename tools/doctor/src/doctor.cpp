@@ -1,0 +1,399 @@
+#include "toonforce/doctor/doctor.hpp"
+
+#include <sys/stat.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+
+#include <fmt/format.h>
+
+namespace toonforce {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The memory mlockall must be allowed to lock: the whole process, generously.
+constexpr std::uint64_t kMemlockNeeded = 256ULL << 20;
+constexpr int kCapIpcLock = 14;  // linux/capability.h
+constexpr int kCapSysNice = 23;
+
+class Host {
+ public:
+  explicit Host(std::string root) : root_(std::move(root)) {}
+
+  fs::path path(const std::string& absolute) const { return fs::path(root_) / absolute.substr(1); }
+
+  std::optional<std::string> read(const std::string& absolute) const {
+    std::ifstream in(path(absolute));
+    if (!in) return std::nullopt;
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string s = text.str();
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    return s;
+  }
+
+  /// A "Name:\tvalue" line of /proc/self/status.
+  std::optional<std::string> status_field(const std::string& name) const {
+    const auto status = read("/proc/self/status");
+    if (!status) return std::nullopt;
+    std::istringstream lines(*status);
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line.rfind(name + ":", 0) == 0) {
+        std::string value = line.substr(name.size() + 1);
+        value.erase(0, value.find_first_not_of(" \t"));
+        return value;
+      }
+    }
+    return std::nullopt;
+  }
+
+  bool has_capability(int bit) const {
+    const auto eff = status_field("CapEff");
+    if (!eff) return false;
+    const std::uint64_t mask = std::stoull(*eff, nullptr, 16);
+    return ((mask >> bit) & 1U) != 0;
+  }
+
+  std::uint32_t uid() const {
+    const auto v = status_field("Uid");  // real, effective, saved, fs
+    if (!v) return 0;
+    std::istringstream fields(*v);
+    std::uint32_t real = 0, effective = 0;
+    fields >> real >> effective;
+    return effective;
+  }
+
+  std::vector<std::uint32_t> groups() const {
+    std::vector<std::uint32_t> out;
+    if (const auto gid = status_field("Gid")) {
+      std::istringstream fields(*gid);
+      std::uint32_t real = 0, effective = 0;
+      fields >> real >> effective;
+      out.push_back(effective);
+    }
+    if (const auto g = status_field("Groups")) {
+      std::istringstream fields(*g);
+      std::uint32_t id = 0;
+      while (fields >> id) out.push_back(id);
+    }
+    return out;
+  }
+
+  /// Soft limit of a /proc/self/limits row ("Max locked memory"); nullopt = unlimited.
+  std::optional<std::optional<std::uint64_t>> soft_limit(const std::string& name) const {
+    const auto limits = read("/proc/self/limits");
+    if (!limits) return std::nullopt;
+    std::istringstream lines(*limits);
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line.rfind(name, 0) != 0) continue;
+      std::istringstream fields(line.substr(name.size()));
+      std::string soft;
+      fields >> soft;
+      if (soft == "unlimited") return std::optional<std::uint64_t>{};
+      return std::optional<std::uint64_t>{std::stoull(soft)};
+    }
+    return std::nullopt;
+  }
+
+  /// Whether this process's user may read and write `node` (mode bits against uid and groups).
+  bool may_read_write(const fs::path& node) const {
+    struct stat st {};
+    if (::stat(node.c_str(), &st) != 0) return false;
+    const std::uint32_t me = uid();
+    if (me == 0) return true;
+    mode_t bits = 0;
+    if (st.st_uid == me) {
+      bits = (st.st_mode >> 6) & 7U;
+    } else {
+      const auto gs = groups();
+      bits = std::find(gs.begin(), gs.end(), st.st_gid) != gs.end() ? (st.st_mode >> 3) & 7U : st.st_mode & 7U;
+    }
+    return (bits & 6U) == 6U;
+  }
+
+ private:
+  std::string root_;
+};
+
+std::string cap_or_limit_fix(const std::string& what) {
+  return fmt::format(
+      "sudo cp tools/deploy/toonforce-limits.conf /etc/security/limits.d/toonforce.conf (rtprio 95, memlock "
+      "unlimited for group realtime), sudo groupadd -f realtime && sudo usermod -aG realtime $USER, log in again; "
+      "or grant the binary {}",
+      what);
+}
+
+Finding check_kernel(const Host& host) {
+  Finding f{"kernel", Verdict::kOk, "", ""};
+  const auto realtime = host.read("/sys/kernel/realtime");
+  const std::string release = host.read("/proc/sys/kernel/osrelease").value_or("unknown");
+  const std::string version = host.read("/proc/sys/kernel/version").value_or("");
+  if ((realtime && *realtime == "1") || version.find("PREEMPT_RT") != std::string::npos) {
+    f.finding = fmt::format("PREEMPT_RT ({}, \"{}\")", release, version);
+    return f;
+  }
+  f.verdict = Verdict::kFail;
+  f.finding = fmt::format("not PREEMPT_RT ({}, \"{}\"): wake-up latency has no bound; expect millisecond outliers",
+                          release, version);
+  f.fix = "install Debian's real-time kernel: sudo apt-get install linux-image-rt-amd64, then reboot into it "
+          "(docs/DEPLOY.md)";
+  return f;
+}
+
+Finding check_fifo(const Host& host, int priority) {
+  Finding f{"SCHED_FIFO", Verdict::kOk, "", ""};
+  if (host.uid() == 0) {
+    f.finding = "permitted (running as root)";
+    return f;
+  }
+  if (host.has_capability(kCapSysNice)) {
+    f.finding = "permitted (CAP_SYS_NICE)";
+    return f;
+  }
+  const auto limit = host.soft_limit("Max realtime priority");
+  if (limit && (!*limit || **limit >= static_cast<std::uint64_t>(priority))) {
+    f.finding = fmt::format("permitted up to priority {} (rtprio limit)", *limit ? std::to_string(**limit) : "unlimited");
+    return f;
+  }
+  const std::uint64_t have = limit && *limit ? **limit : 0;
+  f.verdict = have > 0 ? Verdict::kWarn : Verdict::kFail;
+  f.finding = have > 0 ? fmt::format("only up to priority {} (rtprio limit), below the {} toonforce run uses", have, priority)
+                       : "not permitted: rtprio limit 0 and no CAP_SYS_NICE (the loop would run as an ordinary thread)";
+  f.fix = cap_or_limit_fix("CAP_SYS_NICE: sudo setcap cap_sys_nice,cap_ipc_lock+ep $(command -v toonforce)");
+  return f;
+}
+
+Finding check_memlock(const Host& host) {
+  Finding f{"mlockall", Verdict::kOk, "", ""};
+  if (host.uid() == 0 || host.has_capability(kCapIpcLock)) {
+    f.finding = host.uid() == 0 ? "permitted (running as root)" : "permitted (CAP_IPC_LOCK)";
+    return f;
+  }
+  const auto limit = host.soft_limit("Max locked memory");
+  if (limit && (!*limit || **limit >= kMemlockNeeded)) {
+    f.finding = fmt::format("memlock limit {}", *limit ? fmt::format("{} MiB", **limit >> 20) : "unlimited");
+    return f;
+  }
+  f.verdict = Verdict::kFail;
+  f.finding = fmt::format("memlock limit {} KiB: mlockall would fail and page faults could stall the loop",
+                          limit && *limit ? **limit >> 10 : 0);
+  f.fix = cap_or_limit_fix("CAP_IPC_LOCK: sudo setcap cap_sys_nice,cap_ipc_lock+ep $(command -v toonforce)");
+  return f;
+}
+
+Finding check_throttling(const Host& host) {
+  Finding f{"RT throttling", Verdict::kOk, "", ""};
+  const auto runtime = host.read("/proc/sys/kernel/sched_rt_runtime_us");
+  if (!runtime) {
+    f.verdict = Verdict::kInfo;
+    f.finding = "sched_rt_runtime_us not found";
+    return f;
+  }
+  if (*runtime == "-1") {
+    f.finding = "off (sched_rt_runtime_us = -1)";
+    return f;
+  }
+  // The loop sleeps every period, so the 5% the kernel keeps for others never bites it; only a
+  // spinning RT thread would be stopped for 50 ms each second.
+  f.verdict = Verdict::kInfo;
+  f.finding = fmt::format("on (sched_rt_runtime_us = {}): harmless to a loop that sleeps each period, as "
+                          "toonforce's does", *runtime);
+  return f;
+}
+
+Finding check_governor(const Host& host) {
+  Finding f{"CPU frequency", Verdict::kOk, "", ""};
+  std::vector<std::string> slow;
+  int cpus = 0;
+  const fs::path dir = host.path("/sys/devices/system/cpu");
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("cpu", 0) != 0 || name.size() < 4 || !std::isdigit(static_cast<unsigned char>(name[3]))) continue;
+    std::ifstream in(entry.path() / "cpufreq" / "scaling_governor");
+    std::string governor;
+    if (!(in >> governor)) continue;
+    ++cpus;
+    if (governor != "performance") slow.push_back(fmt::format("{}: {}", name, governor));
+  }
+  if (cpus == 0) {
+    f.verdict = Verdict::kInfo;
+    f.finding = "no frequency scaling exposed (fixed clock, or a virtual machine)";
+    return f;
+  }
+  if (slow.empty()) {
+    f.finding = fmt::format("governor 'performance' on all {} CPUs", cpus);
+    return f;
+  }
+  std::sort(slow.begin(), slow.end());
+  std::string list;
+  for (const auto& s : slow) list += (list.empty() ? "" : ", ") + s;
+  f.verdict = Verdict::kWarn;
+  f.finding = fmt::format("frequency scaling can stretch a tick: {}", list);
+  f.fix = "sudo cpupower frequency-set -g performance (Debian package linux-cpupower)";
+  return f;
+}
+
+Finding check_isolation(const Host& host) {
+  Finding f{"isolated CPUs", Verdict::kOk, "", ""};
+  const std::string isolated = host.read("/sys/devices/system/cpu/isolated").value_or("");
+  if (!isolated.empty()) {
+    f.finding = fmt::format("{} (run the loop there: toonforce run --cpu N)", isolated);
+    return f;
+  }
+  f.verdict = Verdict::kWarn;
+  f.finding = "none: the loop shares its CPU with everything else";
+  f.fix = "isolate one CPU for the loop: add isolcpus=3 nohz_full=3 rcu_nocbs=3 to GRUB_CMDLINE_LINUX in "
+          "/etc/default/grub, sudo update-grub, reboot, then toonforce run --cpu 3 (docs/DEPLOY.md)";
+  return f;
+}
+
+Finding check_clock(const Host& host, bool check_resolution) {
+  Finding f{"timer", Verdict::kOk, "", ""};
+  const std::string source =
+      host.read("/sys/devices/system/clocksource/clocksource0/current_clocksource").value_or("unknown");
+  std::string resolution = "not checked";
+  if (check_resolution) {
+    timespec res{};
+    ::clock_getres(CLOCK_MONOTONIC, &res);
+    const long ns = res.tv_sec * 1000000000L + res.tv_nsec;
+    resolution = fmt::format("{} ns", ns);
+    if (ns > 1000) {
+      f.verdict = Verdict::kFail;
+      f.fix = "enable high-resolution timers (CONFIG_HIGH_RES_TIMERS; Debian's kernels have them)";
+    }
+  }
+  if (source == "jiffies" || source == "acpi_pm") {
+    f.verdict = std::max(f.verdict, Verdict::kWarn);
+    f.fix = f.fix.empty() ? "prefer the TSC clock source (clocksource=tsc tsc=reliable on the kernel command line)" : f.fix;
+  }
+  f.finding = fmt::format("CLOCK_MONOTONIC resolution {}, clock source {}", resolution, source);
+  return f;
+}
+
+/// USB device nodes with this vendor (and product, if nonzero), from sysfs.
+std::vector<std::pair<std::string, fs::path>> usb_nodes(const Host& host, const std::string& vendor,
+                                                        const std::string& product) {
+  std::vector<std::pair<std::string, fs::path>> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(host.path("/sys/bus/usb/devices"), ec)) {
+    auto field = [&](const char* name) {
+      std::ifstream in(entry.path() / name);
+      std::string v;
+      in >> v;
+      return v;
+    };
+    if (field("idVendor") != vendor || (!product.empty() && field("idProduct") != product)) continue;
+    const int bus = std::atoi(field("busnum").c_str());
+    const int dev = std::atoi(field("devnum").c_str());
+    const std::string node = fmt::format("/dev/bus/usb/{:03}/{:03}", bus, dev);
+    out.push_back({fmt::format("{} ({}:{})", node, vendor, field("idProduct")), host.path(node)});
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+void check_devices(const Host& host, std::vector<Finding>& findings) {
+  struct Backend {
+    const char* check;
+    const char* vendor;
+    const char* product;
+    const char* fix;
+  };
+  const Backend backends[] = {
+      {"Falcon USB", "0403", "cb48",
+       "install the udev rule: sudo cp hal/falcon/udev/*.rules /etc/udev/rules.d/ && sudo udevadm control --reload && "
+       "sudo udevadm trigger; add yourself to plugdev: sudo usermod -aG plugdev $USER, log in again, replug (docs/FALCON.md)"},
+      {"Touch USB", "2988", "",
+       "install the Touch's udev rule from OpenHaptics / Touch Device Drivers (or a rule giving group plugdev rw on "
+       "vendor 2988), add yourself to plugdev, log in again, replug (docs/OMNI.md)"},
+  };
+  for (const Backend& b : backends) {
+    const auto nodes = usb_nodes(host, b.vendor, b.product);
+    if (nodes.empty()) {
+      findings.push_back({b.check, Verdict::kInfo, "none connected", ""});
+      continue;
+    }
+    for (const auto& [name, node] : nodes) {
+      if (host.may_read_write(node)) {
+        findings.push_back({b.check, Verdict::kOk, fmt::format("{}: this user may open it", name), ""});
+      } else {
+        findings.push_back({b.check, Verdict::kFail, fmt::format("{}: no read/write permission for this user", name), b.fix});
+      }
+    }
+  }
+  std::vector<fs::path> chips;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(host.path("/dev"), ec)) {
+    if (entry.path().filename().string().rfind("gpiochip", 0) == 0) chips.push_back(entry.path());
+  }
+  std::sort(chips.begin(), chips.end());
+  if (chips.empty()) findings.push_back({"GPIO", Verdict::kInfo, "no /dev/gpiochip* (needed only for --*-pin options)", ""});
+  for (const auto& chip : chips) {
+    const std::string name = "/dev/" + chip.filename().string();
+    if (host.may_read_write(chip)) {
+      findings.push_back({"GPIO", Verdict::kOk, fmt::format("{}: this user may open it", name), ""});
+    } else {
+      findings.push_back({"GPIO", Verdict::kFail, fmt::format("{}: no read/write permission for this user", name),
+                          "add a udev rule giving group gpio rw on gpiochip nodes (SUBSYSTEM==\"gpio\", "
+                          "KERNEL==\"gpiochip*\", GROUP=\"gpio\", MODE=\"0660\"), sudo usermod -aG gpio $USER, log in "
+                          "again (docs/GPIO.md)"});
+    }
+  }
+}
+
+std::string_view label(Verdict v) {
+  switch (v) {
+    case Verdict::kOk: return "[ ok ]";
+    case Verdict::kInfo: return "[info]";
+    case Verdict::kWarn: return "[warn]";
+    case Verdict::kFail: return "[FAIL]";
+  }
+  return "[ ?? ]";
+}
+
+}  // namespace
+
+std::vector<Finding> run_doctor(const DoctorOptions& options) {
+  const Host host(options.root);
+  std::vector<Finding> findings;
+  findings.push_back(check_kernel(host));
+  findings.push_back(check_fifo(host, options.priority));
+  findings.push_back(check_memlock(host));
+  findings.push_back(check_throttling(host));
+  findings.push_back(check_governor(host));
+  findings.push_back(check_isolation(host));
+  findings.push_back(check_clock(host, options.check_clock));
+  check_devices(host, findings);
+  return findings;
+}
+
+bool host_ready(const std::vector<Finding>& findings) {
+  return std::none_of(findings.begin(), findings.end(), [](const Finding& f) { return f.verdict == Verdict::kFail; });
+}
+
+std::string format_findings(const std::vector<Finding>& findings) {
+  std::string out;
+  int failures = 0;
+  int warnings = 0;
+  for (const Finding& f : findings) {
+    out += fmt::format("{} {:<14} {}\n", label(f.verdict), f.check, f.finding);
+    if (!f.fix.empty()) out += fmt::format("       {:<14} fix: {}\n", "", f.fix);
+    failures += f.verdict == Verdict::kFail;
+    warnings += f.verdict == Verdict::kWarn;
+  }
+  out += fmt::format("\n{}: {} failure(s), {} warning(s)\n",
+                     failures == 0 ? "READY for a real-time haptic loop" : "NOT READY for a real-time haptic loop", failures,
+                     warnings);
+  return out;
+}
+
+}  // namespace toonforce
