@@ -232,6 +232,21 @@ TEST_F(OmniDeviceTest, TheTickClockCountsPeriodsFromZero) {
   }
 }
 
+TEST_F(OmniDeviceTest, ASchedulerThatWillNotStartIsReportedAndLeavesNothingBehind) {
+  OmniDevice& d = open();
+  probe.device = &d;
+  fake.inject_error(hd::kTimerError, 0, TF_FAKE_HD_AT_START, 1);
+  auto started = d.start(&test::Probe::tick, &probe);
+  ASSERT_FALSE(started.ok());
+  EXPECT_THAT(started.error(), HasSubstr("did not start: HD_TIMER_ERROR"));
+  EXPECT_THAT(started.error(), HasSubstr("lower rate"));
+  EXPECT_FALSE(d.running());
+  EXPECT_EQ(fake.stats().async_callbacks, 0);
+  ASSERT_TRUE(d.start(&test::Probe::tick, &probe).ok());  // and it can try again
+  fake.step(2);
+  EXPECT_EQ(probe.records.size(), 2U);
+}
+
 TEST_F(OmniDeviceTest, StopsCleanlyWhileTheSchedulerRunsFreely) {
   // The fake's scheduler ticks on its own clock here, as the vendor's does: stop() must end
   // the run from the owner thread through the closing frame. The deadline only guards

@@ -349,15 +349,20 @@ Result<OmniStarted> OmniDevice::start(ClockedTickFn tick, void* context) {
   }
   if (!scheduler_started_) {
     f.hdStartScheduler();
-    scheduler_started_ = true;
     if (const hd::HDErrorInfo e = take_error(f); e.errorCode != hd::kSuccess) {
-      stop();
+      // No frame has run (or will): take the callback off and stop whatever did start.
+      f.hdUnschedule(schedule_handle_);
+      running_.store(false, std::memory_order_release);
+      callback_done_.store(true);
+      f.hdStopScheduler();
+      static_cast<void>(take_error(f));
       return Error{fmt::format("the OpenHaptics scheduler did not start: {}. {}", describe(f, e),
                                e.errorCode == hd::kTimerError
                                    ? "The servo timer could not keep its rate: try a lower rate, or "
                                      "run as root or with CAP_SYS_NICE."
                                    : "")};
     }
+    scheduler_started_ = true;
   }
   return OmniStarted{period_s_};
 }
