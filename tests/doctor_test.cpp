@@ -75,12 +75,12 @@ class FakeHost : public ::testing::Test {
     o.root = root_.string();
     return run_doctor(o);
   }
-  static const Finding& find(const std::vector<Finding>& all, const std::string& check, std::size_t nth = 0) {
+  // By value: callers pass the temporary that run() returns.
+  static Finding find(const std::vector<Finding>& all, const std::string& check, std::size_t nth = 0) {
     for (const auto& f : all) {
       if (f.check == check && nth-- == 0) return f;
     }
-    static const Finding kMissing{"missing", Verdict::kFail, "no such check", ""};
-    return kMissing;
+    return {"missing", Verdict::kFail, "no such check", ""};
   }
 
   fs::path root_;
