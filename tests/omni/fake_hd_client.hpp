@@ -14,10 +14,10 @@
 namespace toonforce::test {
 
 // Paths of the fakes in the build tree (tests/omni/CMakeLists.txt).
-inline const std::string kFakeHd = TOONFORCE_FAKE_HD;
-inline const std::string kFakeHdMissingSymbol = TOONFORCE_FAKE_HD_MISSING_SYMBOL;
-inline const std::string kFakeHdV2 = TOONFORCE_FAKE_HD_V2;
-inline const std::string kFakeHdNeedsDep = TOONFORCE_FAKE_HD_NEEDS_DEP;
+inline constexpr const char* kFakeHd = TOONFORCE_FAKE_HD;
+inline constexpr const char* kFakeHdMissingSymbol = TOONFORCE_FAKE_HD_MISSING_SYMBOL;
+inline constexpr const char* kFakeHdV2 = TOONFORCE_FAKE_HD_V2;
+inline constexpr const char* kFakeHdNeedsDep = TOONFORCE_FAKE_HD_NEEDS_DEP;
 
 /// The statement every Omni test records, so a report says what it proves.
 inline constexpr const char* kProves =
@@ -40,25 +40,25 @@ class FakeHd {
     bind("tf_fake_hd_inject_error", inject_error);
     bind("tf_fake_hd_inject_overrun", inject_overrun);
     bind("tf_fake_hd_set_callback_time", set_callback_time);
-    bind("tf_fake_hd_pin_hand", pin_hand_raw);
-    bind("tf_fake_hd_spring_hand", spring_hand_raw);
+    bind("tf_fake_hd_pin_hand", pin_hand_raw_);
+    bind("tf_fake_hd_spring_hand", spring_hand_raw_);
     bind("tf_fake_hd_set_motor_temperature", set_motor_temperature);
     bind("tf_fake_hd_set_temperature_supported", set_temperature_supported);
-    bind("tf_fake_hd_get_stats", get_stats);
+    bind("tf_fake_hd_get_stats", get_stats_);
   }
 
   TfFakeHdStats stats() const {
     TfFakeHdStats s{};
-    get_stats(&s);
+    get_stats_(&s);
     return s;
   }
   void pin_hand(double x_mm, double y_mm, double z_mm) const {
     const double p[3] = {x_mm, y_mm, z_mm};
-    pin_hand_raw(p);
+    pin_hand_raw_(p);
   }
   void spring_hand(double x_mm, double y_mm, double z_mm, double k_n_per_m, double b_n_s_per_m) const {
     const double p[3] = {x_mm, y_mm, z_mm};
-    spring_hand_raw(p, k_n_per_m, b_n_s_per_m);
+    spring_hand_raw_(p, k_n_per_m, b_n_s_per_m);
   }
 
   void (*reset)() = nullptr;
@@ -84,9 +84,9 @@ class FakeHd {
   }
 
   void* handle_ = nullptr;
-  void (*pin_hand_raw)(const double*) = nullptr;
-  void (*spring_hand_raw)(const double*, double, double) = nullptr;
-  void (*get_stats)(TfFakeHdStats*) = nullptr;
+  void (*pin_hand_raw_)(const double*) = nullptr;
+  void (*spring_hand_raw_)(const double*, double, double) = nullptr;
+  void (*get_stats_)(TfFakeHdStats*) = nullptr;
 };
 
 }  // namespace toonforce::test

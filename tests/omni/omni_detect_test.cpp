@@ -105,22 +105,22 @@ class TouchDetection : public ::testing::Test {
     RecordProperty("proves",
                    "detection with the real libusb, hidapi and sysfs code against devices emulated "
                    "with umockdev from the public facts; not against a real Touch");
-    testbed_ = umockdev_testbed_new();
+    testbed = umockdev_testbed_new();
     if (!umockdev_in_mock_environment()) {
       GTEST_SKIP() << "needs umockdev-wrapper (CTest runs this binary under it)";
     }
   }
   void TearDown() override {
-    if (testbed_ != nullptr) g_object_unref(testbed_);
+    if (testbed != nullptr) g_object_unref(testbed);
   }
   void add(const UsbSpec& spec) {
     GError* error = nullptr;
     const std::string text = testbed_description(spec);
-    ASSERT_TRUE(umockdev_testbed_add_from_string(testbed_, text.c_str(), &error))
+    ASSERT_TRUE(umockdev_testbed_add_from_string(testbed, text.c_str(), &error))
         << (error != nullptr ? error->message : "") << "\n" << text;
   }
 
-  UMockdevTestbed* testbed_ = nullptr;
+  UMockdevTestbed* testbed = nullptr;
 };
 
 TEST_F(TouchDetection, NothingPluggedInFindsNothing) { EXPECT_THAT(detect_touch_devices(), IsEmpty()); }
@@ -223,7 +223,7 @@ TEST_F(TouchDetection, ASerialPortThatWillNotOpenIsReportedWithTheDialoutFixOrRe
   const std::string tty =
       "P: /devices/pci0000:00/0000:00:14.0/usb1/1-1/1-1:1.0/tty/ttyACM7\nE: DEVNAME=/dev/ttyACM7\n"
       "E: MAJOR=166\nE: MINOR=7\nE: SUBSYSTEM=tty\nA: dev=166:7\\n\n";
-  ASSERT_TRUE(umockdev_testbed_add_from_string(testbed_, tty.c_str(), &error)) << error->message;
+  ASSERT_TRUE(umockdev_testbed_add_from_string(testbed, tty.c_str(), &error)) << error->message;
   const auto found = detect_touch_devices();
   ASSERT_EQ(found.size(), 1U);
   EXPECT_THAT(found[0].location, HasSubstr("serial port /dev/ttyACM7"));

@@ -60,7 +60,7 @@ TEST_F(OmniLoading, TheEnvironmentVariableIsNamedWhenItsFileIsMissing) {
 }
 
 TEST_F(OmniLoading, TheEnvironmentVariableLoadsALibraryFromANonStandardPlace) {
-  setenv(hd::kLibraryEnvVar, kFakeHd.c_str(), 1);
+  setenv(hd::kLibraryEnvVar, kFakeHd, 1);
   const hd::LoadOutcome out = hd::load_library();
   ASSERT_NE(out.library, nullptr) << out.message;
   EXPECT_EQ(out.library->path(), std::filesystem::canonical(kFakeHd).string());
@@ -79,8 +79,8 @@ TEST_F(OmniLoading, TheSameFileLoadedTwiceIsOneLibraryThatStaysLoaded) {
   ASSERT_NE(first.library, nullptr) << first.message;
   EXPECT_EQ(first.library, second.library);
   // Never unloaded (omni.md §2.1): the object is still mapped after any dlclose attempt.
-  dlclose(dlopen(kFakeHd.c_str(), RTLD_LAZY));
-  EXPECT_NE(dlopen(kFakeHd.c_str(), RTLD_LAZY | RTLD_NOLOAD), nullptr);
+  dlclose(dlopen(kFakeHd, RTLD_LAZY));
+  EXPECT_NE(dlopen(kFakeHd, RTLD_LAZY | RTLD_NOLOAD), nullptr);
 }
 
 TEST_F(OmniLoading, AMissingFunctionIsNamed) {

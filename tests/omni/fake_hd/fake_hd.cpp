@@ -30,6 +30,10 @@
 
 #define TF_EXPORT extern "C" __attribute__((visibility("default")))
 
+// The names below mirror the documented C API (HD_* constants, hd* functions, HDErrorInfo's
+// fields), not our naming rules.
+// NOLINTBEGIN(readability-identifier-naming)
+
 namespace {
 
 // ---- the documented ABI, transcribed independently -----------------------------------------
@@ -112,7 +116,7 @@ enum : unsigned int {
   HD_CALIBRATION_NEEDS_MANUAL_INPUT = 0x5002,
 };
 constexpr int HD_CALIBRATION_ENCODER_RESET = 1 << 0;
-constexpr int HD_CALIBRATION_AUTO = 1 << 1;
+// HD_CALIBRATION_AUTO (1 << 1) learns by itself as the arm moves: nothing to simulate here.
 constexpr int HD_CALIBRATION_INKWELL = 1 << 2;
 constexpr HHD HD_INVALID_HANDLE = 0xFFFFFFFFU;
 constexpr HDCallbackCode HD_CALLBACK_DONE = 0;
@@ -1097,3 +1101,4 @@ TF_EXPORT void tf_fake_hd_get_stats(TfFakeHdStats* s) {
   s->motor_temperature = motor_temperature(f);
   s->scheduler_rate_hz = f.rate_hz;
 }
+// NOLINTEND(readability-identifier-naming)

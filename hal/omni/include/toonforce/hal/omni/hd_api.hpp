@@ -119,7 +119,9 @@ inline constexpr int kCalibrationEncoderReset = 1 << 0;
 inline constexpr int kCalibrationAuto = 1 << 1;
 inline constexpr int kCalibrationInkwell = 1 << 2;
 
-/// The functions we resolve with dlsym, one pointer each; every one is required.
+/// The functions we resolve with dlsym, one pointer each; every one is required. Members are
+/// named exactly as the C symbols, so a call reads as in the reference guide.
+// NOLINTBEGIN(readability-identifier-naming)
 struct HdFunctions {
   HHD (*hdInitDevice)(HDstring config_name) = nullptr;
   void (*hdDisableDevice)(HHD device) = nullptr;
@@ -146,5 +148,6 @@ struct HdFunctions {
   void (*hdUnschedule)(HDSchedulerHandle handle) = nullptr;
   HDdouble (*hdGetSchedulerTimeStamp)() = nullptr;
 };
+// NOLINTEND(readability-identifier-naming)
 
 }  // namespace toonforce::hd
