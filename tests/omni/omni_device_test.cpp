@@ -119,7 +119,8 @@ TEST_F(OmniDeviceTest, PositionsAreReadInTheSceneFrameInMetres) {
   EXPECT_EQ(s.frames, 3);
 }
 
-TEST_F(OmniDeviceTest, DeviceVelocityIsPassedOnInTheSceneFrame) {
+TEST_F(OmniDeviceTest, DeviceVelocityIsPassedOnInTheSceneFrameWhenAsked) {
+  options.use_device_velocity = true;
   start_probe();
   // 0.1 mm per 1 ms tick along device +y (up): 0.1 m/s along scene +z.
   for (int i = 1; i <= 200; ++i) {
@@ -138,8 +139,7 @@ TEST_F(OmniDeviceTest, DeviceVelocityIsPassedOnInTheSceneFrame) {
   EXPECT_NEAR(mean.y, 0.0, 0.005);
 }
 
-TEST_F(OmniDeviceTest, WithoutDeviceVelocityTheControllerIsLeftToEstimateIt) {
-  options.use_device_velocity = false;
+TEST_F(OmniDeviceTest, ByDefaultTheControllerEstimatesVelocity) {
   start_probe();
   fake.step(2);
   EXPECT_FALSE(probe.records.back().reading.has_velocity);

@@ -75,9 +75,11 @@ struct OmniOptions {
   /// Stop when this many ticks in a row overran their period (skipped periods or a callback
   /// longer than one period).
   int max_consecutive_overruns = 20;
-  /// Pass HD_CURRENT_VELOCITY (smoothed by the library) as the measured velocity; false: the
-  /// controller estimates velocity from positions.
-  bool use_device_velocity = true;
+  /// Pass HD_CURRENT_VELOCITY (smoothed by the library) as the measured velocity. Off by
+  /// default: the library's filter is not documented (omni.md §2.2), so the controller's own
+  /// estimator (spec effects.md §0, cutoff from the scene) is used, as on the host
+  /// simulation's Omni preset, and the same scene behaves the same on both.
+  bool use_device_velocity = false;
   /// Devices calibrated by encoder reset only: reset at open, with the arm in its reset pose
   /// (as OpenHaptics' calibration example does).
   bool encoder_reset_at_open = true;
