@@ -7,6 +7,8 @@ namespace toonforce::cli {
 
 void add_replay(CLI::App& app);
 void add_doctor(CLI::App& app);
+void add_sim(CLI::App& app);
+void add_figures(CLI::App& app);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

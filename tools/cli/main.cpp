@@ -13,6 +13,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
   toonforce::cli::add_replay(app);
   toonforce::cli::add_doctor(app);
+  toonforce::cli::add_sim(app);
+  toonforce::cli::add_figures(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

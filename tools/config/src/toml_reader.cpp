@@ -234,6 +234,23 @@ std::optional<std::string> TableReader::optional_string(std::string_view key) {
   return std::nullopt;
 }
 
+std::optional<bool> TableReader::optional_bool(std::string_view key) {
+  const toml::node* node = take(key);
+  if (node == nullptr) return std::nullopt;
+  if (const auto* b = node->as_boolean()) return b->get();
+  error(key, fmt::format("must be true or false, not {}", type_name(*node)));
+  return std::nullopt;
+}
+
+bool TableReader::has(std::string_view key) const { return table_.get(key) != nullptr; }
+
+bool TableReader::reject(std::string_view key, std::string_view problem) {
+  if (!has(key)) return false;
+  read_.emplace_back(key);  // read, but not "known": no did-you-mean toward it
+  error(key, problem);
+  return true;
+}
+
 const toml::table* TableReader::optional_table(std::string_view key) {
   const toml::node* node = take(key);
   if (node == nullptr) return nullptr;

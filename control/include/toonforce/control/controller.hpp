@@ -119,6 +119,9 @@ class Controller {
     in.period_s = config_.period_s;
     return scene_.diagnostics(states_[current_], in);
   }
+  /// The velocity the scene used on the last good tick (estimated, given, or zero when the
+  /// scene needs none), for traces; not needed by the loop.
+  constexpr const Vec3<S>& last_velocity_m_per_s() const noexcept { return last_velocity_m_per_s_; }
   constexpr const SceneT& scene() const noexcept { return scene_; }
   constexpr ForceSafety<S>& safety() noexcept { return safety_; }
 

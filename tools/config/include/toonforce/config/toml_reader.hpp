@@ -56,6 +56,14 @@ class TableReader {
   /// A required 3-vector of numbers.
   std::optional<Vec3<double>> required_vec3(std::string_view key, std::string_view unit);
   std::optional<std::string> optional_string(std::string_view key);
+  /// An optional boolean (true/false).
+  std::optional<bool> optional_bool(std::string_view key);
+  /// True if the table has `key` (whether read or not).
+  bool has(std::string_view key) const;
+  /// If the table has `key`: records `problem` about it, marks it read (so finish() does not
+  /// report it a second time as unknown) and returns true. For keys that exist elsewhere in
+  /// the format but not here ("'force' does not apply to a move segment").
+  bool reject(std::string_view key, std::string_view problem);
   /// An optional sub-table (`[parent.key]`).
   const toml::table* optional_table(std::string_view key);
   /// An optional array of tables (`[[key]]`); its elements, or empty.

@@ -1,0 +1,79 @@
+// toonforce sim --scene S.toml --script hand.toml --duration SECONDS --trace out.csv [--plot out.svg|out.png]
+//   [--device falcon|omni] [--integrator ...] [--substeps N] [--rate HZ] [--seed N]
+//   [--sensor-noise M] [--scalar ...] [--sine ...]
+#include <cctype>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "toonforce/sim/sim_run.hpp"
+
+namespace toonforce::cli {
+
+void add_sim(CLI::App& app) {
+  auto options = std::make_shared<SimOptions>();
+  auto quiet = std::make_shared<bool>(false);
+  auto duration = std::make_shared<double>(0.0);
+  auto noise = std::make_shared<double>(0.0);
+  CLI::App* cmd = app.add_subcommand(
+      "sim", "Closed loop on the simulated device and hand, in simulated time (deterministic: same inputs, same bytes)");
+  cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_option("--script", options->script_path, "Hand script (TOML, docs/HAND_SCRIPTS.md)")->required();
+  CLI::Option* duration_option =
+      cmd->add_option("--duration", *duration, "Simulated seconds (default: the hand script's length)")
+          ->check(CLI::PositiveNumber);
+  cmd->add_option("--trace", options->trace_path, "Trace CSV to write ('-' for standard output)")->required();
+  cmd->add_option("--plot", options->plot_path, "Also plot the trace (.png or .svg; python3-matplotlib)");
+  cmd->add_option("--plot-kind", options->plot_kind, "Plot layout: auto, stroke, wall, cliff or overview")
+      ->check(CLI::IsMember({"auto", "stroke", "wall", "cliff", "overview"}));
+  // Enumerations as words (CheckedTransformer would print their uint8_t values as characters).
+  auto device = std::make_shared<std::string>("falcon");
+  auto integrator = std::make_shared<std::string>("rk4");
+  auto scalar = std::make_shared<std::string>("double");
+  auto sine = std::make_shared<std::string>();
+  cmd->add_option("--device", *device, "Simulated device class (default falcon)")
+      ->check(CLI::IsMember({"falcon", "omni"}, CLI::ignore_case));
+  cmd->add_option("--integrator", *integrator, "Integrator of the device and hand (default rk4)")
+      ->check(CLI::IsMember({"semi-implicit-euler", "velocity-verlet", "rk4", "exact"}, CLI::ignore_case));
+  cmd->add_option("--substeps", options->substeps, "Integrator sub-steps per servo tick (default 4)")
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz] (default 1000)")->check(CLI::Range(10.0, 100000.0));
+  cmd->add_option("--seed", options->seed, "Seed of the sensor noise generator (default 1)");
+  CLI::Option* noise_option =
+      cmd->add_option("--sensor-noise", *noise, "Standard deviation of position noise [m] (default 0)")
+          ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--scalar", *scalar, "Scalar type of the controller (default double)")
+      ->check(CLI::IsMember({"double", "float", "q16.16"}, CLI::ignore_case));
+  cmd->add_option("--sine", *sine, "Sine method of impact transients (overrides the scene)")
+      ->check(CLI::IsMember({"library", "polynomial", "table"}, CLI::ignore_case));
+  cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors");
+  cmd->callback([options, quiet, duration, duration_option, noise, noise_option, device, integrator, scalar, sine] {
+    if (duration_option->count() > 0) options->duration_s = *duration;
+    if (noise_option->count() > 0) options->sensor_noise_m = *noise;
+    // The checks above admit only known words (in any case): these parse.
+    const auto lower = [](std::string text) {
+      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return text;
+    };
+    options->device = host_sim::parse_device_preset(lower(*device)).value_or(host_sim::DevicePreset::kFalcon);
+    options->integrator = host_sim::parse_integrator(lower(*integrator)).value_or(host_sim::Integrator::kRk4);
+    options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);
+    if (!sine->empty()) options->sine = parse_sine_method(lower(*sine));
+    const auto summary = run_sim(*options);
+    if (!summary) {
+      std::fputs(summary.error().c_str(), stderr);
+      if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
+      set_exit_code(1);
+      return;
+    }
+    if (!*quiet) {
+      std::fputs(format_sim_summary(summary.value(), *options).c_str(), options->trace_path == "-" ? stderr : stdout);
+    }
+    set_exit_code(0);
+  });
+}
+
+}  // namespace toonforce::cli

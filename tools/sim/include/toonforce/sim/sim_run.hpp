@@ -1,0 +1,62 @@
+#pragma once
+/// `toonforce sim` (interfaces.md): a scene, a hand script and a simulated device in closed
+/// loop for a given simulated duration; writes the trace and optionally a plot.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "toonforce/sim/closed_loop.hpp"
+
+namespace toonforce {
+
+struct SimOptions {
+  std::string scene_path;
+  std::string script_path;
+  std::optional<double> duration_s;  ///< default: the hand script's length
+  std::string trace_path;            ///< "-" writes to standard output
+  std::string plot_path;             ///< empty: no plot; .png or .svg
+  std::string plot_kind = "auto";
+  std::string plot_title;
+  host_sim::DevicePreset device = host_sim::DevicePreset::kFalcon;
+  host_sim::Integrator integrator = host_sim::Integrator::kRk4;
+  int substeps = 4;
+  double rate_hz = 1000.0;
+  std::uint64_t seed = 1;
+  std::optional<double> sensor_noise_m;  ///< overrides the device preset's (0)
+  ScalarKind scalar = ScalarKind::kDouble;
+  std::optional<SineMethod> sine;
+};
+
+struct SimSummary {
+  std::string scene_name;
+  std::string script_name;
+  std::string device_name;
+  std::int64_t ticks = 0;
+  double duration_s = 0.0;
+  double script_duration_s = 0.0;
+  double peak_force_n = 0.0;
+  double peak_force_t_s = 0.0;
+  std::int64_t ticks_in_contact = 0;
+  std::int64_t impacts = 0;
+  std::int64_t cliff_falls = 0;
+  std::int64_t rate_limited = 0;
+  std::int64_t clamped = 0;
+  std::int64_t fault_ticks = 0;
+  std::uint32_t fault_bits = 0;
+  Vec3<double> final_position_m;
+  double device_work_j = 0.0;
+  int last_cliff_state = -1;  ///< to count SUPPORTED -> FALLEN transitions
+  std::int64_t ticks_outside_workspace = 0;  ///< the handle beyond the device's workspace
+};
+
+/// Accumulates the summary from records (shared by the CLI, the figures and the benchmark).
+void add_to_summary(SimSummary& summary, const SimRecord& record);
+
+/// The configuration the options ask for (device preset, noise, integrator, rate).
+SimConfig sim_config(const SimOptions& options);
+
+Result<SimSummary> run_sim(const SimOptions& options);
+std::string format_sim_summary(const SimSummary& summary, const SimOptions& options);
+
+}  // namespace toonforce

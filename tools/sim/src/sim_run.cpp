@@ -1,0 +1,138 @@
+#include "toonforce/sim/sim_run.hpp"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "toonforce/sim/plot.hpp"
+#include "toonforce/sim/sim_trace.hpp"
+
+namespace toonforce {
+
+void add_to_summary(SimSummary& s, const SimRecord& r) {
+  ++s.ticks;
+  const double magnitude = std::sqrt(dot(r.force_n, r.force_n));
+  if (magnitude > s.peak_force_n) {
+    s.peak_force_n = magnitude;
+    s.peak_force_t_s = r.t_s;
+  }
+  if (r.has_diagnostics) {
+    if (r.diagnostics.in_contact) ++s.ticks_in_contact;
+    if (r.diagnostics.impact_time_s == 0.0) ++s.impacts;
+    if (r.diagnostics.cliff_state == 1 && s.last_cliff_state == 0) ++s.cliff_falls;
+    s.last_cliff_state = r.diagnostics.cliff_state;
+  }
+  if ((r.limits & static_cast<std::uint8_t>(Limit::kRateLimited)) != 0) ++s.rate_limited;
+  if ((r.limits & static_cast<std::uint8_t>(Limit::kClamped)) != 0) ++s.clamped;
+  if (r.faults != 0) ++s.fault_ticks;
+  s.fault_bits |= r.faults;
+}
+
+SimConfig sim_config(const SimOptions& options) {
+  SimConfig config;
+  config.device = host_sim::device_params(options.device);
+  if (options.sensor_noise_m) config.device.sensor_noise_m = *options.sensor_noise_m;
+  config.plant.integrator = options.integrator;
+  config.plant.substeps = options.substeps;
+  config.plant.period_s = 1.0 / options.rate_hz;
+  config.seed = options.seed;
+  config.scalar = options.scalar;
+  config.sine = options.sine;
+  return config;
+}
+
+Result<SimSummary> run_sim(const SimOptions& options) {
+  if (!(options.rate_hz > 0.0) || !std::isfinite(options.rate_hz)) {
+    return Error{fmt::format("--rate must be a positive number of Hz (got {})", options.rate_hz)};
+  }
+  if (options.duration_s && !(*options.duration_s > 0.0 && std::isfinite(*options.duration_s))) {
+    return Error{fmt::format("--duration must be a positive number of seconds (got {})", *options.duration_s)};
+  }
+  if (options.sine == SineMethod::kLibrary && options.scalar == ScalarKind::kQ16_16) {
+    return Error{"--sine library needs a floating-point scalar; use polynomial or table with q16.16"};
+  }
+  auto scene = load_scene_file(options.scene_path, options.scalar);
+  if (!scene) return Error{scene.error()};
+  auto hand = load_hand_script(options.script_path);
+  if (!hand) return Error{hand.error()};
+  auto session = SimSession::create(scene.value(), hand.value(), sim_config(options));
+  if (!session) return Error{session.error()};
+
+  const double duration_s = options.duration_s.value_or(hand->intent.duration_s());
+  const std::int64_t ticks = session->ticks_for(duration_s);
+  if (ticks < 1) {
+    return Error{fmt::format("nothing to simulate: {} s is less than one tick at {} Hz (give --duration)", duration_s,
+                             options.rate_hz)};
+  }
+  auto trace = SimTraceWriter::open(options.trace_path);
+  if (!trace) return Error{trace.error()};
+
+  SimSummary summary;
+  summary.scene_name = scene->name;
+  summary.script_name = hand->script.name;
+  summary.device_name = std::string(session->config().device.name);
+  summary.script_duration_s = hand->intent.duration_s();
+  const auto& device = session->config().device;
+  const auto inside = [&device](const Vec3<double>& p) {
+    return p.x >= device.workspace_min_m.x && p.x <= device.workspace_max_m.x && p.y >= device.workspace_min_m.y &&
+           p.y <= device.workspace_max_m.y && p.z >= device.workspace_min_m.z && p.z <= device.workspace_max_m.z;
+  };
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    const SimRecord record = session->step();
+    trace->write(record);
+    add_to_summary(summary, record);
+    if (!inside(record.true_position_m)) ++summary.ticks_outside_workspace;
+  }
+  summary.duration_s = static_cast<double>(ticks) * session->config().plant.period_s;
+  summary.final_position_m = session->device().plant().position_m();
+  summary.device_work_j = session->device().plant().device_work_j();
+  if (auto closed = trace->close(); !closed) return Error{closed.error()};
+
+  if (!options.plot_path.empty()) {
+    if (options.trace_path == "-") return Error{"--plot needs the trace in a file, not on standard output"};
+    PlotRequest request{options.trace_path, options.plot_path, options.plot_kind,
+                        options.plot_title.empty() ? fmt::format("{} / {}", scene->name, hand->script.name)
+                                                   : options.plot_title,
+                        {}};
+    // A cliff across x on a horizontal ground: the plot can draw its gap and threshold.
+    if (!scene->cliffs.empty()) {
+      const auto& c = scene->cliffs.front();
+      if (std::abs(c.axis.x - 1.0) < 1e-9 && std::abs(c.ground.normal.z - 1.0) < 1e-9) {
+        request.extra_args = {"--gap", fmt::format("{}", c.ground.point_m.x + c.gap_min_m),
+                              fmt::format("{}", c.ground.point_m.x + c.gap_max_m), "--threshold",
+                              fmt::format("{}", c.speed_threshold_m_per_s)};
+      }
+    }
+    auto plotted = plot_trace(request);
+    if (!plotted) return Error{plotted.error()};
+  }
+  return summary;
+}
+
+std::string format_sim_summary(const SimSummary& s, const SimOptions& options) {
+  std::string text;
+  text += fmt::format("scene   {} ({}); hand script {} ({}, {:.6g} s)\n", s.scene_name, options.scene_path,
+                      s.script_name, options.script_path, s.script_duration_s);
+  text += fmt::format("device  {}; {} integrator, {} sub-steps per tick; {:g} Hz; scalar {}\n", s.device_name,
+                      host_sim::integrator_name(options.integrator), options.substeps, options.rate_hz,
+                      scalar_kind_name(options.scalar));
+  text += fmt::format("ran     {} ticks = {:.6g} s simulated; in contact {} ticks\n", s.ticks, s.duration_s,
+                      s.ticks_in_contact);
+  text += fmt::format("forces  peak {:.4g} N at t = {:.6g} s; the device did {:.4g} J of work on the hand\n",
+                      s.peak_force_n, s.peak_force_t_s, s.device_work_j);
+  text += fmt::format("effects impacts triggered {}; cliff falls {}\n", s.impacts, s.cliff_falls);
+  text += fmt::format("safety  rate-limited {} ticks, clamped {} ticks, faults {} ticks\n", s.rate_limited, s.clamped,
+                      s.fault_ticks);
+  text += fmt::format("end     handle at [{:.4g}, {:.4g}, {:.4g}] m\n", s.final_position_m.x, s.final_position_m.y,
+                      s.final_position_m.z);
+  if (s.ticks_outside_workspace > 0) {
+    text += fmt::format("note    the handle was outside the device's workspace for {} ticks: the simulated device "
+                        "has no end stops, a real one would have stopped it\n",
+                        s.ticks_outside_workspace);
+  }
+  if (options.trace_path != "-") text += fmt::format("trace   {}\n", options.trace_path);
+  if (!options.plot_path.empty()) text += fmt::format("plot    {}\n", options.plot_path);
+  return text;
+}
+
+}  // namespace toonforce
