@@ -18,7 +18,6 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <mutex>
@@ -274,7 +273,7 @@ struct Fake {
   unsigned long nonzero_uncalibrated = 0;
   unsigned long violations = 0;
   unsigned int last_violation = 0;
-  char last_violation_call[40] = {};
+  char last_violation_call[64] = {};
   unsigned long errors_raised = 0;
   unsigned long calibration_checks = 0;
   unsigned long calibration_updates = 0;
@@ -301,7 +300,10 @@ bool is_force_error(unsigned int code) { return code >= HD_WARM_MOTORS && code <
 void violation(Fake& f, unsigned int code, const char* call) {
   ++f.violations;
   f.last_violation = code;
-  std::snprintf(f.last_violation_call, sizeof f.last_violation_call, "%s", call);
+  // Truncated copy (a name longer than the buffer is cut, never overrun).
+  const std::size_t n = std::min(std::strlen(call), sizeof f.last_violation_call - 1);
+  std::memcpy(f.last_violation_call, call, n);
+  f.last_violation_call[n] = '\0';
   if (code != TF_FAKE_HD_WRONG_THREAD) push_error(f, code);
 }
 

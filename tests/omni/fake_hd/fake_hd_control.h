@@ -34,7 +34,7 @@ typedef struct TfFakeHdStats {
   unsigned long nonzero_uncalibrated_frames; /* frames commanding a non-zero force while not calibrated */
   unsigned long protocol_violations; /* calls breaking a documented rule (never injected) */
   unsigned int last_violation;       /* HD code it raised, or TF_FAKE_HD_WRONG_THREAD */
-  char last_violation_call[40];      /* the function and parameter */
+  char last_violation_call[64];      /* the function and parameter */
   unsigned long errors_raised;       /* errors pushed (injected, natural and violations) */
   int async_callbacks;               /* scheduled and still active */
   int scheduler_running;
