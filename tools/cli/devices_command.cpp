@@ -53,7 +53,7 @@ constexpr Detector kDetectors[] = {
      &detect_falcon},
     {"Phantom Omni / 3D Systems Touch",
      "check its power and USB cable; `lsusb -d 2988:` should list a Touch (a FireWire Phantom Omni is not "
-     "listed there: see docs/omni.md)",
+     "listed there: see docs/OMNI.md)",
      &detect_touch},
 };
 
