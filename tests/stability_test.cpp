@@ -668,7 +668,7 @@ std::vector<Vec3<double>> scripted_forces(std::int64_t ticks, std::int64_t keep_
   return out;
 }
 
-TEST(ExtremeCases, FloatAndQ16FollowDoubleOverAMillionTicksWithoutDrift) {
+TEST(ExtremeCases, DoubleFloatAndQ16RepeatThemselvesExactlyOverAMillionTicks) {
   // 10^6 ticks of the periodic path (1000 ticks per period); keep the second period and the
   // last one. Time is integer ticks and nothing accumulates in the scalar type, so the last
   // period repeats the second exactly, in every scalar type.

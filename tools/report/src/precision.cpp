@@ -289,14 +289,14 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   md += "\n| --- |";
   for (std::size_t i = 0; i < r.options.rates_hz.size(); ++i) md += " ---: |";
   md += "\n";
-  const auto summary_row = [&](const char* label, auto pick) {
+  const auto summary_row = [&](const char* label, auto pick, bool nanoseconds = false) {
     md += fmt::format("| {} |", label);
     for (const double rate : r.options.rates_hz) {
       double worst = 0.0;
       for (const auto& row : r.rows) {
         if (row.rate_hz == rate) worst = std::max(worst, pick(row));
       }
-      md += fmt::format(" {} |", sci(worst));
+      md += nanoseconds ? fmt::format(" {:.1f} |", worst) : fmt::format(" {} |", sci(worst));
     }
     md += "\n";
   };
@@ -309,9 +309,11 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   summary_row("q16.16: max error vs double at the same rate [N]",
               [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.same_rate_max_error_n : 0.0; });
   summary_row("double: mean ns per tick",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.mean_ns : 0.0; });
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.mean_ns : 0.0; }, true);
+  summary_row("float: mean ns per tick",
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kFloat ? row.mean_ns : 0.0; }, true);
   summary_row("q16.16: mean ns per tick",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; });
+              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; }, true);
   md += "\n";
   std::string scene;
   for (const auto& row : r.rows) {
@@ -335,19 +337,22 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
         "The Controller at {:g} Hz on the repeating scenario ({:g} ticks per run), every tick after the first pass "
         "compared with the reference at the same phase of the scenario (sampled error). Time inside the effects is "
         "integer ticks (spec effects.md §0), so nothing should accumulate: the error of the last hour should equal "
-        "the first's.\n\n",
+        "the first's. Spread = (largest hourly value / smallest) - 1.\n\n",
         r.options.drift_hours, r.options.drift_rate_hz, r.options.drift_hours * 3600.0 * r.options.drift_rate_hz);
     if (!plot_dir.empty()) md += fmt::format("![drift over simulated hours]({}/drift.png)\n\n", plot_dir);
     md += "| scene | scalar | max error, first hour [N] | max error, last hour [N] | RMS, first hour [N] | RMS, last "
-          "hour [N] | max over all hours / min over all hours | CPU time [s] |\n";
-    md += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+          "hour [N] | spread of the hourly max | spread of the hourly RMS | CPU time [s] |\n";
+    md += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+    // Spread: (largest / smallest over the hours) - 1; 0 means every hour alike to the last digit.
+    const auto spread = [](const std::vector<double>& v) {
+      const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+      return *lo > 0.0 ? fmt::format("{:.1e}", *hi / *lo - 1.0) : std::string("-");
+    };
     for (const auto& d : r.drift) {
       if (d.max_error_n.empty()) continue;
-      const auto [lo, hi] = std::minmax_element(d.max_error_n.begin(), d.max_error_n.end());
-      md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {:.1f} |\n", d.scene, scalar_kind_name(d.scalar),
+      md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {:.1f} |\n", d.scene, scalar_kind_name(d.scalar),
                         sci(d.max_error_n.front()), sci(d.max_error_n.back()), sci(d.rms_error_n.front()),
-                        sci(d.rms_error_n.back()), *lo > 0.0 ? fmt::format("{:.6f}", *hi / *lo) : std::string("-"),
-                        d.cpu_s);
+                        sci(d.rms_error_n.back()), spread(d.max_error_n), spread(d.rms_error_n), d.cpu_s);
     }
   }
   return md;

@@ -53,9 +53,16 @@ TscCalibration calibrate(double window_ms, std::uint32_t overhead_samples) {
     const std::uint64_t end = tsc_end();
     s = end - start;
   }
+  // The mean leaves out what the timed ticks' means leave out too: samples of 2^17 cycles and
+  // more (about 50 us: an interrupt or a preemption, not the measurement).
   double sum = 0.0;
-  for (const auto s : samples) sum += static_cast<double>(s);
-  c.overhead_mean_cycles = sum / static_cast<double>(samples.size());
+  std::uint64_t kept = 0;
+  for (const auto s : samples) {
+    if (s >= (std::uint64_t{1} << 17)) continue;
+    sum += static_cast<double>(s);
+    ++kept;
+  }
+  c.overhead_mean_cycles = kept > 0 ? sum / static_cast<double>(kept) : 0.0;
   std::sort(samples.begin(), samples.end());
   c.overhead_min_cycles = samples.front();
   c.overhead_cycles = samples[samples.size() / 2];
