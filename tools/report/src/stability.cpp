@@ -413,6 +413,12 @@ std::string stability_markdown(const StabilityReport& r, const std::string& plot
     md += "| points | passive | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
     md += fmt::format("| inside the bound | {} | {} | {} |\n", counts[0][0], counts[0][1], counts[0][2]);
     md += fmt::format("| outside the bound | {} | {} | {} |\n", counts[1][0], counts[1][1], counts[1][2]);
+    const int total = counts[0][0] + counts[0][1] + counts[0][2] + counts[1][0] + counts[1][1] + counts[1][2];
+    if (total > 0) {
+      md += fmt::format("\nThe bound predicts the class of {:.0f} % of the points (passive inside it, bounded or unstable "
+                        "outside).\n",
+                        100.0 * (counts[0][0] + counts[1][1] + counts[1][2]) / total);
+    }
   }
   md += fmt::format("\n{} points, {:.1f} s of CPU.\n", [&r] {
     std::size_t n = 0;
