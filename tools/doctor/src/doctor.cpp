@@ -256,8 +256,9 @@ Finding check_isolation(const Host& host) {
   }
   f.verdict = Verdict::kWarn;
   f.finding = "none: the loop shares its CPU with everything else";
-  f.fix = "isolate one CPU for the loop: add isolcpus=3 nohz_full=3 rcu_nocbs=3 to GRUB_CMDLINE_LINUX in "
-          "/etc/default/grub, sudo update-grub, reboot, then toonforce run --cpu 3 (docs/DEPLOY.md)";
+  f.fix = "isolate one CPU for the loop (here the last of 4): add isolcpus=managed_irq,domain,3 nohz_full=3 "
+          "rcu_nocbs=3 irqaffinity=0-2 to GRUB_CMDLINE_LINUX_DEFAULT in /etc/default/grub, sudo update-grub, reboot, "
+          "then toonforce run --cpu 3 (docs/DEPLOY.md)";
   return f;
 }
 
