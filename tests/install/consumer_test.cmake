@@ -8,7 +8,7 @@
 #      -Werror under CI) and runs them: compose_scene checks its equilibria itself;
 #      run_scene_file must keep the handle on the realistic wall and throw it off the cartoon
 #      wall (the paper's figures 2-3), in simulated time and once under the real-time runner;
-#   4. find_package(toonforce COMPONENTS falcon gpio): tests/install/backends, run;
+#   4. find_package(toonforce COMPONENTS falcon gpio omni): tests/install/backends, run;
 #   5. pkg-config: the examples and the backends consumer compiled with nothing but
 #      `c++ $(pkg-config --cflags --libs ...)`, and run;
 #   6. systemd-analyze verify on the installed unit template (an instance of it).
@@ -62,6 +62,7 @@ foreach(file IN ITEMS
     include/toonforce/control/realtime_runner.hpp include/toonforce/host_sim/sim_driver.hpp
     include/toonforce/config/scene_file.hpp include/toonforce/trace/trace_writer.hpp
     include/toonforce/hal/falcon/falcon.hpp include/toonforce/hal/gpio/gpio_session.hpp
+    include/toonforce/hal/omni/omni_device.hpp
     share/toonforce/scenes/wall.toml share/toonforce/scenes/cartoon_wall.toml
     share/toonforce/scenes/hands/strike.toml share/toonforce/scenes/motions/strike.csv
     share/toonforce/plot_trace.py
@@ -73,6 +74,7 @@ endforeach()
 foreach(file IN ITEMS
     libtoonforce_effects.a libtoonforce_control.a libtoonforce_control_rt.a libtoonforce_host_sim.a
     libtoonforce_config.a libtoonforce_trace.a libtoonforce_hal_falcon.a libtoonforce_hal_gpio.a
+    libtoonforce_hal_omni.a cmake/toonforce/toonforce-omni.cmake pkgconfig/toonforce-omni.pc
     cmake/toonforce/toonforce-config.cmake cmake/toonforce/toonforce-config-version.cmake
     cmake/toonforce/toonforce-falcon.cmake cmake/toonforce/toonforce-gpio.cmake
     pkgconfig/toonforce.pc pkgconfig/toonforce-falcon.pc pkgconfig/toonforce-gpio.pc)
@@ -148,7 +150,7 @@ string(FIND "${out}" "real time: " at)
 expect("run_scene_file --realtime reports its timing" NOT at EQUAL -1)
 
 # ---- 4. find_package with backend components ----------------------------------------------------
-run_step("configure the backends consumer (find_package COMPONENTS falcon gpio)"
+run_step("configure the backends consumer (find_package COMPONENTS falcon gpio omni)"
   COMMAND "${CMAKE_COMMAND}" -S "${SOURCE_DIR}/tests/install/backends" -B "${WORK_DIR}/backends" ${configure_common})
 run_step("build the backends consumer" COMMAND "${CMAKE_COMMAND}" --build "${WORK_DIR}/backends")
 run_step("backends" COMMAND "${WORK_DIR}/backends/backends" "${prefix}/lib/udev/rules.d/60-novint-falcon.rules")
@@ -165,7 +167,8 @@ endfunction()
 file(MAKE_DIRECTORY "${WORK_DIR}/pkg-config")
 pkg_config_build(compose_scene "${prefix}/share/doc/toonforce/examples/compose_scene.cpp" toonforce)
 pkg_config_build(run_scene_file "${prefix}/share/doc/toonforce/examples/run_scene_file.cpp" toonforce)
-pkg_config_build(backends "${SOURCE_DIR}/tests/install/backends/backends.cpp" toonforce-falcon toonforce-gpio)
+pkg_config_build(backends "${SOURCE_DIR}/tests/install/backends/backends.cpp" toonforce-falcon toonforce-gpio
+                 toonforce-omni)
 run_step("compose_scene (pkg-config)" COMMAND "${WORK_DIR}/pkg-config/compose_scene")
 check_strikes("${WORK_DIR}/pkg-config/run_scene_file")
 run_step("backends (pkg-config)"

@@ -1,5 +1,5 @@
-// Links the Falcon and GPIO backends as installed and calls into each (libusb, libgpiod), so
-// an export that forgot a dependency fails to link or to run. Argument: the installed udev
+// Links the Falcon, GPIO and Omni backends as installed and calls into each (libusb, nettle,
+// libgpiod, hidapi, libdl), so an export that forgot a dependency fails to link or to run. Argument: the installed udev
 // rule, which must be the rule built into the backend (`toonforce falcon udev-rule`).
 #include <cstdio>
 #include <fstream>
@@ -9,6 +9,7 @@
 #include "toonforce/hal/falcon/falcon.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/hal/gpio/line_spec.hpp"
+#include "toonforce/hal/omni/touch_detect.hpp"
 
 int main(int argc, char** argv) {
   if (argc != 2) {
@@ -35,5 +36,14 @@ int main(int argc, char** argv) {
   }
   // libgpiod: list the chips (none on a machine without GPIO).
   std::printf("GPIO chips: %zu\n", toonforce::gpio::list_chips().size());
+
+  // libusb and hidapi: list Touches (none here); libdl: OpenHaptics from a path that does not
+  // exist must be reported missing, with a fix.
+  std::printf("Touches: %zu\n", toonforce::detect_touch_devices().size());
+  const auto openhaptics = toonforce::openhaptics_prerequisite("/nonexistent/libHD.so");
+  if (openhaptics.ok || openhaptics.fix.empty()) {
+    std::fprintf(stderr, "OpenHaptics from a missing file: ok=%d, fix '%s'\n", openhaptics.ok, openhaptics.fix.c_str());
+    return 1;
+  }
   return 0;
 }

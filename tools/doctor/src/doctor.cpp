@@ -365,7 +365,7 @@ constexpr const char* kTouchUdevFix =
     "MODE=\"0660\", GROUP=\"plugdev\" (and the same with SUBSYSTEM==\"hidraw\") in "
     "/etc/udev/rules.d/99-3dsystems-touch.rules (the Touch Device Driver's installer ships a similar "
     "99-3dsystems.rules), sudo udevadm control --reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev "
-    "$USER, log in again (docs/omni.md)";
+    "$USER, log in again (docs/OMNI.md)";
 
 void check_falcons(const Host& host, std::vector<Finding>& findings) {
   const auto devices = usb_devices(host, "0403", "cb48");
@@ -395,7 +395,7 @@ void check_touches(const Host& host, std::vector<Finding>& findings) {
       for (const Node& tty : ttys) {
         check_node(host, "Touch serial", tty, Verdict::kFail, " (the USB-serial Touch's port)",
                    "add yourself to the dialout group, which owns /dev/ttyACM*: sudo usermod -aG dialout $USER, "
-                   "log in again (docs/omni.md)",
+                   "log in again (docs/OMNI.md)",
                    findings);
       }
     } else {
@@ -423,7 +423,7 @@ void check_firewire_omnis(const Host& host, std::vector<Finding>& findings) {
     check_node(host, "Omni FireWire", node, Verdict::kFail, "",
                "a udev rule giving group plugdev rw on the Omni: SUBSYSTEM==\"firewire\", ATTR{vendor}==\"0x000b99\", "
                "MODE=\"0660\", GROUP=\"plugdev\" in /etc/udev/rules.d/99-phantom-omni.rules, sudo udevadm control "
-               "--reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev $USER, log in again (docs/omni.md)",
+               "--reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev $USER, log in again (docs/OMNI.md)",
                findings);
   }
 }
