@@ -12,6 +12,7 @@ void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
+void add_report(CLI::App& app);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   toonforce::cli::add_figures(app);
   toonforce::cli::add_devices(app);
   toonforce::cli::add_falcon(app);
+  toonforce::cli::add_report(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

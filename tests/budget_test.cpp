@@ -1,0 +1,61 @@
+// Instruction budgets per tick, counted by callgrind (deterministic: the same binary on the
+// same inputs counts the same instructions, whatever the machine's load; no time is measured
+// here). Issue 8's target for a paper scene's tick (its effects plus the safety stage,
+// ForceSafety, double): at most 400 instructions, on every tick of a scenario that drives
+// every branch of the scene (tools/report/src/scenario.cpp; scenario_test.cpp checks that it
+// does). toonforce_tick_count compiles the ticks with -O3 in every build type, so this debug
+// test budgets what a release build runs.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+
+#include "toonforce/report/callgrind.hpp"
+#include "toonforce/report/latency.hpp"
+#include "toonforce/report/scenario.hpp"
+
+namespace toonforce::report {
+namespace {
+
+TEST(InstructionBudget, EveryTickOfEveryPaperSceneFitsIn400InstructionsInDouble) {
+#ifdef TOONFORCE_SANITIZED
+  GTEST_SKIP() << "callgrind cannot run a sanitizer-instrumented binary; the debug and release builds run this test";
+#else
+  CallgrindOptions options;
+  options.valgrind = TOONFORCE_VALGRIND;
+  options.tick_count = TOONFORCE_TICK_COUNT;
+  options.root = TOONFORCE_SOURCE_DIR;
+  options.filter = "harness/";
+  for (const std::string_view scene : kPaperScenes) options.filter += ",scene/" + std::string(scene) + "/double/";
+  auto counted = count_instructions(options);
+  ASSERT_TRUE(counted) << counted.error();
+
+  std::map<std::string, const CountedCase*> by_id;
+  for (const auto& c : counted->cases) by_id[c.id] = &c;
+  ASSERT_TRUE(by_id.count("harness/empty"));
+  // The empty tick is the call into the counted function and back: a handful of instructions.
+  const double harness = by_id["harness/empty"]->mean();
+  EXPECT_GT(harness, 0.0);
+  EXPECT_LT(harness, 10.0);
+
+  for (const std::string_view scene : kPaperScenes) {
+    for (const char* form : {"compile-time", "runtime"}) {
+      const std::string id = "scene/" + std::string(scene) + "/double/" + form;
+      ASSERT_TRUE(by_id.count(id)) << id;
+      const CountedCase& c = *by_id[id];
+      ASSERT_TRUE(c.per_tick) << id;
+      ASSERT_EQ(c.per_tick_counts.size(), c.ticks) << id;
+      ASSERT_GE(c.ticks, 1000U) << id;  // one whole scenario pass
+      for (std::size_t k = 0; k < c.per_tick_counts.size(); ++k) {
+        // Every tick did some work: a zero would mean the dump missed it.
+        ASSERT_GT(static_cast<double>(c.per_tick_counts[k]), harness) << id << " tick " << k;
+      }
+      EXPECT_LE(static_cast<double>(c.max()) - harness, kTargetInstructionsPerTick)
+          << id << ": the most expensive tick of the scenario (mean " << c.mean() - harness << ")";
+    }
+  }
+#endif
+}
+
+}  // namespace
+}  // namespace toonforce::report

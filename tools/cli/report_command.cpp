@@ -1,0 +1,136 @@
+// toonforce report latency|precision|stability|all: the project measuring itself (issue 8).
+// Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
+// plots (tools/report/include/toonforce/report/documents.hpp).
+#include <cstdio>
+#include <memory>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "toonforce/report/documents.hpp"
+#include "toonforce/report/latency.hpp"
+#include "toonforce/report/paths.hpp"
+#include "toonforce/report/precision.hpp"
+#include "toonforce/report/stability.hpp"
+
+namespace toonforce::cli {
+
+namespace {
+
+void progress(const std::string& line) { std::fprintf(stderr, "report: %s\n", line.c_str()); }
+
+template <class T>
+bool report_error(const Result<T>& r) {
+  if (r) return false;
+  std::fprintf(stderr, "toonforce report: %s\n", r.error().c_str());
+  set_exit_code(1);
+  return true;
+}
+
+void add_latency(CLI::App& report) {
+  auto options = std::make_shared<report::LatencyOptions>();
+  auto no_callgrind = std::make_shared<bool>(false);
+  CLI::App* cmd = report.add_subcommand(
+      "latency", "ns and instructions per tick of each effect, paper scene and Controller, per scalar type");
+  cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
+  cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(CLI::PositiveNumber);
+  cmd->add_option("--filter", options->filter, "Only rows whose id contains one of these comma-separated texts");
+  cmd->add_option("--cpu", options->cpu, "Pin the timing thread to this CPU");
+  cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions (no valgrind run)");
+  cmd->add_option("--valgrind", options->valgrind, "The valgrind to run (default: valgrind from PATH)");
+  cmd->add_option("--tick-count", options->tick_count, "toonforce_tick_count (default: beside this executable)");
+  cmd->callback([options, no_callgrind] {
+    options->callgrind = !*no_callgrind;
+    options->root = report::source_root(options->root);
+    const auto result = report::run_latency(*options, progress);
+    if (report_error(result)) return;
+    std::fputs(report::latency_markdown(result.value()).c_str(), stdout);
+    set_exit_code(0);
+  });
+}
+
+void add_precision(CLI::App& report) {
+  auto options = std::make_shared<report::PrecisionOptions>();
+  CLI::App* cmd = report.add_subcommand(
+      "precision", "Force error against a 40 kHz double reference, against ns per tick; drift over simulated hours");
+  cmd->add_option("--root", options->root, "Source tree holding scenes/");
+  cmd->add_option("--rates", options->rates_hz, "Servo rates to compare [Hz] (default 500 1000 4000 10000)");
+  cmd->add_option("--ticks", options->timing_ticks, "Timed ticks per configuration (default 10^6)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--drift-hours", options->drift_hours, "Simulated hours of the drift run (default 24; 0: none)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
+  cmd->callback([options] {
+    options->root = report::source_root(options->root);
+    const auto result = report::run_precision(*options, progress);
+    if (report_error(result)) return;
+    std::fputs(report::precision_markdown(result.value()).c_str(), stdout);
+    set_exit_code(0);
+  });
+}
+
+void add_stability(CLI::App& report) {
+  auto options = std::make_shared<report::StabilityOptions>();
+  CLI::App* cmd = report.add_subcommand(
+      "stability", "Sweeps of stiffness, damping, slippery gain, period and impact speed, classified by energy");
+  cmd->add_option("--resolution", options->resolution, "Points per axis (default 24)")->check(CLI::Range(2, 200));
+  cmd->add_option("--duration", options->duration_s, "Simulated seconds per point (default 4)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
+  cmd->callback([options] {
+    const auto result = report::run_stability(*options, progress);
+    if (report_error(result)) return;
+    std::fputs(report::stability_markdown(result.value()).c_str(), stdout);
+    set_exit_code(0);
+  });
+}
+
+void add_all(CLI::App& report) {
+  auto options = std::make_shared<report::DocumentsOptions>();
+  auto quick = std::make_shared<bool>(false);
+  auto no_callgrind = std::make_shared<bool>(false);
+  auto no_plot = std::make_shared<bool>(false);
+  CLI::App* cmd = report.add_subcommand(
+      "all", "Run every report; regenerate OUT/PERFORMANCE.md (its generated part), OUT/STABILITY.md, OUT/report/");
+  cmd->add_option("--out", options->out_dir, "Directory of the documents (default docs)");
+  cmd->add_option("--root", options->root, "Source tree holding scenes/");
+  cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row (default 10^7)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--drift-hours", options->precision.drift_hours, "Simulated hours of the drift run (default 24)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
+      ->check(CLI::Range(2, 200));
+  cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
+  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks, 0.1 simulated hours, 8 points per axis");
+  cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
+  cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
+  cmd->callback([options, quick, no_callgrind, no_plot] {
+    options->root = report::source_root(options->root);
+    options->latency.callgrind = !*no_callgrind;
+    options->plot = !*no_plot;
+    if (*quick) {
+      options->latency.ticks = 100'000;
+      options->precision.timing_ticks = 100'000;
+      options->precision.drift_hours = 0.1;
+      options->stability.resolution = 8;
+    }
+    options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
+    const auto written = report::write_documents(*options, progress);
+    if (report_error(written)) return;
+    for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());
+    set_exit_code(0);
+  });
+}
+
+}  // namespace
+
+void add_report(CLI::App& app) {
+  CLI::App* report = app.add_subcommand("report", "Measure toonforce: latency, precision, stability (Markdown)");
+  report->require_subcommand(1);
+  add_latency(*report);
+  add_precision(*report);
+  add_stability(*report);
+  add_all(*report);
+}
+
+}  // namespace toonforce::cli

@@ -1,0 +1,183 @@
+#!/usr/bin/python3
+"""Plots for `toonforce report` (docs/PERFORMANCE.md, docs/STABILITY.md).
+
+Usage:
+  plot_report.py work-precision PRECISION.csv OUT.png
+  plot_report.py drift DRIFT.csv OUT.png
+  plot_report.py stability MAP.csv OUT.png --title T --xlabel X --ylabel Y [--linear-x] [--linear-y]
+
+work-precision: one column per paper scene; log-log, one marker per configuration, lines join
+the servo rates of one scalar type and sine method (labelled with the rate in kHz):
+  top     x = max sampled error against the 40 kHz double reference, y = ns per tick;
+  middle  x = RMS held (zero-order hold) error, y = CPU time per simulated second
+          (ns per tick x rate): what a faster loop costs;
+  bottom  x = max error against double at the same rate (the scalar type's and the sine's own
+          share), y = ns per tick.
+  A zero error is drawn at the bottom edge (1e-9 N) and said so in the legend.
+drift: one panel per scene, max error per simulated hour against hours, one line per scalar.
+stability: the sweep's points coloured by class (passive, bounded, unstable) and the bound
+  drawn over them.
+
+Needs matplotlib (Debian: python3-matplotlib; tools/setup-deps installs it). Deterministic
+output: no dates or versions in the files.
+"""
+
+import argparse
+import csv
+import math
+import sys
+
+try:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ImportError:
+    sys.exit("plot_report.py: matplotlib is missing: install python3-matplotlib (tools/setup-deps does)")
+
+SCENES = ["wall", "realistic_friction", "slippery", "cartoon_wall", "cliff"]
+SCALAR_COLOURS = {"double": "tab:blue", "float": "tab:green", "q16.16": "tab:red"}
+SINE_MARKERS = {"-": "o", "library": "o", "polynomial": "s", "table": "^"}
+CLASS_COLOURS = {"passive": "tab:green", "bounded": "tab:orange", "unstable": "tab:red"}
+FLOOR = 1e-9
+
+
+def read_rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def save(fig, out):
+    # No metadata that changes from run to run.
+    meta = {"Software": None} if out.endswith(".png") else {"Date": None}
+    fig.savefig(out, dpi=110, metadata=meta)
+    plt.close(fig)
+
+
+def work_precision(rows, out):
+    fig, axes = plt.subplots(3, len(SCENES), figsize=(22, 13), squeeze=False)
+    panels = [
+        ("max_error_n", lambda r: float(r["mean_ns"]), "max error vs 40 kHz reference [N]", "ns per tick"),
+        ("held_rms_error_n", lambda r: float(r["mean_ns"]) * float(r["rate_hz"]) / 1000.0,
+         "RMS held error vs reference [N]", "CPU per simulated second [us]"),
+        ("same_rate_max_error_n", lambda r: float(r["mean_ns"]), "max error vs double, same rate [N]", "ns per tick"),
+    ]
+    floored = False
+    for column, scene in enumerate(SCENES):
+        scene_rows = [r for r in rows if r["scene"] == scene]
+        series = {}
+        for r in scene_rows:
+            series.setdefault((r["scalar"], r["sine"]), []).append(r)
+        for row_index, (key, cost, xlabel, ylabel) in enumerate(panels):
+            ax = axes[row_index][column]
+            for (scalar, sine), points in sorted(series.items()):
+                points.sort(key=lambda r: float(r["rate_hz"]))
+                xs = []
+                for r in points:
+                    value = float(r[key])
+                    if value <= 0.0:
+                        floored = True
+                    xs.append(max(value, FLOOR))
+                ys = [cost(r) for r in points]
+                label = scalar if sine == "-" else f"{scalar}, {sine} sine"
+                ax.plot(xs, ys, marker=SINE_MARKERS.get(sine, "o"), color=SCALAR_COLOURS.get(scalar, "k"),
+                        linewidth=0.8, markersize=5, label=label, alpha=0.8)
+                if sine in ("-", "library", "polynomial") and (scalar != "q16.16" or sine != "library"):
+                    for x, y, r in zip(xs, ys, points):
+                        ax.annotate(f"{float(r['rate_hz']) / 1000:g}k", (x, y), fontsize=6,
+                                    xytext=(2, 2), textcoords="offset points", color="dimgray")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.grid(True, which="both", linewidth=0.3)
+            ax.set_xlabel(xlabel, fontsize=8)
+            if column == 0:
+                ax.set_ylabel(ylabel, fontsize=8)
+            if row_index == 0:
+                ax.set_title(scene)
+            ax.tick_params(labelsize=7)
+        axes[0][column].legend(fontsize=6, loc="best")
+    title = "Work-precision: force error against cost per tick (points: servo rates in kHz)"
+    if floored:
+        title += f"; an error of exactly 0 is drawn at {FLOOR:g} N"
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    save(fig, out)
+
+
+def drift(rows, out):
+    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 4), squeeze=False)
+    for column, scene in enumerate(SCENES):
+        ax = axes[0][column]
+        for scalar in ("double", "float", "q16.16"):
+            points = [r for r in rows if r["scene"] == scene and r["scalar"] == scalar]
+            if not points:
+                continue
+            hours = [int(r["hour"]) for r in points]
+            errors = [max(float(r["max_error_n"]), FLOOR) for r in points]
+            ax.plot(hours, errors, marker=".", color=SCALAR_COLOURS[scalar], label=scalar)
+        ax.set_yscale("log")
+        ax.set_title(scene)
+        ax.set_xlabel("simulated hour")
+        if column == 0:
+            ax.set_ylabel("max error in that hour [N]")
+        ax.grid(True, which="both", linewidth=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("Drift: the Controller at 1 kHz on the repeating scenario against the 40 kHz double reference")
+    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    save(fig, out)
+
+
+def stability(rows, out, title, xlabel, ylabel, log_x, log_y):
+    fig, ax = plt.subplots(figsize=(7.5, 6))
+    for cls, colour in CLASS_COLOURS.items():
+        points = [r for r in rows if r["kind"] == "point" and r["class"] == cls]
+        ax.scatter([float(r["x"]) for r in points], [float(r["y"]) for r in points], s=22, color=colour,
+                   label=f"{cls} ({len(points)})", marker="s", edgecolors="none")
+    bound = [r for r in rows if r["kind"] == "bound"]
+    if bound:
+        ax.plot([float(r["x"]) for r in bound], [float(r["y"]) for r in bound], color="black", linewidth=1.5,
+                label="Colgate-Brown bound")
+    if log_x:
+        ax.set_xscale("log")
+    if log_y:
+        ax.set_yscale("log")
+    points = [r for r in rows if r["kind"] == "point"]
+    if points:
+        xs = [float(r["x"]) for r in points]
+        ys = [float(r["y"]) for r in points]
+        pad = lambda lo, hi, log: (lo / 1.15, hi * 1.15) if log else (lo - 0.03 * (hi - lo), hi + 0.03 * (hi - lo))
+        ax.set_xlim(*pad(min(xs), max(xs), log_x))
+        ax.set_ylim(*pad(min(ys), max(ys), log_y))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", linewidth=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, frameon=False)
+    fig.tight_layout()
+    save(fig, out)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("kind", choices=["work-precision", "drift", "stability"])
+    parser.add_argument("csv")
+    parser.add_argument("out")
+    parser.add_argument("--title", default="")
+    parser.add_argument("--xlabel", default="x")
+    parser.add_argument("--ylabel", default="y")
+    parser.add_argument("--linear-x", action="store_true")
+    parser.add_argument("--linear-y", action="store_true")
+    args = parser.parse_args()
+    rows = read_rows(args.csv)
+    if not rows:
+        sys.exit(f"plot_report.py: {args.csv} has no rows")
+    if args.kind == "work-precision":
+        work_precision(rows, args.out)
+    elif args.kind == "drift":
+        drift(rows, args.out)
+    else:
+        stability(rows, args.out, args.title, args.xlabel, args.ylabel, not args.linear_x, not args.linear_y)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,37 @@
+#pragma once
+/// `toonforce report all`: runs the latency, precision and stability reports and regenerates
+/// docs/PERFORMANCE.md (its generated part only: everything outside the markers
+///   <!-- toonforce report: begin --> ... <!-- toonforce report: end -->
+/// is kept byte for byte, so sections other commands measured stay as they were) and
+/// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/.
+
+#include <string>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/report/latency.hpp"
+#include "toonforce/report/precision.hpp"
+#include "toonforce/report/stability.hpp"
+
+namespace toonforce::report {
+
+inline constexpr std::string_view kBeginMarker = "<!-- toonforce report: begin -->";
+inline constexpr std::string_view kEndMarker = "<!-- toonforce report: end -->";
+
+struct DocumentsOptions {
+  std::string out_dir = "docs";
+  std::string root;          ///< source tree (scenes/)
+  LatencyOptions latency;
+  PrecisionOptions precision;
+  StabilityOptions stability;
+  bool plot = true;
+  std::string command_line;  ///< how this run was asked for, written into the documents
+};
+
+/// Returns the lines it wrote (files).
+Result<std::vector<std::string>> write_documents(const DocumentsOptions& options, const Progress& progress = {});
+
+/// `existing` with the text between the markers replaced by `generated` (markers kept); if it
+/// has no markers, `existing` followed by the markers around `generated`.
+std::string merge_generated(const std::string& existing, const std::string& generated);
+
+}  // namespace toonforce::report

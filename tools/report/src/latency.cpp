@@ -1,0 +1,168 @@
+#include "toonforce/report/latency.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+
+#include "toonforce/report/callgrind.hpp"
+
+namespace toonforce::report {
+
+bool pin_to_cpu(int cpu) {
+  if (cpu < 0 || cpu >= CPU_SETSIZE) return false;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(static_cast<std::size_t>(cpu), &set);
+  return pthread_setaffinity_np(pthread_self(), sizeof set, &set) == 0;
+}
+
+Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress& progress) {
+  const auto say = [&progress](const std::string& line) {
+    if (progress) progress(line);
+  };
+  auto cases = make_cases(options.root);
+  if (!cases) return Error{cases.error()};
+  if (options.cpu >= 0 && !pin_to_cpu(options.cpu)) return Error{fmt::format("cannot pin to CPU {}", options.cpu)};
+
+  LatencyReport report;
+  report.machine = machine_info();
+  report.ticks = options.ticks;
+  report.load_before = load_average();
+  say("calibrating the time-stamp counter");
+  report.clock = calibrate();
+  if (!report.clock.invariant) say("warning: this CPU does not report an invariant TSC; times may be wrong");
+  const double cycles_per_ns = report.clock.cycles_per_ns;
+  const auto to_ns = [&](std::uint64_t cycles) {
+    const std::uint64_t net = cycles > report.clock.overhead_cycles ? cycles - report.clock.overhead_cycles : 0;
+    return static_cast<double>(net) / cycles_per_ns;
+  };
+
+  CycleHistogram histogram;
+  for (auto& c : cases.value()) {
+    if (!selected(c->info().id, options.filter)) continue;
+    say(fmt::format("timing {} ({} ticks)", c->info().id, options.ticks));
+    c->restart();
+    c->run(std::max<std::uint64_t>(c->info().ticks_per_pass, 10000));  // warm caches and predictors
+    histogram = CycleHistogram();
+    c->time(options.ticks, histogram);
+    LatencyRow row;
+    row.info = c->info();
+    row.ticks = histogram.count();
+    row.mean_ns = std::max(0.0, histogram.mean_in_bins() - report.clock.overhead_mean_cycles) /
+                  cycles_per_ns;
+    row.median_ns = to_ns(histogram.percentile(0.5));
+    row.p999_ns = to_ns(histogram.percentile(0.999));
+    row.max_ns = to_ns(histogram.max());
+    report.rows.push_back(std::move(row));
+  }
+  report.load_after = load_average();
+
+  if (options.callgrind) {
+    say("counting instructions under callgrind");
+    CallgrindOptions counting;
+    counting.valgrind = options.valgrind;
+    counting.tick_count = options.tick_count.empty() ? default_tick_count_path() : options.tick_count;
+    counting.root = options.root;
+    // The harness always, for its overhead; then what was timed.
+    counting.filter = options.filter.empty() ? std::string() : "harness/," + options.filter;
+    auto counted = count_instructions(counting);
+    if (!counted) return Error{counted.error()};
+    report.callgrind_command = counted->command;
+    std::map<std::string, const CountedCase*> by_id;
+    for (const auto& c : counted->cases) by_id[c.id] = &c;
+    if (const auto h = by_id.find("harness/empty"); h != by_id.end()) report.harness_instructions = h->second->mean();
+    for (auto& row : report.rows) {
+      const auto found = by_id.find(row.info.id);
+      if (found == by_id.end()) continue;
+      row.instructions_mean = found->second->mean() - report.harness_instructions;
+      if (found->second->per_tick) {
+        row.instructions_max = static_cast<double>(found->second->max()) - report.harness_instructions;
+      }
+    }
+  }
+  return report;
+}
+
+namespace {
+
+std::string cell(const std::optional<double>& v, int decimals) {
+  if (!v) return "-";
+  return decimals == 0 ? fmt::format("{:.0f}", *v) : fmt::format("{:.{}f}", *v, decimals);
+}
+
+std::string times(const LatencyRow& r) {
+  return fmt::format("{:.1f} | {:.0f} | {:.0f} | {:.0f}", r.mean_ns, r.median_ns, r.p999_ns, r.max_ns);
+}
+
+}  // namespace
+
+std::string latency_markdown(const LatencyReport& r) {
+  std::string md;
+  md += fmt::format("Measured {} UTC on {}; load average (1, 5, 15 min) {} before and {} after the timing runs.\n\n",
+                    r.machine.date_utc, describe(r.machine), r.load_before, r.load_after);
+  md += fmt::format("Clock: {}. {} ticks timed per row (each tick alone; median, p99.9 and maximum of all of them).\n\n",
+                    describe(r.clock), r.ticks);
+  if (!r.callgrind_command.empty()) {
+    md += fmt::format(
+        "Instructions: callgrind, counting only the ticks (`{}`); the empty tick's {:.0f} instructions (the call "
+        "into the counted function and its return) are subtracted. Scenario rows give the mean over one pass of the "
+        "scenario and its most expensive tick; branch rows the mean over 1024 ticks of the branch.\n\n",
+        r.callgrind_command, r.harness_instructions);
+  }
+
+  md += "### Paper scenes: effects plus the safety stage\n\n";
+  md += fmt::format(
+      "One tick = `scene.force()` then `ForceSafety::limit()` (rate limit, clamp), inputs from the scene's scripted "
+      "scenario at 1 kHz (tools/report/src/scenario.cpp: every branch, the expensive ones included). Target (issue "
+      "8), double: at most {:.0f} instructions and at most {:.0f} ns median per tick.\n\n",
+      kTargetInstructionsPerTick, kTargetMedianNsPerTick);
+  md += "| scene | scalar | form | mean ns | median ns | p99.9 ns | max ns | instructions, mean | instructions, worst tick | target |\n";
+  md += "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
+  for (const auto& row : r.rows) {
+    if (row.info.level != Level::kScene) continue;
+    std::string target = "";
+    if (row.info.scalar == ScalarKind::kDouble) {
+      const bool instructions_ok = !row.instructions_max || *row.instructions_max <= kTargetInstructionsPerTick;
+      const bool time_ok = row.median_ns <= kTargetMedianNsPerTick;
+      target = instructions_ok && time_ok ? "met" : (!instructions_ok ? "MISSED (instructions)" : "MISSED (time)");
+    }
+    md += fmt::format("| {} | {} | {} | {} | {} | {} | {} |\n", row.info.subject, scalar_kind_name(row.info.scalar),
+                      row.info.form, times(row), cell(row.instructions_mean, 1), cell(row.instructions_max, 0), target);
+  }
+
+  md += "\n### Effects and the safety stage, branch by branch\n\n";
+  md += "Each row drives one branch: the law's state is restored before every tick (outside the timed region), the "
+        "inputs vary within the branch. Parameters are the bundled scenes' (the damped wall: 2 N s/m).\n\n";
+  md += "| effect | branch | scalar | mean ns | median ns | p99.9 ns | max ns | instructions |\n";
+  md += "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |\n";
+  for (const auto& row : r.rows) {
+    if (row.info.level != Level::kEffect && row.info.level != Level::kSafety) continue;
+    md += fmt::format("| {} | {} | {} | {} | {} |\n", row.info.subject, row.info.branch,
+                      scalar_kind_name(row.info.scalar), times(row), cell(row.instructions_mean, 1));
+  }
+
+  md += "\n### The whole Controller tick\n\n";
+  md += "`Controller::tick()` as replay, `toonforce sim` and the servo loop run it on the scene file's RuntimeScene: "
+        "measurement in double converted to the scalar, non-finite guard, velocity estimate (the scenario's "
+        "positions only, as from a Falcon), the effects on a copy of their state, the safety stage.\n\n";
+  md += "| scene | scalar | mean ns | median ns | p99.9 ns | max ns | instructions, mean | instructions, worst tick |\n";
+  md += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+  for (const auto& row : r.rows) {
+    if (row.info.level != Level::kController) continue;
+    md += fmt::format("| {} | {} | {} | {} | {} |\n", row.info.subject, scalar_kind_name(row.info.scalar), times(row),
+                      cell(row.instructions_mean, 1), cell(row.instructions_max, 0));
+  }
+  for (const auto& row : r.rows) {
+    if (row.info.level != Level::kHarness) continue;
+    md += fmt::format("\nThe empty tick (harness check, after subtracting the clock's overhead): median {:.1f} ns, "
+                      "p99.9 {:.1f} ns, max {:.0f} ns.\n",
+                      row.median_ns, row.p999_ns, row.max_ns);
+  }
+  return md;
+}
+
+}  // namespace toonforce::report

@@ -1,0 +1,629 @@
+// The measured ticks. This file is compiled with -O3 in every build type (CMakeLists.txt), and
+// every function that runs a tick is flattened, so what is timed and counted is the same
+// machine code whatever the build.
+#include "toonforce/report/workloads.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/controller.hpp"
+#include "toonforce/report/scenario.hpp"
+#include "toonforce/report/tsc_clock.hpp"
+
+namespace toonforce::report {
+
+std::string_view level_name(Level level) noexcept {
+  switch (level) {
+    case Level::kHarness: return "harness";
+    case Level::kEffect: return "effect";
+    case Level::kSafety: return "safety";
+    case Level::kScene: return "scene";
+    case Level::kController: return "controller";
+  }
+  return "?";
+}
+
+std::uint64_t CycleHistogram::percentile(double p) const noexcept {
+  if (count_ == 0) return 0;
+  const auto rank = static_cast<std::uint64_t>(std::ceil(p * static_cast<double>(count_)));
+  const std::uint64_t wanted = std::max<std::uint64_t>(rank, 1);
+  std::uint64_t seen = 0;
+  for (std::size_t i = 0; i < counts_.size(); ++i) {
+    seen += counts_[i];
+    if (seen >= wanted) return i;
+  }
+  return max_;  // in the overflow: only the maximum is known exactly
+}
+
+double CycleHistogram::mean_in_bins() const noexcept {
+  double sum = 0.0;
+  std::uint64_t n = 0;
+  for (std::size_t i = 0; i < counts_.size(); ++i) {
+    sum += static_cast<double>(i) * static_cast<double>(counts_[i]);
+    n += counts_[i];
+  }
+  return n == 0 ? 0.0 : sum / static_cast<double>(n);
+}
+
+bool selected(const std::string& id, const std::string& filter) {
+  if (filter.empty()) return true;
+  std::size_t start = 0;
+  while (start <= filter.size()) {
+    const std::size_t comma = std::min(filter.find(',', start), filter.size());
+    const std::string part = filter.substr(start, comma - start);
+    if (!part.empty() && id.find(part) != std::string::npos) return true;
+    start = comma + 1;
+  }
+  return false;
+}
+
+/// The one function callgrind counts (--toggle-collect=*measured_tick*): a tick and nothing else.
+template <class Work>
+[[gnu::noinline, gnu::flatten]] void measured_tick(Work& work) noexcept {
+  const auto out = work.tick();
+  keep(out);
+}
+
+namespace {
+
+template <Scalar S>
+constexpr ScalarKind kind_of() noexcept {
+  if constexpr (kIsFixed<S>) {
+    return ScalarKind::kQ16_16;
+  } else if constexpr (std::same_as<S, float>) {
+    return ScalarKind::kFloat;
+  } else {
+    return ScalarKind::kDouble;
+  }
+}
+
+template <class Work>
+class CaseOf final : public TickCase {
+ public:
+  CaseOf(CaseInfo info, Work work) : TickCase(std::move(info)), initial_(work), work_(std::move(work)) {}
+
+  [[gnu::flatten]] void time(std::uint64_t ticks, CycleHistogram& histogram) noexcept override {
+    for (std::uint64_t i = 0; i < ticks; ++i) {
+      work_.prepare(next_++);
+      const std::uint64_t start = tsc_begin();
+      const auto out = work_.tick();
+      keep(out);  // the result is complete before the second read
+      const std::uint64_t end = tsc_end();
+      histogram.add(end - start);
+    }
+  }
+  void run_counted(std::uint64_t ticks, AfterTick after, void* context) noexcept override {
+    for (std::uint64_t i = 0; i < ticks; ++i) {
+      work_.prepare(next_++);
+      measured_tick(work_);
+      if (after != nullptr) after(i, context);
+    }
+  }
+  [[gnu::flatten]] void run(std::uint64_t ticks) noexcept override {
+    for (std::uint64_t i = 0; i < ticks; ++i) {
+      work_.prepare(next_++);
+      const auto out = work_.tick();
+      keep(out);
+    }
+  }
+  void restart() noexcept override {
+    work_ = initial_;
+    next_ = 0;
+  }
+
+ private:
+  Work initial_;
+  Work work_;
+  std::uint64_t next_ = 0;
+};
+
+template <class Work>
+std::unique_ptr<TickCase> make_case(CaseInfo info, Work work) {
+  return std::make_unique<CaseOf<Work>>(std::move(info), std::move(work));
+}
+
+// ---- workloads ------------------------------------------------------------------------------
+
+/// Nothing: what measured_tick() and the two counter reads cost on their own.
+struct EmptyWork {
+  int value = 0;
+  void prepare(std::uint64_t) noexcept {}
+  int tick() noexcept { return value; }
+};
+
+/// One law on branch inputs; its state is restored before every tick so each tick takes the
+/// branch the case names.
+template <class E>
+struct EffectWork {
+  using S = typename E::Scalar;
+  typename E::Params params;
+  typename E::State initial_state;
+  std::vector<TickInput<S>> inputs;
+  typename E::State state{};
+  const TickInput<S>* in = nullptr;
+
+  void prepare(std::uint64_t i) noexcept {
+    state = initial_state;
+    in = &inputs[i % inputs.size()];
+  }
+  Vec3<S> tick() noexcept { return E::force(params, state, *in); }
+};
+
+/// The safety stage alone: from a previous output to a new scene force.
+template <Scalar S>
+struct SafetyWork {
+  struct Input {
+    ForceSafety<S> primed;  ///< with the previous output already in it
+    Vec3<S> force_n;
+  };
+  std::vector<Input> inputs;
+  S rate_hz{};
+  ForceSafety<S> safety{};
+  const Input* in = nullptr;
+
+  void prepare(std::uint64_t i) noexcept {
+    in = &inputs[i % inputs.size()];
+    safety = in->primed;
+  }
+  typename ForceSafety<S>::Output tick() noexcept { return safety.limit(in->force_n, rate_hz); }
+};
+
+/// A paper scene's tick: its effects, then the safety stage, on the scenario's inputs (the
+/// states carry over from tick to tick, as in a run).
+template <class SceneT>
+struct SceneWork {
+  using S = typename SceneT::Scalar;
+  SceneT scene;
+  ForceSafety<S> safety;
+  std::vector<TickInput<S>> inputs;
+  typename SceneT::State state{};
+  TickInput<S> current{};
+
+  void prepare(std::uint64_t i) noexcept {
+    current = inputs[i % inputs.size()];
+    current.now.tick = static_cast<std::int64_t>(i);  // time runs on across passes
+  }
+  typename ForceSafety<S>::Output tick() noexcept {
+    return safety.limit(scene.force(current, state), current.rate_hz);
+  }
+};
+
+/// The whole per-tick controller on measured positions (velocity estimated).
+template <class SceneT>
+struct ControllerWork {
+  Controller<SceneT> controller;
+  std::vector<Sample> samples;
+  Sample current{};
+
+  void prepare(std::uint64_t i) noexcept {
+    current = samples[i % samples.size()];
+    current.now.tick = static_cast<std::int64_t>(i);
+  }
+  TickResult<typename SceneT::Scalar> tick() noexcept { return controller.tick(current); }
+};
+
+// ---- inputs ---------------------------------------------------------------------------------
+
+constexpr double kRateHz = 1000.0;
+constexpr std::size_t kBranchInputs = 256;
+
+/// A small deterministic generator: the same inputs on every run and machine.
+class Lcg {
+ public:
+  explicit Lcg(std::uint64_t seed) : state_(seed) {}
+  double uniform(double lo, double hi) noexcept {
+    state_ = state_ * 6364136223846793005ULL + 1442695040888963407ULL;
+    const double u = static_cast<double>(state_ >> 11) / 9007199254740992.0;  // [0, 1)
+    return lo + (hi - lo) * u;
+  }
+  /// A horizontal vector of magnitude in [lo, hi].
+  Vec3<double> horizontal(double lo, double hi) noexcept {
+    const double angle = uniform(0.0, 6.283185307179586);
+    const double m = uniform(lo, hi);
+    return {m * std::cos(angle), m * std::sin(angle), 0.0};
+  }
+
+ private:
+  std::uint64_t state_;
+};
+
+template <Scalar S>
+TickInput<S> tick_input(const Vec3<double>& x, const Vec3<double>& v, std::int64_t tick) {
+  TickInput<S> in{};
+  in.position_m = vec_cast<S>(x);
+  in.velocity_m_per_s = vec_cast<S>(v);
+  in.rate_hz = scalar_cast<S>(kRateHz);
+  in.now = Instant{tick, 0.0};
+  in.period_s = 1.0 / kRateHz;
+  return in;
+}
+
+/// `count` inputs from `make(lcg, i)` -> {x, v, tick}.
+template <Scalar S, class Make>
+std::vector<TickInput<S>> branch_inputs(std::uint64_t seed, Make make) {
+  Lcg lcg(seed);
+  std::vector<TickInput<S>> inputs;
+  for (std::size_t i = 0; i < kBranchInputs; ++i) inputs.push_back(make(lcg, i));
+  return inputs;
+}
+
+/// The scenario of a paper scene at 1 kHz, one period, as scene inputs (velocity exact).
+template <Scalar S>
+std::vector<TickInput<S>> scenario_inputs(std::string_view scene) {
+  const KeyframePath path = paper_scenario(scene);
+  const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * kRateHz));
+  std::vector<TickInput<S>> inputs;
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    const PathPoint p = path.at(static_cast<double>(k) / kRateHz);
+    inputs.push_back(tick_input<S>(p.position_m, p.velocity_m_per_s, k));
+  }
+  return inputs;
+}
+
+/// The same scenario as device samples (positions only: the controller estimates velocity).
+std::vector<Sample> scenario_samples(std::string_view scene, double rate_hz = kRateHz) {
+  const KeyframePath path = paper_scenario(scene);
+  const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * rate_hz));
+  std::vector<Sample> samples;
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    Sample s;
+    s.position_m = path.at(static_cast<double>(k) / rate_hz).position_m;
+    s.now = Instant{k, 0.0};
+    s.dt_s = 1.0 / rate_hz;
+    samples.push_back(s);
+  }
+  return samples;
+}
+
+struct Loaded {
+  SceneDescription wall, friction, slippery, cartoon, cliff;
+};
+
+template <Scalar S>
+class CaseBuilder {
+ public:
+  CaseBuilder(const Loaded& loaded, std::vector<std::unique_ptr<TickCase>>& out) : loaded_(loaded), out_(out) {}
+
+  void effects() {
+    penalty_wall();
+    friction();
+    slippery();
+    impact();
+    cliff();
+    safety();
+  }
+
+  void scenes() {
+    scene_pair("wall", loaded_.wall, [](const RuntimeScene<S>& rt) {
+      const auto& s = rt.surface(0);
+      return Scene<Surface<SpringWall<S>>>({s.plane, {s.wall.stiffness_n_per_m, S{}}});
+    });
+    scene_pair("realistic_friction", loaded_.friction, [](const RuntimeScene<S>& rt) {
+      const auto& s = rt.surface(0);
+      return Scene<Surface<SpringWall<S>, RealisticFriction<S>>>(
+          {s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.friction, {}});
+    });
+    scene_pair("slippery", loaded_.slippery, [](const RuntimeScene<S>& rt) {
+      const auto& s = rt.surface(0);
+      return Scene<Surface<SpringWall<S>, SuperSlippery<S>>>(
+          {s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.slippery, {}});
+    });
+    scene_pair("cartoon_wall", loaded_.cartoon, [](const RuntimeScene<S>& rt) {
+      const auto& s = rt.surface(0);
+      return Scene<Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>>(
+          {s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, s.impact.law});
+    });
+    scene_pair("cliff", loaded_.cliff, [](const RuntimeScene<S>& rt) { return Scene<CartoonCliff<S>>(rt.cliff(0)); });
+  }
+
+  void controllers() {
+    const std::pair<const char*, const SceneDescription*> scenes[] = {
+        {"wall", &loaded_.wall},       {"realistic_friction", &loaded_.friction}, {"slippery", &loaded_.slippery},
+        {"cartoon_wall", &loaded_.cartoon}, {"cliff", &loaded_.cliff}};
+    for (const auto& [name, desc] : scenes) {
+      ControllerWork<RuntimeScene<S>> work{
+          Controller<RuntimeScene<S>>(make_runtime_scene<S>(*desc), controller_config(*desc, 1.0 / kRateHz)),
+          scenario_samples(name), {}};
+      const auto ticks = work.samples.size();
+      add(Level::kController, name, "scenario", "runtime", ticks, std::move(work));
+    }
+  }
+
+ private:
+  template <class Work>
+  void add(Level level, std::string subject, std::string branch, std::string form, std::size_t ticks, Work work) {
+    CaseInfo info;
+    info.level = level;
+    info.scalar = kind_of<S>();
+    info.subject = std::move(subject);
+    info.branch = std::move(branch);
+    info.form = std::move(form);
+    info.ticks_per_pass = ticks;
+    info.id = fmt::format("{}/{}/{}/{}", level_name(level), info.subject, scalar_kind_name(info.scalar),
+                          info.form.empty() ? info.branch : info.form);
+    out_.push_back(make_case(std::move(info), std::move(work)));
+  }
+
+  template <class E>
+  void effect(std::string subject, std::string branch, typename E::Params params, typename E::State state,
+              std::vector<TickInput<S>> inputs) {
+    const std::size_t n = inputs.size();
+    add(Level::kEffect, std::move(subject), std::move(branch), "", n,
+        EffectWork<E>{params, state, std::move(inputs), {}, nullptr});
+  }
+
+  static Vec3<double> above(Lcg& r) { return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(0.0005, 0.005)}; }
+  static Vec3<double> inside(Lcg& r) { return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(-0.005, -0.0005)}; }
+  static Vec3<double> any_velocity(Lcg& r) { return {r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2)}; }
+
+  void penalty_wall() {
+    const auto s = make_runtime_scene<S>(loaded_.wall).surface(0);  // a copy: the scene is a temporary
+    using Spring = Surface<SpringWall<S>>;
+    const typename Spring::Params spring{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, {}};
+    effect<Spring>("penalty wall", "out of contact", spring, {},
+                   branch_inputs<S>(1, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), any_velocity(r), 0); }));
+    effect<Spring>("penalty wall", "in contact", spring, {},
+                   branch_inputs<S>(2, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), any_velocity(r), 0); }));
+    using Damped = Surface<PenaltyWall<S>>;
+    const typename Damped::Params damped{s.plane, {s.wall.stiffness_n_per_m, scalar_cast<S>(2.0)}, {}, {}};
+    effect<Damped>("penalty wall, damping 2 N s/m", "in contact", damped, {},
+                   branch_inputs<S>(3, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), any_velocity(r), 0); }));
+  }
+
+  void friction() {
+    const auto s = make_runtime_scene<S>(loaded_.friction).surface(0);  // a copy: the scene is a temporary
+    using F = Surface<SpringWall<S>, RealisticFriction<S>>;
+    const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.friction, {}};
+    const std::string name = "realistic friction";
+    effect<F>(name, "out of contact", p, {},
+              branch_inputs<S>(4, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), r.horizontal(0.0, 0.3), 0); }));
+    effect<F>(name, "in contact, |v_t| < v_reg", p, {}, branch_inputs<S>(5, [](Lcg& r, std::size_t) {
+                return tick_input<S>(inside(r), r.horizontal(0.001, 0.018) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
+              }));
+    effect<F>(name, "in contact, |v_t| > v_reg", p, {}, branch_inputs<S>(6, [](Lcg& r, std::size_t) {
+                return tick_input<S>(inside(r), r.horizontal(0.03, 0.3) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
+              }));
+  }
+
+  void slippery() {
+    const auto s = make_runtime_scene<S>(loaded_.slippery).surface(0);  // a copy: the scene is a temporary
+    using F = Surface<SpringWall<S>, SuperSlippery<S>>;
+    const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.slippery, {}};
+    const std::string name = "super-slippery";
+    effect<F>(name, "out of contact", p, {},
+              branch_inputs<S>(7, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), r.horizontal(0.0, 1.0), 0); }));
+    // mu = 4 N s/m, cap 2 N: below 0.5 m/s the force is mu v_t, above it is scaled to the cap.
+    effect<F>(name, "in contact, under the cap", p, {},
+              branch_inputs<S>(8, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), r.horizontal(0.01, 0.45), 0); }));
+    effect<F>(name, "in contact, capped", p, {},
+              branch_inputs<S>(9, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), r.horizontal(0.6, 1.5), 0); }));
+  }
+
+  void impact() {
+    const auto s = make_runtime_scene<S>(loaded_.cartoon).surface(0);  // a copy: the scene is a temporary
+    using F = Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>;
+    typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, s.impact.law};
+    const std::string name = "impact transient";
+    using State = typename F::State;
+    State armed_out{};
+    armed_out.impact.started = true;
+    armed_out.impact.previous_penetration_m = scalar_cast<S>(-0.002);
+    effect<F>(name, "armed, out of contact", p, armed_out,
+              branch_inputs<S>(10, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), any_velocity(r), 5); }));
+    effect<F>(name, "enters and triggers", p, armed_out, branch_inputs<S>(11, [](Lcg& r, std::size_t) {
+                return tick_input<S>({r.uniform(-0.03, 0.03), 0.0, r.uniform(-0.001, -0.0001)},
+                                     {r.uniform(-0.1, 0.1), 0.0, r.uniform(-0.5, -0.06)}, 5);
+              }));
+    State running{};
+    running.impact.started = true;
+    running.impact.armed = false;
+    running.impact.running = true;
+    running.impact.trigger = Instant{0, 0.0};
+    running.impact.impact_speed_m_per_s = scalar_cast<S>(0.2);
+    running.impact.previous_penetration_m = scalar_cast<S>(0.001);
+    for (const SineMethod method : {SineMethod::kLibrary, SineMethod::kPolynomial, SineMethod::kTable}) {
+      if (!sine_method_available<S>(method)) continue;
+      p.impact.sine = method;
+      // t from 1 to 149 ticks into the 150 ms transient: the sine's whole range.
+      effect<F>(name, fmt::format("running, in contact ({} sine)", sine_method_name(method)), p, running,
+                branch_inputs<S>(12, [](Lcg& r, std::size_t i) {
+                  return tick_input<S>(inside(r), any_velocity(r), 1 + static_cast<std::int64_t>(i % 149));
+                }));
+    }
+    p.impact.sine = s.impact.law.sine;
+    effect<F>(name, "running, out of contact", p, running, branch_inputs<S>(13, [](Lcg& r, std::size_t i) {
+                return tick_input<S>(above(r), any_velocity(r), 1 + static_cast<std::int64_t>(i % 149));
+              }));
+    effect<F>(name, "ends (t > duration)", p, running, branch_inputs<S>(14, [](Lcg& r, std::size_t i) {
+                return tick_input<S>(inside(r), any_velocity(r), 151 + static_cast<std::int64_t>(i % 50));
+              }));
+    State disarmed = armed_out;
+    disarmed.impact.armed = false;
+    effect<F>(name, "re-arms out of contact", p, disarmed, branch_inputs<S>(15, [](Lcg& r, std::size_t) {
+                return tick_input<S>({r.uniform(-0.03, 0.03), 0.0, r.uniform(0.0011, 0.005)}, any_velocity(r), 5);
+              }));
+  }
+
+  void cliff() {
+    const typename CartoonCliff<S>::Params p = make_runtime_scene<S>(loaded_.cliff).cliff(0);
+    using C = CartoonCliff<S>;
+    const std::string name = "cartoon cliff";
+    // Gap x in [0, 0.02]; threshold 0.08 m/s; rearm height 1 mm.
+    const auto ledge_x = [](Lcg& r) { return r.uniform(0.0, 1.0) < 0.5 ? r.uniform(-0.03, -0.001) : r.uniform(0.021, 0.05); };
+    const auto fast = [](Lcg& r) { return Vec3<double>{r.uniform(0.12, 0.4), r.uniform(-0.05, 0.05), r.uniform(-0.05, 0.05)}; };
+    const auto slow = [](Lcg& r) { return Vec3<double>{r.uniform(0.0, 0.04), r.uniform(-0.02, 0.02), r.uniform(-0.02, 0.02)}; };
+    typename C::State supported_fast{scalar_cast<S>(0.2), false};
+    typename C::State supported_slow{scalar_cast<S>(0.01), false};
+    typename C::State fallen{scalar_cast<S>(0.01), true};
+    effect<C>(name, "supported, on a ledge", p, supported_fast, branch_inputs<S>(16, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({ledge_x(r), 0.0, r.uniform(-0.003, -0.0002)}, fast(r), 0);
+              }));
+    effect<C>(name, "supported, over the gap (bridged)", p, supported_fast, branch_inputs<S>(17, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({r.uniform(0.001, 0.019), 0.0, r.uniform(-0.003, -0.0002)}, fast(r), 0);
+              }));
+    effect<C>(name, "supported, above the ground", p, supported_fast, branch_inputs<S>(18, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({ledge_x(r), 0.0, r.uniform(0.0005, 0.005)}, fast(r), 0);
+              }));
+    effect<C>(name, "falls (slow in the gap)", p, supported_slow, branch_inputs<S>(19, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({r.uniform(0.001, 0.019), 0.0, r.uniform(-0.003, -0.0002)}, slow(r), 0);
+              }));
+    effect<C>(name, "fallen, in the gap", p, fallen, branch_inputs<S>(20, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({r.uniform(0.001, 0.019), 0.0, r.uniform(-0.01, 0.0005)}, slow(r), 0);
+              }));
+    effect<C>(name, "fallen, under a ledge (side face)", p, fallen, branch_inputs<S>(21, [&](Lcg& r, std::size_t) {
+                const double x = r.uniform(0.0, 1.0) < 0.5 ? r.uniform(-0.005, -0.0005) : r.uniform(0.0205, 0.025);
+                return tick_input<S>({x, 0.0, r.uniform(-0.01, -0.0005)}, slow(r), 0);
+              }));
+    effect<C>(name, "fallen, re-supported above a ledge", p, fallen, branch_inputs<S>(22, [&](Lcg& r, std::size_t) {
+                return tick_input<S>({ledge_x(r), 0.0, r.uniform(0.0015, 0.005)}, slow(r), 0);
+              }));
+  }
+
+  void safety() {
+    const ForceLimits limits = loaded_.wall.limits;  // 8 N, 2000 N/s: 2 N per 1 ms tick
+    const auto primed = [&](const Vec3<double>& previous) {
+      ForceSafety<S> s(limits);
+      static_cast<void>(s.limit(vec_cast<S>(previous), scalar_cast<S>(1.0)));  // 1 Hz: any step allowed
+      return s;
+    };
+    const auto make = [&](std::uint64_t seed, auto draw) {
+      Lcg r(seed);
+      SafetyWork<S> w;
+      w.rate_hz = scalar_cast<S>(kRateHz);
+      for (std::size_t i = 0; i < kBranchInputs; ++i) {
+        const auto [previous, next] = draw(r);
+        w.inputs.push_back({primed(previous), vec_cast<S>(next)});
+      }
+      return w;
+    };
+    const auto along = [](Lcg& r, double lo, double hi) { return r.horizontal(lo, hi); };
+    const std::string name = "safety stage (ForceSafety)";
+    auto within = make(23, [&](Lcg& r) {
+      const Vec3<double> a = along(r, 0.0, 6.0);
+      return std::pair{a, a + along(r, 0.0, 1.5)};
+    });
+    add(Level::kSafety, name, "within the limits", "", within.inputs.size(), std::move(within));
+    auto rate = make(24, [&](Lcg& r) {
+      const Vec3<double> a = along(r, 0.0, 3.0);
+      return std::pair{a, a + along(r, 2.5, 4.0)};
+    });
+    add(Level::kSafety, name, "rate-limited", "", rate.inputs.size(), std::move(rate));
+    auto clamped = make(25, [&](Lcg& r) {
+      const Vec3<double> a = along(r, 7.6, 7.9);
+      return std::pair{a, a * 1.15};
+    });
+    add(Level::kSafety, name, "clamped", "", clamped.inputs.size(), std::move(clamped));
+    auto both = make(26, [&](Lcg& r) {
+      const Vec3<double> a = along(r, 7.0, 7.9);
+      return std::pair{a, Vec3<double>{-a.y, a.x, 0.0} * 1.5};
+    });
+    add(Level::kSafety, name, "rate-limited and clamped", "", both.inputs.size(), std::move(both));
+  }
+
+  template <class MakeScene>
+  void scene_pair(const char* name, const SceneDescription& desc, MakeScene make_scene) {
+    const RuntimeScene<S> runtime = make_runtime_scene<S>(desc);
+    auto inputs = scenario_inputs<S>(name);
+    const std::size_t ticks = inputs.size();
+    using Compiled = decltype(make_scene(runtime));
+    add(Level::kScene, name, "scenario", "compile-time", ticks,
+        SceneWork<Compiled>{make_scene(runtime), ForceSafety<S>(desc.limits), inputs, {}, {}});
+    add(Level::kScene, name, "scenario", "runtime", ticks,
+        SceneWork<RuntimeScene<S>>{runtime, ForceSafety<S>(desc.limits), std::move(inputs), {}, {}});
+  }
+
+  const Loaded& loaded_;
+  std::vector<std::unique_ptr<TickCase>>& out_;
+};
+
+Result<SceneDescription> load(const std::string& root, std::string_view name, ScalarKind kind) {
+  return load_scene_file(paper_scene_path(root, name), kind);
+}
+
+template <Scalar S>
+Result<Loaded> load_all(const std::string& root) {
+  constexpr ScalarKind kind = kind_of<S>();
+  Loaded l;
+  SceneDescription* slots[] = {&l.wall, &l.friction, &l.slippery, &l.cartoon, &l.cliff};
+  for (std::size_t i = 0; i < kPaperScenes.size(); ++i) {
+    auto d = load(root, kPaperScenes[i], kind);
+    if (!d) return Error{d.error()};
+    *slots[i] = std::move(d).value();
+  }
+  return l;
+}
+
+template <Scalar S>
+Result<bool> add_scalar(const std::string& root, std::vector<std::unique_ptr<TickCase>>& effects,
+                        std::vector<std::unique_ptr<TickCase>>& scenes,
+                        std::vector<std::unique_ptr<TickCase>>& controllers) {
+  auto loaded = load_all<S>(root);
+  if (!loaded) return Error{loaded.error()};
+  CaseBuilder<S>(loaded.value(), effects).effects();
+  CaseBuilder<S>(loaded.value(), scenes).scenes();
+  CaseBuilder<S>(loaded.value(), controllers).controllers();
+  return true;
+}
+
+template <Scalar S>
+std::unique_ptr<TickCase> controller_case(const SceneDescription& desc, std::string_view scene, double rate_hz,
+                                          std::optional<SineMethod> sine) {
+  ControllerWork<RuntimeScene<S>> work{
+      Controller<RuntimeScene<S>>(make_runtime_scene<S>(desc, sine), controller_config(desc, 1.0 / rate_hz)),
+      scenario_samples(scene, rate_hz), {}};
+  CaseInfo info;
+  info.level = Level::kController;
+  info.scalar = kind_of<S>();
+  info.subject = std::string(scene);
+  info.branch = "scenario";
+  info.form = "runtime";
+  info.ticks_per_pass = work.samples.size();
+  info.id = fmt::format("controller/{}/{}/{:g}Hz/{}", scene, scalar_kind_name(info.scalar), rate_hz,
+                        sine ? sine_method_name(*sine) : std::string_view("default"));
+  return make_case(std::move(info), std::move(work));
+}
+
+}  // namespace
+
+Result<std::unique_ptr<TickCase>> make_controller_case(const std::string& root, std::string_view scene,
+                                                       ScalarKind scalar, double rate_hz,
+                                                       std::optional<SineMethod> sine) {
+  auto desc = load(root, scene, scalar);
+  if (!desc) return Error{desc.error()};
+  switch (scalar) {
+    case ScalarKind::kDouble: return controller_case<double>(desc.value(), scene, rate_hz, sine);
+    case ScalarKind::kFloat: return controller_case<float>(desc.value(), scene, rate_hz, sine);
+    case ScalarKind::kQ16_16: return controller_case<Q16_16>(desc.value(), scene, rate_hz, sine);
+  }
+  return Error{"unknown scalar type"};
+}
+
+Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root) {
+  std::vector<std::unique_ptr<TickCase>> cases;
+  CaseInfo empty;
+  empty.id = "harness/empty";
+  empty.level = Level::kHarness;
+  empty.subject = "empty tick";
+  empty.branch = "measurement overhead";
+  empty.ticks_per_pass = 1;
+  cases.push_back(make_case(std::move(empty), EmptyWork{}));
+
+  std::vector<std::unique_ptr<TickCase>> effects;
+  std::vector<std::unique_ptr<TickCase>> scenes;
+  std::vector<std::unique_ptr<TickCase>> controllers;
+  for (auto added : {add_scalar<double>(root, effects, scenes, controllers),
+                     add_scalar<float>(root, effects, scenes, controllers),
+                     add_scalar<Q16_16>(root, effects, scenes, controllers)}) {
+    if (!added) return Error{added.error()};
+  }
+  for (auto* group : {&effects, &scenes, &controllers}) {
+    for (auto& c : *group) cases.push_back(std::move(c));
+  }
+  return cases;
+}
+
+}  // namespace toonforce::report
