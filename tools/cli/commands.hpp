@@ -12,6 +12,9 @@ void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
+#if TOONFORCE_VIEWER
+void add_view(CLI::App& app);
+#endif
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();
