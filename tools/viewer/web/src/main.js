@@ -293,11 +293,13 @@ window.toonforceViewer = {
     }
     return -1;
   },
-  argmax(column) {
+  /** The frame where |column| is largest (among frames where `where` > 0, if given). */
+  argmax(column, where) {
     const s = view.store;
     let best = -1;
     let bestValue = -Infinity;
     for (let i = 0; s && i < s.count; ++i) {
+      if (where && !(s.get(i, where) > 0)) continue;
       const v = Math.abs(s.get(i, column));
       if (v > bestValue) {
         bestValue = v;

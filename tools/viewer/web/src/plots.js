@@ -140,11 +140,8 @@ export function drawHistogram(canvas, store) {
   const h = canvas.height;
   ctx.clearRect(0, 0, w, h);
   ctx.font = '10px system-ui, sans-serif';
-  if (store.latencyCount === 0) {
-    ctx.fillStyle = '#777';
-    ctx.fillText('no loop timing in this stream', 8, h / 2);
-    return;
-  }
+  canvas.hidden = store.latencyCount === 0;
+  if (store.latencyCount === 0) return;
   const top = Math.max(20, Math.ceil(store.latencyPercentile(0.999) * 1.25));
   const bins = 60;
   const width = top / bins;

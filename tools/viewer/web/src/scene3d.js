@@ -4,7 +4,6 @@
 // it, and the commanded force as an arrow from the HIP. Scene frame, metres, z up.
 import {
   AmbientLight,
-  ArrowHelper,
   BoxGeometry,
   BufferAttribute,
   BufferGeometry,
@@ -33,7 +32,7 @@ const KIND_COLOURS = {
   slippery: 0x7fd6f0,
   impact: 0xf0a050,
 };
-const FORCE_M_PER_N = 0.006; // arrow length per newton: 8 N is 4.8 cm
+const FORCE_M_PER_N = 0.007; // arrow length per newton: 8 N is 5.6 cm
 const TRAIL = 600;
 
 function basisFor(normal) {
@@ -72,7 +71,7 @@ export class Scene3D {
     this.#addTrail();
 
     const c = this.center;
-    const d = this.size * 2.1;
+    const d = this.size * 1.45;
     this.camera.position.set(c.x + d * 0.3, c.y - d * 1.0, c.z + d * 0.6);
     this.controls.target.copy(c);
     this.controls.update();
@@ -211,7 +210,15 @@ export class Scene3D {
     this.hip.add(character);
     this.scene.add(this.hip);
 
-    this.arrow = new ArrowHelper(new Vector3(0, 0, 1), new Vector3(), 0.01, 0xd0213a, 0.006, 0.0035);
+    // The force arrow: a shaft and a head along +y of its group, drawn over everything (it is
+    // a measurement, not an object in the scene), turned to the force's direction each frame.
+    this.arrow = new Group();
+    const red = new MeshBasicMaterial({ color: 0xd0213a, depthTest: false, transparent: true, opacity: 0.9 });
+    this.arrowShaft = new Mesh(new CylinderGeometry(0.0007, 0.0007, 1, 12), red);
+    this.arrowHead = new Mesh(new CylinderGeometry(0, 0.0022, 0.006, 16), red);
+    this.arrowShaft.renderOrder = 10;
+    this.arrowHead.renderOrder = 10;
+    this.arrow.add(this.arrowShaft, this.arrowHead);
     this.arrow.visible = false;
     this.arrow.userData.direction = [0, 0, 0];
     this.arrow.userData.length = 0;
@@ -270,9 +277,13 @@ export class Scene3D {
     if (Number.isFinite(magnitude) && magnitude > 1e-3) {
       const dir = f.clone().divideScalar(magnitude);
       const length = Math.max(0.008, magnitude * FORCE_M_PER_N);
+      const head = Math.min(0.006, length * 0.4);
       this.arrow.position.copy(this.hip.position);
-      this.arrow.setDirection(dir);
-      this.arrow.setLength(length, Math.min(0.006, length * 0.4), Math.min(0.0035, length * 0.25));
+      this.arrow.quaternion.setFromUnitVectors(new Vector3(0, 1, 0), dir);
+      this.arrowShaft.scale.set(1, length - head, 1);
+      this.arrowShaft.position.set(0, (length - head) / 2, 0);
+      this.arrowHead.scale.set(1, head / 0.006, 1);
+      this.arrowHead.position.set(0, length - head / 2, 0);
       this.arrow.visible = true;
       this.arrow.userData.direction = [dir.x, dir.y, dir.z];
       this.arrow.userData.length = length;
