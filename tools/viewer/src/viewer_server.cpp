@@ -71,8 +71,9 @@ std::shared_ptr<const std::string> make_batch(double kind, std::uint64_t first_s
 struct Message {
   std::shared_ptr<const std::string> data;
   bool text = false;
-  bool droppable = false;  ///< live batches and status: a slow page may lose them
+  bool droppable = false;  ///< live batches: a slow page may lose them
   std::size_t frames = 0;
+  bool status = false;     ///< a newer status replaces a queued one (and drops no batch)
 };
 
 class PageSession;
@@ -156,7 +157,14 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
   void send(Message message) {
     if (closing_) return;
     const std::size_t first = writing_ ? 1 : 0;  // the front is being written: keep it
-    if (message.droppable) {
+    if (message.status) {
+      for (std::size_t i = first; i < queue_.size(); ++i) {
+        if (queue_[i].status) {
+          queue_.erase(queue_.begin() + static_cast<std::ptrdiff_t>(i));
+          break;
+        }
+      }
+    } else if (message.droppable) {
       std::size_t queued = 0;
       for (std::size_t i = first; i < queue_.size(); ++i) queued += queue_[i].droppable ? 1U : 0U;
       while (queued >= server_.options.max_queued_batches && queued > 0) {
@@ -289,7 +297,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (request.method() == http::verb::head) {
       response->content_length(asset->body.size());
     } else {
-      response->body().assign(asset->body);
+      response->body().assign(asset->body.data(), asset->body.size());
       response->prepare_payload();
     }
     response->keep_alive(request.keep_alive());
@@ -298,7 +306,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   static void headers(http::response<http::string_body>& response, std::string_view type) {
     response.set(http::field::server, "toonforce-viewer");
-    response.set(http::field::content_type, type);
+    response.set(http::field::content_type, beast::string_view(type.data(), type.size()));
     response.set(http::field::cache_control, "no-cache");
     response.set("X-Content-Type-Options", "nosniff");
     response.set("Referrer-Policy", "no-referrer");
@@ -374,7 +382,7 @@ void ViewerServer::Impl::add_page(const std::shared_ptr<PageSession>& page) {
       chunk.clear();
     }
   }
-  page->send(Message{status_json(0), true, true, 0});
+  page->send(Message{status_json(0), true, false, 0, true});
 }
 
 void ViewerServer::Impl::broadcast(const Message& message) {
@@ -404,7 +412,7 @@ void ViewerServer::Impl::on_timer() {
     next_status = now + std::chrono::seconds(1);
     std::erase_if(pages, [](const std::weak_ptr<PageSession>& p) { return p.expired(); });
     for (const auto& weak : pages) {
-      if (auto page = weak.lock()) page->send(Message{status_json(page->dropped()), true, true, 0});
+      if (auto page = weak.lock()) page->send(Message{status_json(page->dropped()), true, false, 0, true});
     }
   }
   timer.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
