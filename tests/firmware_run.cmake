@@ -43,4 +43,14 @@ execute_process(
 if(rc EQUAL 0 OR NOT err MATCHES "firmware build")
   message(FATAL_ERROR "a firmware build must refuse --scalar double (exit ${rc}): ${out}${err}")
 endif()
-message("firmware build: the servo loop ran ${ticks} ticks in q16.16")
+# The firmware-style build leaves the live viewer out entirely (TOONFORCE_VIEWER is never on
+# with TOONFORCE_FIRMWARE): no `view` subcommand, no --view option.
+execute_process(COMMAND "${BINARY}" view x.csv RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(rc EQUAL 0 OR NOT "${out}${err}" MATCHES "view")
+  message(FATAL_ERROR "a firmware build has no viewer, yet `toonforce view` did not fail as unknown (exit ${rc}): ${out}${err}")
+endif()
+execute_process(COMMAND "${BINARY}" run --help RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR "${out}" MATCHES "--view")
+  message(FATAL_ERROR "a firmware build's `toonforce run` must have no --view option (exit ${rc}): ${out}${err}")
+endif()
+message("firmware build: the servo loop ran ${ticks} ticks in q16.16; no viewer in it")
