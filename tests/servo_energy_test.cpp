@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "servo_support.hpp"
-#include "toonforce/hal/sim_simple.hpp"
+#include "sim_simple.hpp"
 
 namespace toonforce::test {
 namespace {

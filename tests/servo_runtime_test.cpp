@@ -11,7 +11,7 @@
 
 #include "alloc_counter.hpp"
 #include "servo_support.hpp"
-#include "toonforce/hal/sim_simple.hpp"
+#include "sim_simple.hpp"
 
 namespace toonforce::test {
 namespace {

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
 #include "toonforce/config/scene_file.hpp"
@@ -21,10 +22,28 @@ void add_run(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   auto no_mlock = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand("run", "The servo loop on a device in real time, with a timing summary at the end");
-  cmd->add_option("--device", options->device, "sim (a temporary simulated device), falcon or omni")
+  cmd->add_option("--device", options->device,
+                  "sim (the host simulation's device and hand), falcon (Novint Falcon over USB) or omni "
+                  "(Phantom Omni / Touch through OpenHaptics)")
       ->required()
       ->check(CLI::IsMember({"sim", "falcon", "omni"}));
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  CLI::Option_group* sim = cmd->add_option_group("Simulated device (--device sim)");
+  sim->add_option("--script", options->hand_script_path,
+                  "Hand script the simulated hand follows (docs/HAND_SCRIPTS.md); default: it holds still 1 cm "
+                  "above the workspace centre");
+  sim->add_option("--sim-device", options->sim_device, "Device model of the simulation")
+      ->check(CLI::IsMember({"falcon", "omni"}))
+      ->capture_default_str();
+  sim->add_option("--seed", options->seed, "Seed of the simulated sensor noise")->capture_default_str();
+  CLI::Option_group* falcon = cmd->add_option_group("Novint Falcon (--device falcon)");
+  falcon->add_option("--serial", options->falcon.serial, "Serial number of the Falcon to open (toonforce devices)");
+  falcon->add_option("--falcon-index", options->falcon.index, "The index-th Falcon when no --serial is given")
+      ->capture_default_str();
+  falcon->add_option("--firmware", options->falcon.firmware_path,
+                     "Firmware file to load if the Falcon has none yet (after power-up; docs/FALCON.md)")
+      ->check(CLI::ExistingFile);
+  add_gpio_options(*cmd, options->gpio);
   cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(CLI::Range(500.0, 10000.0))
       ->capture_default_str();
   cmd->add_option("--duration", options->duration_s, "Seconds to run; 0 runs until Ctrl-C (SIGINT) or SIGTERM")

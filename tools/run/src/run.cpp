@@ -11,9 +11,11 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_loop.hpp"
-#include "toonforce/hal/sim_simple.hpp"
+#include "toonforce/hal/gpio/gpio_session.hpp"
+#include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
@@ -38,10 +40,10 @@ void sleep_ms(int ms) noexcept {
 
 /// One servo tick per period, telemetry out through the ring. Everything here runs on the
 /// servo thread: no allocation, no lock, no blocking.
-template <Scalar S>
+template <Scalar S, class PinsT>
 class ServoTask final : public PeriodicTask {
  public:
-  using Loop = ServoLoop<DriverRef, RuntimeScene<S>>;
+  using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT>;
   ServoTask(Loop& loop, TelemetryRing& ring) : loop_(loop), ring_(ring) {}
 
   void tick(std::int64_t k) noexcept override { static_cast<void>(loop_.tick(k)); }
@@ -141,8 +143,9 @@ std::atomic<int> g_stop{0};
 
 void zero_driver(void* driver) noexcept { static_cast<DeviceDriver*>(driver)->emergency_zero(); }
 
-template <Scalar S>
-Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver) {
+template <Scalar S, class PinsT>
+Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver,
+                          PinsT& pins) {
   const double period_s = 1.0 / options.rate_hz;
   const ServoConfig config = with_device(servo_config(scene, period_s), driver.info());
   if (const std::string problems = check_servo_config(config); !problems.empty()) {
@@ -161,10 +164,10 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
     trace = std::move(opened.value());
   }
   // Everything the servo thread touches is allocated here, before it starts.
-  using Loop = ServoLoop<DriverRef, RuntimeScene<S>>;
-  auto loop = std::make_unique<Loop>(DriverRef(driver), make_runtime_scene<S>(scene), config);
+  using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT>;
+  auto loop = std::make_unique<Loop>(DriverRef(driver), make_runtime_scene<S>(scene), config, pins);
   auto ring = std::make_unique<TelemetryRing>();
-  ServoTask<S> task(*loop, *ring);
+  ServoTask<S, PinsT> task(*loop, *ring);
 
   RealtimeOptions rt;
   rt.rate_hz = options.rate_hz;
@@ -246,15 +249,31 @@ std::string describe_faults(std::uint32_t bits) {
   return out;
 }
 
-Result<std::unique_ptr<DeviceDriver>> open_device(std::string_view name) {
-  if (name == "sim") return make_simple_sim_device();
-  if (name == "falcon" || name == "omni") {
-    return Error{fmt::format(
-        "--device {}: the {} backend is not part of this build yet (it is being written in hal/{}); "
-        "use --device sim for now",
-        name, name == "falcon" ? "Novint Falcon" : "Phantom Omni / Touch (OpenHaptics)", name)};
+Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
+  if (options.device == "sim") {
+    const auto preset = host_sim::parse_device_preset(options.sim_device);
+    if (!preset) return Error{fmt::format("--sim-device {}: unknown device model (falcon or omni)", options.sim_device)};
+    std::optional<host_sim::HandIntent> intent;
+    if (options.hand_script_path.empty()) {
+      intent = host_sim::HandIntent::holding({0.0, 0.0, 0.01});
+    } else {
+      auto script = load_hand_script(options.hand_script_path);
+      if (!script) return Error{script.error()};
+      intent = std::move(script->intent);
+    }
+    // RK4 with about 4 sub-steps per millisecond: the step the host simulation's tests check.
+    host_sim::PlantOptions plant;
+    plant.period_s = 1.0 / options.rate_hz;
+    plant.substeps = std::max(1, static_cast<int>(std::ceil(4000.0 / options.rate_hz)));
+    auto driver = host_sim::SimDriver::create(host_sim::device_params(*preset), std::move(*intent), plant, options.seed);
+    if (!driver) return Error{driver.error()};
+    return std::unique_ptr<DeviceDriver>(std::move(driver.value()));
   }
-  return Error{fmt::format("--device {}: unknown device (sim, falcon or omni)", name)};
+  if (options.device == "falcon") return open_falcon(options.falcon);
+  if (options.device == "omni") {
+    return Error{"--device omni: the Phantom Omni / Touch backend (OpenHaptics) is not part of this build yet"};
+  }
+  return Error{fmt::format("--device {}: unknown device (sim, falcon or omni)", options.device)};
 }
 
 Result<RunSummary> run_servo(const RunOptions& options) {
@@ -266,25 +285,31 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
-  auto device = open_device(options.device);
+  auto device = open_device(options);
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();
-  switch (options.scalar) {
+  // The GPIO pins are opened (and checked) before the loop starts; without GPIO options the
+  // loop is built with NullPins and runs no GPIO code at all.
+  auto result = gpio::with_gpio_pins(options.gpio, [&](auto& pins) -> Result<RunSummary> {
+    switch (options.scalar) {
 #if TOONFORCE_FIRMWARE
-    case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver);
-    case ScalarKind::kDouble:
-    case ScalarKind::kFloat: break;
-  }
-  return Error{fmt::format("--scalar {}: this is a firmware build (TOONFORCE_FIRMWARE=ON): the servo loop is "
-                           "compiled for q16.16 only",
-                           scalar_kind_name(options.scalar))};
+      case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver, pins);
+      case ScalarKind::kDouble:
+      case ScalarKind::kFloat: break;
+    }
+    return Error{fmt::format("--scalar {}: this is a firmware build (TOONFORCE_FIRMWARE=ON): the servo loop is "
+                             "compiled for q16.16 only",
+                             scalar_kind_name(options.scalar))};
 #else
-    case ScalarKind::kDouble: return run_as<double>(options, scene.value(), driver);
-    case ScalarKind::kFloat: return run_as<float>(options, scene.value(), driver);
-    case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver);
-  }
-  return Error{"unknown scalar type"};
+      case ScalarKind::kDouble: return run_as<double>(options, scene.value(), driver, pins);
+      case ScalarKind::kFloat: return run_as<float>(options, scene.value(), driver, pins);
+      case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver, pins);
+    }
+    return Error{"unknown scalar type"};
 #endif
+  });
+  if (!result) return Error{result.error()};
+  return std::move(result.value());
 }
 
 std::string format_run_summary(const RunSummary& s, const RunOptions& o) {

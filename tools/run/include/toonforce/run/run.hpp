@@ -15,11 +15,20 @@
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/hal/device.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
+#include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/gpio/line_spec.hpp"
 
 namespace toonforce {
 
 struct RunOptions {
   std::string device;               ///< sim | falcon | omni
+  /// --device sim: the simulated hand follows this script (docs/HAND_SCRIPTS.md) and then holds
+  /// its last point; empty: it holds still 1 cm above the workspace centre.
+  std::string hand_script_path;
+  std::string sim_device = "falcon";  ///< --device sim: the device model's preset (falcon | omni)
+  std::uint64_t seed = 1;             ///< --device sim: sensor-noise seed
+  FalconOptions falcon;               ///< --device falcon: which Falcon, firmware to load
+  gpio::GpioOptions gpio;             ///< tick pin, e-stop, enable, lights (none: no GPIO code runs)
   std::string scene_path;
   double rate_hz = 1000.0;          ///< 500 .. 10000
   double duration_s = 0.0;          ///< 0: until SIGINT/SIGTERM (or 'q' on a terminal)
@@ -60,9 +69,8 @@ struct RunSummary {
 /// The stop value of a 'q' typed on the terminal (signals use their own numbers).
 inline constexpr int kStopByUser = 1000;
 
-/// Opens a device backend by name. Falcon and Omni fail with a message until their backends
-/// land (hal/falcon, hal/omni will provide factories returning std::unique_ptr<DeviceDriver>).
-Result<std::unique_ptr<DeviceDriver>> open_device(std::string_view name);
+/// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
+Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options);
 
 /// Runs; errors (bad scene, no device, real time refused) come back before the first tick.
 Result<RunSummary> run_servo(const RunOptions& options);

@@ -1,6 +1,7 @@
 #pragma once
-/// TEMPORARY simulated device for `toonforce run --device sim`, until the host simulation
-/// (host_sim/, its own issue) replaces it. Deliberately minimal: a point mass with viscous
+/// A light-weight simulated device for the servo loop's tests (`toonforce run --device sim` uses
+/// the host simulation, host_sim/). It exercises what host_sim's SimDriver does not: a device
+/// on its own clock (real-time mode). Deliberately minimal: a point mass with viscous
 /// damping (the handle), held by a spring-damper "hand" that follows a looped script of key
 /// positions, so a run touches the bundled scenes' floor (z = 0) and strokes across it.
 ///

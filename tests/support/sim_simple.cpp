@@ -1,4 +1,4 @@
-#include "toonforce/hal/sim_simple.hpp"
+#include "sim_simple.hpp"
 
 #include <time.h>
 

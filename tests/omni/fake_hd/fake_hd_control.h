@@ -1,0 +1,89 @@
+/* Test control of the fake libHD (fake_hd.cpp). The fake exports the HD C functions the
+ * backend uses, with the behaviour the OpenHaptics reference documents (shared/reference/
+ * omni.md §2), driven by a simulated Omni; these extra functions let a test steer it. The
+ * tests resolve them with dlsym on the same handle the backend loaded, so the backend reaches
+ * the fake only through its ordinary dlopen path.
+ *
+ * Everything passing through the fake proves our binding against the DOCUMENTED behaviour of
+ * the HD API, as we read it, not against the real driver. */
+#ifndef TOONFORCE_FAKE_HD_CONTROL_H
+#define TOONFORCE_FAKE_HD_CONTROL_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Where an injected error is raised. */
+#define TF_FAKE_HD_AT_BEGIN 0 /* inside hdBeginFrame */
+#define TF_FAKE_HD_AT_END 1   /* inside hdEndFrame */
+#define TF_FAKE_HD_AT_INIT 2  /* hdInitDevice fails with it */
+#define TF_FAKE_HD_AT_START 3 /* hdStartScheduler fails with it */
+
+/* A call that broke a documented rule (counted in protocol_violations). */
+#define TF_FAKE_HD_WRONG_THREAD 0xFFFFu
+
+typedef struct TfFakeHdStats {
+  unsigned long ticks;          /* scheduler ticks run */
+  double sim_time_s;            /* simulated time, skipped periods included */
+  unsigned long frames;         /* completed hdBeginFrame/hdEndFrame pairs */
+  double last_force_n[3];       /* last HD_CURRENT_FORCE commanded [N, device frame], as given */
+  double max_force_norm_n;      /* largest commanded force norm since reset [N], as given */
+  double applied_force_n[3];    /* what the simulated motors applied last frame [N] */
+  int force_output_enabled;     /* HD_FORCE_OUTPUT */
+  unsigned long enabled_uncalibrated_frames; /* frames ended with output on while not calibrated */
+  unsigned long nonzero_uncalibrated_frames; /* frames commanding a non-zero force while not calibrated */
+  unsigned long protocol_violations; /* calls breaking a documented rule (never injected) */
+  unsigned int last_violation;       /* HD code it raised, or TF_FAKE_HD_WRONG_THREAD */
+  char last_violation_call[64];      /* the function and parameter */
+  unsigned long errors_raised;       /* errors pushed (injected, natural and violations) */
+  int async_callbacks;               /* scheduled and still active */
+  int scheduler_running;
+  int device_initialized;
+  unsigned long init_calls;
+  unsigned long calibration_checks;
+  unsigned long calibration_updates;
+  unsigned int calibration;          /* HD_CALIBRATION_OK / NEEDS_UPDATE / NEEDS_MANUAL_INPUT */
+  double position_mm[3];             /* true HIP position [mm, device frame] */
+  double reported_position_mm[3];    /* what HD_CURRENT_POSITION said at the last hdBeginFrame */
+  double joint_angles_rad[3];        /* encoder-quantised base joints at the last hdBeginFrame */
+  double motor_temperature;          /* the thermal model, 0 cold .. 1 warm */
+  double scheduler_rate_hz;
+} TfFakeHdStats;
+
+/* Back to the defaults (scheduler must be stopped): calibrated (inkwell style), version
+ * "3.4.0", 3.3 N nominal maximum, hand pinned at the device origin, free-running scheduler. */
+void tf_fake_hd_reset(void);
+/* 1: the scheduler runs a tick only when tf_fake_hd_step asks (deterministic tests);
+ * 0: it runs in real time at the scheduler rate. Set before hdStartScheduler. */
+void tf_fake_hd_set_manual(int on);
+/* Manual mode: runs `ticks` scheduler ticks in the scheduler thread and waits for them.
+ * Returns the ticks run (0 when the scheduler is not running). */
+unsigned long tf_fake_hd_step(unsigned long ticks);
+
+void tf_fake_hd_set_version(const char* version); /* what hdGetString(HD_VERSION) answers */
+void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n,
+                           double stiffness_n_per_mm, double damping_n_s_per_mm);
+void tf_fake_hd_set_calibration(unsigned int state, int styles);
+void tf_fake_hd_set_inkwell(int stylus_in_inkwell);
+void tf_fake_hd_set_buttons(int buttons);
+/* Raises `code` (with `internal`) at `where` on each of the next `count` occasions. */
+void tf_fake_hd_inject_error(unsigned int code, int internal, int where, unsigned long count);
+/* The next tick spans `periods` scheduler periods (the ones between were skipped). */
+void tf_fake_hd_inject_overrun(unsigned int periods);
+/* What hdGetSchedulerTimeStamp answers at the end of a callback in manual mode [s]. */
+void tf_fake_hd_set_callback_time(double seconds);
+/* The hand holds the HIP exactly at `position_mm` (device frame), whatever the force. */
+void tf_fake_hd_pin_hand(const double position_mm[3]);
+/* The hand is a spring-damper toward `target_mm` (device frame) on the simulated mass. */
+void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m,
+                            double damping_n_s_per_m);
+/* Overrides the motor thermal model (t >= 0) or returns to it (t < 0). */
+void tf_fake_hd_set_motor_temperature(double t);
+/* 0: HD_MOTOR_TEMPERATURE answers HD_INVALID_ENUM, as on a device without the model. */
+void tf_fake_hd_set_temperature_supported(int supported);
+void tf_fake_hd_get_stats(TfFakeHdStats* stats);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* TOONFORCE_FAKE_HD_CONTROL_H */
