@@ -140,8 +140,8 @@ async function scenario(s, check) {
     assert.match(url, /^http:\/\/127\.0\.0\.1:\d+\/$/, 'served on the loopback address by default');
     const { page, errors } = await openPage(url);
     // Live: the simulation waits for the page, then runs paced to the wall clock.
-    await page.waitForFunction(() => window.toonforceViewer.snapshot().connection === 'live', null, { timeout: 15000 });
-    await page.waitForFunction(() => window.toonforceViewer.snapshot().frames > 0, null, { timeout: 15000 });
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().connection === 'live', null, { timeout: 60000 });
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().frames > 0, null, { timeout: 60000 });
     await page.waitForFunction(() => window.toonforceViewer.snapshot().ended, null, { timeout: 60000 });
     await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
     const end = await snapshot(page);
@@ -295,5 +295,45 @@ test('safety: another origin cannot open the socket; a message closes it; only t
     run.child.kill('SIGTERM');
     await run.exited;
     fs.rmSync(trace, { force: true });
+  }
+});
+
+test('toonforce view: a recorded trace plays, pauses and scrubs', async () => {
+  const run = startToonforce(['view', 'docs/figures/fig4_slow.csv', '--scene', 'scenes/cliff.toml', '--port', '0']);
+  try {
+    const { page, errors } = await openPage(await run.url);
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().frames === 1400, null, { timeout: 60000 });
+    const first = await snapshot(page);
+    assert.equal(first.connection, 'recording');
+    assert.equal(first.following, false, 'a recording is not live');
+    // It plays on its own from the start. Back to the start (scrubbing pauses), slowed to 0.1x
+    // so a loaded machine cannot reach the end before the pause below, then play and pause.
+    await scrubTo(page, 0);
+    assert.equal((await snapshot(page)).playing, false, 'scrubbing pauses');
+    await page.selectOption('#speed', '0.1');
+    await page.click('#play');
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().t > 0.01, null, { timeout: 60000 });
+    assert.equal((await snapshot(page)).playing, true);
+    await page.click('#play');
+    const paused = await snapshot(page);
+    assert.equal(paused.playing, false);
+    await page.waitForTimeout(300);
+    assert.equal((await snapshot(page)).t, paused.t, 'paused: time stands still');
+    // Scrub to the end: the slow crossing has fallen; back to the start: supported.
+    await scrubTo(page, 1399);
+    assert.equal((await snapshot(page)).cliff, 'fallen');
+    await scrubTo(page, 0);
+    const start = await snapshot(page);
+    assert.equal(start.cliff, 'supported');
+    assert.equal(start.t, 0);
+    // Play again from there.
+    await page.click('#play');
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().t > 0.01, null, { timeout: 60000 });
+    assert.deepEqual(errors, []);
+    await page.close();
+  } finally {
+    run.child.kill('SIGTERM');
+    const { code } = await run.exited;
+    assert.equal(code, 0);
   }
 });
