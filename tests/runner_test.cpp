@@ -190,6 +190,37 @@ TEST(RunCommand, AFalconThatIsNotThereIsAClearErrorBeforeTheLoopStarts) {
       << device.error();
 }
 
+TEST(RunCommand, OmniRunsInsideTheDevicesOwnSchedulerAgainstTheFakeLibHD) {
+  // Our fake libHD (tests/omni/fake_hd, a simulated Omni behind the documented HD C API): this
+  // proves the device-clocked path of toonforce run, not the vendor's driver.
+  RunOptions o;
+  o.device = "omni";
+  o.scene_path = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  o.omni.library_path = TOONFORCE_FAKE_HD;
+  o.duration_s = 0.3;
+  o.handle_signals = false;
+  o.interactive = false;
+  o.trace_path = temp_path("omni.csv").string();
+  const auto summary = run_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_EQ(summary->report.ticks, 300);
+  EXPECT_EQ(summary->report.setup.priority, -1);  // the vendor's thread, not ours
+  EXPECT_NE(summary->device_name.find("OpenHaptics"), std::string::npos) << summary->device_name;
+  EXPECT_EQ(summary->frames_dropped, 0U);
+  const auto lines = lines_of(o.trace_path);
+  ASSERT_EQ(lines.size(), summary->frames_written + 1);
+  const auto last = fields(lines.back());
+  EXPECT_EQ(last[7], 0.0);  // the run ends with zero force, commanded inside the frame
+  EXPECT_EQ(last[8], 0.0);
+  EXPECT_EQ(last[9], 0.0);
+  std::filesystem::remove(o.trace_path);
+
+  o.omni.library_path = "/nonexistent/libHD.so";
+  const auto missing = run_servo(o);
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.error().find("/nonexistent/libHD.so"), std::string::npos) << missing.error();
+}
+
 TEST(RunCommand, TheSimulatedDeviceFollowsAHandScriptOrReportsItsErrors) {
   RunOptions o;
   o.device = "sim";

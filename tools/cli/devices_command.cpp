@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "toonforce/hal/detect.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/omni/touch_detect.hpp"
 
 namespace toonforce::cli {
 namespace {
@@ -41,10 +42,19 @@ DetectionReport detect_falcon(const DetectOptions& options) {
   return {std::move(found.devices), std::move(found.prerequisites)};
 }
 
+DetectionReport detect_touch(const DetectOptions&) {
+  // Loading the HD library to see whether it works is harmless (it is never unloaded).
+  return {detect_touch_devices(), {openhaptics_prerequisite()}};
+}
+
 constexpr Detector kDetectors[] = {
     {"Novint Falcon",
      "check its power supply and USB cable (directly, not through a hub); `lsusb -d 0403:cb48` should list it",
      &detect_falcon},
+    {"Phantom Omni / 3D Systems Touch",
+     "check its power and USB cable; `lsusb -d 2988:` should list a Touch (a FireWire Phantom Omni is not "
+     "listed there: see docs/OMNI.md)",
+     &detect_touch},
 };
 
 std::string format_family(const Detector& d, const DetectionReport& r) {

@@ -43,6 +43,11 @@ void add_run(CLI::App& app) {
   falcon->add_option("--firmware", options->falcon.firmware_path,
                      "Firmware file to load if the Falcon has none yet (after power-up; docs/FALCON.md)")
       ->check(CLI::ExistingFile);
+  CLI::Option_group* omni = cmd->add_option_group("Phantom Omni / Touch (--device omni)");
+  omni->add_option("--omni-device", options->omni.device_name,
+                   "OpenHaptics device name as set in Touch_Setup (default: the default device)");
+  omni->add_option("--omni-library", options->omni.library_path,
+                   "The OpenHaptics HD library to load (default: $TOONFORCE_LIBHD, else libHD.so)");
   add_gpio_options(*cmd, options->gpio);
   cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(CLI::Range(500.0, 10000.0))
       ->capture_default_str();

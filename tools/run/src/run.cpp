@@ -1,6 +1,7 @@
 #include "toonforce/run/run.hpp"
 
 #include <poll.h>
+#include <sys/mman.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -191,7 +192,9 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
     command_thread = std::thread([&] { read_commands(*loop, g_stop, finished); });
   }
 
-  auto report = run_realtime(task, rt, emergency, g_stop);
+  auto* clocked = driver.info().self_clocked ? dynamic_cast<OmniDevice*>(&driver) : nullptr;
+  auto report = clocked != nullptr ? run_device_clocked(task, *clocked, rt.deadlines, rt.lock_memory, g_stop)
+                                   : run_realtime(task, rt, emergency, g_stop);
   finished.store(true);
   writer.finished.store(true, std::memory_order_release);
   writer_thread.join();
@@ -241,6 +244,76 @@ std::string stop_reason(int signal) {
 
 }  // namespace
 
+namespace {
+
+std::int64_t monotonic_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);  // vDSO: no system call
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+/// What the vendor's servo thread needs: the task, where to count, when to stop.
+struct ClockedRun {
+  PeriodicTask& task;
+  RunReport& report;
+  std::int64_t deadlines;
+  const std::atomic<int>& stop;
+  std::int64_t last_tick = -1;
+  std::int64_t missed = 0;
+};
+
+TickVerdict clocked_tick(void* context, const ClockedTick& clock) noexcept {
+  auto& run = *static_cast<ClockedRun*>(context);
+  if (run.last_tick >= 0 && clock.tick > run.last_tick + 1) run.missed += clock.tick - run.last_tick - 1;
+  run.last_tick = clock.tick;
+  if (run.stop.load(std::memory_order_relaxed) != 0 || (run.deadlines > 0 && run.report.ticks >= run.deadlines)) {
+    run.task.shutdown(clock.tick);  // zero force inside the frame, then the device stops
+    return TickVerdict::kStop;
+  }
+  const std::int64_t start = monotonic_ns();
+  run.task.tick(clock.tick);
+  const std::int64_t compute = monotonic_ns() - start;
+  const auto period_ns = static_cast<std::int64_t>(std::llround(clock.period_s * 1e9));
+  TickTiming timing;
+  timing.wake_latency_ns = run.report.ticks == 0 ? 0 : static_cast<std::int64_t>(std::llround(clock.dt_s * 1e9)) - period_ns;
+  timing.compute_ns = compute;
+  timing.slack_ns = period_ns - compute;
+  timing.missed_total = run.missed;
+  run.report.wake.record(timing.wake_latency_ns);
+  run.report.compute.record(timing.compute_ns);
+  run.report.slack.record(timing.slack_ns);
+  ++run.report.ticks;
+  run.task.publish(clock.tick, timing);
+  return TickVerdict::kContinue;
+}
+
+}  // namespace
+
+Result<RunReport> run_device_clocked(PeriodicTask& task, OmniDevice& device, std::int64_t deadlines, bool lock_memory,
+                                     const std::atomic<int>& stop) {
+  RunReport report;
+  report.setup.priority = -1;  // the vendor's scheduler thread: its priority is not ours to set
+  report.setup.notes = "wake-up latency here is the jitter of the device scheduler's period\n";
+  if (lock_memory) {
+    report.setup.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    if (!report.setup.memory_locked) report.setup.notes += "mlockall refused: memory not locked\n";
+  }
+  ClockedRun run{task, report, deadlines, stop};
+  const std::int64_t begin = monotonic_ns();
+  auto started = device.start(&clocked_tick, &run);
+  if (!started) return Error{started.error()};
+  while (device.running()) static_cast<void>(device.wait_until_stopped(std::chrono::milliseconds(100)));
+  device.stop();
+  report.elapsed_s = static_cast<double>(monotonic_ns() - begin) * 1e-9;
+  report.missed = run.missed;
+  report.stop_signal = stop.load();
+  const bool we_stopped = stop.load() != 0 || (deadlines > 0 && report.ticks >= deadlines);
+  if (const std::string why = device.last_error(); !we_stopped && !why.empty()) {
+    report.setup.notes += fmt::format("the device stopped the run: {}\n", why);
+  }
+  return report;
+}
+
 std::string describe_faults(std::uint32_t bits) {
   std::string out;
   for (const Fault f : kAllFaults) {
@@ -271,7 +344,11 @@ Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
   }
   if (options.device == "falcon") return open_falcon(options.falcon);
   if (options.device == "omni") {
-    return Error{"--device omni: the Phantom Omni / Touch backend (OpenHaptics) is not part of this build yet"};
+    OmniOptions omni = options.omni;
+    omni.scheduler_rate_hz = options.rate_hz;
+    auto device = open_omni(omni);
+    if (!device) return Error{device.error()};
+    return std::unique_ptr<DeviceDriver>(std::move(device.value()));
   }
   return Error{fmt::format("--device {}: unknown device (sim, falcon or omni)", options.device)};
 }
@@ -318,7 +395,9 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   text += fmt::format("scene    {} ({}): {} surface(s), {} cliff(s); scalar {}\n", s.scene_name, o.scene_path, s.surfaces,
                       s.cliffs, scalar_kind_name(o.scalar));
   text += fmt::format("device   {} ({})\n", o.device, s.device_name);
-  std::string rt = r.setup.fifo ? fmt::format("SCHED_FIFO {}", r.setup.priority) : "NOT real-time (normal scheduling)";
+  std::string rt = r.setup.priority < 0 ? "the device's own servo thread (its scheduler sets the priority)"
+                   : r.setup.fifo     ? fmt::format("SCHED_FIFO {}", r.setup.priority)
+                                      : "NOT real-time (normal scheduling)";
   rt += r.setup.memory_locked ? ", memory locked" : ", memory not locked";
   rt += r.setup.cpu >= 0 ? fmt::format(", pinned to CPU {}", r.setup.cpu) : ", not pinned";
   text += fmt::format("realtime {}\n", rt);

@@ -17,6 +17,7 @@
 #include "toonforce/trace/telemetry_sink.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
 #include "toonforce/hal/gpio/line_spec.hpp"
+#include "toonforce/hal/omni/omni_device.hpp"
 
 namespace toonforce {
 
@@ -28,6 +29,7 @@ struct RunOptions {
   std::string sim_device = "falcon";  ///< --device sim: the device model's preset (falcon | omni)
   std::uint64_t seed = 1;             ///< --device sim: sensor-noise seed
   FalconOptions falcon;               ///< --device falcon: which Falcon, firmware to load
+  OmniOptions omni;                   ///< --device omni: which device, where libHD is
   gpio::GpioOptions gpio;             ///< tick pin, e-stop, enable, lights (none: no GPIO code runs)
   std::string scene_path;
   double rate_hz = 1000.0;          ///< 500 .. 10000
@@ -71,6 +73,13 @@ inline constexpr int kStopByUser = 1000;
 
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
 Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options);
+
+/// Runs `task` inside a self-clocked device's own servo thread (OpenHaptics' scheduler calls
+/// each tick), for `deadlines` ticks (0: until `stop`). The vendor owns that thread's priority
+/// and timing, so the report's "wake-up latency" is the jitter of its period (the time between
+/// ticks minus the nominal period) and "missed" the periods it skipped.
+Result<RunReport> run_device_clocked(PeriodicTask& task, OmniDevice& device, std::int64_t deadlines, bool lock_memory,
+                                     const std::atomic<int>& stop);
 
 /// Runs; errors (bad scene, no device, real time refused) come back before the first tick.
 Result<RunSummary> run_servo(const RunOptions& options);
