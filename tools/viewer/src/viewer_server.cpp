@@ -20,10 +20,15 @@
 #include <set>
 #include <thread>
 
+// Boost 1.74's HTTP parser trips g++ 12's -Wmaybe-uninitialized once inlined with
+// optimisation (a false positive inside Beast: boost::optional<std::size_t> content_length).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#pragma GCC diagnostic pop
 #include <fmt/format.h>
 
 #include "toonforce/viewer/assets.hpp"
