@@ -70,6 +70,33 @@ class FakeHost : public ::testing::Test {
     write(node, "");
     fs::permissions(root_ / node, mode);
   }
+  /// A Touch (vendor 2988) with, optionally, a cdc_acm tty or a hidraw node under its interface.
+  void touch(const std::string& usb_dir, int bus, int dev, const std::string& tty, const std::string& hidraw,
+             fs::perms mode) {
+    const std::string sys = fmt::format("sys/bus/usb/devices/{}", usb_dir);
+    write(sys + "/idVendor", "2988\n");
+    write(sys + "/idProduct", "0304\n");
+    write(sys + "/busnum", fmt::format("{}\n", bus));
+    write(sys + "/devnum", fmt::format("{}\n", dev));
+    const std::string node = fmt::format("dev/bus/usb/{:03}/{:03}", bus, dev);
+    write(node, "");
+    fs::permissions(root_ / node, mode);
+    const std::string interface = fmt::format("{}/{}:1.0", sys, usb_dir);
+    if (!tty.empty()) {
+      fs::create_directories(root_ / interface / "tty" / tty);
+      write("dev/" + tty, "");
+      fs::permissions(root_ / "dev" / tty, mode);
+    }
+    if (!hidraw.empty()) {
+      fs::create_directories(root_ / interface / "0003:2988:0304.0001" / "hidraw" / hidraw);
+      write("dev/" + hidraw, "");
+      fs::permissions(root_ / "dev" / hidraw, mode);
+    }
+  }
+  static constexpr fs::perms kGroupRw =
+      fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write;
+  static constexpr fs::perms kRootOnly = fs::perms::owner_read | fs::perms::owner_write;
+
   std::vector<Finding> run() {
     DoctorOptions o;
     o.root = root_.string();
@@ -181,6 +208,56 @@ TEST_F(FakeHost, GpioChipsAreCheckedOneByOne) {
   EXPECT_EQ(find(f, "GPIO", 0).verdict, Verdict::kOk);
   EXPECT_EQ(find(f, "GPIO", 1).verdict, Verdict::kFail);
   EXPECT_NE(find(f, "GPIO", 1).finding.find("/dev/gpiochip1"), std::string::npos);
+}
+
+TEST_F(FakeHost, ASerialTouchIsCheckedOnItsPortWithTheDialoutFix) {
+  // The USB-serial model: the vendor library opens /dev/ttyACM*, not the USB node.
+  touch("1-3", 1, 9, "ttyACM0", "", kRootOnly);
+  status(1000, {}, "0000000000000000");
+  const auto f = run();
+  EXPECT_FALSE(host_ready(f));
+  const auto serial = find(f, "Touch serial");
+  EXPECT_EQ(serial.verdict, Verdict::kFail);
+  EXPECT_NE(serial.finding.find("/dev/ttyACM0"), std::string::npos) << serial.finding;
+  EXPECT_NE(serial.fix.find("dialout"), std::string::npos);
+  EXPECT_EQ(find(f, "Touch USB").check, "missing") << "the USB node is not what the serial model opens";
+}
+
+TEST_F(FakeHost, AHidTouchIsCheckedOnItsUsbNodeAndWarnsAboutItsHidraw) {
+  touch("1-4", 1, 10, "", "hidraw0", kGroupRw);  // our group: may open both
+  auto f = run();
+  EXPECT_TRUE(host_ready(f)) << format_findings(f);
+  EXPECT_EQ(find(f, "Touch USB").verdict, Verdict::kOk);
+  EXPECT_NE(find(f, "Touch USB").finding.find("/dev/bus/usb/001/010 (2988:0304)"), std::string::npos);
+  EXPECT_EQ(find(f, "Touch hidraw").verdict, Verdict::kOk);
+
+  status(1000, {}, "0000000000000000");  // now in no group that owns them
+  f = run();
+  EXPECT_EQ(find(f, "Touch USB").verdict, Verdict::kFail);
+  EXPECT_NE(find(f, "Touch USB").fix.find("2988"), std::string::npos);
+  const auto hidraw = find(f, "Touch hidraw");
+  EXPECT_EQ(hidraw.verdict, Verdict::kWarn);
+  EXPECT_NE(hidraw.finding.find("/dev/hidraw0"), std::string::npos);
+}
+
+TEST_F(FakeHost, AFirewireOmniIsFoundByItsVendorOui) {
+  write("sys/bus/firewire/devices/fw1/vendor", "0x000b99\n");
+  write("sys/bus/firewire/devices/fw0/vendor", "0x001f11\n");  // the host's own controller
+  write("dev/fw1", "");
+  fs::permissions(root_ / "dev/fw1", kRootOnly);
+  status(1000, {}, "0000000000000000");
+  const auto f = run();
+  const auto omni = find(f, "Omni FireWire");
+  EXPECT_EQ(omni.verdict, Verdict::kFail);
+  EXPECT_NE(omni.finding.find("/dev/fw1"), std::string::npos);
+  EXPECT_NE(omni.fix.find("0x000b99"), std::string::npos);
+  EXPECT_EQ(find(f, "Omni FireWire", 1).check, "missing") << "fw0 is not an Omni";
+}
+
+TEST_F(FakeHost, TheIsolatedCpusFindingSaysWhetherTheyAreTickless) {
+  EXPECT_NE(find(run(), "isolated CPUs").finding.find("nohz_full): none"), std::string::npos);
+  write("sys/devices/system/cpu/nohz_full", "3\n");
+  EXPECT_NE(find(run(), "isolated CPUs").finding.find("nohz_full): 3"), std::string::npos);
 }
 
 TEST_F(FakeHost, TheCommandsExitStatusSaysWhetherTheHostIsReady) {

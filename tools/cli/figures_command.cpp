@@ -17,7 +17,8 @@ void add_figures(CLI::App& app) {
   cmd->add_option("--out", options->out_dir, "Directory for NAME.csv and NAME.png (default docs/figures)");
   cmd->add_option("--format", options->format, "Plot format (default png)")->check(CLI::IsMember({"png", "svg"}));
   cmd->add_option("--root", options->root,
-                  "Directory holding scenes/ (default: the current one if it has scenes/hands, else the source tree)");
+                  "Directory holding scenes/ (default: the current one if it has scenes/hands, else an installed "
+                  "toonforce's share/toonforce, else the source tree)");
   cmd->add_flag("--no-plot", *no_plot, "Write the traces only");
   cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors");
   cmd->callback([options, no_plot, quiet] {

@@ -125,9 +125,11 @@ class Host {
 
 std::string cap_or_limit_fix(const std::string& what) {
   return fmt::format(
-      "sudo cp tools/deploy/toonforce-limits.conf /etc/security/limits.d/toonforce.conf (rtprio 95, memlock "
-      "unlimited for group realtime), sudo groupadd -f realtime && sudo usermod -aG realtime $USER, log in again; "
-      "or grant the binary {}",
+      "/etc/security/limits.d/toonforce.conf (rtprio 95, memlock unlimited for group realtime; the toonforce "
+      "package installs it, from a source tree: sudo cp tools/deploy/toonforce-limits.conf "
+      "/etc/security/limits.d/toonforce.conf), sudo groupadd -f realtime && sudo usermod -aG realtime $USER, log in "
+      "again; or grant the binary {}; a service gets both from its unit (LimitRTPRIO, LimitMEMLOCK: "
+      "toonforce@.service, docs/DEPLOY.md)",
       what);
 }
 
@@ -245,14 +247,18 @@ Finding check_governor(const Host& host) {
 Finding check_isolation(const Host& host) {
   Finding f{"isolated CPUs", Verdict::kOk, "", ""};
   const std::string isolated = host.read("/sys/devices/system/cpu/isolated").value_or("");
+  const std::string nohz_full = host.read("/sys/devices/system/cpu/nohz_full").value_or("");
   if (!isolated.empty()) {
-    f.finding = fmt::format("{} (run the loop there: toonforce run --cpu N)", isolated);
+    // nohz_full stops the scheduler tick on a CPU running one task: a few us less jitter.
+    f.finding = fmt::format("{}; tickless (nohz_full): {} (run the loop there: toonforce run --cpu N)", isolated,
+                            nohz_full.empty() || nohz_full == "(null)" ? "none" : nohz_full);
     return f;
   }
   f.verdict = Verdict::kWarn;
   f.finding = "none: the loop shares its CPU with everything else";
-  f.fix = "isolate one CPU for the loop: add isolcpus=3 nohz_full=3 rcu_nocbs=3 to GRUB_CMDLINE_LINUX in "
-          "/etc/default/grub, sudo update-grub, reboot, then toonforce run --cpu 3 (docs/DEPLOY.md)";
+  f.fix = "isolate one CPU for the loop (here the last of 4): add isolcpus=managed_irq,domain,3 nohz_full=3 "
+          "rcu_nocbs=3 irqaffinity=0-2 to GRUB_CMDLINE_LINUX_DEFAULT in /etc/default/grub, sudo update-grub, reboot, "
+          "then toonforce run --cpu 3 (docs/DEPLOY.md)";
   return f;
 }
 
@@ -279,75 +285,171 @@ Finding check_clock(const Host& host, bool check_resolution) {
   return f;
 }
 
-/// USB device nodes with this vendor (and product, if nonzero), from sysfs.
-std::vector<std::pair<std::string, fs::path>> usb_nodes(const Host& host, const std::string& vendor,
-                                                        const std::string& product) {
-  std::vector<std::pair<std::string, fs::path>> out;
+/// A device node a backend opens, as sysfs describes it.
+struct Node {
+  std::string name;  ///< for the finding: "/dev/bus/usb/001/005 (0403:cb48)"
+  fs::path path;     ///< under the host root
+};
+
+std::string read_word(const fs::path& file) {
+  std::ifstream in(file);
+  std::string v;
+  in >> v;
+  return v;
+}
+
+/// The usbfs node of a USB device directory of /sys/bus/usb/devices.
+Node usb_node(const Host& host, const fs::path& device_dir) {
+  const int bus = std::atoi(read_word(device_dir / "busnum").c_str());
+  const int dev = std::atoi(read_word(device_dir / "devnum").c_str());
+  const std::string node = fmt::format("/dev/bus/usb/{:03}/{:03}", bus, dev);
+  return {fmt::format("{} ({}:{})", node, read_word(device_dir / "idVendor"), read_word(device_dir / "idProduct")),
+          host.path(node)};
+}
+
+/// USB devices (their sysfs directories) with this vendor (and product, if not empty).
+std::vector<fs::path> usb_devices(const Host& host, const std::string& vendor, const std::string& product) {
+  std::vector<fs::path> out;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(host.path("/sys/bus/usb/devices"), ec)) {
-    auto field = [&](const char* name) {
-      std::ifstream in(entry.path() / name);
-      std::string v;
-      in >> v;
-      return v;
-    };
-    if (field("idVendor") != vendor || (!product.empty() && field("idProduct") != product)) continue;
-    const int bus = std::atoi(field("busnum").c_str());
-    const int dev = std::atoi(field("devnum").c_str());
-    const std::string node = fmt::format("/dev/bus/usb/{:03}/{:03}", bus, dev);
-    out.push_back({fmt::format("{} ({}:{})", node, vendor, field("idProduct")), host.path(node)});
+    const std::string v = read_word(entry.path() / "idVendor");
+    const std::string p = read_word(entry.path() / "idProduct");
+    // 3D Systems' id also appears byte-swapped as 0301:2988 in one public note (omni.md §1.2);
+    // hal/omni matches it too, so the doctor does.
+    const bool swapped = vendor == "2988" && v == "0301" && p == "2988";
+    if ((v == vendor && (product.empty() || p == product)) || swapped) out.push_back(entry.path());
   }
   std::sort(out.begin(), out.end());
   return out;
 }
 
-void check_devices(const Host& host, std::vector<Finding>& findings) {
-  struct Backend {
-    const char* check;
-    const char* vendor;
-    const char* product;
-    const char* fix;
-  };
-  const Backend backends[] = {
-      {"Falcon USB", "0403", "cb48",
-       "install the udev rule: sudo cp hal/falcon/udev/*.rules /etc/udev/rules.d/ && sudo udevadm control --reload && "
-       "sudo udevadm trigger; add yourself to plugdev: sudo usermod -aG plugdev $USER, log in again, replug (docs/FALCON.md)"},
-      {"Touch USB", "2988", "",
-       "install the Touch's udev rule from OpenHaptics / Touch Device Drivers (or a rule giving group plugdev rw on "
-       "vendor 2988), add yourself to plugdev, log in again, replug (docs/OMNI.md)"},
-  };
-  for (const Backend& b : backends) {
-    const auto nodes = usb_nodes(host, b.vendor, b.product);
-    if (nodes.empty()) {
-      findings.push_back({b.check, Verdict::kInfo, "none connected", ""});
-      continue;
+/// The tty (cdc_acm: <interface>/tty/ttyACMn) and hidraw (<interface>/<hid device>/hidraw/
+/// hidrawN) nodes the kernel made for a USB device's interfaces ("<device>:<config>.<n>").
+void child_nodes(const Host& host, const fs::path& device_dir, std::vector<Node>& ttys, std::vector<Node>& hidraws) {
+  const std::string device = device_dir.filename().string();
+  std::error_code ec;
+  for (const auto& interface : fs::directory_iterator(device_dir, ec)) {
+    if (interface.path().filename().string().rfind(device + ":", 0) != 0) continue;
+    std::error_code tty_ec;
+    for (const auto& tty : fs::directory_iterator(interface.path() / "tty", tty_ec)) {
+      const std::string node = "/dev/" + tty.path().filename().string();
+      ttys.push_back({node, host.path(node)});
     }
-    for (const auto& [name, node] : nodes) {
-      if (host.may_read_write(node)) {
-        findings.push_back({b.check, Verdict::kOk, fmt::format("{}: this user may open it", name), ""});
-      } else {
-        findings.push_back({b.check, Verdict::kFail, fmt::format("{}: no read/write permission for this user", name), b.fix});
+    std::error_code sub_ec;
+    for (const auto& sub : fs::directory_iterator(interface.path(), sub_ec)) {
+      std::error_code raw_ec;
+      for (const auto& raw : fs::directory_iterator(sub.path() / "hidraw", raw_ec)) {
+        const std::string node = "/dev/" + raw.path().filename().string();
+        hidraws.push_back({node, host.path(node)});
       }
     }
   }
-  std::vector<fs::path> chips;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(host.path("/dev"), ec)) {
-    if (entry.path().filename().string().rfind("gpiochip", 0) == 0) chips.push_back(entry.path());
+  const auto by_name = [](const Node& a, const Node& b) { return a.name < b.name; };
+  std::sort(ttys.begin(), ttys.end(), by_name);
+  std::sort(hidraws.begin(), hidraws.end(), by_name);
+}
+
+/// One finding per node: ok when this user may read and write it, else `missing` with `fix`.
+void check_node(const Host& host, const char* check, const Node& node, Verdict missing, const std::string& note,
+                const std::string& fix, std::vector<Finding>& findings) {
+  if (host.may_read_write(node.path)) {
+    findings.push_back({check, Verdict::kOk, fmt::format("{}: this user may open it{}", node.name, note), ""});
+  } else {
+    findings.push_back(
+        {check, missing, fmt::format("{}: no read/write permission for this user{}", node.name, note), fix});
   }
-  std::sort(chips.begin(), chips.end());
-  if (chips.empty()) findings.push_back({"GPIO", Verdict::kInfo, "no /dev/gpiochip* (needed only for --*-pin options)", ""});
-  for (const auto& chip : chips) {
-    const std::string name = "/dev/" + chip.filename().string();
-    if (host.may_read_write(chip)) {
-      findings.push_back({"GPIO", Verdict::kOk, fmt::format("{}: this user may open it", name), ""});
+}
+
+constexpr const char* kTouchUdevFix =
+    "a udev rule giving group plugdev rw on vendor 2988: SUBSYSTEM==\"usb\", ATTRS{idVendor}==\"2988\", "
+    "MODE=\"0660\", GROUP=\"plugdev\" (and the same with SUBSYSTEM==\"hidraw\") in "
+    "/etc/udev/rules.d/99-3dsystems-touch.rules (the Touch Device Driver's installer ships a similar "
+    "99-3dsystems.rules), sudo udevadm control --reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev "
+    "$USER, log in again (docs/OMNI.md)";
+
+void check_falcons(const Host& host, std::vector<Finding>& findings) {
+  const auto devices = usb_devices(host, "0403", "cb48");
+  if (devices.empty()) findings.push_back({"Falcon USB", Verdict::kInfo, "none connected", ""});
+  for (const auto& dir : devices) {
+    check_node(host, "Falcon USB", usb_node(host, dir), Verdict::kFail, "",
+               "the udev rule: the toonforce package installs it (/usr/lib/udev/rules.d/60-novint-falcon.rules); "
+               "otherwise toonforce falcon udev-rule | sudo tee /etc/udev/rules.d/60-novint-falcon.rules, "
+               "sudo udevadm control --reload-rules && sudo udevadm trigger; then sudo usermod -aG plugdev $USER, "
+               "log in again, replug (docs/FALCON.md)",
+               findings);
+  }
+}
+
+/// A Touch is opened through OpenHaptics' I/O library, on the node of its model (omni.md §1.2,
+/// as hal/omni's detection does): the USB-serial model's /dev/ttyACM*, else the USB device
+/// itself (libusb). Its hidraw node is reported as a warning only: the library is documented to
+/// use libusb, not hidraw, but one user report points at /dev/hidraw.
+void check_touches(const Host& host, std::vector<Finding>& findings) {
+  const auto devices = usb_devices(host, "2988", "");
+  if (devices.empty()) findings.push_back({"Touch USB", Verdict::kInfo, "none connected", ""});
+  for (const auto& dir : devices) {
+    std::vector<Node> ttys;
+    std::vector<Node> hidraws;
+    child_nodes(host, dir, ttys, hidraws);
+    if (!ttys.empty()) {
+      for (const Node& tty : ttys) {
+        check_node(host, "Touch serial", tty, Verdict::kFail, " (the USB-serial Touch's port)",
+                   "add yourself to the dialout group, which owns /dev/ttyACM*: sudo usermod -aG dialout $USER, "
+                   "log in again (docs/OMNI.md)",
+                   findings);
+      }
     } else {
-      findings.push_back({"GPIO", Verdict::kFail, fmt::format("{}: no read/write permission for this user", name),
-                          "add a udev rule giving group gpio rw on gpiochip nodes (SUBSYSTEM==\"gpio\", "
-                          "KERNEL==\"gpiochip*\", GROUP=\"gpio\", MODE=\"0660\"), sudo usermod -aG gpio $USER, log in "
-                          "again (docs/GPIO.md)"});
+      check_node(host, "Touch USB", usb_node(host, dir), Verdict::kFail, "", kTouchUdevFix, findings);
+    }
+    for (const Node& hidraw : hidraws) {
+      check_node(host, "Touch hidraw", hidraw, Verdict::kWarn, " (used if the vendor library opens hidraw)",
+                 kTouchUdevFix, findings);
     }
   }
+}
+
+/// The original Phantom Omni on FireWire: SensAble's vendor OUI 0x000b99 on a /dev/fwN node
+/// (omni.md §1.1), opened by OpenHaptics AE 3.0's PHANToM I/O library.
+void check_firewire_omnis(const Host& host, std::vector<Finding>& findings) {
+  std::vector<Node> nodes;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(host.path("/sys/bus/firewire/devices"), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("fw", 0) != 0 || read_word(entry.path() / "vendor") != "0x000b99") continue;
+    nodes.push_back({"/dev/" + name + " (vendor 0x000b99)", host.path("/dev/" + name)});
+  }
+  std::sort(nodes.begin(), nodes.end(), [](const Node& a, const Node& b) { return a.name < b.name; });
+  for (const Node& node : nodes) {
+    check_node(host, "Omni FireWire", node, Verdict::kFail, "",
+               "a udev rule giving group plugdev rw on the Omni: SUBSYSTEM==\"firewire\", ATTR{vendor}==\"0x000b99\", "
+               "MODE=\"0660\", GROUP=\"plugdev\" in /etc/udev/rules.d/99-phantom-omni.rules, sudo udevadm control "
+               "--reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev $USER, log in again (docs/OMNI.md)",
+               findings);
+  }
+}
+
+void check_gpiochips(const Host& host, std::vector<Finding>& findings) {
+  std::vector<Node> chips;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(host.path("/dev"), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("gpiochip", 0) == 0) chips.push_back({"/dev/" + name, entry.path()});
+  }
+  std::sort(chips.begin(), chips.end(), [](const Node& a, const Node& b) { return a.name < b.name; });
+  if (chips.empty()) findings.push_back({"GPIO", Verdict::kInfo, "no /dev/gpiochip* (needed only for --*-pin options)", ""});
+  for (const Node& chip : chips) {
+    check_node(host, "GPIO", chip, Verdict::kFail, "",
+               "add a udev rule giving group gpio rw on gpiochip nodes (SUBSYSTEM==\"gpio\", KERNEL==\"gpiochip*\", "
+               "GROUP=\"gpio\", MODE=\"0660\"), sudo usermod -aG gpio $USER, log in again (docs/GPIO.md)",
+               findings);
+  }
+}
+
+void check_devices(const Host& host, std::vector<Finding>& findings) {
+  check_falcons(host, findings);
+  check_touches(host, findings);
+  check_firewire_omnis(host, findings);
+  check_gpiochips(host, findings);
 }
 
 std::string_view label(Verdict v) {

@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/sim/data_dir.hpp"
+
 namespace toonforce {
 
 namespace {
@@ -34,6 +36,10 @@ std::string figures_root(const std::string& given) {
   if (!given.empty()) return given;
   std::error_code ec;
   if (std::filesystem::is_directory("scenes/hands", ec)) return ".";
+  if (const std::string installed = installed_data_dir();
+      !installed.empty() && std::filesystem::is_directory(std::filesystem::path(installed) / "scenes/hands", ec)) {
+    return installed;
+  }
   return TOONFORCE_SOURCE_DIR;
 }
 
@@ -76,6 +82,7 @@ Result<std::vector<std::string>> run_figures(const FiguresOptions& options) {
   std::filesystem::create_directories(options.out_dir, ec);
   if (ec) return Error{fmt::format("{}: cannot create the directory: {}", options.out_dir, ec.message())};
   std::vector<std::string> lines;
+  lines.push_back(fmt::format("scenes and hand scripts from {}", root));
   for (const FigureSpec& spec : kFigures) {
     SimOptions sim = figure_sim_options(spec, root);
     const std::filesystem::path out(options.out_dir);

@@ -11,6 +11,8 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/sim/data_dir.hpp"
+
 extern char** environ;
 
 namespace toonforce {
@@ -21,6 +23,11 @@ constexpr const char* kPython = "/usr/bin/python3";
 
 std::string plot_script_path() {
   if (const char* env = std::getenv("TOONFORCE_PLOT_SCRIPT"); env != nullptr && *env != '\0') return env;
+  if (const std::string installed = installed_data_dir(); !installed.empty()) {
+    const std::string script = installed + "/plot_trace.py";
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(script, ec)) return script;
+  }
   return TOONFORCE_PLOT_SCRIPT;
 }
 

@@ -30,8 +30,9 @@ struct FigureSpec {
 
 std::span<const FigureSpec> figure_specs() noexcept;
 
-/// The directory holding scenes/ (the current one if it has scenes/figures, else the source
-/// tree this binary was built from), or `given` if not empty.
+/// The directory holding scenes/ (the current one if it has scenes/hands, else the installed
+/// data of an installed binary (data_dir.hpp), else the source tree this binary was built
+/// from), or `given` if not empty.
 std::string figures_root(const std::string& given = {});
 
 /// The options `toonforce sim` would need to produce a figure's trace.
@@ -47,7 +48,8 @@ struct FiguresOptions {
   bool plot = true;
 };
 
-/// Writes every figure's trace and plot into out_dir; returns one summary line per figure.
+/// Writes every figure's trace and plot into out_dir; returns a line saying where the scenes came
+/// from, then one summary line per figure.
 Result<std::vector<std::string>> run_figures(const FiguresOptions& options);
 
 }  // namespace toonforce

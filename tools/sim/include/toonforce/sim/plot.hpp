@@ -1,8 +1,9 @@
 #pragma once
 /// Plots of sim traces: runs tools/plot_trace.py (matplotlib, from Debian's python3-matplotlib)
 /// through /usr/bin/python3 as a child process, without a shell. The script is found through
-/// the environment variable TOONFORCE_PLOT_SCRIPT, else in the source tree this binary was
-/// built from. Start-up/after-run code only.
+/// the environment variable TOONFORCE_PLOT_SCRIPT, else beside an installed binary's data
+/// (<prefix>/share/toonforce/plot_trace.py, data_dir.hpp), else in the source tree this binary
+/// was built from. Start-up/after-run code only.
 
 #include <string>
 #include <vector>

@@ -1,0 +1,117 @@
+# CTest debian_package (issue 10): builds the Debian packages of this build tree with CPack and
+# checks what dpkg would install from them: the program, scenes, udev rule, limits snippet
+# (a conffile) and unit template in `toonforce`, written for /usr and /etc; headers, libraries
+# and package files in `toonforce-dev`; each backend in its own -dev package depending on it;
+# the maintainer scripts valid shell; no file in two packages. Parameters (-D): BUILD_DIR
+# WORK_DIR CPACK DPKG_DEB VERSION.
+cmake_minimum_required(VERSION 3.25)
+
+function(expect condition_text)
+  if(NOT (${ARGN}))
+    message(FATAL_ERROR "expected: ${condition_text}")
+  endif()
+endfunction()
+
+function(run what out_var)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    string(REPLACE ";" " " shown "${ARGN}")
+    message(FATAL_ERROR "${what} failed (${rc}):\n  ${shown}\n${out}\n${err}")
+  endif()
+  set(${out_var} "${out}" PARENT_SCOPE)
+endfunction()
+
+file(REMOVE_RECURSE "${WORK_DIR}")
+file(MAKE_DIRECTORY "${WORK_DIR}")
+run("cpack -G DEB" cpack_out "${CPACK}" --config "${BUILD_DIR}/CPackConfig.cmake" -G DEB -B "${WORK_DIR}")
+message(STATUS "cpack:\n${cpack_out}")
+
+# Each package: its files (./usr/..., directories left out), fields and control files.
+set(all_files "")
+foreach(package IN ITEMS toonforce toonforce-dev toonforce-falcon-dev toonforce-gpio-dev toonforce-omni-dev)
+  file(GLOB deb "${WORK_DIR}/${package}_${VERSION}_*.deb")
+  list(LENGTH deb n)
+  expect("one ${package}_${VERSION}_<arch>.deb, found '${deb}'" n EQUAL 1)
+  run("dpkg-deb -c ${package}" listing "${DPKG_DEB}" --contents "${deb}")
+  string(REGEX MATCHALL "\\./[^\n]*[^/\n]\n" entries "${listing}")
+  set(files "")
+  foreach(entry IN LISTS entries)
+    string(STRIP "${entry}" entry)
+    string(REGEX REPLACE " -> .*$" "" entry "${entry}")  # symbolic links: their own name
+    list(APPEND files "${entry}")
+  endforeach()
+  foreach(file IN LISTS files)
+    list(FIND all_files "${file}" other)
+    expect("${file} in one package only (${package} and another)" other EQUAL -1)
+  endforeach()
+  list(APPEND all_files ${files})
+  set(files_${package} "${files}")
+  run("dpkg-deb -f ${package}" fields_${package} "${DPKG_DEB}" --field "${deb}")
+  file(MAKE_DIRECTORY "${WORK_DIR}/control/${package}")
+  run("dpkg-deb -e ${package}" ignored "${DPKG_DEB}" --control "${deb}" "${WORK_DIR}/control/${package}")
+  set(deb_${package} "${deb}")
+endforeach()
+
+function(expect_files package)
+  foreach(file IN LISTS ARGN)
+    list(FIND files_${package} "${file}" at)
+    expect("${file} in ${package}; it has:\n${files_${package}}" NOT at EQUAL -1)
+  endforeach()
+endfunction()
+function(expect_field package text)
+  string(FIND "${fields_${package}}" "${text}" at)
+  expect("'${text}' in the control fields of ${package}:\n${fields_${package}}" NOT at EQUAL -1)
+endfunction()
+
+# ---- toonforce: the program and what a host needs ----------------------------------------------
+expect_files(toonforce ./usr/bin/toonforce ./usr/lib/udev/rules.d/60-novint-falcon.rules
+  ./etc/security/limits.d/toonforce.conf ./usr/lib/systemd/system/toonforce@.service
+  ./usr/share/toonforce/scenes/wall.toml ./usr/share/toonforce/scenes/hands/strike.toml
+  ./usr/share/toonforce/plot_trace.py ./usr/share/doc/toonforce/DEPLOY.md)
+foreach(file IN LISTS files_toonforce)
+  expect("toonforce ships no headers or libraries (${file})" NOT file MATCHES "^\\./usr/(include|lib/.*\\.a$)")
+endforeach()
+expect_field(toonforce "Package: toonforce\n")
+expect_field(toonforce "libfmt")  # from dpkg-shlibdeps
+file(READ "${WORK_DIR}/control/toonforce/conffiles" conffiles)
+expect("the limits snippet is a conffile" conffiles STREQUAL "/etc/security/limits.d/toonforce.conf\n")
+foreach(script IN ITEMS postinst prerm postrm)
+  set(path "${WORK_DIR}/control/toonforce/${script}")
+  expect("toonforce has a ${script}" EXISTS "${path}")
+  run("sh -n ${script}" ignored sh -n "${path}")
+  file(READ "${path}" text)
+  foreach(forbidden IN ITEMS useradd adduser groupadd addgroup "systemctl enable" "systemctl start")
+    string(FIND "${text}" "${forbidden}" at)
+    expect("${script} does not run '${forbidden}'" at EQUAL -1)
+  endforeach()
+endforeach()
+# The unit in the package is written for /usr and /etc.
+run("dpkg-deb -x toonforce" ignored "${DPKG_DEB}" --extract "${deb_toonforce}" "${WORK_DIR}/root")
+file(READ "${WORK_DIR}/root/usr/lib/systemd/system/toonforce@.service" unit)
+foreach(line IN ITEMS "ExecStart=/usr/bin/toonforce run " "Environment=TOONFORCE_SCENE=/usr/share/toonforce/scenes/%i.toml"
+                      "EnvironmentFile=-/etc/toonforce/%i.conf" "LimitRTPRIO=95" "LimitMEMLOCK=infinity")
+  string(FIND "${unit}" "\n${line}" at)
+  expect("'${line}' in the packaged unit" NOT at EQUAL -1)
+endforeach()
+
+# ---- toonforce-dev and the backends ------------------------------------------------------------
+set(dev_files "${files_toonforce-dev}")
+list(FILTER dev_files INCLUDE REGEX "/cmake/toonforce/toonforce-config\\.cmake$|/pkgconfig/toonforce\\.pc$|/libtoonforce_control\\.a$")
+list(LENGTH dev_files n)
+expect("toonforce-dev has the package config, toonforce.pc and the control library: ${dev_files}" n EQUAL 3)
+expect_files(toonforce-dev ./usr/include/toonforce/control/servo_loop.hpp ./usr/include/toonforce/effects/scene.hpp
+  ./usr/include/toonforce/hal/device.hpp ./usr/share/doc/toonforce/examples/compose_scene.cpp)
+expect_field(toonforce-dev "libtomlplusplus-dev")
+expect_files(toonforce-falcon-dev ./usr/include/toonforce/hal/falcon/falcon.hpp)
+expect_files(toonforce-gpio-dev ./usr/include/toonforce/hal/gpio/gpio_session.hpp)
+expect_files(toonforce-omni-dev ./usr/include/toonforce/hal/omni/omni_device.hpp)
+expect_field(toonforce-omni-dev "libhidapi-dev")
+foreach(backend IN ITEMS falcon gpio omni)
+  expect_field(toonforce-${backend}-dev "toonforce-dev (= ${VERSION})")
+  set(backend_files "${files_toonforce-${backend}-dev}")
+  list(FILTER backend_files INCLUDE REGEX "/libtoonforce_hal_${backend}\\.a$|/toonforce-${backend}\\.pc$|/toonforce-${backend}\\.cmake$")
+  list(LENGTH backend_files n)
+  expect("toonforce-${backend}-dev has its library, .pc and package part: ${backend_files}" n EQUAL 3)
+endforeach()
+
+message(STATUS "debian_package: all checks passed")
