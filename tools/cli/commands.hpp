@@ -13,6 +13,9 @@ void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
 void add_report(CLI::App& app);
+#if TOONFORCE_VIEWER
+void add_view(CLI::App& app);
+#endif
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

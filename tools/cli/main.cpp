@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   toonforce::cli::add_devices(app);
   toonforce::cli::add_falcon(app);
   toonforce::cli::add_report(app);
+#if TOONFORCE_VIEWER
+  toonforce::cli::add_view(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,5 +1,6 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
+//               [--view [PORT]] [--view-address ADDR]
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -9,6 +10,10 @@
 #include "commands.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/run/run.hpp"
+#if TOONFORCE_VIEWER
+#include "toonforce/config/scene_file.hpp"
+#include "viewer_support.hpp"
+#endif
 
 namespace toonforce::cli {
 
@@ -63,8 +68,40 @@ void add_run(CLI::App& app) {
   cmd->add_option("--scalar", options->scalar, "Scalar type of the servo loop (a firmware build has q16.16 only)")
       ->transform(CLI::CheckedTransformer(scalars, CLI::ignore_case));
   cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors and fault messages");
-  cmd->callback([options, quiet, no_mlock] {
+#if TOONFORCE_VIEWER
+  auto view = std::make_shared<ViewFlags>();
+  add_view_flags(cmd, *view);
+#endif
+  cmd->callback([=] {
     options->lock_memory = !*no_mlock;
+#if TOONFORCE_VIEWER
+    // The viewer takes frames from the thread that drains the telemetry ring (run.hpp), so the
+    // servo thread does nothing for it; its server thread runs at normal priority.
+    std::unique_ptr<viewer::ViewerServer> server;
+    if (view->wanted()) {
+      auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
+      viewer::HelloInfo hello;
+      hello.source = "run";
+      hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
+      hello.rate_hz = options->rate_hz;
+      hello.scene = scene ? &scene.value() : nullptr;
+      if (scene && scene->safety.has_workspace) {
+        hello.workspace_min_m = scene->safety.workspace_min_m;
+        hello.workspace_max_m = scene->safety.workspace_max_m;
+      }
+      viewer::ViewerOptions vo;
+      vo.address = view->address;
+      vo.port = static_cast<std::uint16_t>(view->port);
+      auto started = start_viewer(vo, hello);
+      if (!started) {
+        fmt::print(stderr, "{}\n", started.error());
+        set_exit_code(2);
+        return;
+      }
+      server = std::move(started.value());
+      options->sink = server.get();
+    }
+#endif
     const auto summary = run_servo(*options);
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
@@ -83,6 +120,12 @@ void add_run(CLI::App& app) {
     }
     if (!*quiet) std::fputs(format_run_summary(summary.value(), *options).c_str(), stdout);
     set_exit_code(0);
+#if TOONFORCE_VIEWER
+    if (server) {
+      std::fflush(stdout);
+      serve_until_stopped(*server, "the run is over");
+    }
+#endif
   });
 }
 

@@ -1,6 +1,6 @@
 // toonforce sim --scene S.toml --script hand.toml --duration SECONDS --trace out.csv [--plot out.svg|out.png]
 //   [--device falcon|omni] [--integrator ...] [--substeps N] [--rate HZ] [--seed N]
-//   [--sensor-noise M] [--scalar ...] [--sine ...]
+//   [--sensor-noise M] [--scalar ...] [--sine ...] [--view [PORT]] [--view-address ADDR] [--view-pace X]
 #include <cctype>
 #include <cstdio>
 #include <memory>
@@ -10,6 +10,9 @@
 
 #include "commands.hpp"
 #include "toonforce/sim/sim_run.hpp"
+#if TOONFORCE_VIEWER
+#include "viewer_support.hpp"
+#endif
 
 namespace toonforce::cli {
 
@@ -50,7 +53,16 @@ void add_sim(CLI::App& app) {
   cmd->add_option("--sine", *sine, "Sine method of impact transients (overrides the scene)")
       ->check(CLI::IsMember({"library", "polynomial", "table"}, CLI::ignore_case));
   cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors");
-  cmd->callback([options, quiet, duration, duration_option, noise, noise_option, device, integrator, scalar, sine] {
+#if TOONFORCE_VIEWER
+  auto view = std::make_shared<ViewFlags>();
+  add_view_flags(cmd, *view);
+  cmd->add_option("--view-pace", options->pace,
+                  "With --view: simulated seconds per wall-clock second (default 1, real time; 0.25 slow motion; "
+                  "0 as fast as possible). The trace is the same at any pace")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->needs(view->view);
+#endif
+  cmd->callback([=] {
     if (duration_option->count() > 0) options->duration_s = *duration;
     if (noise_option->count() > 0) options->sensor_noise_m = *noise;
     // The checks above admit only known words (in any case): these parse.
@@ -62,6 +74,44 @@ void add_sim(CLI::App& app) {
     options->integrator = host_sim::parse_integrator(lower(*integrator)).value_or(host_sim::Integrator::kRk4);
     options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);
     if (!sine->empty()) options->sine = parse_sine_method(lower(*sine));
+#if TOONFORCE_VIEWER
+    // Live, for a simulation, means paced to the wall clock (--view-pace) from the moment a
+    // page connects: simulated time costs nothing, so nothing is lost by waiting for the page.
+    std::unique_ptr<viewer::ViewerServer> server;
+    if (view->wanted()) {
+      auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_sim reports them
+      const SimConfig config = sim_config(*options);
+      viewer::HelloInfo hello;
+      hello.source = "sim";
+      hello.title = fmt::format("{} / {}", scene ? scene->name : options->scene_path, options->script_path);
+      hello.rate_hz = options->rate_hz;
+      hello.scene = scene ? &scene.value() : nullptr;
+      hello.pacing = options->pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", options->pace)
+                                         : "simulated time, as fast as it runs";
+      hello.workspace_min_m = config.device.workspace_min_m;
+      hello.workspace_max_m = config.device.workspace_max_m;
+      viewer::ViewerOptions vo;
+      vo.address = view->address;
+      vo.port = static_cast<std::uint16_t>(view->port);
+      vo.has_loop = false;
+      auto started = start_viewer(vo, hello);
+      if (!started) {
+        fmt::print(stderr, "{}\n", started.error());
+        set_exit_code(1);
+        return;
+      }
+      server = std::move(started.value());
+      install_view_signals();
+      fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
+      std::fflush(stderr);
+      if (!server->wait_for_page(view_stop())) {
+        restore_view_signals();
+        set_exit_code(1);
+        return;
+      }
+      options->sink = server.get();
+    }
+#endif
     const auto summary = run_sim(*options);
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
@@ -73,6 +123,12 @@ void add_sim(CLI::App& app) {
       std::fputs(format_sim_summary(summary.value(), *options).c_str(), options->trace_path == "-" ? stderr : stdout);
     }
     set_exit_code(0);
+#if TOONFORCE_VIEWER
+    if (server) {
+      std::fflush(stdout);
+      serve_until_stopped(*server, "the simulation is over");
+    }
+#endif
   });
 }
 

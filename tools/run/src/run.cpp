@@ -79,6 +79,7 @@ struct Writer {
   TelemetryRing& ring;
   TraceWriter* trace;
   std::FILE* messages;
+  TelemetrySink* sink;
   bool interactive;
   std::atomic<bool> finished{false};
   RunSummary& summary;
@@ -114,7 +115,9 @@ struct Writer {
       }
       summary.latched_at_end = f.latched;
       if (trace != nullptr && !write_frame(*trace, f)) write_failed = true;
+      if (sink != nullptr) sink->publish(f);  // fan-out here, never in the servo thread
     }
+    if (sink != nullptr) sink->finish();
   }
 };
 
@@ -180,7 +183,7 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   g_stop.store(0);
   if (options.handle_signals) install_signal_handlers(g_stop, emergency);
   const bool interactive = options.interactive && isatty(STDIN_FILENO) != 0;
-  Writer writer{*ring, trace.get(), options.messages, interactive, {}, summary};
+  Writer writer{*ring, trace.get(), options.messages, options.sink, interactive, {}, summary};
   std::thread writer_thread([&writer] { writer.run(); });
   std::atomic<bool> finished{false};
   std::thread command_thread;

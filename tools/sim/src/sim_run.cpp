@@ -1,6 +1,8 @@
 #include "toonforce/sim/sim_run.hpp"
 
+#include <chrono>
 #include <cmath>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -26,6 +28,24 @@ void add_to_summary(SimSummary& s, const SimRecord& r) {
   if ((r.limits & static_cast<std::uint8_t>(Limit::kClamped)) != 0) ++s.clamped;
   if (r.faults != 0) ++s.fault_ticks;
   s.fault_bits |= r.faults;
+}
+
+TelemetryFrame telemetry_frame(const SimRecord& r) noexcept {
+  TelemetryFrame f;
+  f.t_s = r.t_s;
+  f.tick = r.tick;
+  f.position_m = r.position_m;
+  f.velocity_m_per_s = r.velocity_m_per_s;
+  f.force_n = r.force_n;
+  f.scene_force_n = r.force_n;
+  f.faults = r.faults;
+  f.limits = r.limits;
+  if (r.has_diagnostics) {
+    f.in_contact = r.diagnostics.in_contact;
+    f.impact_time_s = r.diagnostics.impact_time_s;
+    f.cliff_state = r.diagnostics.cliff_state;
+  }
+  return f;
 }
 
 SimConfig sim_config(const SimOptions& options) {
@@ -77,12 +97,24 @@ Result<SimSummary> run_sim(const SimOptions& options) {
     return p.x >= device.workspace_min_m.x && p.x <= device.workspace_max_m.x && p.y >= device.workspace_min_m.y &&
            p.y <= device.workspace_max_m.y && p.z >= device.workspace_min_m.z && p.z <= device.workspace_max_m.z;
   };
+  // Paced for the viewer: each tick waits until its simulated time has come on the wall clock
+  // (this thread is the simulation's own, not a real-time loop; the trace is unchanged).
+  const bool paced = options.sink != nullptr && options.pace > 0.0;
+  const auto wall_start = std::chrono::steady_clock::now();
   for (std::int64_t k = 0; k < ticks; ++k) {
     const SimRecord record = session->step();
     trace->write(record);
     add_to_summary(summary, record);
     if (!inside(record.true_position_m)) ++summary.ticks_outside_workspace;
+    if (options.sink != nullptr) {
+      options.sink->publish(telemetry_frame(record));
+      if (paced) {
+        std::this_thread::sleep_until(wall_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                       std::chrono::duration<double>(record.t_s / options.pace)));
+      }
+    }
   }
+  if (options.sink != nullptr) options.sink->finish();
   summary.duration_s = static_cast<double>(ticks) * session->config().plant.period_s;
   summary.final_position_m = session->device().plant().position_m();
   summary.device_work_j = session->device().plant().device_work_j();

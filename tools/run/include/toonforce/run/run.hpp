@@ -14,6 +14,7 @@
 #include "toonforce/control/faults.hpp"
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/hal/device.hpp"
+#include "toonforce/trace/telemetry_sink.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
 #include "toonforce/hal/gpio/line_spec.hpp"
 #include "toonforce/hal/omni/omni_device.hpp"
@@ -43,6 +44,9 @@ struct RunOptions {
   bool handle_signals = true;       ///< install the SIGINT/SIGTERM/fatal-signal handlers
   bool interactive = true;          ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
   std::FILE* messages = stderr;     ///< fault messages during the run
+  /// Also sends every frame to this sink (the live viewer), from the writer thread that
+  /// consumes the telemetry ring: the servo thread does no work for it.
+  TelemetrySink* sink = nullptr;
 
   /// q16.16 in a firmware build (TOONFORCE_FIRMWARE=ON), else double.
   static ScalarKind default_run_scalar() noexcept;

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "toonforce/sim/closed_loop.hpp"
+#include "toonforce/trace/telemetry_sink.hpp"
 
 namespace toonforce {
 
@@ -26,6 +27,11 @@ struct SimOptions {
   std::optional<double> sensor_noise_m;  ///< overrides the device preset's (0)
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;
+  /// Also sends every tick to this sink (the live viewer), from the simulation's thread.
+  TelemetrySink* sink = nullptr;
+  /// With a sink: simulated seconds per wall-clock second (1: real time, as a person would
+  /// feel it; 0: as fast as the machine goes). The trace is the same either way.
+  double pace = 1.0;
 };
 
 struct SimSummary {
@@ -52,6 +58,11 @@ struct SimSummary {
 
 /// Accumulates the summary from records (shared by the CLI, the figures and the benchmark).
 void add_to_summary(SimSummary& summary, const SimRecord& record);
+
+/// A tick as the servo loop's telemetry frame (what the viewer takes): the loop's own fields
+/// (state, gain, timing, thermal, energy) stay zero, since the simulation runs the controller
+/// without the servo loop.
+TelemetryFrame telemetry_frame(const SimRecord& record) noexcept;
 
 /// The configuration the options ask for (device preset, noise, integrator, rate).
 SimConfig sim_config(const SimOptions& options);

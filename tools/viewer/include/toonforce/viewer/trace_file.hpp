@@ -1,0 +1,31 @@
+#pragma once
+/// Reading a trace for `toonforce view`: the CSV that `toonforce run --trace` (telemetry
+/// columns) or `toonforce sim --trace` (sim columns) wrote. The ten core columns
+/// t,x,y,z,vx,vy,vz,fx,fy,fz are required; every other column the viewer knows by name
+/// (view_frame.hpp) is taken, the rest ignored, and a column or field missing is NaN.
+/// Errors name the file, the line and the column.
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/viewer/view_frame.hpp"
+
+namespace toonforce::viewer {
+
+/// 2^20 rows: 17 minutes at 1 kHz, about 230 MB in the server and again in the page.
+inline constexpr std::size_t kMaxTraceRows = std::size_t{1} << 20;
+
+struct TraceRecording {
+  std::vector<ViewFrame> frames;
+  std::string source;      ///< "run" (telemetry columns), "sim" (sim columns) or "trace"
+  double rate_hz = 0.0;    ///< from the median time step (0: fewer than two rows)
+  bool has_loop = false;   ///< the trace has the servo loop's timing columns
+};
+
+Result<TraceRecording> read_trace(const std::string& path, std::size_t max_rows = kMaxTraceRows);
+/// The same from text; `name` stands for the file in messages.
+Result<TraceRecording> parse_trace(std::string_view text, std::string_view name, std::size_t max_rows = kMaxTraceRows);
+
+}  // namespace toonforce::viewer

@@ -1,0 +1,94 @@
+#pragma once
+/// The live viewer's server (issue 9): serves the page (its own files only, embedded in the
+/// binary) and streams telemetry to it over a WebSocket, from a thread of its own that never
+/// runs at real-time priority. Boost.Beast over Boost.Asio (docs/VIEWER.md says why).
+///
+///   producer thread (run's ring consumer, or sim)   server thread (Asio)        page
+///   publish(frame) -> SpscRing (lock-free, drops  -> every batch_interval:   -> one binary
+///                     and counts when full)          drain, keep history,       message per
+///                                                    send to each page          batch
+///
+/// Read-only: the socket carries telemetry one way. A page that sends anything is closed with
+/// a policy-violation code; no message changes the run or the scene. The WebSocket upgrade is
+/// refused (403) unless the Origin header is this server's own origin, and every request is
+/// refused (421) unless its Host header names this server (the loopback names, or the address
+/// given), which also defeats DNS rebinding. Only GET and HEAD of the embedded files are served.
+///
+/// A page that reads slower than frames come gets at most `max_queued_batches` live batches
+/// queued; older ones are dropped and counted (the page sees the gap in the sequence numbers
+/// and the count in the status messages). Nothing the page does can make publish() wait.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "toonforce/common/result.hpp"
+#include "toonforce/trace/telemetry_sink.hpp"
+#include "toonforce/viewer/view_frame.hpp"
+
+namespace toonforce::viewer {
+
+inline constexpr std::uint16_t kDefaultPort = 8765;
+
+struct ViewerOptions {
+  std::string address = "127.0.0.1";  ///< listen address; another one only when asked for
+  std::uint16_t port = kDefaultPort;   ///< 0: a free port (see ViewerServer::port())
+  std::size_t history_frames = 1U << 17;  ///< kept for pages that connect late (131 s at 1 kHz)
+  double batch_interval_s = 0.02;      ///< frames go out in batches this often (50 Hz)
+  std::size_t max_queued_batches = 16; ///< per page, beyond the one being written
+  int send_buffer_bytes = 0;           ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
+  bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
+};
+
+/// Counters for the summary and the tests (any thread).
+struct ViewerStats {
+  std::uint64_t frames_in = 0;            ///< frames published
+  std::uint64_t frames_dropped_ring = 0;  ///< published while the hand-over ring was full
+  std::uint64_t frames_dropped_pages = 0; ///< queued for a page, dropped before it took them
+  std::uint64_t pages_connected = 0;      ///< WebSocket connections accepted so far
+  std::uint64_t pages_refused = 0;        ///< upgrades refused (origin or host)
+  std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
+  std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
+  std::size_t max_queued = 0;             ///< the longest live queue any page had
+  std::size_t pages_open = 0;             ///< WebSocket connections open now
+};
+
+class ViewerServer final : public TelemetrySink {
+ public:
+  /// Binds and starts the server thread. `hello_json` is the first message every page gets
+  /// (make_hello in hello.hpp: the scene, the columns, the run). Errors: the address or port.
+  static Result<std::unique_ptr<ViewerServer>> start(const ViewerOptions& options, std::string hello_json);
+  /// The same for a whole recording (`toonforce view`): every page gets all of it as history,
+  /// and the stream is over from the start (publish nothing).
+  static Result<std::unique_ptr<ViewerServer>> start_recording(const ViewerOptions& options, std::string hello_json,
+                                                               std::optional<std::vector<ViewFrame>> recording);
+  ~ViewerServer();
+
+  /// Producer side (one thread): lock-free, allocation-free, never blocks.
+  void publish(const TelemetryFrame& frame) noexcept override;
+  void publish(const ViewFrame& frame) noexcept;
+  void finish() noexcept override;
+
+  /// Waits until a page has connected, or `stop` becomes non-zero, polling every 50 ms.
+  /// True if a page connected.
+  bool wait_for_page(const std::atomic<int>& stop) const;
+  /// Waits until every published frame has been handed to the pages' queues.
+  void wait_drained(const std::atomic<int>& stop) const;
+
+  std::uint16_t port() const noexcept;
+  /// http://HOST:PORT/ to open (HOST 127.0.0.1 unless another address was given).
+  std::string url() const;
+  ViewerStats stats() const noexcept;
+
+  struct Impl;
+
+ private:
+  explicit ViewerServer(std::unique_ptr<Impl> impl) noexcept;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace toonforce::viewer
