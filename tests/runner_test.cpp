@@ -28,6 +28,7 @@
 
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
 extern char** environ;
@@ -152,6 +153,19 @@ TEST(RealtimeRunner, RejectsRatesOutsideItsRange) {
 }
 
 // ---- toonforce run in process ------------------------------------------------------------------
+
+// The stats JSON and the viewer's hello share one escaper: RFC 8259 §7 requires quote,
+// backslash and every control character below 0x20 escaped; '<' is escaped as well so that no
+// "</script>" can appear in anything a page inlines.
+TEST(JsonString, EscapesWhatRfc8259RequiresAndTheClosingScriptTag) {
+  EXPECT_EQ(toonforce::json_string(""), "\"\"");
+  EXPECT_EQ(toonforce::json_string("scenes/wall.toml"), "\"scenes/wall.toml\"");
+  EXPECT_EQ(toonforce::json_string("a\"b\\c"), "\"a\\\"b\\\\c\"");
+  EXPECT_EQ(toonforce::json_string("l1\nl2\tx"), "\"l1\\nl2\\tx\"");
+  EXPECT_EQ(toonforce::json_string(std::string_view("\x01\x1f", 2)), "\"\\u0001\\u001f\"");
+  EXPECT_EQ(toonforce::json_string("</script>"), "\"\\u003c/script>\"");
+  EXPECT_EQ(toonforce::json_string("\xc3\xa9"), "\"\xc3\xa9\"");  // UTF-8 passes through
+}
 
 TEST(RunCommand, ASimRunWritesOneTraceRowPerTickPlusTheFinalZeroForceRow) {
   RunOptions o;

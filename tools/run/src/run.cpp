@@ -17,6 +17,7 @@
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
+#include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
@@ -207,25 +208,6 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   if (trace && !trace->close()) writer.write_failed = true;
   if (writer.write_failed) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
   return summary;
-}
-
-std::string json_string(std::string_view s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          out += fmt::format("\\u{:04x}", static_cast<unsigned>(c));
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
 }
 
 std::string json_latency(const LatencySummary& s) {

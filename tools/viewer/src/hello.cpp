@@ -6,29 +6,10 @@
 
 #include "toonforce/control/faults.hpp"
 #include "toonforce/control/servo_loop.hpp"
+#include "toonforce/trace/json.hpp"
 #include "toonforce/viewer/view_frame.hpp"
 
 namespace toonforce::viewer {
-
-std::string json_quote(std::string_view text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '<': out += "\\u003c"; break;  // never "</script>" in anything a page might inline
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          out += fmt::format("\\u{:04x}", static_cast<unsigned>(c));
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
 
 namespace {
 
@@ -63,8 +44,8 @@ std::string scene_json(const SceneDescription& scene) {
         cliffs.empty() ? "" : ",", vec(c.ground.point_m), vec(c.ground.normal), vec(c.axis), number(c.gap_min_m),
         number(c.gap_max_m), number(c.stiffness_n_per_m), number(c.speed_threshold_m_per_s), c.line);
   }
-  return fmt::format(R"({{"name":{},"file":{},"max_force":{},"surfaces":[{}],"cliffs":[{}]}})", json_quote(scene.name),
-                     json_quote(scene.source),
+  return fmt::format(R"({{"name":{},"file":{},"max_force":{},"surfaces":[{}],"cliffs":[{}]}})", json_string(scene.name),
+                     json_string(scene.source),
                      scene.limits.has_max_force ? number(scene.limits.max_force_n) : std::string("null"), surfaces,
                      cliffs);
 }
@@ -76,14 +57,14 @@ std::string make_hello(const HelloInfo& info) {
   for (const std::string_view c : kViewColumns) columns += fmt::format("{}\"{}\"", columns.empty() ? "" : ",", c);
   std::string faults;
   for (const Fault f : kAllFaults) {
-    faults += fmt::format("{}[{},{}]", faults.empty() ? "" : ",", static_cast<std::uint32_t>(f), json_quote(fault_name(f)));
+    faults += fmt::format("{}[{},{}]", faults.empty() ? "" : ",", static_cast<std::uint32_t>(f), json_string(fault_name(f)));
   }
   const std::pair<Limit, std::string_view> limit_names[] = {
       {Limit::kRateLimited, "rate-limited"}, {Limit::kClamped, "clamped"},       {Limit::kThermal, "thermal derating"},
       {Limit::kPassivity, "passivity damping"}, {Limit::kSoftStart, "soft start"}, {Limit::kEngaging, "engaging"}};
   std::string limits;
   for (const auto& [bit, name] : limit_names) {
-    limits += fmt::format("{}[{},{}]", limits.empty() ? "" : ",", static_cast<unsigned>(bit), json_quote(name));
+    limits += fmt::format("{}[{},{}]", limits.empty() ? "" : ",", static_cast<unsigned>(bit), json_string(name));
   }
   std::string states;
   for (int s = 0; s <= static_cast<int>(LoopState::kFaulted); ++s) {
@@ -96,7 +77,7 @@ std::string make_hello(const HelloInfo& info) {
   return fmt::format(
       R"({{"type":"hello","protocol":1,"source":{},"title":{},"rate_hz":{},"live":{},"pacing":{},"columns":[{}],)"
       R"("batch_header":4,"scene":{},"workspace":{},"faults":[{}],"limits":[{}],"states":[{}],"latched_mask":{}}})",
-      json_quote(info.source), json_quote(info.title), number(info.rate_hz), info.live, json_quote(info.pacing), columns,
+      json_string(info.source), json_string(info.title), number(info.rate_hz), info.live, json_string(info.pacing), columns,
       info.scene != nullptr ? scene_json(*info.scene) : std::string("null"), workspace, faults, limits, states,
       kLatchedFaults);
 }

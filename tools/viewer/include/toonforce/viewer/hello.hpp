@@ -24,7 +24,4 @@ struct HelloInfo {
 
 std::string make_hello(const HelloInfo& info);
 
-/// A JSON string literal (quotes and escapes included).
-std::string json_quote(std::string_view text);
-
 }  // namespace toonforce::viewer
