@@ -144,6 +144,17 @@ TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {
   EXPECT_GT(report->ticks, 0);
 }
 
+// The advice for a refused SCHED_FIFO names the file the install puts in place
+// (cmake/ToonforceInstallHost.cmake.in: limits.d/toonforce.conf from tools/deploy), the
+// priority asked for, and the way out without real-time scheduling.
+TEST(RealtimeRunner, PermissionAdviceNamesTheInstalledLimitsFileAndThePriority) {
+  const std::string advice = toonforce::realtime_permission_advice(97);
+  EXPECT_NE(advice.find("/etc/security/limits.d/toonforce.conf"), std::string::npos) << advice;
+  EXPECT_NE(advice.find("tools/deploy/toonforce-limits.conf"), std::string::npos) << advice;
+  EXPECT_NE(advice.find("rtprio   97"), std::string::npos) << advice;
+  EXPECT_NE(advice.find("--allow-non-rt"), std::string::npos) << advice;
+}
+
 TEST(RealtimeRunner, RejectsRatesOutsideItsRange) {
   CountingTask task;
   std::atomic<int> stop{0};

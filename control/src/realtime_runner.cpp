@@ -110,7 +110,8 @@ std::string realtime_permission_advice(int priority) {
   return fmt::format(
       "SCHED_FIFO priority {} was refused: this user may not use real-time scheduling.\n"
       "  To grant it, either\n"
-      "    - allow real-time priorities for your user or group in /etc/security/limits.d/99-realtime.conf:\n"
+      "    - allow real-time priorities for the group realtime in /etc/security/limits.d/toonforce.conf\n"
+      "      (the toonforce package installs it; from a source tree: tools/deploy/toonforce-limits.conf):\n"
       "        @realtime  -  rtprio   {}\n"
       "        @realtime  -  memlock  unlimited\n"
       "      (sudo groupadd -f realtime && sudo usermod -aG realtime $USER, then log in again), or\n"
