@@ -12,15 +12,7 @@
 #include <string>
 #include <vector>
 
-// Boost 1.74's HTTP parser trips g++ 12's -Wmaybe-uninitialized once inlined with
-// optimisation (a false positive inside Beast: boost::optional<std::size_t> content_length).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#include <boost/asio.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
-#include <boost/beast/websocket.hpp>
-#pragma GCC diagnostic pop
+#include "toonforce/viewer/beast.hpp"
 
 #include "alloc_counter.hpp"
 #include "toonforce/config/scene_file.hpp"

@@ -8,8 +8,9 @@
 // newer batches replace older queued ones, so a slow page costs drops, never memory or a
 // blocked producer. CivetWeb's websocket writes block the calling thread on a slow reader and
 // its file serving is path based; libwebsockets would do, through a C callback state machine
-// with its own logging and event loop to configure. Beast is header-only (this file is the only
-// one that includes it) and Boost is on every Debian machine that builds C++.
+// with its own logging and event loop to configure. Beast is header-only
+// (toonforce/viewer/beast.hpp includes it, for this file and its tests) and Boost is on every
+// Debian machine that builds C++.
 #include "toonforce/viewer/viewer_server.hpp"
 
 #include <algorithm>
@@ -20,18 +21,10 @@
 #include <set>
 #include <thread>
 
-// Boost 1.74's HTTP parser trips g++ 12's -Wmaybe-uninitialized once inlined with
-// optimisation (a false positive inside Beast: boost::optional<std::size_t> content_length).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#include <boost/asio.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
-#include <boost/beast/websocket.hpp>
-#pragma GCC diagnostic pop
 #include <fmt/format.h>
 
 #include "toonforce/viewer/assets.hpp"
+#include "toonforce/viewer/beast.hpp"
 
 namespace toonforce::viewer {
 
