@@ -240,6 +240,39 @@ TEST(FalconFirmwareLoad, AcceptsTheHandshakeWithALeadingZero) {
   EXPECT_EQ(emu.state(), BootState::kRunning);
 }
 
+TEST(FalconFirmwareLoad, AStrayByteAfterTheAutobaudEchoIsNotAFailure) {
+  // The 'A' came back, so the boot loader has locked its baud rate; a byte after it answers
+  // nothing the host sent (falcon.md §2.1 step 4) and must neither fail the try nor be taken
+  // for the echo of the image's first byte.
+  const FirmwareImage image = validated(make_boot_image({64}));
+  EmulatorOptions o;
+  o.autobaud_trailing_bytes = {0x7F};
+  FalconEmulator emu(o);
+  EmulatorTransport t(emu);
+  auto report = load_firmware(t, image);
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report.value().attempts, 1) << report.value().failures.front();
+  EXPECT_EQ(emu.state(), BootState::kRunning);
+  EXPECT_EQ(emu.loaded_image(), image.bytes);
+}
+
+TEST(FalconFirmwareLoad, AWrongAutobaudAnswerNamesTheBytesReceived) {
+  const FirmwareImage image = validated(make_boot_image({64}));
+  EmulatorOptions o;
+  o.autobaud_echo = 0x42;
+  o.autobaud_trailing_bytes = {0x41};  // an 'A' after a wrong byte is still not the echo
+  FalconEmulator emu(o);
+  EmulatorTransport t(emu);
+  FirmwareLoadOptions options;
+  options.attempts = 1;
+  auto report = load_firmware(t, image, options);
+  ASSERT_FALSE(report);
+  EXPECT_NE(report.error().find("answered the autobaud 'A' with 0x42 0x41 instead of echoing 0x41"),
+            std::string::npos)
+      << report.error();
+  EXPECT_EQ(report.error().find("0x41 instead of 0x41"), std::string::npos) << report.error();
+}
+
 TEST(FalconFirmwareLoad, RetriesTheHandshakeWithinOneAttempt) {
   const FirmwareImage image = validated(make_boot_image({64}));
   EmulatorOptions o;

@@ -323,8 +323,10 @@ class Loader {
            std::to_string(o_.handshake_tries) + " tries";
   }
 
-  // falcon.md §2.1 step 4: DTR low, ~140 kbaud, 'A' echoed (the C28x SCI autobaud). An FTD2XX
-  // comment reports "0x13 0x41", so a leading 0x13 is tolerated.
+  // falcon.md §2.1 step 4: DTR low, ~140 kbaud, 'A' echoed (the C28x SCI autobaud). The echo is
+  // the first byte of the answer, after one leading 0x13 that an FTD2XX comment reports ("0x13
+  // 0x41"). Bytes after the echo answer nothing we sent (nothing else is on the line yet): they
+  // are dropped with this read, so they can never be taken for the image's echo.
   std::string autobaud() {
     if (auto s = t_.control(ftdi::kModemControl, ftdi::kDtrLow); s != TransportStatus::kOk) return usb("DTR low", s);
     if (auto s = t_.control(ftdi::kBaudDivisor, ftdi::kDivisor140k); s != TransportStatus::kOk) {
@@ -332,21 +334,27 @@ class Loader {
     }
     // Late handshake answers must not be mistaken for the echo.
     if (auto s = t_.control(ftdi::kReset, ftdi::kPurgeRx); s != TransportStatus::kOk) return usb("purging", s);
-    static constexpr std::array<std::uint8_t, 1> kAutobaud{0x41};
+    static constexpr std::uint8_t kEcho = 0x41;
+    static constexpr std::uint8_t kLeading = 0x13;
+    static constexpr std::array<std::uint8_t, 1> kAutobaud{kEcho};
     if (auto s = write_all(kAutobaud); s != TransportStatus::kOk) return usb("sending the autobaud 'A'", s);
     std::array<std::uint8_t, 8> got{};
     std::size_t have = 0;
-    for (int r = 0; r < o_.echo_idle_reads && have < 2; ++r) {
+    for (int r = 0; r < o_.echo_idle_reads && have < got.size(); ++r) {
       std::string error;
       const auto n = read_payload(std::span(got).subspan(have, got.size() - have), error);
       if (n < 0) return error;
       have += static_cast<std::size_t>(n);
-      if (have == 1 && got[0] == 0x41) return {};
-      if (have >= 2 && got[0] == 0x13 && got[1] == 0x41) return {};
-      if (have >= 1 && got[0] != 0x13) break;
+      const std::size_t echo_at = have > 0 && got[0] == kLeading ? 1 : 0;
+      if (have > echo_at) {
+        if (got[echo_at] == kEcho) return {};
+        break;
+      }
     }
     if (have == 0) return "the boot loader did not echo the autobaud character 'A'";
-    return "the boot loader answered the autobaud 'A' with " + hex_word(got[0], 2) + " instead of 0x41";
+    std::string answer;
+    for (std::size_t i = 0; i < have; ++i) answer += (i > 0 ? " " : "") + hex_word(got[i], 2);
+    return "the boot loader answered the autobaud 'A' with " + answer + " instead of echoing 0x41 (alone or after 0x13)";
   }
 
   // falcon.md §2.1 step 5: 62-byte chunks, each echoed byte for byte before the next.

@@ -125,7 +125,9 @@ void FalconEmulator::boot_rom_byte(std::uint8_t b) {
   // The autobaud character: DTR low at ~140 kbaud (falcon.md §2.1 step 4).
   if (state_ == BootState::kHandshaken && ftdi_.divisor == ftdi::kDivisor140k && !ftdi_.dtr) {
     if (b == 0x41) {
-      send(std::array<std::uint8_t, 1>{0x41});
+      send(std::array<std::uint8_t, 1>{options_.autobaud_echo});
+      send(options_.autobaud_trailing_bytes);
+      if (options_.autobaud_echo != 0x41) return;  // not locked: it waits for another 'A'
       state_ = BootState::kLoading;
       image_.clear();
       next_block_word_ = kBootHeaderWords;

@@ -34,6 +34,11 @@ struct EmulatorOptions {
   bool firmware_loaded = false;         ///< start in kRunning (firmware survives reconnects)
   int handshake_failures = 0;           ///< ignore this many handshakes after each reset
   bool handshake_leading_zero = false;  ///< answer "\0\nD,\r" (libnifalcon's "Apple" form)
+  /// What the boot ROM answers the autobaud 'A' with: 0x41 once it has locked the baud rate.
+  std::uint8_t autobaud_echo = 0x41;
+  /// Bytes the boot ROM sends right after that answer, in the same packet (line noise): they
+  /// answer nothing the host sent.
+  std::vector<std::uint8_t> autobaud_trailing_bytes;
   /// When non-empty, an image whose SHA-256 is not listed is "rejected" (the DSP never runs).
   std::vector<Sha256> accepted_images;
   /// Encoders count from their power-on state until homed (falcon.md §4): this offset is
