@@ -35,7 +35,9 @@ class FakeHd {
     bind("tf_fake_hd_set_version", set_version);
     bind("tf_fake_hd_set_limits", set_limits);
     bind("tf_fake_hd_set_calibration", set_calibration);
+    bind("tf_fake_hd_set_calibration_update_error", set_calibration_update_error);
     bind("tf_fake_hd_set_inkwell", set_inkwell);
+    bind("tf_fake_hd_set_model", set_model);
     bind("tf_fake_hd_set_buttons", set_buttons);
     bind("tf_fake_hd_inject_error", inject_error);
     bind("tf_fake_hd_inject_overrun", inject_overrun);
@@ -67,7 +69,9 @@ class FakeHd {
   void (*set_version)(const char*) = nullptr;
   void (*set_limits)(double, double, double, double) = nullptr;
   void (*set_calibration)(unsigned int, int) = nullptr;
+  void (*set_calibration_update_error)(unsigned int) = nullptr;
   void (*set_inkwell)(int) = nullptr;
+  void (*set_model)(const char*) = nullptr;
   void (*set_buttons)(int) = nullptr;
   void (*inject_error)(unsigned int, int, int, unsigned long) = nullptr;
   void (*inject_overrun)(unsigned int) = nullptr;

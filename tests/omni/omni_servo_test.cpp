@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
@@ -150,40 +151,96 @@ TEST_F(OmniWallTest, TheLimitIsTheOneTheDeviceReportsNotAFixedNumber) {
   EXPECT_NEAR(commanded_up_n(), 2.0, 1e-9);
 }
 
-TEST_F(OmniWallTest, NoForceUntilCalibratedThenTheWallRampsIn) {
+TEST_F(OmniWallTest, StartedOutOfTheInkwellTheLoopWaitsAndSaysWhatToDoThenTheWallRampsIn) {
+  // The stylus is out of the inkwell at start: the fake, as the real library, refuses an update
+  // while manual input is needed. The loop must neither ask for one nor stop: it waits, forces
+  // off, and tells the person what to do (OpenHaptics' calibration example, the ROS node).
   fake.set_calibration(hd::kCalibrationNeedsManualInput, hd::kCalibrationInkwell);
   pin_scene({0.0, 0.0, -0.002});  // 2 mm into the wall: 3 N once forces are on
   OmniDevice& d = start_wall();
   fake.step(1000);
   TfFakeHdStats s = fake.stats();
+  EXPECT_TRUE(d.running()) << d.last_error();
+  EXPECT_EQ(s.calibration_updates, 0U) << "no update while manual input is needed";
+  EXPECT_EQ(s.calibration_update_errors, 0U);
   EXPECT_EQ(s.nonzero_uncalibrated_frames, 0U);
   EXPECT_EQ(s.enabled_uncalibrated_frames, 0U);  // output disabled, not just zero commanded
   EXPECT_EQ(s.max_force_norm_n, 0.0);
+  ASSERT_EQ(loop.rows.size(), 1000U);
   for (const WallLoop::Row& row : loop.rows) EXPECT_EQ(row.status, DeviceStatus::kNotReady);
   EXPECT_EQ(d.status().phase, OmniPhase::kCalibrating);
   EXPECT_THAT(d.last_error(), HasSubstr("put the stylus in the inkwell"));
 
-  fake.set_inkwell(1);  // the user docks the stylus: the next check updates the calibration
-  fake.step(100);
+  fake.set_inkwell(1);  // the person docks the stylus: the device now needs an update
+  fake.step(100);       // one check period: the loop updates, outside the frame
   s = fake.stats();
   EXPECT_EQ(s.calibration, hd::kCalibrationOk);
-  EXPECT_GE(s.calibration_updates, 1U);
+  EXPECT_EQ(s.calibration_updates, 1U);
+  EXPECT_EQ(s.calibration_updates_in_frame, 0U) << "hdUpdateCalibration belongs before hdBeginFrame";
   EXPECT_EQ(s.force_output_enabled, 1);
-  fake.step(1000);  // enable ramp (0.5 s), then the wall at full strength
+  fake.set_inkwell(0);  // and takes it out again to use it
+  fake.step(1000);      // enable ramp (0.5 s), then the wall at full strength
   EXPECT_NEAR(commanded_up_n(), kWallStiffness * 0.002, kWallStiffness * kEncoderTolM);
   EXPECT_EQ(d.status().phase, OmniPhase::kRunning);
   EXPECT_EQ(fake.stats().nonzero_uncalibrated_frames, 0U);
+  EXPECT_TRUE(d.running());
 }
 
-TEST_F(OmniWallTest, AnAutoCalibratingDeviceIsUpdatedByTheLoop) {
+TEST_F(OmniWallTest, AnAutoCalibratingDeviceIsUpdatedByTheLoopOutsideTheFrame) {
   fake.set_calibration(hd::kCalibrationNeedsUpdate, hd::kCalibrationAuto);
   pin_scene({0.0, 0.0, -0.002});
   OmniDevice& d = start_wall();
   fake.step(1);
   EXPECT_EQ(fake.stats().calibration_updates, 1U);
+  EXPECT_EQ(fake.stats().calibration_updates_in_frame, 0U);
   EXPECT_EQ(fake.stats().calibration, hd::kCalibrationOk);
   fake.step(1000);
   EXPECT_EQ(d.status().phase, OmniPhase::kRunning);
+  EXPECT_NEAR(commanded_up_n(), 3.0, kWallStiffness * kEncoderTolM);
+}
+
+TEST_F(OmniWallTest, AnAutoCalibratingDeviceWaitsForTheArmToSweepItsWorkspace) {
+  fake.set_calibration(hd::kCalibrationNeedsManualInput, hd::kCalibrationAuto);
+  pin_scene({0.0, 0.0, 0.01});  // above the wall: no force either way
+  OmniDevice& d = start_wall();
+  fake.step(500);
+  EXPECT_TRUE(d.running());
+  EXPECT_EQ(d.status().phase, OmniPhase::kCalibrating);
+  EXPECT_THAT(d.last_error(), HasSubstr("move the arm slowly through its whole workspace"));
+  EXPECT_EQ(fake.stats().calibration_updates, 0U);
+  // The person sweeps the arm: left, right, up, down, in, out (device frame, mm).
+  for (const auto& p : {std::array<double, 3>{-70, 20, 0}, {70, 20, 0}, {0, 60, -40}, {0, -60, 40},
+                        {0, 20, -60}, {0, 20, 60}, {0, 5, 5}}) {
+    fake.pin_hand(p[0], p[1], p[2]);
+    fake.step(20);
+  }
+  fake.step(200);
+  EXPECT_EQ(fake.stats().calibration, hd::kCalibrationOk);
+  EXPECT_EQ(fake.stats().calibration_updates, 1U);
+  EXPECT_EQ(fake.stats().calibration_update_errors, 0U);
+  EXPECT_NE(d.status().phase, OmniPhase::kCalibrating);
+  EXPECT_TRUE(d.running());
+}
+
+TEST_F(OmniWallTest, AnErrorFromTheCalibrationUpdateMeansStillCalibratingNotTheEnd) {
+  // Whatever the library answers an update with, here a device fault, the run goes on with
+  // forces off and the next check tries again (sawSensablePhantom: "calibration failed").
+  fake.set_calibration(hd::kCalibrationNeedsUpdate, hd::kCalibrationInkwell);
+  fake.inject_error(hd::kDeviceFault, -7, TF_FAKE_HD_AT_CALIBRATION_UPDATE, 1);
+  pin_scene({0.0, 0.0, -0.002});
+  OmniDevice& d = start_wall();
+  fake.step(50);
+  EXPECT_TRUE(d.running()) << d.last_error();
+  EXPECT_EQ(fake.stats().calibration_updates, 1U);
+  EXPECT_EQ(d.status().phase, OmniPhase::kCalibrating);
+  EXPECT_EQ(d.status().calibration_errors, 1U);
+  EXPECT_THAT(d.last_error(), HasSubstr("answered HD_DEVICE_FAULT: still calibrating"));
+  EXPECT_EQ(fake.stats().max_force_norm_n, 0.0);
+  fake.step(100);  // the next check updates without an error
+  EXPECT_EQ(fake.stats().calibration_updates, 2U);
+  EXPECT_EQ(fake.stats().calibration, hd::kCalibrationOk);
+  fake.step(1000);
+  EXPECT_TRUE(d.running());
   EXPECT_NEAR(commanded_up_n(), 3.0, kWallStiffness * kEncoderTolM);
 }
 
@@ -203,8 +260,12 @@ TEST_F(OmniWallTest, LosingCalibrationTurnsForcesOffUntilItIsBack) {
   EXPECT_LE(lost_frames, 100U);  // at most until the check noticed
   fake.step(500);
   EXPECT_EQ(fake.stats().nonzero_uncalibrated_frames, lost_frames);
-  fake.set_calibration(hd::kCalibrationOk, hd::kCalibrationAuto);
+  // The device has learnt again (an auto-calibrating device, as the arm moved): it needs an
+  // update, which the loop makes.
+  fake.set_calibration(hd::kCalibrationNeedsUpdate, hd::kCalibrationAuto);
   fake.step(1000);
+  EXPECT_EQ(fake.stats().calibration, hd::kCalibrationOk);
+  EXPECT_EQ(fake.stats().calibration_updates, 1U);
   EXPECT_NEAR(commanded_up_n(), 3.0, kWallStiffness * kEncoderTolM);
 }
 

@@ -337,6 +337,7 @@ Result<OmniStarted> OmniDevice::start(ClockedTickFn tick, void* context) {
   last_internal_.store(0);
   last_code_tick_.store(0);
   overrun_run_.store(0);
+  last_calibration_error_.store(0);
   callback_done_.store(false);
   running_.store(true, std::memory_order_release);
 
@@ -454,18 +455,30 @@ void OmniDevice::hold_force(std::int64_t ticks) noexcept {
 }
 
 void OmniDevice::check_calibration() noexcept {
+  // Outside the frame, before hdBeginFrame, and an update only on NEEDS_UPDATE: what
+  // OpenHaptics' calibration example (its UpdateCalibrationCallback) and the ROS Omni node's
+  // servo callback do. On NEEDS_MANUAL_INPUT an update has nothing to work from (the real
+  // library answers it with an error): the person must act first (dock the stylus, sweep the
+  // arm), which last_error() says. An error from the check or the update means "still
+  // calibrating" (sawSensablePhantom reports it as "calibration failed" and carries on), never
+  // the end of the run: forces stay off and the next check tries again. Errors from elsewhere
+  // were drained before this call, so the ones popped here are calibration's own.
   const hd::HdFunctions& f = *hd_;
   hd::HDenum state = f.hdCheckCalibration();
-  // Auto and inkwell devices update in the servo thread, as sawSensablePhantom does
-  // (mtsSensableHD.cpp), then check again; an encoder reset only makes sense in the reset
-  // pose, so it happens at open.
+  bool failed = drain_calibration_errors();
   const int style = limits_.calibration_style;
-  if (state != hd::kCalibrationOk && (style == hd::kCalibrationAuto || style == hd::kCalibrationInkwell)) {
+  // An encoder reset only makes sense in the reset pose, so it happens at open, not here.
+  if (!failed && state == hd::kCalibrationNeedsUpdate &&
+      (style == hd::kCalibrationAuto || style == hd::kCalibrationInkwell)) {
     f.hdUpdateCalibration(static_cast<hd::HDenum>(style));
-    state = f.hdCheckCalibration();
+    failed = drain_calibration_errors();
+    if (!failed) {
+      state = f.hdCheckCalibration();
+      failed = drain_calibration_errors();
+    }
   }
   published_.calibration = state;
-  if (state != hd::kCalibrationOk) {
+  if (failed || state != hd::kCalibrationOk) {
     calibrated_ = false;
     return;
   }
@@ -474,6 +487,19 @@ void OmniDevice::check_calibration() noexcept {
     ramp_start_tick_ = tick_;
     ramp_ticks_ = ticks_for(options_.enable_ramp_s, period_s_);
   }
+}
+
+bool OmniDevice::drain_calibration_errors() noexcept {
+  bool any = false;
+  for (int i = 0; i < kMaxErrorsPerDrain; ++i) {
+    const hd::HDErrorInfo e = hd_->hdGetError();
+    if (e.errorCode == hd::kSuccess) break;
+    any = true;
+    ++published_.calibration_errors;
+    published_.last_calibration_error = e.errorCode;
+    last_calibration_error_.store(e.errorCode, std::memory_order_relaxed);
+  }
+  return any;
 }
 
 void OmniDevice::read_temperature() noexcept {
@@ -512,6 +538,13 @@ double OmniDevice::force_scale() const noexcept {
 hd::HDCallbackCode OmniDevice::frame() noexcept {
   const hd::HdFunctions& f = *hd_;
   f.hdMakeCurrentDevice(handle_);
+  drain_errors();  // anything raised between frames is the loop's business, not calibration's
+  // Calibration before the frame (see check_calibration). Periodic checks go by tick numbers,
+  // so skipped periods do not skip a check; tick_ is the previous frame's here.
+  if (tick_ >= next_calibration_check_) {
+    check_calibration();
+    next_calibration_check_ = tick_ + calibration_check_ticks_;
+  }
   f.hdBeginFrame(handle_);
   in_frame_ = true;
   const bool stop_requested = stop_requested_.load(std::memory_order_acquire);
@@ -551,10 +584,6 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
   if (temperature_readable_ && tick_ >= next_temperature_read_) {
     read_temperature();
     next_temperature_read_ = tick_ + temperature_ticks_;
-  }
-  if (tick_ >= next_calibration_check_) {
-    check_calibration();
-    next_calibration_check_ = tick_ + calibration_check_ticks_;
   }
   drain_errors();
 
@@ -710,11 +739,24 @@ std::string OmniDevice::last_error() const {
   }
   const OmniStatus s = status_.load();
   if (s.phase == OmniPhase::kCalibrating) {
+    const auto refused = last_calibration_error_.load(std::memory_order_relaxed);
+    const std::string update =
+        refused != 0 ? fmt::format(" (the last calibration check or update answered {}: still calibrating)",
+                                   hd::error_name(refused))
+                     : std::string();
     if (s.calibration == hd::kCalibrationNeedsManualInput) {
-      return "the device needs calibrating and forces stay off until it is: put the stylus in the "
-             "inkwell (for an auto-calibrating device, move the arm through its workspace)";
+      const int style = limits_.calibration_style;
+      const char* act =
+          style == hd::kCalibrationAuto
+              ? "move the arm slowly through its whole workspace, to its limits in every direction"
+          : style == hd::kCalibrationEncoderReset
+              ? "hold the arm in its reset pose (all links at right angles) and open the device again"
+              : "put the stylus in the inkwell";
+      return fmt::format("the device needs calibrating and forces stay off until it is: {}; it calibrates "
+                         "by itself once it has seen that{}",
+                         act, update);
     }
-    return "calibration is being checked or updated; forces stay off until hdCheckCalibration says OK";
+    return "calibration is being checked or updated; forces stay off until hdCheckCalibration says OK" + update;
   }
   if (code != 0 && (s.phase == OmniPhase::kHeld || s.phase == OmniPhase::kRamping)) return hd_error();
   if (code != 0) return "last: " + hd_error();

@@ -115,7 +115,7 @@ enum : unsigned int {
   HD_CALIBRATION_NEEDS_MANUAL_INPUT = 0x5002,
 };
 constexpr int HD_CALIBRATION_ENCODER_RESET = 1 << 0;
-// HD_CALIBRATION_AUTO (1 << 1) learns by itself as the arm moves: nothing to simulate here.
+constexpr int HD_CALIBRATION_AUTO = 1 << 1;  // learns as the arm moves through its workspace
 constexpr int HD_CALIBRATION_INKWELL = 1 << 2;
 constexpr HHD HD_INVALID_HANDLE = 0xFFFFFFFFU;
 constexpr HDCallbackCode HD_CALLBACK_DONE = 0;
@@ -129,6 +129,7 @@ constexpr double kMass = 0.15;           // [kg] apparent inertia plus the finge
 constexpr double kDeviceDamping = 0.3;   // [N s/m] back-drive friction, viscous
 constexpr double kUncalibratedOffsetMm = 20.0;  // an uncalibrated device reports garbage
 constexpr double kVelocityCutoffHz = 100.0;     // the library's own velocity smoothing
+constexpr double kAutoCalibrationSweepRad = 0.5; // each base joint's sweep that teaches auto calibration
 constexpr int kMaxCallbacks = 32;
 constexpr int kMaxSyncJobs = 16;
 constexpr std::size_t kErrorStackDepth = 64;
@@ -204,7 +205,12 @@ struct Fake {
   double ramping_rate_n_per_s = 10.0;
   unsigned int calibration = HD_CALIBRATION_OK;
   int calibration_styles = HD_CALIBRATION_INKWELL;
+  unsigned int calibration_update_error = HD_INVALID_OPERATION;
+  std::string model = "Touch (toonforce fake libHD)";
   bool inkwell = false;
+  V3 sweep_min{};  // joint angles seen while auto calibration waits for the arm to move
+  V3 sweep_max{};
+  bool sweeping = false;
   int buttons = 0;
   bool temperature_supported = true;
   double temperature_override = -1.0;
@@ -277,6 +283,9 @@ struct Fake {
   unsigned long errors_raised = 0;
   unsigned long calibration_checks = 0;
   unsigned long calibration_updates = 0;
+  unsigned long calibration_update_errors = 0;
+  unsigned long calibration_updates_in_frame = 0;
+  unsigned long disable_device_calls = 0;
 };
 
 Fake& fake() {
@@ -337,6 +346,38 @@ double motor_temperature(const Fake& f) {
   return f.temperature_override >= 0.0 ? f.temperature_override : f.temperature;
 }
 
+/// What a person's actions do to a device that waits for manual input: docking the stylus in
+/// the inkwell, or sweeping the arm through its workspace (auto style), is what the device
+/// needs before an update can succeed.
+void follow_person(Fake& f) {
+  if (f.calibration != HD_CALIBRATION_NEEDS_MANUAL_INPUT) {
+    f.sweeping = false;
+    return;
+  }
+  if ((f.calibration_styles & HD_CALIBRATION_INKWELL) != 0 && f.inkwell) {
+    f.calibration = HD_CALIBRATION_NEEDS_UPDATE;
+    return;
+  }
+  if ((f.calibration_styles & HD_CALIBRATION_AUTO) != 0) {
+    const V3 q = inverse(base_from_device(f.position));
+    if (!f.sweeping) {
+      f.sweep_min = q;
+      f.sweep_max = q;
+      f.sweeping = true;
+    }
+    bool swept = true;
+    for (std::size_t i = 0; i < 3; ++i) {
+      f.sweep_min[i] = std::min(f.sweep_min[i], q[i]);
+      f.sweep_max[i] = std::max(f.sweep_max[i], q[i]);
+      swept = swept && f.sweep_max[i] - f.sweep_min[i] >= kAutoCalibrationSweepRad;
+    }
+    if (swept) {
+      f.calibration = HD_CALIBRATION_NEEDS_UPDATE;
+      f.sweeping = false;
+    }
+  }
+}
+
 /// Reads the device as the encoders see it: quantised joint angles through the kinematics.
 void latch_reading(Fake& f) {
   const V3 q = inverse(base_from_device(f.position));
@@ -388,6 +429,7 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
   f.pending_overrun = 0;
   f.tick_dt_s = periods / f.rate_hz;
   simulate(f, f.tick_dt_s);
+  follow_person(f);
   f.sim_time_s += f.tick_dt_s;
   ++f.ticks;
   f.frames_this_tick = 0;
@@ -505,6 +547,7 @@ TF_EXPORT HHD hdInitDevice(HDstring config_name) {
 TF_EXPORT void hdDisableDevice(HHD device) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  ++f.disable_device_calls;
   if (!f.initialized || device != f.handle) {
     violation(f, HD_BAD_HANDLE, "hdDisableDevice");
     return;
@@ -753,7 +796,7 @@ TF_EXPORT HDstring hdGetString(HDenum name) {
   std::lock_guard lock(f.mu);
   switch (name) {
     case HD_VERSION: return f.version.c_str();
-    case HD_DEVICE_MODEL_TYPE: return "Touch (toonforce fake libHD)";
+    case HD_DEVICE_MODEL_TYPE: return f.model.c_str();
     case HD_DEVICE_DRIVER_VERSION: return "0.0-fake";
     case HD_DEVICE_VENDOR: return "toonforce test double";
     case HD_DEVICE_SERIAL_NUMBER: return "FAKE-0001";
@@ -784,6 +827,7 @@ TF_EXPORT HDenum hdCheckCalibration() {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   ++f.calibration_checks;
+  follow_person(f);  // a person who docked the stylus before the scheduler ran is seen too
   return f.calibration;
 }
 
@@ -791,13 +835,29 @@ TF_EXPORT void hdUpdateCalibration(HDenum style) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   ++f.calibration_updates;
+  if (f.in_frame) ++f.calibration_updates_in_frame;
   if ((static_cast<int>(style) & f.calibration_styles) == 0 || (style & (style - 1)) != 0) {
     return violation(f, HD_INVALID_VALUE, "hdUpdateCalibration");
   }
-  // What each style can do by itself (omni.md §2.2 item 2).
-  if (f.calibration == HD_CALIBRATION_NEEDS_UPDATE ||
-      (f.calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT &&
-       ((style == HD_CALIBRATION_INKWELL && f.inkwell) || style == HD_CALIBRATION_ENCODER_RESET))) {
+  for (Injection& i : f.injections) {
+    if (i.where == TF_FAKE_HD_AT_CALIBRATION_UPDATE && i.remaining > 0) {
+      --i.remaining;
+      ++f.calibration_update_errors;
+      push_error(f, i.code, i.internal);
+      return;
+    }
+  }
+  follow_person(f);
+  const bool reset_pose = style == HD_CALIBRATION_ENCODER_RESET;
+  if (f.calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT && !reset_pose) {
+    // Nothing to update from yet: the device refuses (the vendor's example and the ROS node
+    // update only on NEEDS_UPDATE; sawSensablePhantom reports such an error as "calibration
+    // failed" and carries on).
+    ++f.calibration_update_errors;
+    push_error(f, f.calibration_update_error);
+    return;
+  }
+  if (f.calibration != HD_CALIBRATION_OK) {
     f.calibration = HD_CALIBRATION_OK;
     // The offset vanishes at once; the library's velocity filter starts afresh rather than
     // reporting the jump as motion.
@@ -923,7 +983,10 @@ TF_EXPORT void tf_fake_hd_reset(void) {
   f.ramping_rate_n_per_s = 10.0;
   f.calibration = HD_CALIBRATION_OK;
   f.calibration_styles = HD_CALIBRATION_INKWELL;
+  f.calibration_update_error = HD_INVALID_OPERATION;
+  f.model = "Touch (toonforce fake libHD)";
   f.inkwell = false;
+  f.sweeping = false;
   f.buttons = 0;
   f.temperature_supported = true;
   f.temperature_override = -1.0;
@@ -966,6 +1029,9 @@ TF_EXPORT void tf_fake_hd_reset(void) {
   f.errors_raised = 0;
   f.calibration_checks = 0;
   f.calibration_updates = 0;
+  f.calibration_update_errors = 0;
+  f.calibration_updates_in_frame = 0;
+  f.disable_device_calls = 0;
 }
 
 TF_EXPORT void tf_fake_hd_set_manual(int on) {
@@ -1003,8 +1069,27 @@ TF_EXPORT void tf_fake_hd_set_limits(double max_force_n, double max_continuous_f
 TF_EXPORT void tf_fake_hd_set_calibration(unsigned int state, int styles) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  // The reported position jumps by the uncalibrated offset when the state crosses OK: the
+  // library's velocity filter starts afresh, as after hdUpdateCalibration.
+  if ((state == HD_CALIBRATION_OK) != (f.calibration == HD_CALIBRATION_OK)) {
+    f.have_reported = false;
+    f.reported_velocity_mm = {};
+  }
   f.calibration = state;
   f.calibration_styles = styles;
+  f.sweeping = false;
+}
+
+TF_EXPORT void tf_fake_hd_set_calibration_update_error(unsigned int code) {
+  Fake& f = fake();
+  std::lock_guard lock(f.mu);
+  f.calibration_update_error = code;
+}
+
+TF_EXPORT void tf_fake_hd_set_model(const char* model) {
+  Fake& f = fake();
+  std::lock_guard lock(f.mu);
+  f.model = model != nullptr ? model : "";
 }
 
 TF_EXPORT void tf_fake_hd_set_inkwell(int stylus_in_inkwell) {
@@ -1099,6 +1184,9 @@ TF_EXPORT void tf_fake_hd_get_stats(TfFakeHdStats* s) {
   s->init_calls = f.init_calls;
   s->calibration_checks = f.calibration_checks;
   s->calibration_updates = f.calibration_updates;
+  s->calibration_update_errors = f.calibration_update_errors;
+  s->calibration_updates_in_frame = f.calibration_updates_in_frame;
+  s->disable_device_calls = f.disable_device_calls;
   s->calibration = f.calibration;
   s->motor_temperature = motor_temperature(f);
   s->scheduler_rate_hz = f.rate_hz;

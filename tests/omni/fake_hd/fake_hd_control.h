@@ -18,6 +18,7 @@ extern "C" {
 #define TF_FAKE_HD_AT_END 1   /* inside hdEndFrame */
 #define TF_FAKE_HD_AT_INIT 2  /* hdInitDevice fails with it */
 #define TF_FAKE_HD_AT_START 3 /* hdStartScheduler fails with it */
+#define TF_FAKE_HD_AT_CALIBRATION_UPDATE 4 /* hdUpdateCalibration fails with it */
 
 /* A call that broke a documented rule (counted in protocol_violations). */
 #define TF_FAKE_HD_WRONG_THREAD 0xFFFFu
@@ -42,6 +43,9 @@ typedef struct TfFakeHdStats {
   unsigned long init_calls;
   unsigned long calibration_checks;
   unsigned long calibration_updates;
+  unsigned long calibration_update_errors;    /* updates the device refused with an error */
+  unsigned long calibration_updates_in_frame; /* updates between hdBeginFrame and hdEndFrame */
+  unsigned long disable_device_calls;         /* hdDisableDevice calls since reset */
   unsigned int calibration;          /* HD_CALIBRATION_OK / NEEDS_UPDATE / NEEDS_MANUAL_INPUT */
   double position_mm[3];             /* true HIP position [mm, device frame] */
   double reported_position_mm[3];    /* what HD_CURRENT_POSITION said at the last hdBeginFrame */
@@ -63,8 +67,23 @@ unsigned long tf_fake_hd_step(unsigned long ticks);
 void tf_fake_hd_set_version(const char* version); /* what hdGetString(HD_VERSION) answers */
 void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n,
                            double stiffness_n_per_mm, double damping_n_s_per_mm);
+/* The calibration state and the styles the device supports. The state then changes as a
+ * person's actions change it (what OpenHaptics' calibration example and the ROS node expect):
+ *   NEEDS_MANUAL_INPUT -> NEEDS_UPDATE when the stylus is docked in the inkwell (inkwell style)
+ *                         or the arm has swept its workspace (auto style: each base joint
+ *                         through 0.5 rad);
+ *   NEEDS_UPDATE -> OK on hdUpdateCalibration with a supported style;
+ *   NEEDS_MANUAL_INPUT -> OK on hdUpdateCalibration(ENCODER_RESET) (the arm is taken to be in
+ *                         its reset pose).
+ * hdUpdateCalibration while manual input is still needed raises an error (see
+ * tf_fake_hd_set_calibration_update_error) and changes nothing. */
 void tf_fake_hd_set_calibration(unsigned int state, int styles);
+/* The HD error hdUpdateCalibration raises when manual input is needed (default
+ * HD_INVALID_OPERATION; the code the real driver raises is not documented). */
+void tf_fake_hd_set_calibration_update_error(unsigned int code);
 void tf_fake_hd_set_inkwell(int stylus_in_inkwell);
+/* What hdGetString(HD_DEVICE_MODEL_TYPE) answers (default "Touch (toonforce fake libHD)"). */
+void tf_fake_hd_set_model(const char* model);
 void tf_fake_hd_set_buttons(int buttons);
 /* Raises `code` (with `internal`) at `where` on each of the next `count` occasions. */
 void tf_fake_hd_inject_error(unsigned int code, int internal, int where, unsigned long count);

@@ -146,6 +146,8 @@ struct OmniStatus {
   double update_rate_hz = 0.0;          ///< HD_INSTANTANEOUS_UPDATE_RATE
   double motor_temperature = -1.0;      ///< hottest motor, 0 cold .. 1 warm; -1 unknown
   std::uint32_t calibration = 0;        ///< last hdCheckCalibration answer
+  std::uint32_t calibration_errors = 0; ///< HD errors from checking or updating calibration
+  std::uint32_t last_calibration_error = 0;  ///< the most recent of them (0 none)
   std::uint32_t last_hd_error = 0;      ///< most recent HD error code (0 none)
   std::int32_t last_hd_internal_error = 0;
   std::uint32_t hd_errors = 0;          ///< HD errors seen since start()
@@ -213,6 +215,7 @@ class OmniDevice final : public DeviceDriver {
   void note_error(const hd::HDErrorInfo& e) noexcept;
   void hold_force(std::int64_t ticks) noexcept;
   void check_calibration() noexcept;
+  bool drain_calibration_errors() noexcept;
   void read_temperature() noexcept;
   double force_scale() const noexcept;
   hd::HDCallbackCode end_run() noexcept;
@@ -267,6 +270,7 @@ class OmniDevice final : public DeviceDriver {
   std::atomic<std::int64_t> last_code_tick_{0};
   std::atomic<std::uint8_t> end_reason_{0};     // EndReason in omni_device.cpp
   std::atomic<std::uint32_t> overrun_run_{0};   // overruns in a row when the run ended
+  std::atomic<std::uint32_t> last_calibration_error_{0};  // for last_error() while calibrating
 };
 
 /// Loads OpenHaptics, opens the device, reads its limits and calibrates what can be calibrated
