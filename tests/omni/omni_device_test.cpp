@@ -80,6 +80,65 @@ TEST_F(OmniDeviceTest, OnlyOneDeviceIsOpenAtATime) {
   EXPECT_TRUE(third.ok()) << third.error();
 }
 
+// ---- hdDisableDevice on close (sawSensablePhantom: it crashes FireWire Omnis) ----
+
+TEST(OmniFireWire, TheStackIsRecognisedByItsVersionElseByTheModel) {
+  EXPECT_TRUE(is_firewire_stack("3.00.66", "PHANTOM Omni"));  // AE 3.0's header version
+  EXPECT_TRUE(is_firewire_stack("3.0.0", "Touch"));
+  EXPECT_FALSE(is_firewire_stack("3.4.0", "Touch"));
+  EXPECT_FALSE(is_firewire_stack("3.30", "Touch"));
+  EXPECT_FALSE(is_firewire_stack("3.4.0", "PHANTOM Omni"));  // 3.4 has no FireWire driver
+  EXPECT_TRUE(is_firewire_stack("", "Sensable PHANTOM Omni"));
+  EXPECT_FALSE(is_firewire_stack("", "Geomagic Touch"));
+}
+
+TEST_F(OmniDeviceTest, ClosingATouchDisablesTheDevice) {
+  OmniDevice& d = open();
+  EXPECT_TRUE(d.disables_device_on_close());
+  omni.reset();
+  EXPECT_EQ(fake.stats().disable_device_calls, 1U);
+  EXPECT_EQ(fake.stats().device_initialized, 0);
+}
+
+TEST_F(OmniDeviceTest, ClosingAFireWireOmniLeavesHdDisableDeviceAlone) {
+  fake.set_version("3.00.66");
+  fake.set_model("PHANTOM Omni");
+  OmniDevice& d = start_probe();
+  fake.step(10);
+  EXPECT_FALSE(d.disables_device_on_close());
+  d.request_stop();
+  fake.step(1);
+  omni.reset();
+  const TfFakeHdStats s = fake.stats();
+  EXPECT_EQ(s.disable_device_calls, 0U);
+  EXPECT_EQ(s.scheduler_running, 0) << "the scheduler is stopped all the same";
+  EXPECT_EQ(s.force_output_enabled, 0) << "and forces are off";
+}
+
+TEST_F(OmniDeviceTest, AFailedOpenOfAFireWireOmniLeavesHdDisableDeviceAlone) {
+  fake.set_version("3.00.66");
+  fake.set_model("PHANTOM Omni");
+  fake.set_limits(0.0, 0.7, 1.1, 0.003);  // refused after hdInitDevice
+  ASSERT_FALSE(open_omni(options).ok());
+  EXPECT_EQ(fake.stats().disable_device_calls, 0U);
+}
+
+TEST_F(OmniDeviceTest, DisableOnCloseIsAnOptionEitherWay) {
+  fake.set_version("3.00.66");
+  fake.set_model("PHANTOM Omni");
+  options.disable_device_on_close = true;
+  EXPECT_TRUE(open().disables_device_on_close());
+  omni.reset();
+  EXPECT_EQ(fake.stats().disable_device_calls, 1U);
+
+  fake.set_version("3.4.0");
+  fake.set_model("Touch");
+  options.disable_device_on_close = false;
+  EXPECT_FALSE(open().disables_device_on_close());
+  omni.reset();
+  EXPECT_EQ(fake.stats().disable_device_calls, 1U) << "no second call";
+}
+
 TEST_F(OmniDeviceTest, BadOptionsAreRefusedBeforeAnythingIsLoaded) {
   options.scheduler_rate_hz = 0.0;
   EXPECT_THAT(open_omni(options).error(), HasSubstr("scheduler rate"));

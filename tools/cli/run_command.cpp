@@ -48,6 +48,12 @@ void add_run(CLI::App& app) {
                    "OpenHaptics device name as set in Touch_Setup (default: the default device)");
   omni->add_option("--omni-library", options->omni.library_path,
                    "The OpenHaptics HD library to load (default: $TOONFORCE_LIBHD, else libHD.so)");
+  auto disable_on_close = std::make_shared<std::string>("auto");
+  omni->add_option("--omni-disable-on-close", *disable_on_close,
+                   "Call hdDisableDevice when closing: auto (yes, except on OpenHaptics' FireWire stack, "
+                   "where it crashes FireWire Omnis), yes or no")
+      ->check(CLI::IsMember({"auto", "yes", "no"}))
+      ->capture_default_str();
   add_gpio_options(*cmd, options->gpio);
   cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(CLI::Range(500.0, 10000.0))
       ->capture_default_str();
@@ -74,6 +80,7 @@ void add_run(CLI::App& app) {
 #endif
   cmd->callback([=] {
     options->lock_memory = !*no_mlock;
+    if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
 #if TOONFORCE_VIEWER
     // The viewer takes frames from the thread that drains the telemetry ring (run.hpp), so the
     // servo thread does nothing for it; its server thread runs at normal priority.

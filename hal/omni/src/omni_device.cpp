@@ -3,6 +3,7 @@
 #include "toonforce/hal/omni/omni_device.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <thread>
 
@@ -103,6 +104,24 @@ struct OpenClaim {
 
 }  // namespace
 
+bool is_firewire_stack(std::string_view hd_version, std::string_view model) {
+  // OpenHaptics 3.4 dropped FireWire; the FireWire Omni runs on AE 3.0 (omni.md §1.1), whose
+  // HD_VERSION reads like "3.00.66". Any 3.0-3.3 library, or a model named Omni when the
+  // version is unknown, is taken for the FireWire stack.
+  if (hd::major_version(hd_version) == 3) {
+    const auto dot = hd_version.find('.');
+    if (dot != std::string_view::npos) {
+      const int minor = hd::major_version(hd_version.substr(dot + 1));
+      if (minor >= 0) return minor < 4;
+    }
+  }
+  if (!hd_version.empty()) return false;
+  std::string lower(model);
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return lower.find("omni") != std::string::npos;
+}
+
 std::string_view to_string(OmniPhase p) noexcept {
   switch (p) {
     case OmniPhase::kIdle: return "idle";
@@ -148,21 +167,26 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
         shown_name, library.path(),
         e.errorCode != hd::kSuccess ? describe(f, e) : std::string("no device handle"))};
   }
-  // From here on, a failure must release the device.
+  // Version and model first: they decide whether closing may call hdDisableDevice.
+  // Version: the library says which HD API it implements (the file name may not).
+  const std::string version = get_string(f, hd::kVersion);
+  const std::string model = get_string(f, hd::kDeviceModelType);
+  const bool disable_on_close = options.disable_device_on_close.value_or(!is_firewire_stack(version, model));
+
+  // From here on, a failure must release the device (hdDisableDevice, unless it must not be
+  // called on this model).
   struct InitGuard {
     const hd::HdFunctions& f;
     hd::HHD handle;
+    bool disable;
     bool armed = true;
     ~InitGuard() {
-      if (armed) {
+      if (armed && disable) {
         f.hdDisableDevice(handle);
         static_cast<void>(take_error(f));
       }
     }
-  } init_guard{f, handle};
-
-  // Version: the library says which HD API it implements (the file name may not).
-  const std::string version = get_string(f, hd::kVersion);
+  } init_guard{f, handle, disable_on_close};
   if (const int major = hd::major_version(version); major >= 0 && major != hd::kSupportedMajorVersion) {
     return Error{fmt::format(
         "{} reports OpenHaptics HD version {}, but toonforce needs version {} (3.4 for the Touch, "
@@ -268,8 +292,8 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   device->limits_ = limits;
   device->frame_ = frame;
   device->temperature_readable_ = limits.has_motor_temperature;
-  const std::string model = get_string(f, hd::kDeviceModelType);
   const std::string serial = get_string(f, hd::kDeviceSerialNumber);
+  device->disable_on_close_ = disable_on_close;
   device->info_.name = fmt::format("{}{} via OpenHaptics {} ({})", model.empty() ? "OpenHaptics device" : model,
                                    serial.empty() ? "" : fmt::format(" (serial {})", serial),
                                    version.empty() ? "?" : version, library.path());
@@ -293,8 +317,12 @@ OmniDevice::OmniDevice(const hd::Library& library, hd::HHD handle, const OmniOpt
 
 OmniDevice::~OmniDevice() {
   stop();
-  hd_->hdDisableDevice(handle_);
-  static_cast<void>(take_error(*hd_));
+  // sawSensablePhantom never calls hdDisableDevice: "this seems to crash with FireWire based
+  // models" (mtsSensableHD.cpp, Kill). The scheduler is stopped and forces are off by now.
+  if (disable_on_close_) {
+    hd_->hdDisableDevice(handle_);
+    static_cast<void>(take_error(*hd_));
+  }
   g_device_open.store(false);
   // The library stays loaded (never unloaded, hd_library.hpp).
 }

@@ -30,6 +30,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/hal/device.hpp"
@@ -83,6 +84,10 @@ struct OmniOptions {
   /// Devices calibrated by encoder reset only: reset at open, with the arm in its reset pose
   /// (as OpenHaptics' calibration example does).
   bool encoder_reset_at_open = true;
+  /// Call hdDisableDevice when the device is closed. Unset: yes, except on the FireWire stack
+  /// (is_firewire_stack), where sawSensablePhantom found it crashes FireWire Omnis and never
+  /// calls it; the scheduler is stopped and forces are off before either way.
+  std::optional<bool> disable_device_on_close;
   /// Workspace centre in the device frame [mm]; unset: the centre of
   /// HD_USABLE_WORKSPACE_DIMENSIONS (omni_frame.hpp).
   std::optional<Vec3<double>> workspace_centre_mm;
@@ -203,6 +208,8 @@ class OmniDevice final : public DeviceDriver {
   /// How many frames have published a status (for waiting on the loop in tools and tests).
   std::uint64_t status_version() const noexcept { return status_.version(); }
   const OmniLimits& limits() const noexcept { return limits_; }
+  /// Whether closing calls hdDisableDevice (OmniOptions::disable_device_on_close).
+  bool disables_device_on_close() const noexcept { return disable_on_close_; }
   const hd::Library& library() const noexcept { return *library_; }
 
  private:
@@ -225,6 +232,7 @@ class OmniDevice final : public DeviceDriver {
   hd::HHD handle_;
   OmniOptions options_;
   OmniLimits limits_;
+  bool disable_on_close_ = true;
   DeviceInfo info_;
   omni::Frame frame_;
   double period_s_ = 0.0;
@@ -272,6 +280,11 @@ class OmniDevice final : public DeviceDriver {
   std::atomic<std::uint32_t> overrun_run_{0};   // overruns in a row when the run ended
   std::atomic<std::uint32_t> last_calibration_error_{0};  // for last_error() while calibrating
 };
+
+/// Whether this is OpenHaptics' FireWire stack (AE 3.0 for the FireWire Phantom Omni): an HD
+/// version 3.0 to 3.3 ("3.00.66"), or, when the version is unknown, a model type naming the
+/// Omni. OpenHaptics 3.4 dropped FireWire (omni.md §1.1).
+bool is_firewire_stack(std::string_view hd_version, std::string_view model);
 
 /// Loads OpenHaptics, opens the device, reads its limits and calibrates what can be calibrated
 /// without the scheduler. Every failure says what to install or fix. One device at a time per
