@@ -22,6 +22,7 @@ constexpr double kEncoderTolM = 1e-4;  // 15 000 counts/rev on 133 mm links: ~0.
 class OmniDeviceTest : public OmniFixture {};
 
 TEST_F(OmniDeviceTest, OpensWithTheLimitsTheDeviceReports) {
+  options.max_force_n = 0.0;  // the default cap
   fake.set_limits(2.5, 0.7, 1.1, 0.003);
   OmniDevice& d = open();
   const OmniLimits& l = d.limits();
@@ -29,7 +30,7 @@ TEST_F(OmniDeviceTest, OpensWithTheLimitsTheDeviceReports) {
   EXPECT_DOUBLE_EQ(l.max_continuous_force_n, 0.7);
   EXPECT_DOUBLE_EQ(l.max_stiffness_n_per_m, 1100.0);  // N/mm -> N/m
   EXPECT_DOUBLE_EQ(l.max_damping_n_s_per_m, 3.0);
-  EXPECT_DOUBLE_EQ(l.force_cap_n, 2.5);
+  EXPECT_DOUBLE_EQ(l.force_cap_n, 0.7) << "the continuous force by default";
   EXPECT_TRUE(l.has_motor_temperature);
   EXPECT_EQ(l.input_dof, 6);
   EXPECT_EQ(l.output_dof, 3);
@@ -46,11 +47,42 @@ TEST_F(OmniDeviceTest, OpensWithTheLimitsTheDeviceReports) {
   EXPECT_NEAR(l.usable_workspace_max_m.z, 0.060, 1e-12);
   const DeviceInfo& info = d.info();
   EXPECT_TRUE(info.self_clocked);
-  EXPECT_DOUBLE_EQ(info.max_force_n, 2.5);
+  EXPECT_DOUBLE_EQ(info.max_force_n, 0.7);
   EXPECT_DOUBLE_EQ(info.max_continuous_force_n, 0.7);
   EXPECT_DOUBLE_EQ(info.nominal_rate_hz, 1000.0);
   EXPECT_THAT(info.name, HasSubstr("serial FAKE-0001"));
   EXPECT_THAT(info.name, HasSubstr("OpenHaptics 3.4.0"));
+}
+
+TEST_F(OmniDeviceTest, TheCapIsTheContinuousForceUnlessRaisedAndNeverAboveThePeak) {
+  options.max_force_n = 0.0;  // the default cap
+  fake.set_limits(3.3, 0.88, 1.26, 0.004);
+  EXPECT_DOUBLE_EQ(open().limits().force_cap_n, 0.88);
+  EXPECT_THAT(omni->limits().force_cap_source, HasSubstr("HD_NOMINAL_MAX_CONTINUOUS_FORCE"));
+  omni.reset();
+  options.max_force_n = 2.0;  // raised for short bursts
+  EXPECT_DOUBLE_EQ(open().limits().force_cap_n, 2.0);
+  EXPECT_DOUBLE_EQ(omni->info().max_force_n, 2.0);
+  omni.reset();
+  options.max_force_n = 5.0;  // more than the device's peak: the peak
+  EXPECT_DOUBLE_EQ(open().limits().force_cap_n, 3.3);
+  EXPECT_THAT(omni->limits().force_cap_source, HasSubstr("peak"));
+  omni.reset();
+  options.max_force_n = 0.0;
+  fake.set_limits(3.3, 0.0, 1.26, 0.004);  // no continuous force reported: the peak
+  EXPECT_DOUBLE_EQ(open().limits().force_cap_n, 3.3);
+  EXPECT_THAT(omni->limits().force_cap_source, HasSubstr("reports no continuous force"));
+}
+
+TEST_F(OmniDeviceTest, ByDefaultTheCommandedForceStopsAtTheContinuousForce) {
+  options.max_force_n = 0.0;  // the default cap
+  fake.set_limits(3.3, 0.88, 1.26, 0.004);
+  OmniDevice& d = start_probe();
+  probe.force = {0.0, 0.0, 3.0};  // scene +z: device +y
+  fake.step(2000);                // past the enable ramp
+  EXPECT_EQ(d.status().phase, OmniPhase::kRunning);
+  EXPECT_NEAR(fake.stats().max_force_norm_n, 0.88, 1e-9);
+  EXPECT_NEAR(fake.stats().last_force_n[1], 0.88, 1e-9);
 }
 
 TEST_F(OmniDeviceTest, WithoutANominalMaximumForceItRefusesToOpen) {

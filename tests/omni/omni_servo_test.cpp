@@ -67,6 +67,7 @@ struct WallLoop {
 
 class OmniWallTest : public test::OmniFixture {
  protected:
+
   /// Opens the device, builds the wall scene and its controller with the force limit the spec
   /// asks for on a real device: the smaller of the scene's and the device's (effects.md §6).
   OmniDevice& start_wall() {
@@ -143,7 +144,7 @@ TEST_F(OmniWallTest, InContactTheForcePushesOutOfTheWallAndNeverExceedsTheNomina
 }
 
 TEST_F(OmniWallTest, TheLimitIsTheOneTheDeviceReportsNotAFixedNumber) {
-  fake.set_limits(2.0, 0.6, 1.0, 0.003);
+  fake.set_limits(2.0, 0.6, 1.0, 0.003);  // the option's 3.3 N is above this device's peak
   pin_scene({0.0, 0.0, -0.005});
   start_wall();
   fake.step(2000);

@@ -52,6 +52,10 @@ class OmniFixture : public ::testing::Test {
     fake.reset();
     fake.set_manual(1);
     options.library_path = kFakeHd;
+    // The cap defaults to the continuous force (0.88 N on the fake); the tests command forces
+    // up to the fake's 3.3 N peak, so they raise it as `--omni-max-force` lets a user do.
+    // Tests of the default set it back to 0.
+    options.max_force_n = 3.3;
   }
 
   void TearDown() override {

@@ -48,6 +48,10 @@ void add_run(CLI::App& app) {
                    "OpenHaptics device name as set in Touch_Setup (default: the default device)");
   omni->add_option("--omni-library", options->omni.library_path,
                    "The OpenHaptics HD library to load (default: $TOONFORCE_LIBHD, else libHD.so)");
+  omni->add_option("--omni-max-force", options->omni.max_force_n,
+                   "Force cap [N]; default (0): the device's nominal continuous force. Raise it for short "
+                   "bursts, up to the nominal peak (the library's thermal model then guards the motors)")
+      ->check(CLI::NonNegativeNumber);
   auto disable_on_close = std::make_shared<std::string>("auto");
   omni->add_option("--omni-disable-on-close", *disable_on_close,
                    "Call hdDisableDevice when closing: auto (yes, except on OpenHaptics' FireWire stack, "

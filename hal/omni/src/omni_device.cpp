@@ -75,7 +75,7 @@ std::string check_options(const OmniOptions& o) {
                        o.scheduler_rate_hz);
   }
   if (!std::isfinite(o.max_force_n) || o.max_force_n < 0.0) {
-    return fmt::format("max force {} N must be >= 0 (0: the device's nominal maximum)", o.max_force_n);
+    return fmt::format("max force {} N must be >= 0 (0: the device's nominal continuous force)", o.max_force_n);
   }
   if (bad_time(o.enable_ramp_s) || bad_time(o.force_error_hold_s) || bad_time(o.recovery_ramp_s) ||
       bad_time(o.warm_motors_hold_s) || bad_time(o.calibration_check_period_s) ||
@@ -204,12 +204,25 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
                              library.path(), value)};
   }
   limits.max_force_n = value;
-  limits.force_cap_n = options.max_force_n > 0.0 ? std::min(options.max_force_n, value) : value;
   const auto optional_double = [&](hd::HDenum what, double scale) {
     double v = 0.0;
     return get_doubles(f, what, &v) && std::isfinite(v) && v > 0.0 ? v * scale : 0.0;
   };
   limits.max_continuous_force_n = optional_double(hd::kNominalMaxContinuousForce, 1.0);
+  // The cap: the continuous force by default, as public drivers cap well below the peak
+  // (sawSensablePhantom at 2 N, omni.md §3); the peak is for short bursts, and only on request.
+  if (options.max_force_n > 0.0) {
+    limits.force_cap_n = std::min(options.max_force_n, limits.max_force_n);
+    limits.force_cap_source = options.max_force_n > limits.max_force_n
+                                  ? "the device's peak HD_NOMINAL_MAX_FORCE (the option asked for more)"
+                                  : "the option";
+  } else if (limits.max_continuous_force_n > 0.0) {
+    limits.force_cap_n = std::min(limits.max_continuous_force_n, limits.max_force_n);
+    limits.force_cap_source = "the device's HD_NOMINAL_MAX_CONTINUOUS_FORCE (the default)";
+  } else {
+    limits.force_cap_n = limits.max_force_n;
+    limits.force_cap_source = "the device's peak HD_NOMINAL_MAX_FORCE (it reports no continuous force)";
+  }
   limits.max_stiffness_n_per_m = optional_double(hd::kNominalMaxStiffness, 1000.0);  // N/mm
   limits.max_damping_n_s_per_m = optional_double(hd::kNominalMaxDamping, 1000.0);    // N s/mm
   limits.software_velocity_limit_m_per_s = optional_double(hd::kSoftwareVelocityLimit, 1e-3);

@@ -14,8 +14,9 @@
 /// Safety owned here (the loop may add more, never less):
 ///  - forces stay off (hdDisable(HD_FORCE_OUTPUT), zero commanded) until hdCheckCalibration
 ///    says OK, then ramp in from zero; read() says kNotReady until then;
-///  - the commanded force never exceeds min(HD_NOMINAL_MAX_FORCE, OmniOptions::max_force_n),
-///    read from the device at open time, never hard-coded (omni.md §3);
+///  - the commanded force never exceeds the cap: HD_NOMINAL_MAX_CONTINUOUS_FORCE by default,
+///    OmniOptions::max_force_n if given (at most HD_NOMINAL_MAX_FORCE, the peak), read from the
+///    device at open time, never hard-coded (omni.md §3);
 ///  - HD errors map onto the fault model of hd_errors.hpp: force errors hold zero force, then
 ///    ramp back (read() says kNotReady while held); every other error stops the loop: zero
 ///    force, forces disabled, the callback unscheduled, last_error() naming the HD error;
@@ -55,7 +56,11 @@ struct OmniOptions {
   /// [Hz] the vendor scheduler's rate; the reference guide lists 500, 1000 and 1600 (FireWire)
   /// and warns that lower rates cause instability (omni.md §2.2).
   double scheduler_rate_hz = 1000.0;
-  /// [N] > 0: a cap below the device's nominal maximum; 0: the nominal maximum.
+  /// [N] the force cap. 0: the device's HD_NOMINAL_MAX_CONTINUOUS_FORCE, what its motors
+  /// sustain (public drivers cap well below the peak: sawSensablePhantom at 2 N, omni.md §3),
+  /// or the peak HD_NOMINAL_MAX_FORCE if it reports no continuous force. > 0: this value, at
+  /// most the peak; raise it above the continuous force for short bursts (the library's thermal
+  /// model then answers HD_WARM_MOTORS, which holds force at zero until the motors cool).
   double max_force_n = 0.0;
   /// [s] forces ramp 0 -> 1 over this time once calibration is OK.
   double enable_ramp_s = 0.5;
@@ -100,7 +105,8 @@ struct OmniLimits {
   double max_continuous_force_n = 0.0;    ///< HD_NOMINAL_MAX_CONTINUOUS_FORCE
   double max_stiffness_n_per_m = 0.0;     ///< HD_NOMINAL_MAX_STIFFNESS [N/mm] * 1000
   double max_damping_n_s_per_m = 0.0;     ///< HD_NOMINAL_MAX_DAMPING [N s/mm] * 1000
-  double force_cap_n = 0.0;               ///< what this device enforces: min(nominal, option)
+  double force_cap_n = 0.0;               ///< what this device enforces (OmniOptions::max_force_n)
+  std::string force_cap_source;           ///< where force_cap_n comes from, for messages
   double software_velocity_limit_m_per_s = 0.0;      ///< HD_SOFTWARE_VELOCITY_LIMIT
   double software_force_impulse_limit_n_per_s = 0.0; ///< HD_SOFTWARE_FORCE_IMPULSE_LIMIT [N/ms] * 1000
   double force_ramping_rate_n_per_s = 0.0;           ///< HD_FORCE_RAMPING_RATE
