@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -97,9 +98,10 @@ class FakeHost : public ::testing::Test {
       fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write;
   static constexpr fs::perms kRootOnly = fs::perms::owner_read | fs::perms::owner_write;
 
-  std::vector<Finding> run() {
+  std::vector<Finding> run(std::optional<std::string> gtdd_home = std::nullopt) {
     DoctorOptions o;
     o.root = root_.string();
+    o.gtdd_home = std::move(gtdd_home);
     return run_doctor(o);
   }
   // By value: callers pass the temporary that run() returns.
@@ -252,6 +254,86 @@ TEST_F(FakeHost, AFirewireOmniIsFoundByItsVendorOui) {
   EXPECT_NE(omni.finding.find("/dev/fw1"), std::string::npos);
   EXPECT_NE(omni.fix.find("0x000b99"), std::string::npos);
   EXPECT_EQ(find(f, "Omni FireWire", 1).check, "missing") << "fw0 is not an Omni";
+}
+
+// ---- OpenHaptics installs (hal/omni install_check.hpp, the same checks as `devices`) ----
+
+TEST_F(FakeHost, NoOpenHapticsInstalledAndNoDeviceMeansNoOpenHapticsFinding) {
+  EXPECT_EQ(find(run(), "OpenHaptics").check, "missing");
+}
+
+TEST_F(FakeHost, OpenHapticsInLib64WithoutALoaderEntryFailsWithTheLdSoConfFix) {
+  write("usr/lib64/libHD.so.3.0.0", "");
+  write("usr/lib64/libPHANToMIO.so.4.3", "");
+  write("usr/lib/x86_64-linux-gnu/libraw1394.so.8", "");
+  write("etc/ld.so.conf", "include /etc/ld.so.conf.d/*.conf\n");
+  write("etc/ld.so.conf.d/x86_64-linux-gnu.conf", "# Multiarch support\n/usr/local/lib/x86_64-linux-gnu\n");
+  write("sys/bus/firewire/devices/fw1/vendor", "0x000b99\n");  // a FireWire Omni is plugged in
+  write("dev/fw1", "");
+  fs::permissions(root_ / "dev/fw1", kGroupRw);
+  auto f = run();
+  const Finding lib64 = find(f, "OpenHaptics");
+  EXPECT_EQ(lib64.verdict, Verdict::kFail) << format_findings(f);
+  EXPECT_NE(lib64.finding.find("/usr/lib64/libHD.so.3.0.0"), std::string::npos) << lib64.finding;
+  EXPECT_NE(lib64.finding.find("does not search"), std::string::npos) << lib64.finding;
+  EXPECT_NE(lib64.fix.find("echo /usr/lib64 | sudo tee /etc/ld.so.conf.d/openhaptics.conf && sudo ldconfig"),
+            std::string::npos)
+      << lib64.fix;
+  EXPECT_FALSE(host_ready(f));
+
+  write("etc/ld.so.conf.d/openhaptics.conf", "/usr/lib64/\n");  // the fix, as tee writes it
+  f = run();
+  EXPECT_EQ(find(f, "OpenHaptics").verdict, Verdict::kOk) << format_findings(f);
+  EXPECT_TRUE(host_ready(f)) << format_findings(f);
+}
+
+TEST_F(FakeHost, WithoutTheDeviceAnOpenHapticsProblemOnlyWarns) {
+  write("usr/lib64/libHD.so.3.0.0", "");
+  const auto f = run();
+  EXPECT_EQ(find(f, "OpenHaptics").verdict, Verdict::kWarn);
+  EXPECT_TRUE(host_ready(f));
+}
+
+TEST_F(FakeHost, TheFirewireDriverNeedsLibraw1394So8AndTheFixLinksTheInstalledOne) {
+  write("usr/lib/libPHANToMIO.so.4.3", "");
+  write("usr/lib/x86_64-linux-gnu/libraw1394.so.11", "");
+  write("sys/bus/firewire/devices/fw1/vendor", "0x000b99\n");
+  write("dev/fw1", "");
+  fs::permissions(root_ / "dev/fw1", kGroupRw);
+  auto f = run();
+  const Finding raw = find(f, "OpenHaptics");
+  EXPECT_EQ(raw.verdict, Verdict::kFail) << format_findings(f);
+  EXPECT_NE(raw.finding.find("libraw1394.so.8"), std::string::npos) << raw.finding;
+  EXPECT_NE(raw.fix.find("sudo ln -s /usr/lib/x86_64-linux-gnu/libraw1394.so.11 "
+                         "/usr/lib/x86_64-linux-gnu/libraw1394.so.8 && sudo ldconfig"),
+            std::string::npos)
+      << raw.fix;
+  write("usr/lib/x86_64-linux-gnu/libraw1394.so.8", "");
+  EXPECT_EQ(find(run(), "OpenHaptics").verdict, Verdict::kOk);
+}
+
+TEST_F(FakeHost, TheTouchDriverNeedsGtddHomeAndItsConfigDirectory) {
+  write("usr/lib/libPhantomIOLib42.so", "");
+  touch("1-4", 1, 10, "", "", kGroupRw);
+  Finding g = find(run(), "OpenHaptics");
+  EXPECT_EQ(g.verdict, Verdict::kFail);
+  EXPECT_NE(g.finding.find("GTDD_HOME is not set"), std::string::npos) << g.finding;
+  EXPECT_NE(g.fix.find("GTDD_HOME=\"/usr/share/3DSystems\" to /etc/environment"), std::string::npos) << g.fix;
+  EXPECT_NE(g.fix.find("sudo mkdir -p /usr/share/3DSystems/config"), std::string::npos) << g.fix;
+
+  g = find(run("/usr/share/3DSystems"), "OpenHaptics");
+  EXPECT_EQ(g.verdict, Verdict::kFail);
+  EXPECT_NE(g.finding.find("/usr/share/3DSystems/config does not exist"), std::string::npos) << g.finding;
+
+  fs::create_directories(root_ / "usr/share/3DSystems/config");
+  g = find(run("/usr/share/3DSystems"), "OpenHaptics");
+  EXPECT_EQ(g.verdict, Verdict::kFail);
+  EXPECT_NE(g.fix.find("Touch_Setup"), std::string::npos) << g.fix;
+
+  write("usr/share/3DSystems/config/Default Device.config", "");
+  g = find(run("/usr/share/3DSystems"), "OpenHaptics");
+  EXPECT_EQ(g.verdict, Verdict::kOk) << g.finding;
+  EXPECT_NE(g.finding.find("Default Device.config"), std::string::npos) << g.finding;
 }
 
 TEST_F(FakeHost, TheIsolatedCpusFindingSaysWhetherTheyAreTickless) {

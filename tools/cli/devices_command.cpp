@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "toonforce/hal/detect.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/omni/install_check.hpp"
 #include "toonforce/hal/omni/touch_detect.hpp"
 
 namespace toonforce::cli {
@@ -43,8 +44,11 @@ DetectionReport detect_falcon(const DetectOptions& options) {
 }
 
 DetectionReport detect_touch(const DetectOptions&) {
-  // Loading the HD library to see whether it works is harmless (it is never unloaded).
-  return {detect_touch_devices(), {openhaptics_prerequisite()}};
+  // Loading the HD library to see whether it works is harmless (it is never unloaded). The
+  // install checks explain what the loader cannot: /usr/lib64, libraw1394.so.8, GTDD_HOME.
+  DetectionReport r{detect_touch_devices(), {openhaptics_prerequisite()}};
+  for (const auto& f : check_openhaptics_install(OpenHapticsHost::this_process())) r.prerequisites.push_back(f.prerequisite);
+  return r;
 }
 
 constexpr Detector kDetectors[] = {

@@ -1,6 +1,8 @@
 // toonforce doctor [--root DIR] [--priority P]: is this host ready for a real-time loop?
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
+#include <string>
 
 #include "commands.hpp"
 #include "toonforce/doctor/doctor.hpp"
@@ -16,6 +18,7 @@ void add_doctor(CLI::App& app) {
   cmd->add_option("--priority", options->priority, "SCHED_FIFO priority the loop will ask for")
       ->check(CLI::Range(1, 99));
   cmd->callback([options] {
+    if (const char* g = std::getenv("GTDD_HOME"); g != nullptr) options->gtdd_home = std::string(g);
     const auto findings = run_doctor(*options);
     std::fputs(format_findings(findings).c_str(), stdout);
     set_exit_code(host_ready(findings) ? 0 : 1);

@@ -94,8 +94,10 @@ std::string join(const std::vector<std::string>& items) {
 
 constexpr std::string_view kInstallAdvice =
     "Install OpenHaptics 3.4 for Linux and the 3D Systems Touch Device Driver from 3D Systems "
-    "(toonforce cannot ship them: their licence forbids redistribution), then run `sudo "
-    "ldconfig`";
+    "(toonforce cannot ship them: their licence forbids redistribution). OpenHaptics 3.0 and the "
+    "PHANTOM Device Drivers install into /usr/lib64, which Debian and Ubuntu do not search: "
+    "`echo /usr/lib64 | sudo tee /etc/ld.so.conf.d/openhaptics.conf && sudo ldconfig` "
+    "(`sudo ldconfig` alone does not add it; `toonforce devices` checks)";
 
 struct Attempt {
   void* handle = nullptr;
@@ -162,13 +164,24 @@ std::string version_from_file_name(std::string_view file_name) {
 }
 
 std::string dependency_fix(std::string_view name) {
+  constexpr std::string_view kLib64 =
+      "; if it is installed in /usr/lib64, which Debian and Ubuntu do not search: `echo /usr/lib64 | "
+      "sudo tee /etc/ld.so.conf.d/openhaptics.conf && sudo ldconfig`";
   if (name.starts_with("libPhantomIOLib")) {
-    return "install the 3D Systems Touch Device Driver (TouchDriver_*), which provides it, then "
-           "run `sudo ldconfig`";
+    return fmt::format("install the 3D Systems Touch Device Driver (TouchDriver_*), which provides it, then "
+                       "run `sudo ldconfig`{}",
+                       kLib64);
   }
   if (name.starts_with("libPHANToMIO")) {
-    return "install the PHANTOM Device Drivers (PDD 4.3) for the FireWire Omni, which provide "
-           "it, then run `sudo ldconfig`";
+    return fmt::format("install the PHANTOM Device Drivers (PDD 4.3) for the FireWire Omni, which provide "
+                       "it, then run `sudo ldconfig`{}",
+                       kLib64);
+  }
+  if (name.starts_with("libraw1394.so.8")) {
+    // The FireWire driver was built against libraw1394's older soname (omni.md §5).
+    return "the FireWire Omni's driver wants libraw1394.so.8; Debian ships libraw1394.so.11: `sudo apt-get "
+           "install libraw1394-11 && sudo ln -s /usr/lib/x86_64-linux-gnu/libraw1394.so.11 "
+           "/usr/lib/x86_64-linux-gnu/libraw1394.so.8 && sudo ldconfig`";
   }
   if (name.starts_with("libncurses.so.5") || name.starts_with("libtinfo.so.5")) {
     return "install the ncurses 5 compatibility libraries: `sudo apt-get install libncurses5 "

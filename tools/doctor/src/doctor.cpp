@@ -12,6 +12,8 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/hal/omni/install_check.hpp"
+
 namespace toonforce {
 namespace {
 
@@ -445,6 +447,19 @@ void check_gpiochips(const Host& host, std::vector<Finding>& findings) {
   }
 }
 
+/// The OpenHaptics install, as `toonforce devices` checks it: a problem fails the host when a
+/// device it matters for is plugged in, and warns otherwise (the host may not be for an Omni).
+void check_openhaptics(const DoctorOptions& options, std::vector<Finding>& findings) {
+  OpenHapticsHost host;
+  host.root = options.root;
+  host.gtdd_home = options.gtdd_home;
+  for (const auto& f : check_openhaptics_install(host)) {
+    const Prerequisite& p = f.prerequisite;
+    const Verdict problem = f.device_present ? Verdict::kFail : Verdict::kWarn;
+    findings.push_back({"OpenHaptics", p.ok ? Verdict::kOk : problem, p.name + ": " + p.detail, p.ok ? "" : p.fix});
+  }
+}
+
 void check_devices(const Host& host, std::vector<Finding>& findings) {
   check_falcons(host, findings);
   check_touches(host, findings);
@@ -475,6 +490,7 @@ std::vector<Finding> run_doctor(const DoctorOptions& options) {
   findings.push_back(check_isolation(host));
   findings.push_back(check_clock(host, options.check_clock));
   check_devices(host, findings);
+  check_openhaptics(options, findings);
   return findings;
 }
 

@@ -3,8 +3,10 @@
 /// its fix. Everything is read through a root directory (default "/") so tests point it at a
 /// faked /sys, /proc and /dev tree: the kernel, the limits and capabilities of this process
 /// (/proc/self/limits, /proc/self/status), RT throttling, CPU governors, isolated CPUs, the
-/// clock source, and the device nodes of each backend with this user's permission on them.
+/// clock source, the device nodes of each backend with this user's permission on them, and an
+/// OpenHaptics install (hal/omni install_check.hpp: /usr/lib64, libraw1394.so.8, GTDD_HOME).
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +25,9 @@ struct DoctorOptions {
   std::string root = "/";       ///< where sys/, proc/ and dev/ are
   int priority = 80;            ///< the SCHED_FIFO priority `toonforce run` asks for
   bool check_clock = true;      ///< clock_getres of this host (not part of the root tree)
+  /// $GTDD_HOME of the environment the loop will run in (the Touch driver's configuration);
+  /// nullopt: unset. The command passes its own.
+  std::optional<std::string> gtdd_home;
 };
 
 std::vector<Finding> run_doctor(const DoctorOptions& options);
