@@ -7,6 +7,13 @@
 
 #include <cstdint>
 
+// The same refusal as cmake/ToonforceOmniArchitecture.cmake, for a build that bypasses it: on
+// 32-bit x86 the vendor declares the API __stdcall, and these cdecl declarations would corrupt
+// the stack on every call.
+#if defined(__i386__)
+#error "toonforce's Omni backend cannot be built for 32-bit x86: OpenHaptics' HD API is __stdcall there; build for x86-64"
+#endif
+
 namespace toonforce::hd {
 
 // ---- Types (omni.md §2.1) ------------------------------------------------------------------
