@@ -297,6 +297,92 @@ TEST(FalconKinematics, LargeForcesScaleDownKeepingTheDirection) {
   EXPECT_FALSE(force_to_motor_words(j, {0.5, 0.5, 0.5}).saturated);
 }
 
+// ---- the force envelope (issue 17: what the +-4095 words allow, per pose and direction) ----
+
+/// The oracle: the largest force along u from the finite-difference Jacobian of the IK, by
+/// bisection on the words' magnitude (no closed form shared with the code under test).
+double envelope_by_bisection(const Vec3<double>& p, const Vec3<double>& u, double words_per_n_m = 10000.0) {
+  Mat3 fd;
+  EXPECT_TRUE(invert(finite_difference_dtheta_dp(p), fd));
+  const auto largest_word = [&](double f) {
+    const Vec3<double> tau = joint_torques(fd, u * f);
+    return words_per_n_m * std::max({std::abs(tau.x), std::abs(tau.y), std::abs(tau.z)});
+  };
+  double lo = 0.0;
+  double hi = 1000.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (largest_word(mid) <= 4095.0 ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+TEST(FalconEnvelope, AlongEachAxisItIsTheForceAtWhichTheLargestWordReaches4095) {
+  for (const Vec3<double>& p : {Vec3<double>{0, 0, 0.11}, Vec3<double>{0.04, -0.03, 0.09},
+                                Vec3<double>{-0.04, 0.03, 0.15}, Vec3<double>{0.0, -0.055, 0.13}}) {
+    ForceEnvelope e;
+    ASSERT_TRUE(force_envelope_at(kGeometry, p, {}, e));
+    EXPECT_NEAR(e.axis_n.x, envelope_by_bisection(p, {1, 0, 0}), 1e-4 * e.axis_n.x) << p.x << " " << p.y << " " << p.z;
+    EXPECT_NEAR(e.axis_n.y, envelope_by_bisection(p, {0, 1, 0}), 1e-4 * e.axis_n.y);
+    EXPECT_NEAR(e.axis_n.z, envelope_by_bisection(p, {0, 0, 1}), 1e-4 * e.axis_n.z);
+  }
+}
+
+TEST(FalconEnvelope, AtTheCentreXAndYFollowTheReferenceJacobianAndZTheIk) {
+  // falcon.md §8's J at (0, 0, 0.11): the largest |x-row| entry is 0.052725 m/rad, y's
+  // 0.051940, so 4095 / (10000 * that) = 7.77 N and 7.88 N; along z, where the table's row is
+  // libnifalcon's, the IK's own 0.024180 gives 16.9 N (the issue's "7.8, 7.9 and 17 N").
+  ForceEnvelope e;
+  ASSERT_TRUE(force_envelope_at(kGeometry, {0, 0, 0.11}, {}, e));
+  EXPECT_NEAR(e.axis_n.x, 4095.0 / (10000.0 * 0.052725), 0.001);
+  EXPECT_NEAR(e.axis_n.y, 4095.0 / (10000.0 * 0.051940), 0.001);
+  EXPECT_NEAR(e.axis_n.z, 4095.0 / (10000.0 * 0.024180), 0.01);
+}
+
+TEST(FalconEnvelope, EveryDirectionIsTheWeakestDirection) {
+  for (const Vec3<double>& p : {Vec3<double>{0.03, 0.02, 0.10}, Vec3<double>{0.04, -0.03, 0.09},
+                                Vec3<double>{0.0, -0.055, 0.13}, Vec3<double>{-0.035, 0.01, 0.16}}) {
+    Mat3 j;
+    ASSERT_TRUE(position_jacobian(kGeometry, p, j));
+    const ForceEnvelope e = force_envelope(j);
+    double weakest = 1e9;
+    // Directions spread over the sphere (a Fibonacci lattice).
+    constexpr int kDirections = 4000;
+    for (int i = 0; i < kDirections; ++i) {
+      const double z = 1.0 - 2.0 * (i + 0.5) / kDirections;
+      const double r = std::sqrt(1.0 - z * z);
+      const double phi = i * std::numbers::pi * (3.0 - std::sqrt(5.0));
+      weakest = std::min(weakest, max_force_along(j, {r * std::cos(phi), r * std::sin(phi), z}));
+    }
+    EXPECT_GE(weakest, e.every_direction_n * (1 - 1e-12)) << "no direction is weaker";
+    EXPECT_NEAR(weakest, e.every_direction_n, 0.01 * e.every_direction_n) << "a lattice direction comes close";
+    EXPECT_LE(e.every_direction_n, std::min({e.axis_n.x, e.axis_n.y, e.axis_n.z}));
+  }
+}
+
+TEST(FalconEnvelope, AForceInsideTheEnvelopeIsGivenAndOneBeyondIsScaledBack) {
+  Mat3 j;
+  ASSERT_TRUE(position_jacobian(kGeometry, {-0.02, 0.04, 0.13}, j));
+  const Vec3<double> v{1, -2, 0.5};
+  const Vec3<double> u = v * (1.0 / norm(v));
+  const double limit = max_force_along(j, u);
+  EXPECT_FALSE(force_to_motor_words(j, u * (limit * 0.999)).saturated);
+  const MotorWords beyond = force_to_motor_words(j, u * (limit * 1.01));
+  EXPECT_TRUE(beyond.saturated);
+  EXPECT_EQ(std::max({std::abs(beyond.word[0]), std::abs(beyond.word[1]), std::abs(beyond.word[2])}), 4095);
+}
+
+TEST(FalconEnvelope, MoreWordsPerNewtonMetreMeanProportionallyLessForce) {
+  // A calibrated constant twice libnifalcon's halves every limit (the words are k tau).
+  ForceEnvelope a;
+  ForceEnvelope b;
+  ASSERT_TRUE(force_envelope_at(kGeometry, {0, 0, 0.11}, MotorScale{10000.0, 4095}, a));
+  ASSERT_TRUE(force_envelope_at(kGeometry, {0, 0, 0.11}, MotorScale{20000.0, 4095}, b));
+  EXPECT_NEAR(b.axis_n.x, a.axis_n.x / 2, 1e-12);
+  EXPECT_NEAR(b.every_direction_n, a.every_direction_n / 2, 1e-12);
+  EXPECT_NEAR(envelope_by_bisection({0, 0, 0.11}, {0, 1, 0}, 20000.0), b.axis_n.y, 1e-4);
+}
+
 TEST(FalconKinematics, NonFiniteForceGivesZeroWords) {
   Mat3 j;
   ASSERT_TRUE(position_jacobian(kGeometry, {0, 0, 0.11}, j));

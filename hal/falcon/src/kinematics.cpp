@@ -135,6 +135,38 @@ MotorWords force_to_motor_words(const Mat3& dp_dtheta, const Vec3<double>& force
   return out;
 }
 
+double max_force_along(const Mat3& dp_dtheta, const Vec3<double>& direction, const MotorScale& scale) noexcept {
+  const double length = std::sqrt(dot(direction, direction));
+  if (!(length > 0.0) || !std::isfinite(length)) return 0.0;
+  const Vec3<double> per_newton = motor_words_exact(dp_dtheta, direction * (1.0 / length), scale);
+  const double largest = std::max({std::abs(per_newton.x), std::abs(per_newton.y), std::abs(per_newton.z)});
+  if (!(largest > 0.0)) return 0.0;
+  return static_cast<double>(scale.max_word) / largest;
+}
+
+ForceEnvelope force_envelope(const Mat3& dp_dtheta, const MotorScale& scale) noexcept {
+  ForceEnvelope e;
+  e.axis_n = {max_force_along(dp_dtheta, {1, 0, 0}, scale), max_force_along(dp_dtheta, {0, 1, 0}, scale),
+              max_force_along(dp_dtheta, {0, 0, 1}, scale)};
+  double longest = 0.0;
+  for (std::size_t c = 0; c < 3; ++c) {
+    const double column = std::sqrt(dp_dtheta(0, c) * dp_dtheta(0, c) + dp_dtheta(1, c) * dp_dtheta(1, c) +
+                                    dp_dtheta(2, c) * dp_dtheta(2, c));
+    longest = std::max(longest, column);
+  }
+  const double per_newton = longest * std::abs(scale.words_per_n_m);
+  e.every_direction_n = per_newton > 0.0 ? static_cast<double>(scale.max_word) / per_newton : 0.0;
+  return e;
+}
+
+bool force_envelope_at(const FalconGeometry& g, const Vec3<double>& p_m, const MotorScale& scale,
+                       ForceEnvelope& envelope) noexcept {
+  Mat3 j;
+  if (!position_jacobian(g, p_m, j)) return false;
+  envelope = force_envelope(j, scale);
+  return true;
+}
+
 ForwardKinematics::ForwardKinematics(const FalconGeometry& geometry, const FkOptions& options) noexcept
     : geometry_(geometry), options_(options), last_m_(options.initial_guess_m) {}
 

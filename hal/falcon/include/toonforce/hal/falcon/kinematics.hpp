@@ -98,6 +98,26 @@ constexpr Vec3<double> motor_words_exact(const Mat3& dp_dtheta, const Vec3<doubl
   return joint_torques(dp_dtheta, force_n) * -scale.words_per_n_m;
 }
 
+/// The force envelope: how much force the +-max_word motor words can give at a pose. The words
+/// for a force f u (u a unit vector) are -k f J^T u, linear in f, so the largest force along u
+/// is max_word / (k max_i |(J^T u)_i|), the same along -u. Over all directions the smallest of
+/// these is max_word / (k max_i |column i of J|) (|(J^T u)_i| = |J_i . u| <= |J_i| with
+/// equality along J_i): the force the Falcon can give whichever way it is asked.
+struct ForceEnvelope {
+  Vec3<double> axis_n;           ///< largest force along +-x, +-y, +-z of the frame [N]
+  double every_direction_n = 0;  ///< largest force available in every direction [N]
+};
+
+/// Largest force [N] along `direction` (any non-zero vector; its length does not matter) at
+/// the pose whose Jacobian is `dp_dtheta`; 0 for a zero or non-finite direction.
+double max_force_along(const Mat3& dp_dtheta, const Vec3<double>& direction, const MotorScale& scale = {}) noexcept;
+
+ForceEnvelope force_envelope(const Mat3& dp_dtheta, const MotorScale& scale = {}) noexcept;
+
+/// The envelope at a point [m, Falcon frame]; false when the point is out of the model's reach.
+bool force_envelope_at(const FalconGeometry& g, const Vec3<double>& p_m, const MotorScale& scale,
+                       ForceEnvelope& envelope) noexcept;
+
 /// Forward kinematics by damped Newton: p <- p + g J(p) (theta_target - IK(p)), full step
 /// first, halved (and retried) whenever the angle error grows or the IK leaves the reach.
 /// Warm-started from the previous solution, so a 1 kHz loop needs one or two iterations;
