@@ -215,6 +215,61 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
   EXPECT_NEAR(info.workspace_max_m.z, 0.060, 1e-12);
 }
 
+// ---- the force envelope (issue 17) ----
+
+TEST(FalconDriver, TheAdvertisedMaximumIsWhatTheWordsGiveInEveryDirectionAtTheCentre) {
+  Rig rig;
+  ForceEnvelope centre;
+  ASSERT_TRUE(force_envelope_at(FalconGeometry{}, kCentre, MotorScale{}, centre));
+  EXPECT_DOUBLE_EQ(rig.driver->info().max_force_n, centre.every_direction_n);
+  EXPECT_LE(rig.driver->info().max_continuous_force_n, rig.driver->info().max_force_n);
+  // At the centre a force of that size goes out as asked whichever way it points.
+  rig.home();
+  for (const Vec3<double>& u : {Vec3<double>{1, 0, 0}, Vec3<double>{0, 1, 0}, Vec3<double>{0, 0, -1},
+                                Vec3<double>{0.6, -0.48, 0.64}, Vec3<double>{-0.36, 0.48, 0.8}}) {
+    rig.tick(u * (0.999 * rig.driver->info().max_force_n));
+    ASSERT_EQ(rig.tick(), DeviceStatus::kOk);
+    EXPECT_FALSE(rig.reading.force_limited) << u.x << " " << u.y << " " << u.z;
+  }
+  EXPECT_EQ(rig.driver->stats().saturated_writes, 0u);
+
+  // A calibrated constant changes it: twice the words per N m, half the force.
+  FalconOptions doubled;
+  doubled.motor.words_per_n_m = 20000.0;
+  Rig stiff(Rig::with_firmware(), doubled);
+  EXPECT_NEAR(stiff.driver->info().max_force_n, centre.every_direction_n / 2, 1e-12);
+}
+
+TEST(FalconDriver, ASaturatedWriteKeepsItsDirectionAndIsFlaggedOnTheNextRead) {
+  Rig rig;
+  rig.home();
+  ASSERT_EQ(rig.tick({0, 0, 1}), DeviceStatus::kOk);
+  ASSERT_EQ(rig.tick(), DeviceStatus::kOk);
+  EXPECT_FALSE(rig.reading.force_limited);
+
+  // Far beyond the envelope along scene (1, 1, 1): the words are scaled back to +-4095.
+  const Vec3<double> asked{30, 30, 30};
+  rig.tick(asked);
+  const Command sent = rig.driver->last_command();
+  EXPECT_EQ(std::max({std::abs(sent.motor[0]), std::abs(sent.motor[1]), std::abs(sent.motor[2])}), 4095);
+  ASSERT_EQ(rig.tick(), DeviceStatus::kOk);
+  EXPECT_TRUE(rig.reading.force_limited) << "the read after the saturated write says so";
+  EXPECT_EQ(rig.driver->stats().saturated_writes, 1u);
+  // What the emulated motors push with: the asked direction, less than asked, at the envelope.
+  rig.tick(asked);
+  const Vec3<double> given = rig.emu.motor_force_n();  // Falcon frame
+  const Vec3<double> asked_falcon = scene_force_to_falcon(asked);
+  EXPECT_NEAR(dot(given, asked_falcon) / (norm(given) * norm(asked_falcon)), 1.0, 1e-3) << "the direction is kept";
+  Mat3 j;
+  ASSERT_TRUE(position_jacobian(FalconGeometry{}, rig.emu.grip_position(), j));
+  EXPECT_NEAR(norm(given), max_force_along(j, asked_falcon), 0.01 * norm(given)) << "as much as the words give";
+  EXPECT_LT(norm(given), norm(asked));
+
+  rig.tick({0, 0, 0.5});  // back inside: the flag clears
+  ASSERT_EQ(rig.tick(), DeviceStatus::kOk);
+  EXPECT_FALSE(rig.reading.force_limited);
+}
+
 TEST(FalconDriver, ServoLoopRendersTheWallSceneOnTheEmulatedFalcon) {
   // The whole tick: read -> Controller (scenes/wall.toml: floor z = 0, 1500 N/m, safety stage)
   // -> write, against an emulated grip pushed 10 mm into the floor by a 200 N/m hand. The

@@ -12,14 +12,23 @@ namespace {
 constexpr Vec3<double> kHdalBoxMin{-0.060, -0.060, 0.075};
 constexpr Vec3<double> kHdalBoxMax{0.060, 0.060, 0.175};
 
+/// A conservative guess for the thermal model until someone measures a real device: no source
+/// gives the Falcon's motor ratings (falcon.md §5 "Gaps").
+constexpr double kContinuousForceGuessN = 4.0;
+
 DeviceInfo make_info(std::string name, const FalconOptions& o) {
   DeviceInfo info;
   info.name = std::move(name);
-  // Unverified: no source gives the Falcon's force limits (falcon.md §5 "Gaps"; ~9 N is often
-  // quoted). 8 N is the nominal peak the bundled scenes assume; the continuous figure is a
-  // conservative guess for the thermal model until someone measures a real device.
-  info.max_force_n = 8.0;
-  info.max_continuous_force_n = 4.0;
+  // What the motor words give in every direction at the workspace centre, from the kinematics,
+  // the +-4095 word cap and the words-per-torque constant (calibrated or not): a force up to
+  // this is delivered as asked there; toward the edges the envelope shrinks (docs/FALCON.md,
+  // "Force envelope"), and a saturated write is flagged (DeviceReading::force_limited). The
+  // often quoted ~9 N is unverified (falcon.md §5 "Gaps").
+  ForceEnvelope centre;
+  info.max_force_n = force_envelope_at(FalconGeometry{}, o.workspace_centre_falcon_m, o.motor, centre)
+                         ? centre.every_direction_n
+                         : 0.0;
+  info.max_continuous_force_n = std::min(kContinuousForceGuessN, info.max_force_n);
   const Vec3<double> a = falcon_to_scene(kHdalBoxMin, o.workspace_centre_falcon_m);
   const Vec3<double> b = falcon_to_scene(kHdalBoxMax, o.workspace_centre_falcon_m);
   info.workspace_min_m = {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
@@ -88,6 +97,7 @@ DeviceStatus FalconDriver::send(const Command& command) noexcept {
 
 DeviceStatus FalconDriver::read(DeviceReading& reading) noexcept {
   ++stats_.ticks;
+  reading.force_limited = last_write_limited_;
   if (disconnected_) return fail(DeviceStatus::kDisconnected, FalconFault::kUnplugged, TransportStatus::kNoDevice);
   // Keep exactly one command in flight: if none is (a lost reply, two reads in a row), send one
   // so this read has a reply to wait for.
@@ -183,9 +193,11 @@ DeviceStatus FalconDriver::write(const Vec3<double>& force_n) noexcept {
   Command next;
   next.flags = static_cast<std::uint8_t>(kHomingRequest | (homed_ ? kLedGreen : kLedRed));
   bool zeroed = false;
+  last_write_limited_ = false;
   if (ready && is_finite(force_n)) {
     const MotorWords words = force_to_motor_words(jacobian_, scene_force_to_falcon(force_n), options_.motor);
     next.motor = words.word;
+    last_write_limited_ = words.saturated;
     if (words.saturated) ++stats_.saturated_writes;
   } else {
     zeroed = force_n != Vec3<double>{};

@@ -44,12 +44,19 @@ struct DeviceReading {
   Vec3<double> velocity_m_per_s;  ///< valid when has_velocity
   bool has_velocity = false;      ///< the device measures velocity itself: no estimator runs
   std::uint32_t buttons = 0;      ///< bit i = button i pressed
+  /// The device scaled the last force written before this reading down to what it can give
+  /// (the Falcon: its +-4095 motor words saturated; the force kept its direction). Not a
+  /// fault and not a reason to cut force: the loop may report it (telemetry, run summary,
+  /// viewer). Backends that never scale a force leave it false.
+  bool force_limited = false;
 };
 
 /// What a device is and can do, known once it is open.
 struct DeviceInfo {
   std::string name;                        ///< for messages: "Novint Falcon (serial ...)"
-  double max_force_n = 0.0;                ///< nominal peak force
+  /// The largest force the backend commands [N]; each backend says what it is (the Falcon: what
+  /// its motor words give in every direction at the workspace centre; the Omni: its cap).
+  double max_force_n = 0.0;
   double max_continuous_force_n = 0.0;     ///< what the motors sustain (thermal model input)
   Vec3<double> workspace_min_m;            ///< scene frame
   Vec3<double> workspace_max_m;

@@ -4,7 +4,10 @@
 /// at most one command outstanding; read() collects the reply to the previous write() (whole
 /// 16-byte frames from FTDI packets, split or merged), write() sends the next command. Every
 /// command holds the homing bit; the LED is red until the Falcon reports all three axes homed,
-/// green after (falcon.md §4). Until homed, and on any fault, the force sent is zero.
+/// green after (falcon.md §4). Until homed, and on any fault, the force sent is zero. A force
+/// beyond what the +-4095 motor words give at the pose is scaled down keeping its direction,
+/// and the next read() sets DeviceReading::force_limited. info().max_force_n is the force
+/// the words give in every direction at the workspace centre (force_envelope()).
 /// Hot path: no allocation after construction, bounded reads, noexcept, status values.
 
 #include <array>
@@ -97,6 +100,7 @@ class FalconDriver final : public DeviceDriver {
   bool pose_valid_ = false;
   bool last_read_ok_ = false;
   bool disconnected_ = false;
+  bool last_write_limited_ = false;  ///< the last write() saturated the words (next read() says so)
   Vec3<double> position_falcon_m_{};
   Mat3 jacobian_{};
 
