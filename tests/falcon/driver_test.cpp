@@ -27,7 +27,7 @@ const Vec3<double> kCentre{0.0, 0.0, 0.110};
 constexpr double kCountTolerance_m = 1e-4;  // a few encoder counts anywhere in the workspace
 
 struct Rig {
-  explicit Rig(EmulatorOptions o = with_firmware(), FalconOptions f = {}) : emu(std::move(o)), options(f) {
+  explicit Rig(EmulatorOptions o = with_firmware(), const FalconOptions& f = FalconOptions()) : emu(std::move(o)), options(f) {
     auto t = std::make_unique<EmulatorTransport>(emu);
     transport = t.get();
     EXPECT_EQ(ftdi::enter_normal_mode(*t), TransportStatus::kOk);

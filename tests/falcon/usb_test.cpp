@@ -15,6 +15,7 @@
 #include "alloc_counter.hpp"
 #include "run_command.hpp"
 #include "synthetic_firmware.hpp"
+#include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
@@ -48,6 +49,16 @@ class FalconUsb : public ::testing::Test {
       GTEST_SKIP() << "needs umockdev: run under umockdev-wrapper (CTest does)";
     }
     bed_ = std::make_unique<UsbfsEmulator>();
+    // open_falcon() reads the calibration of each Falcon from the user's config directory: an
+    // empty one of our own keeps the tests from depending on that of whoever runs them.
+    config_home_ = std::filesystem::temp_directory_path() /
+                   ("toonforce_usb_config_" + std::to_string(::getpid()) + "_" +
+                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(config_home_);
+    ::setenv("XDG_CONFIG_HOME", config_home_.c_str(), 1);
+  }
+  void TearDown() override {
+    if (!config_home_.empty()) std::filesystem::remove_all(config_home_);
   }
 
   /// open_falcon() as `toonforce run --device falcon` will call it, as our driver type.
@@ -77,6 +88,7 @@ class FalconUsb : public ::testing::Test {
   }
 
   std::unique_ptr<UsbfsEmulator> bed_;
+  std::filesystem::path config_home_;
 };
 
 // ---- finding and opening ----
@@ -141,6 +153,40 @@ TEST_F(FalconUsb, OpensBySerialOrIndex) {
   FalconOptions too_far;
   too_far.index = 2;
   EXPECT_NE(open_falcon(too_far).error().find("only 2 Novint Falcon(s) are connected"), std::string::npos);
+}
+
+TEST_F(FalconUsb, OpenFalconUsesTheCalibrationWrittenForItsSerialNumber) {
+  bed_->add_falcon(with_firmware(), "FTCAL0001");
+  {
+    const auto uncalibrated = open();
+    ASSERT_NE(uncalibrated, nullptr);
+    EXPECT_EQ(uncalibrated->motor_scale().words_per_n_m, kUncalibratedWordsPerNewtonMetre);
+    EXPECT_NE(uncalibrated->calibration_source().find("uncalibrated"), std::string::npos);
+  }
+  FalconCalibration c;
+  c.serial = "FTCAL0001";
+  c.words_per_n_m = 4000.0;  // 2.5 times fewer words per N m: 2.5 times the force per word
+  const std::string path = default_falcon_calibration_path("FTCAL0001");
+  ASSERT_TRUE(write_falcon_calibration(path, c));
+  const auto calibrated = open();
+  ASSERT_NE(calibrated, nullptr);
+  EXPECT_EQ(calibrated->motor_scale().words_per_n_m, 4000.0);
+  EXPECT_NE(calibrated->calibration_source().find(path), std::string::npos) << calibrated->calibration_source();
+  ForceEnvelope centre;
+  ASSERT_TRUE(force_envelope_at(FalconGeometry{}, kCentre, MotorScale{4000.0, 4095}, centre));
+  EXPECT_DOUBLE_EQ(calibrated->info().max_force_n, centre.every_direction_n);
+}
+
+TEST_F(FalconUsb, ABadCalibrationFileStopsTheOpenNamingItsLine) {
+  bed_->add_falcon(with_firmware(), "FTCAL0002");
+  const std::string path = (config_home_ / "bad.toml").string();
+  std::filesystem::create_directories(config_home_);
+  std::ofstream(path) << "# measured today\nwords_per_newton_metre = 12\n";
+  FalconOptions options;
+  options.calibration_path = path;
+  auto opened = open_falcon(options);
+  ASSERT_FALSE(opened);
+  EXPECT_NE(opened.error().find(path + ":2: words_per_newton_metre: 12 is outside"), std::string::npos) << opened.error();
 }
 
 TEST_F(FalconUsb, OpeningWithoutFirmwareSaysHowToLoadIt) {

@@ -43,6 +43,10 @@ void add_run(CLI::App& app) {
   falcon->add_option("--firmware", options->falcon.firmware_path,
                      "Firmware file to load if the Falcon has none yet (after power-up; docs/FALCON.md)")
       ->check(CLI::ExistingFile);
+  falcon->add_option("--falcon-calibration", options->falcon.calibration_path,
+                     "Calibration file with the Falcon's words per N m (default: the one `toonforce bringup "
+                     "falcon` wrote for this serial number, if any; docs/FALCON.md)")
+      ->check(CLI::ExistingFile);
   CLI::Option_group* omni = cmd->add_option_group("Phantom Omni / Touch (--device omni)");
   omni->add_option("--omni-device", options->omni.device_name,
                    "OpenHaptics device name as set in Touch_Setup (default: the default device)");

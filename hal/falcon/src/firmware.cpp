@@ -353,7 +353,10 @@ class Loader {
     }
     if (have == 0) return "the boot loader did not echo the autobaud character 'A'";
     std::string answer;
-    for (std::size_t i = 0; i < have; ++i) answer += (i > 0 ? " " : "") + hex_word(got[i], 2);
+    for (std::size_t i = 0; i < have; ++i) {
+      if (i > 0) answer += ' ';
+      answer += hex_word(got[i], 2);
+    }
     return "the boot loader answered the autobaud 'A' with " + answer + " instead of echoing 0x41 (alone or after 0x13)";
   }
 

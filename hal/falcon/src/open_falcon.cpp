@@ -1,8 +1,11 @@
 // The Falcon backend's entry points: open_falcon, load_falcon_firmware, detect_falcons.
 #include <unistd.h>
 
+#include <filesystem>
 #include <optional>
 #include <variant>
+
+#include <fmt/format.h>
 
 #include "libusb_transport.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
@@ -86,6 +89,33 @@ std::string probe(LibusbTransport& t, bool& loaded) {
 
 }  // namespace
 
+Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial) {
+  ResolvedFalconCalibration out;
+  std::string path = explicit_path;
+  if (path.empty()) {
+    const std::string fallback = falcon::default_falcon_calibration_path(serial);
+    std::error_code ec;
+    if (fallback.empty() || !std::filesystem::exists(fallback, ec)) {
+      out.source = fmt::format("libnifalcon's uncalibrated {:.0f} words per N m (no calibration file{}{}; "
+                               "`toonforce bringup falcon` measures it)",
+                               falcon::kUncalibratedWordsPerNewtonMetre, fallback.empty() ? "" : " at ", fallback);
+      return out;
+    }
+    path = fallback;
+  }
+  auto read = falcon::read_falcon_calibration(path);
+  if (!read) return Error{read.error()};
+  if (!read.value().serial.empty() && !serial.empty() && read.value().serial != serial) {
+    return Error{fmt::format("{}: this calibration was measured on the Falcon with serial number {}, but the one "
+                             "opened is {}: measure this one (`toonforce bringup falcon`) or give its own file",
+                             path, read.value().serial, serial)};
+  }
+  out.calibration = std::move(read.value());
+  out.from_file = true;
+  out.source = fmt::format("{:.6g} words per N m from {}", out.calibration.words_per_n_m, path);
+  return out;
+}
+
 Result<std::unique_ptr<DeviceDriver>> open_falcon(const FalconOptions& options) {
   // The firmware file is checked before the device is touched.
   std::optional<falcon::FirmwareImage> image;
@@ -107,8 +137,13 @@ Result<std::unique_ptr<DeviceDriver>> open_falcon(const FalconOptions& options) 
     auto report = falcon::load_firmware(*t, *image, options.firmware);
     if (!report) return Error{report.error()};
   }
+  auto calibration = resolve_falcon_calibration(options.calibration_path, t->serial());
+  if (!calibration) return Error{calibration.error()};
+  FalconOptions calibrated = options;
+  calibrated.motor.words_per_n_m = calibration.value().calibration.words_per_n_m;
+  calibrated.calibration_source = calibration.value().source;
   std::string name = device_name(*t);
-  return std::unique_ptr<DeviceDriver>(std::make_unique<falcon::FalconDriver>(std::move(t), options, std::move(name)));
+  return std::unique_ptr<DeviceDriver>(std::make_unique<falcon::FalconDriver>(std::move(t), calibrated, std::move(name)));
 }
 
 Result<std::string> load_falcon_firmware(const std::string& path, const FalconOptions& options, bool reload) {

@@ -76,6 +76,9 @@ class FalconDriver final : public DeviceDriver {
   /// The last position estimate in the Falcon frame [m].
   Vec3<double> position_falcon_m() const noexcept { return position_falcon_m_; }
   FalconTransport& transport() noexcept { return *transport_; }
+  /// Where the words-per-torque constant came from (FalconOptions::calibration_source).
+  const std::string& calibration_source() const noexcept { return options_.calibration_source; }
+  const falcon::MotorScale& motor_scale() const noexcept { return options_.motor; }
 
  private:
   DeviceStatus fail(DeviceStatus status, FalconFault fault, TransportStatus usb = TransportStatus::kOk) noexcept;

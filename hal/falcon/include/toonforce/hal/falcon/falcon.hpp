@@ -14,6 +14,7 @@
 #include "toonforce/common/result.hpp"
 #include "toonforce/hal/detect.hpp"
 #include "toonforce/hal/device.hpp"
+#include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/firmware.hpp"
 #include "toonforce/hal/falcon/kinematics.hpp"
 
@@ -21,6 +22,9 @@ namespace toonforce {
 
 /// How to open a Falcon and run its 1 kHz exchange. Defaults suit a real device.
 struct FalconOptions {
+  // User-provided, so `open_falcon({})` value-initialises through it: g++ 12 otherwise reports
+  // a false -Wmaybe-uninitialized on the std::function inside `firmware` at such call sites.
+  FalconOptions() noexcept {}  // NOLINT(modernize-use-equals-default)
   std::string serial;   ///< the FTDI serial number of the Falcon to open; empty: use `index`
   unsigned index = 0;   ///< the index-th Falcon in USB enumeration order when `serial` is empty
   /// A firmware file to load if the Falcon has none yet (power-up). Empty: firmware must
@@ -30,7 +34,14 @@ struct FalconOptions {
   /// The workspace centre in the Falcon frame [m]: the scene-frame origin (effects.md §0).
   /// z = 0.110 is libnifalcon's examples' centre (falcon.md §5 "Frame").
   Vec3<double> workspace_centre_falcon_m{0.0, 0.0, 0.110};
-  falcon::MotorScale motor{};  ///< words per N m (uncalibrated) and the command range
+  /// The calibration file (hal/falcon calibration.hpp) whose words per N m open_falcon() puts
+  /// in `motor`. Empty: the default path for the opened Falcon's serial number
+  /// (default_falcon_calibration_path) when that file exists, else libnifalcon's uncalibrated
+  /// constant. A given path must exist; a file naming another serial number is refused.
+  std::string calibration_path;
+  falcon::MotorScale motor{};  ///< words per N m (from the calibration) and the command range
+  /// Where motor.words_per_n_m came from, for messages and reports (open_falcon() fills it).
+  std::string calibration_source = "libnifalcon's uncalibrated 10000 words per N m (no calibration file)";
   falcon::FkOptions fk{};
   double fk_accept_residual_rad = 1e-6;  ///< a pose estimate worse than this is not used
   std::uint32_t io_timeout_ms = 4;       ///< per USB transfer in a tick (the FTDI answers every 1 ms)
@@ -56,6 +67,16 @@ struct FalconDetection {
   std::vector<DetectedDevice> devices;
   std::vector<Prerequisite> prerequisites;
 };
+
+/// The calibration open_falcon() uses for the Falcon with serial number `serial`: the file at
+/// `explicit_path` (which must exist), else the default path for `serial` if that file exists,
+/// else libnifalcon's uncalibrated constant. `source` says which, for messages.
+struct ResolvedFalconCalibration {
+  falcon::FalconCalibration calibration;
+  std::string source;
+  bool from_file = false;
+};
+Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial);
 
 /// Every Falcon on the USB bus, whether this user may open it (and if not, why and how to fix
 /// it), plus the udev rule, group membership and (per device) firmware prerequisites.
