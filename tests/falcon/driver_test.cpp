@@ -464,3 +464,75 @@ TEST(FalconDriver, ClosingSendsZeroForce) {
 
 }  // namespace
 }  // namespace toonforce::falcon
+
+namespace toonforce::falcon {
+namespace {
+
+// ---- the emulator's hardware faults (what bring-up must catch; tests of the emulator itself) ----
+
+TEST(FalconEmulatorFaults, AReversedMotorPushesTheOtherWay) {
+  EmulatorOptions healthy = Rig::with_firmware();
+  EmulatorOptions reversed = healthy;
+  reversed.motor_reversed = {false, true, false};
+  Rig a(healthy);
+  Rig b(reversed);
+  a.home();
+  b.home();
+  // A torque on motor 2 alone (word -400): the grip force it makes is J^-T tau.
+  for (Rig* r : {&a, &b}) {
+    Mat3 j;
+    ASSERT_TRUE(position_jacobian(FalconGeometry{}, r->emu.grip_position(), j));
+    Mat3 jt;
+    for (std::size_t i = 0; i < 3; ++i) {
+      for (std::size_t k = 0; k < 3; ++k) jt(i, k) = j(k, i);
+    }
+    Mat3 jt_inv;
+    ASSERT_TRUE(invert(jt, jt_inv));
+    const Vec3<double> tau{0, 0.04, 0};
+    const Vec3<double> f{jt_inv(0, 1) * tau.y, jt_inv(1, 1) * tau.y, jt_inv(2, 1) * tau.y};
+    r->tick(falcon_force_to_scene(f));
+    r->tick(falcon_force_to_scene(f));
+  }
+  const Vec3<double> fa = a.emu.motor_force_n();
+  const Vec3<double> fb = b.emu.motor_force_n();
+  EXPECT_GT(norm(fa), 0.1);
+  EXPECT_NEAR(norm(fa + fb), 0.0, 1e-3 * norm(fa)) << "the same words, the opposite force";
+}
+
+TEST(FalconEmulatorFaults, ADeadEncoderNeverCounts) {
+  EmulatorOptions o = Rig::with_firmware();
+  o.encoder_dead = {false, false, true};
+  FalconEmulator emu(o);
+  const auto before = emu.encoder_counts();
+  emu.set_grip_position({0.03, -0.02, 0.13});
+  const auto after = emu.encoder_counts();
+  EXPECT_NE(after[0], before[0]);
+  EXPECT_NE(after[1], before[1]);
+  EXPECT_EQ(after[2], before[2]);
+}
+
+TEST(FalconEmulatorFaults, AnAxisThatNeverHomesKeepsTheDriverNotReady) {
+  EmulatorOptions o = Rig::with_firmware();
+  o.axis_never_homes = {false, true, false};
+  Rig rig(o);
+  rig.emu.set_grip_position({0, 0, 0.178});
+  for (int i = 0; i < 5; ++i) rig.tick();
+  rig.emu.set_grip_position({0, 0, 0.09});
+  for (int i = 0; i < 5; ++i) rig.tick();
+  EXPECT_FALSE(rig.driver->homed());
+  EXPECT_EQ(rig.driver->last_status().homed_mask(), kHomedArm1 | kHomedArm3);
+  EXPECT_EQ(rig.driver->fault(), FalconFault::kNotHomed);
+}
+
+TEST(FalconEmulatorFaults, AWeightPullsTheReleasedGripDown) {
+  Rig rig;
+  rig.home();
+  rig.emu.set_hand_spring(0.0, 0.0);
+  rig.emu.hang_weight(0.2);
+  const double y0 = rig.emu.grip_position().y;
+  for (int i = 0; i < 50; ++i) rig.tick();
+  EXPECT_LT(rig.emu.grip_position().y, y0 - 0.002) << "falls under 1.96 N";
+}
+
+}  // namespace
+}  // namespace toonforce::falcon

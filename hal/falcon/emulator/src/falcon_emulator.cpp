@@ -27,7 +27,18 @@ FalconEmulator::FalconEmulator(EmulatorOptions options)
   reset_dsp();
   handshake_failures_left_ = options_.handshake_failures;
   if (options_.firmware_loaded) state_ = BootState::kRunning;
+  dynamic_ = options_.hand_stiffness_n_per_m > 0.0;
   step_mechanics();
+  // A dead encoder is stuck where it was at power-on (relative counts, as the host sees them).
+  for (std::size_t i = 0; i < 3; ++i) {
+    dead_counts_[i] = static_cast<std::int16_t>(last_counts_[i] + options_.power_on_offset_counts[i]);
+  }
+}
+
+void FalconEmulator::set_hand_spring(double stiffness_n_per_m, double damping_n_s_per_m) noexcept {
+  options_.hand_stiffness_n_per_m = stiffness_n_per_m;
+  options_.hand_damping_n_s_per_m = damping_n_s_per_m;
+  dynamic_ = true;
 }
 
 void FalconEmulator::power_cycle() {
@@ -211,7 +222,13 @@ void FalconEmulator::handle_command(const Command& c) {
 
   Status s;
   s.encoder = encoder_counts();
-  s.info = static_cast<std::uint8_t>(buttons_ | (homed_ ? kHomedAll : 0));
+  std::uint8_t homed_flags = 0;
+  if (homed_) {
+    for (std::size_t i = 0; i < 3; ++i) {
+      if (!options_.axis_never_homes[i]) homed_flags = static_cast<std::uint8_t>(homed_flags | (kHomedArm1 << i));
+    }
+  }
+  s.info = static_cast<std::uint8_t>(buttons_ | homed_flags);
   Frame f = encode_status(s);
   if (drop_ > 0) {
     --drop_;
@@ -234,7 +251,7 @@ void FalconEmulator::handle_command(const Command& c) {
 
 void FalconEmulator::set_grip_position(const Vec3<double>& falcon_m) {
   target_m_ = falcon_m;
-  if (options_.hand_stiffness_n_per_m <= 0.0) {
+  if (!dynamic_) {
     grip_m_ = falcon_m;
     velocity_m_per_s_ = {};
     step_mechanics();
@@ -252,20 +269,26 @@ Vec3<double> FalconEmulator::motor_force_n() const noexcept {
   Mat3 jt_inv;
   if (!invert(jt, jt_inv)) return {};
   const double k = -options_.n_m_per_word;
-  const double t0 = k * last_command_.motor[0];
-  const double t1 = k * last_command_.motor[1];
-  const double t2 = k * last_command_.motor[2];
+  const auto torque = [&](std::size_t i) {
+    const double t = k * last_command_.motor[i];
+    return options_.motor_reversed[i] ? -t : t;  // a motor wired backwards
+  };
+  const double t0 = torque(0);
+  const double t1 = torque(1);
+  const double t2 = torque(2);
   return {jt_inv(0, 0) * t0 + jt_inv(0, 1) * t1 + jt_inv(0, 2) * t2,
           jt_inv(1, 0) * t0 + jt_inv(1, 1) * t1 + jt_inv(1, 2) * t2,
           jt_inv(2, 0) * t0 + jt_inv(2, 1) * t1 + jt_inv(2, 2) * t2};
 }
 
 void FalconEmulator::step_mechanics() {
-  if (options_.hand_stiffness_n_per_m > 0.0 && state_ == BootState::kRunning) {
+  if (dynamic_ && state_ == BootState::kRunning) {
     const double dt = options_.seconds_per_command;
+    constexpr double kGravity = 9.81;  // [m/s^2] along the Falcon's -y (y is up, falcon.md §5)
     const Vec3<double> force = (target_m_ - grip_m_) * options_.hand_stiffness_n_per_m -
-                               velocity_m_per_s_ * options_.hand_damping_n_s_per_m + motor_force_n();
-    velocity_m_per_s_ += force * (dt / options_.grip_mass_kg);  // semi-implicit Euler
+                               velocity_m_per_s_ * options_.hand_damping_n_s_per_m + motor_force_n() +
+                               Vec3<double>{0.0, -kGravity * weight_kg_, 0.0};
+    velocity_m_per_s_ += force * (dt / (options_.grip_mass_kg + weight_kg_));  // semi-implicit Euler
     const Vec3<double> next = grip_m_ + velocity_m_per_s_ * dt;
     Angles probe{};
     if (inverse_kinematics(geometry_, next, probe)) {
@@ -285,10 +308,9 @@ void FalconEmulator::step_mechanics() {
 
 std::array<std::int16_t, 3> FalconEmulator::encoder_counts() const noexcept {
   std::array<std::int16_t, 3> counts = last_counts_;
-  if (!homed_) {
-    for (std::size_t i = 0; i < 3; ++i) {
-      counts[i] = static_cast<std::int16_t>(counts[i] + options_.power_on_offset_counts[i]);
-    }
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!homed_) counts[i] = static_cast<std::int16_t>(counts[i] + options_.power_on_offset_counts[i]);
+    if (options_.encoder_dead[i]) counts[i] = dead_counts_[i];
   }
   return counts;
 }

@@ -19,5 +19,8 @@ constexpr Vec3<double> scene_to_falcon(const Vec3<double>& p_scene, const Vec3<d
 constexpr Vec3<double> scene_force_to_falcon(const Vec3<double>& f_scene) noexcept {
   return {f_scene.x, f_scene.z, -f_scene.y};
 }
+constexpr Vec3<double> falcon_force_to_scene(const Vec3<double>& f_falcon) noexcept {
+  return {f_falcon.x, -f_falcon.z, f_falcon.y};
+}
 
 }  // namespace toonforce::falcon

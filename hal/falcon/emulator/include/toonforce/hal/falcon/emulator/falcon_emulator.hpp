@@ -59,6 +59,15 @@ struct EmulatorOptions {
   /// grip pulled beyond `homing_out_z_m` then pushed back inside `homing_in_z_m`.
   double homing_out_z_m = 0.170;
   double homing_in_z_m = 0.100;
+
+  // ---- faults of the hardware itself: what `toonforce bringup falcon` must catch ----
+  /// Motor i (arm i+1) wired backwards: its torque has the opposite sign of what its word asks.
+  std::array<bool, 3> motor_reversed{};
+  /// Encoder i is dead: it reports the count it had at power-on whatever the arm does.
+  std::array<bool, 3> encoder_dead{};
+  /// Axis i never reports homed (its flag in the status stays clear): homing never completes.
+  std::array<bool, 3> axis_never_homes{};
+  // A force constant off by a factor: set n_m_per_word to the device's true torque per word.
 };
 
 /// What the FTDI vendor requests have set.
@@ -92,6 +101,14 @@ class FalconEmulator {
   void set_grip_position(const Vec3<double>& falcon_m);  ///< the hand's target (or the grip itself)
   Vec3<double> grip_position() const noexcept { return grip_m_; }
   void set_buttons(std::uint8_t buttons) noexcept { buttons_ = buttons & kButtonsMask; }
+  /// The hand becomes a spring-damper toward its target (see EmulatorOptions), from now on;
+  /// stiffness 0 is a hand that lets go: the grip moves under the motors (and a weight) alone.
+  void set_hand_spring(double stiffness_n_per_m, double damping_n_s_per_m) noexcept;
+  /// A weight of `mass_kg` hung from the grip (0 takes it off): gravity along the Falcon's -y
+  /// and the weight's mass on the grip.
+  void hang_weight(double mass_kg) noexcept { weight_kg_ = mass_kg; }
+  /// The LED bits (kLedRed, kLedGreen, kLedBlue) of the last command: what a person sees.
+  std::uint8_t led() const noexcept { return static_cast<std::uint8_t>(last_command_.flags & (kLedRed | kLedGreen | kLedBlue)); }
   /// The force the motors apply at the grip [N, Falcon frame] for the last motor words.
   Vec3<double> motor_force_n() const noexcept;
   void power_cycle();  ///< firmware lost, not homed, FTDI back to defaults
@@ -165,6 +182,9 @@ class FalconEmulator {
   Vec3<double> target_m_;
   Vec3<double> velocity_m_per_s_{};
   std::array<std::int16_t, 3> last_counts_{};
+  std::array<std::int16_t, 3> dead_counts_{};  ///< what dead encoders report (power-on counts)
+  bool dynamic_ = false;   ///< the grip moves under forces (a hand spring), not by script
+  double weight_kg_ = 0.0;
   std::uint8_t buttons_ = 0;
   bool homed_ = false;
   bool pulled_out_ = false;
