@@ -54,7 +54,7 @@ FalconDriver::~FalconDriver() {
   // Leave the motors unpowered: a last zero-force command (the homing bit still held).
   if (!disconnected_) {
     Command zero;
-    zero.flags = static_cast<std::uint8_t>(kHomingRequest | led_flags_.load());
+    zero.flags = static_cast<std::uint8_t>(kHomingRequest | led());
     const Frame frame = encode_command(zero);
     std::size_t written = 0;
     (void)transport_->write(frame, written, options_.io_timeout_ms);
@@ -105,7 +105,7 @@ DeviceStatus FalconDriver::read(DeviceReading& reading) noexcept {
   // for a tick that has passed (and a loop that skips write() after a fault must not keep it).
   if (in_flight_ == 0) {
     Command idle;
-    idle.flags = static_cast<std::uint8_t>(kHomingRequest | led_flags_.load());
+    idle.flags = static_cast<std::uint8_t>(kHomingRequest | led());
     command_ = idle;
     if (const DeviceStatus s = send(command_); s != DeviceStatus::kOk) return s;
   }
@@ -191,7 +191,7 @@ DeviceStatus FalconDriver::write(const Vec3<double>& force_n) noexcept {
   // Force only from a good reading of a homed device; anything else commands zero.
   const bool ready = last_read_ok_ && pose_valid_ && homed_;
   Command next;
-  next.flags = static_cast<std::uint8_t>(kHomingRequest | (homed_ ? kLedGreen : kLedRed));
+  next.flags = static_cast<std::uint8_t>(kHomingRequest | led());
   bool zeroed = false;
   last_write_limited_ = false;
   if (ready && is_finite(force_n)) {
@@ -213,9 +213,18 @@ DeviceStatus FalconDriver::write(const Vec3<double>& force_n) noexcept {
   return zeroed ? DeviceStatus::kNotReady : DeviceStatus::kOk;
 }
 
+std::uint8_t FalconDriver::led() const noexcept {
+  const std::uint8_t forced = led_override_.load(std::memory_order_relaxed);
+  return forced != 0 ? forced : led_flags_.load(std::memory_order_relaxed);
+}
+
+void FalconDriver::set_led(std::uint8_t flags) noexcept {
+  led_override_.store(static_cast<std::uint8_t>(flags & (kLedRed | kLedGreen | kLedBlue)), std::memory_order_relaxed);
+}
+
 void FalconDriver::emergency_zero() noexcept {
   Command zero;
-  zero.flags = static_cast<std::uint8_t>(kHomingRequest | led_flags_.load());
+  zero.flags = static_cast<std::uint8_t>(kHomingRequest | led());
   const Frame frame = encode_command(zero);
   if (transport_->emergency_write(frame)) {
     extra_replies_.fetch_add(1);

@@ -72,6 +72,9 @@ class FalconDriver final : public DeviceDriver {
   FalconFault fault() const noexcept { return fault_; }
   bool homed() const noexcept { return homed_; }
   const Status& last_status() const noexcept { return status_; }
+  /// Shows these LED bits (kLedRed | kLedGreen | kLedBlue) in every command from now on instead
+  /// of red/green for the homing state; 0 returns to that (bring-up's LED check).
+  void set_led(std::uint8_t flags) noexcept;
   const Command& last_command() const noexcept { return command_; }
   /// The last position estimate in the Falcon frame [m].
   Vec3<double> position_falcon_m() const noexcept { return position_falcon_m_; }
@@ -84,6 +87,7 @@ class FalconDriver final : public DeviceDriver {
   DeviceStatus fail(DeviceStatus status, FalconFault fault, TransportStatus usb = TransportStatus::kOk) noexcept;
   DeviceStatus send(const Command& command) noexcept;
   DeviceStatus map_usb(TransportStatus s) noexcept;
+  std::uint8_t led() const noexcept;
 
   std::unique_ptr<FalconTransport> transport_;
   FalconOptions options_;
@@ -98,7 +102,8 @@ class FalconDriver final : public DeviceDriver {
 
   Status status_{};
   Command command_{};
-  std::atomic<std::uint8_t> led_flags_{kLedRed};
+  std::atomic<std::uint8_t> led_flags_{kLedRed};   ///< red until homed, green after
+  std::atomic<std::uint8_t> led_override_{0};      ///< set_led(); 0: led_flags_
   bool homed_ = false;
   bool pose_valid_ = false;
   bool last_read_ok_ = false;
