@@ -3,13 +3,17 @@
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <numbers>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <unistd.h>
 
 #include "alloc_counter.hpp"
@@ -430,6 +434,113 @@ TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) 
   EXPECT_NE(r.output.find("matches no known Falcon firmware image"), std::string::npos) << r.output;
   EXPECT_EQ(bed_->ioctls(0), 0u);
   bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.state(), BootState::kBootRom); });
+}
+
+// ---- `toonforce bringup falcon` end to end: the binary against the emulated Falcon ----
+
+/// The person's hands for a bring-up run in another process: once the command stream has
+/// started, pulls the emulated grip out to its stop and pushes it back in (homing, falcon.md
+/// §4), watching where the grip is (it may be held by a hand spring that takes time).
+class Homer {
+ public:
+  Homer(UsbfsEmulator& bed, std::size_t falcon) : thread_([this, &bed, falcon] {
+    int phase = 0;
+    while (!stop_.load() && phase < 3) {
+      bed.with(falcon, [&](FalconEmulator& e) {
+        if (phase == 0 && e.commands_received() >= 30) {
+          e.set_grip_position({0, 0, 0.178});
+          phase = 1;
+        } else if (phase == 1 && e.grip_position().z > 0.172) {
+          e.set_grip_position({0, 0, 0.09});
+          phase = 2;
+        } else if (phase == 2 && e.grip_position().z < 0.098) {
+          e.set_grip_position(kCentre);
+          phase = 3;
+        }
+      });
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }) {}
+  ~Homer() {
+    stop_.store(true);
+    thread_.join();
+  }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001");
+  std::filesystem::create_directories(config_home_);
+  const auto base = config_home_ / "report";
+  Homer homer(*bed_, 0);
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 300 --homing-timeout 30 "
+      "--report " + base.string());
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const char* line : {"[pass] Found and may be opened: found at usb 001/005", "[pass] Firmware: firmware runs",
+                           "[pass] Homing: all three axes report homed", "[pass] USB round trip at 1 kHz: 300 replies to 300 commands",
+                           "no step failed: report written to"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  const std::string json = read_text(base.string() + ".json");
+  EXPECT_NE(json.find("\"passed\": true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"id\": \"motors\", \"title\": \"Motor direction\", \"outcome\": \"skipped\""), std::string::npos) << json;
+  const std::string md = read_text(base.string() + ".md");
+  EXPECT_NE(md.find("| USB round trip at 1 kHz | pass |"), std::string::npos) << md;
+  EXPECT_NE(md.find("299 samples"), std::string::npos) << "the histogram of the round trips: " << md;
+  EXPECT_GT(bed_->ioctls(0), 0u) << "the child process went through the emulated usbfs";
+}
+
+TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAnAxisThatNeverHomes) {
+  EmulatorOptions o = with_firmware();
+  o.axis_never_homes = {false, false, true};
+  bed_->add_falcon(o, "FTEMU0001");
+  std::filesystem::create_directories(config_home_);
+  const auto base = config_home_ / "report";
+  Homer homer(*bed_, 0);
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 100 --homing-timeout 2 "
+      "--report " + base.string());
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("[FAIL] Homing: homing never completed after 2 s: arm 1 (top), arm 2 (right) reported "
+                          "homed, arm 3 (left) never did"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("a step FAILED"), std::string::npos) << r.output;
+  EXPECT_NE(read_text(base.string() + ".json").find("\"passed\": false"), std::string::npos);
+}
+
+TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAMotorWiredBackwards) {
+  EmulatorOptions o = with_firmware();
+  o.motor_reversed = {true, false, false};
+  o.hand_stiffness_n_per_m = 60.0;  // a hand holds the grip lightly all along
+  o.hand_damping_n_s_per_m = 3.0;
+  bed_->add_falcon(o, "FTEMU0001");
+  std::filesystem::create_directories(config_home_);
+  Homer homer(*bed_, 0);
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware,homing,motors --answer falcon.motors.hold=done "
+      "--homing-timeout 30 --report " + (config_home_ / "report").string());
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("[FAIL] Motor direction: arm 1 (top) turned the wrong way"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Forces were set to zero at once"), std::string::npos) << r.output;
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+}
+
+TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --only homeing");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("no bring-up step 'homeing' (the steps are: found, firmware, homing"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -6,6 +6,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -151,6 +153,31 @@ TEST_F(OmniBringup, WithoutOpenHapticsTheFirstStepSaysWhatToInstall) {
   EXPECT_EQ(r.step("found")->outcome, Outcome::kFail);
   EXPECT_THAT(finding(r, "found"), HasSubstr("/nonexistent/libHD.so does not exist"));
   EXPECT_EQ(r.step("calibration")->outcome, Outcome::kSkipped);
+}
+
+TEST(OmniBringupCommand, RunsUnattendedAgainstTheFakeLibHdThroughTheCommandLine) {
+  // The child process loads the fake, whose scheduler then runs in real time (no test steps it).
+  const std::string base = ::testing::TempDir() + "omni_bringup_report";
+  const std::string cmd = std::string(TOONFORCE_BINARY) + " bringup omni --non-interactive --omni-library " +
+                          test::kFakeHd + " --only found,driver,calibration,timing --timing-ticks 200 --report " + base +
+                          " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string output;
+  char buf[4096];
+  for (std::size_t n = 0; (n = std::fread(buf, 1, sizeof buf, p)) > 0;) output.append(buf, n);
+  const int status = ::pclose(p);
+  ASSERT_TRUE(WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  EXPECT_THAT(output, HasSubstr("[pass] Driver and limits: Touch (toonforce fake libHD)"));
+  EXPECT_THAT(output, HasSubstr("[pass] Calibration"));
+  EXPECT_THAT(output, HasSubstr("[pass] Scheduler rate: 200 ticks"));
+  std::FILE* json = std::fopen((base + ".json").c_str(), "r");
+  ASSERT_NE(json, nullptr);
+  std::string text;
+  for (std::size_t n = 0; (n = std::fread(buf, 1, sizeof buf, json)) > 0;) text.append(buf, n);
+  std::fclose(json);
+  EXPECT_THAT(text, HasSubstr("\"passed\": true"));
 }
 
 }  // namespace

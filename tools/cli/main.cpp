@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   toonforce::cli::add_devices(app);
   toonforce::cli::add_falcon(app);
   toonforce::cli::add_report(app);
+  toonforce::cli::add_bringup(app);
 #if TOONFORCE_VIEWER
   toonforce::cli::add_view(app);
 #endif
