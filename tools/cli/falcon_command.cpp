@@ -1,9 +1,11 @@
 // toonforce falcon firmware FILE [--serial S | --index N] [--attempts N] [--reload]
 // toonforce falcon udev-rule
+// toonforce falcon envelope [--calibration FILE] [--csv OUT] [--step MM]
 // Novint Falcon chores: load its firmware (from a file the user supplies: toonforce ships
 // none, docs/FALCON.md), and print the udev rule that lets group plugdev open it.
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -11,7 +13,10 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/falcon/frames.hpp"
+#include "toonforce/hal/falcon/kinematics.hpp"
 
 namespace toonforce::cli {
 namespace {
@@ -29,10 +34,117 @@ void print_error(const std::string& message) {
   if (message.empty() || message.back() != '\n') std::fputc('\n', stderr);
 }
 
+struct EnvelopeArgs {
+  std::string calibration;
+  std::string csv;
+  double step_mm = 5.0;
+};
+
+/// The force envelope (kinematics.hpp force_envelope) over the HDAL box of the driver's
+/// workspace (falcon.md §5), in the scene frame: x right, y away from the user, z up.
+int run_envelope(const EnvelopeArgs& a) {
+  falcon::MotorScale scale;
+  std::string source = "libnifalcon's uncalibrated 10000 words per N m";
+  if (!a.calibration.empty()) {
+    auto c = falcon::read_falcon_calibration(a.calibration);
+    if (!c) {
+      print_error(c.error());
+      return 1;
+    }
+    scale.words_per_n_m = c.value().words_per_n_m;
+    source = fmt::format("{:.6g} words per N m from {}", scale.words_per_n_m, a.calibration);
+  }
+  const Vec3<double> centre{0.0, 0.0, 0.110};  // FalconOptions::workspace_centre_falcon_m
+  // Scene axes in the Falcon frame (frames.hpp: scene = (x, -z, y)).
+  const Vec3<double> along_x{1, 0, 0};
+  const Vec3<double> along_y{0, 0, -1};
+  const Vec3<double> along_z{0, 1, 0};
+  std::FILE* csv = nullptr;
+  if (!a.csv.empty()) {
+    csv = std::fopen(a.csv.c_str(), "w");
+    if (csv == nullptr) {
+      print_error(a.csv + ": cannot write");
+      return 1;
+    }
+    fmt::print(csv, "# toonforce falcon envelope; {}\nx_m,y_m,z_m,along_x_n,along_y_n,along_z_n,every_direction_n\n", source);
+  }
+  struct Least {
+    double n = 1e9;
+    Vec3<double> at{};
+  };
+  Least least[4];
+  Least least_core[4];  // within kCoreMm of the centre along each axis: the ~10 cm cube
+  constexpr double kCoreMm = 40.0;
+  std::size_t core_points = 0;
+  std::size_t core_below_4n = 0;
+  std::size_t reached = 0;
+  std::size_t points = 0;
+  const auto steps = [&](double from_mm, double to_mm) {
+    return static_cast<int>(std::lround((to_mm - from_mm) / a.step_mm));
+  };
+  // The HDAL box (driver.cpp): x, z in -60..60 mm, y (depth) in -65..35 mm about the centre.
+  for (int ix = 0; ix <= steps(-60, 60); ++ix) {
+    for (int iy = 0; iy <= steps(-65, 35); ++iy) {
+      for (int iz = 0; iz <= steps(-60, 60); ++iz) {
+        const Vec3<double> scene{(-60 + ix * a.step_mm) * 1e-3, (-65 + iy * a.step_mm) * 1e-3, (-60 + iz * a.step_mm) * 1e-3};
+        ++points;
+        falcon::Mat3 j;
+        const bool ok = falcon::position_jacobian(falcon::FalconGeometry{}, falcon::scene_to_falcon(scene, centre), j);
+        if (!ok) {
+          if (csv != nullptr) fmt::print(csv, "{:.4f},{:.4f},{:.4f},,,,\n", scene.x, scene.y, scene.z);
+          continue;
+        }
+        ++reached;
+        const double f[4] = {falcon::max_force_along(j, along_x, scale), falcon::max_force_along(j, along_y, scale),
+                             falcon::max_force_along(j, along_z, scale), falcon::force_envelope(j, scale).every_direction_n};
+        const bool core = std::abs(scene.x) <= kCoreMm * 1e-3 + 1e-9 && std::abs(scene.y) <= kCoreMm * 1e-3 + 1e-9 &&
+                          std::abs(scene.z) <= kCoreMm * 1e-3 + 1e-9;
+        for (int k = 0; k < 4; ++k) {
+          if (f[k] < least[k].n) least[k] = {f[k], scene};
+          if (core && f[k] < least_core[k].n) least_core[k] = {f[k], scene};
+        }
+        if (core) {
+          ++core_points;
+          core_below_4n += f[3] < 4.0 ? 1 : 0;
+        }
+        if (csv != nullptr) {
+          fmt::print(csv, "{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", scene.x, scene.y, scene.z, f[0], f[1], f[2], f[3]);
+        }
+      }
+    }
+  }
+  if (csv != nullptr && std::fclose(csv) != 0) {
+    print_error(a.csv + ": cannot write");
+    return 1;
+  }
+  falcon::ForceEnvelope at_centre;
+  (void)falcon::force_envelope_at(falcon::FalconGeometry{}, centre, scale, at_centre);
+  fmt::print("Force the Falcon's +-{} motor words allow ({}), scene frame (x right, y away, z up):\n", scale.max_word, source);
+  fmt::print("  at the workspace centre: along x {:.2f} N, along y {:.2f} N, along z {:.2f} N, in every direction {:.2f} N\n",
+             at_centre.axis_n.x, at_centre.axis_n.z, at_centre.axis_n.y, at_centre.every_direction_n);
+  fmt::print("  over the driver's workspace box (x, z -60..60 mm, y -65..35 mm, {} of {} grid points within reach):\n",
+             reached, points);
+  const char* names[4] = {"along x", "along y", "along z", "in every direction"};
+  for (int k = 0; k < 4; ++k) {
+    fmt::print("    least {:<19} {:6.2f} N at ({:.0f}, {:.0f}, {:.0f}) mm\n", names[k], least[k].n, least[k].at.x * 1e3,
+               least[k].at.y * 1e3, least[k].at.z * 1e3);
+  }
+  fmt::print("  within {:.0f} mm of the centre along each axis (the ~10 cm cube; {} points, {} below 4 N in every "
+             "direction):\n",
+             kCoreMm, core_points, core_below_4n);
+  for (int k = 0; k < 4; ++k) {
+    fmt::print("    least {:<19} {:6.2f} N at ({:.0f}, {:.0f}, {:.0f}) mm\n", names[k], least_core[k].n,
+               least_core[k].at.x * 1e3, least_core[k].at.y * 1e3, least_core[k].at.z * 1e3);
+  }
+  fmt::print("  (near the edges of the reach the kinematics approach a singularity and the envelope goes to zero)\n");
+  if (!a.csv.empty()) fmt::print("  grid written to {}\n", a.csv);
+  return 0;
+}
+
 }  // namespace
 
 void add_falcon(CLI::App& app) {
-  CLI::App* falcon = app.add_subcommand("falcon", "Novint Falcon: load firmware, print the udev rule");
+  CLI::App* falcon = app.add_subcommand("falcon", "Novint Falcon: load firmware, print the udev rule, its force envelope");
   falcon->require_subcommand(1);
 
   auto args = std::make_shared<FirmwareArgs>();
@@ -70,6 +182,16 @@ void add_falcon(CLI::App& app) {
     std::fputs((result.value() + "\n").c_str(), stdout);
     set_exit_code(0);
   });
+
+  auto envelope = std::make_shared<EnvelopeArgs>();
+  CLI::App* env = falcon->add_subcommand(
+      "envelope", "The force the Falcon's motor words allow, per pose and direction, over its workspace");
+  env->add_option("--calibration", envelope->calibration, "A calibration file (default: libnifalcon's 10000 words per N m)")
+      ->check(CLI::ExistingFile);
+  env->add_option("--csv", envelope->csv, "Write the grid: scene x,y,z [m], then the force [N] along x, y, z and "
+                                          "in every direction (empty where the kinematics do not reach)");
+  env->add_option("--step", envelope->step_mm, "Grid step [mm]")->check(CLI::Range(1.0, 20.0))->capture_default_str();
+  env->callback([envelope] { set_exit_code(run_envelope(*envelope)); });
 
   CLI::App* udev = falcon->add_subcommand(
       "udev-rule", fmt::format("Print the udev rule ({}) that lets group plugdev open the Falcon", kFalconUdevRuleName));
