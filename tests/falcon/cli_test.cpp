@@ -12,7 +12,10 @@
 
 #include "run_command.hpp"
 #include "synthetic_firmware.hpp"
+#include <fmt/format.h>
+
 #include "toonforce/hal/falcon/falcon.hpp"
+#include "toonforce/hal/falcon/kinematics.hpp"
 
 namespace toonforce {
 namespace {
@@ -71,6 +74,42 @@ TEST(FalconCli, FirmwareNeedsAFile) {
   const Result r = run("falcon firmware");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("FILE is required"), std::string::npos) << r.output;
+}
+
+TEST(FalconCli, EnvelopePrintsWhatTheKinematicsGiveAndWritesTheGrid) {
+  const auto dir = std::filesystem::temp_directory_path() / ("toonforce_cli_env_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string csv = (dir / "envelope.csv").string();
+  const Result r = run("falcon envelope --step 10 --csv " + csv);
+  ASSERT_EQ(r.status, 0) << r.output;
+  falcon::ForceEnvelope centre;
+  ASSERT_TRUE(falcon::force_envelope_at(falcon::FalconGeometry{}, {0, 0, 0.110}, {}, centre));
+  // Scene frame: along y is the Falcon's z, along z its y.
+  const std::string line = fmt::format("at the workspace centre: along x {:.2f} N, along y {:.2f} N, along z {:.2f} N, "
+                                       "in every direction {:.2f} N",
+                                       centre.axis_n.x, centre.axis_n.z, centre.axis_n.y, centre.every_direction_n);
+  EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  // The grid: 13 x 11 x 13 points at 10 mm, one line each after the comment and the header.
+  std::ifstream in(csv);
+  std::string text;
+  std::size_t lines = 0;
+  std::size_t unreachable = 0;
+  while (std::getline(in, text)) {
+    ++lines;
+    if (text.size() > 6 && text.substr(text.size() - 4) == ",,,,") ++unreachable;
+  }
+  EXPECT_EQ(lines, 2u + 13u * 11u * 13u);
+  EXPECT_GT(unreachable, 0u) << "the corners of the box are out of reach";
+
+  // A calibrated constant half as large doubles every force.
+  const std::string cal = (dir / "cal.toml").string();
+  std::ofstream(cal) << "words_per_newton_metre = 5000\n";
+  const Result calibrated = run("falcon envelope --step 20 --calibration " + cal);
+  ASSERT_EQ(calibrated.status, 0) << calibrated.output;
+  EXPECT_NE(calibrated.output.find(fmt::format("in every direction {:.2f} N", 2 * centre.every_direction_n)),
+            std::string::npos)
+      << calibrated.output;
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
