@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
-#include <limits>
 
 #include <fmt/format.h>
 
@@ -109,9 +108,10 @@ class Session {
     }
     return End::kTimeout;
   }
-  /// A wait that only the person ends (Enter); false on timeout.
+  /// A wait that only the person ends (Enter); false on timeout. A script either answers it
+  /// (--answer ID=done) or never will: it is not waited for.
   bool confirm(const Request& request, const std::function<Vec3<double>()>& force = {}) {
-    return wait(request, o_.person_timeout_s, {}, force) == End::kPerson;
+    return wait(request, person_.interactive() ? o_.person_timeout_s : kPeriodS, {}, force) == End::kPerson;
   }
 
   static int ticks(double seconds) { return std::max(1, static_cast<int>(std::lround(seconds / kPeriodS))); }

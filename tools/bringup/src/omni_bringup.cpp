@@ -229,7 +229,8 @@ StepReport motors(Session& io, const OmniBringupOptions& o) {
                            "will push it briefly ({:.2f} s, {:.1f} N) right, away and up, one after the other. Press "
                            "Enter when you hold it.",
                            o.pulse_s, o.pulse_force_n)},
-              o.person_timeout_s, {}) != Session::End::kPerson) {
+              // A script either answers it (--answer omni.motors.hold=done) or never will.
+              io.person().interactive() ? o.person_timeout_s : io.period_s(), {}) != Session::End::kPerson) {
     s.outcome = Outcome::kSkipped;
     s.finding = "nobody confirmed holding the stylus";
     s.next = "run the step again and press Enter once you hold the stylus lightly";
