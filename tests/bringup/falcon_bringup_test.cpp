@@ -290,6 +290,7 @@ TEST_F(FalconBringup, AForceConstantOffByAFactorIsMeasuredSaidAndWrittenForTheDr
   auto written = falcon::read_falcon_calibration(options.calibration_out);
   ASSERT_TRUE(written) << written.error();
   EXPECT_NEAR(written.value().words_per_n_m, 4000.0, 4000.0 * 0.03) << "1 / (2.5e-4 N m per word)";
+  if (std::getenv("TOONFORCE_PRINT_REPORT") != nullptr) std::puts(finding(r, "force").c_str());
   // The steps after it go on: a calibration is a finding, not a fault.
   EXPECT_EQ(outcome(r, "timing"), Outcome::kPass);
   EXPECT_FALSE(r.step("force")->outcome == Outcome::kFail);
