@@ -11,6 +11,7 @@
 
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/report/scenario.hpp"
 #include "toonforce/report/tsc_clock.hpp"
 
@@ -23,6 +24,7 @@ std::string_view level_name(Level level) noexcept {
     case Level::kSafety: return "safety";
     case Level::kScene: return "scene";
     case Level::kController: return "controller";
+    case Level::kLoop: return "loop";
   }
   return "?";
 }
@@ -206,6 +208,78 @@ struct ControllerWork {
   TickResult<typename SceneT::Scalar> tick() noexcept { return controller.tick(current); }
 };
 
+/// The whole servo loop tick (read, supervisor, velocity, scene, every safety stage, write) on a
+/// scripted device that plays the scenario's positions.
+template <class SceneT>
+struct LoopWork {
+  struct Script {
+    const std::vector<Sample>* samples = nullptr;
+    std::size_t next = 0;
+  };
+  struct ScriptedDevice {
+    Script* script;
+    DeviceStatus read(DeviceReading& r) noexcept {
+      r.position_m = (*script->samples)[script->next].position_m;
+      r.has_velocity = false;
+      return DeviceStatus::kOk;
+    }
+    DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+  };
+  using Loop = ServoLoop<ScriptedDevice, SceneT>;
+
+  LoopWork(SceneT scene, ServoConfig config, std::vector<Sample> samples)
+      : scene_(std::move(scene)), config_(config), samples_(std::make_shared<std::vector<Sample>>(std::move(samples))) {
+    rebuild();
+  }
+  LoopWork(const LoopWork& o) : scene_(o.scene_), config_(o.config_), samples_(o.samples_) { rebuild(); }
+  LoopWork& operator=(const LoopWork& o) {
+    scene_ = o.scene_;
+    config_ = o.config_;
+    samples_ = o.samples_;
+    rebuild();
+    return *this;
+  }
+  std::size_t size() const noexcept { return samples_->size(); }
+
+  void prepare(std::uint64_t i) noexcept {
+    script_->next = static_cast<std::size_t>(i % samples_->size());
+    k_ = static_cast<std::int64_t>(i);
+  }
+  TickStatus tick() noexcept { return loop_->tick(k_); }
+
+ private:
+  void rebuild() {
+    script_ = std::make_unique<Script>();
+    script_->samples = samples_.get();
+    loop_ = std::make_unique<Loop>(ScriptedDevice{script_.get()}, scene_, config_);
+  }
+  SceneT scene_;
+  ServoConfig config_;
+  std::shared_ptr<std::vector<Sample>> samples_;
+  std::unique_ptr<Script> script_;
+  std::unique_ptr<Loop> loop_;
+  std::int64_t k_ = 0;
+};
+
+/// Every stage of the servo loop's safety layer on, as on a Falcon-class device: engage, soft
+/// start, velocity limit, workspace, thermal model (continuous force below the clamp),
+/// passivity observer and controller, rate limit, clamp.
+ServoConfig every_stage_config(const SceneDescription& desc, double rate_hz) {
+  ServoConfig c = servo_config(desc, 1.0 / rate_hz);
+  c.controller.limits.has_max_force = true;
+  c.controller.limits.max_force_n = desc.limits.has_max_force ? desc.limits.max_force_n : 8.0;
+  c.controller.limits.has_max_force_rate = true;
+  c.controller.limits.max_force_rate_n_per_s =
+      desc.limits.has_max_force_rate ? desc.limits.max_force_rate_n_per_s : 2000.0;
+  c.safety.has_workspace = true;
+  c.safety.workspace_min_m = {-0.06, -0.06, -0.06};
+  c.safety.workspace_max_m = {0.06, 0.06, 0.06};
+  c.safety.has_max_velocity = true;
+  c.safety.thermal.continuous_force_n = 0.5 * c.controller.limits.max_force_n;
+  c.safety.passivity.controller = true;
+  return c;
+}
+
 // ---- inputs ---------------------------------------------------------------------------------
 
 constexpr double kRateHz = 1000.0;
@@ -330,6 +404,18 @@ class CaseBuilder {
           scenario_samples(name), {}};
       const auto ticks = work.samples.size();
       add(Level::kController, name, "scenario", "runtime", ticks, std::move(work));
+    }
+  }
+
+  void loops() {
+    const std::pair<const char*, const SceneDescription*> scenes[] = {
+        {"wall", &loaded_.wall},       {"realistic_friction", &loaded_.friction}, {"slippery", &loaded_.slippery},
+        {"cartoon_wall", &loaded_.cartoon}, {"cliff", &loaded_.cliff}};
+    for (const auto& [name, desc] : scenes) {
+      LoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(*desc), every_stage_config(*desc, kRateHz),
+                                     scenario_samples(name));
+      const auto ticks = work.size();
+      add(Level::kLoop, name, "scenario", "runtime", ticks, std::move(work));
     }
   }
 
@@ -566,6 +652,7 @@ Result<bool> add_scalar(const std::string& root, std::vector<std::unique_ptr<Tic
   CaseBuilder<S>(loaded.value(), effects).effects();
   CaseBuilder<S>(loaded.value(), scenes).scenes();
   CaseBuilder<S>(loaded.value(), controllers).controllers();
+  CaseBuilder<S>(loaded.value(), controllers).loops();
   return true;
 }
 

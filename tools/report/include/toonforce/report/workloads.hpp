@@ -33,6 +33,7 @@ enum class Level : std::uint8_t {
   kSafety,      ///< the safety stage (ForceSafety::limit) alone
   kScene,       ///< a paper scene's tick: scene.force() then ForceSafety::limit(), scenario inputs
   kController,  ///< Controller::tick() on the scene file's RuntimeScene, scenario positions
+  kLoop,        ///< ServoLoop::tick(): the whole loop tick, every safety stage on, scripted device
 };
 std::string_view level_name(Level level) noexcept;
 
