@@ -445,6 +445,38 @@ TEST(SimTrace, HasTheLoopsColumnsThenTheSimulationsAndShortestRoundTripNumbers) 
   EXPECT_EQ(text.substr(text.size() - 3), ",3\n") << text;          // the segment last
 }
 
+TEST(SimTrace, EveryValueIsWrittenInItsShortestRoundTripFormWholeNumbersIncluded) {
+  // The writer takes a faster path for whole numbers; the characters must still be those of
+  // the shortest round-trip form ("{}"), and parse back to the same double, at the path's
+  // edges too (-0 keeps its sign; 1e16 and up take an exponent).
+  const std::vector<double> values{0.0, -0.0, 1.0, -1.0, 498.0, 0.5, -3.0, 4095.0, 1e9, -1e9,
+                                   999999999999999.0, 1e15, -1e15, 9999999999999998.0, 1e16, 1e17,
+                                   9007199254740993.0, 2.5e-7, 1e300, -1e-300,
+                                   std::numeric_limits<double>::infinity(),
+                                   -std::numeric_limits<double>::infinity(),
+                                   std::numeric_limits<double>::quiet_NaN()};
+  const std::vector<std::string> names(values.size(), "v");
+  const auto writer = TraceWriter::in_memory(names);
+  // Three rows: the values, the same again (a repeated value is copied from the row before),
+  // then each value's neighbour in sign or size (0 after -0: equal as doubles, not as text).
+  std::vector<double> changed = values;
+  for (double& x : changed) x = (x == 0.0) ? -x : (std::isnan(x) ? 1.5 : -x * 3.0);
+  ASSERT_TRUE(writer->write(TraceCore{}, values));
+  ASSERT_TRUE(writer->write(TraceCore{}, values));
+  ASSERT_TRUE(writer->write(TraceCore{}, changed));
+  const std::string& text = writer->text();
+  const auto row_of = [](const std::vector<double>& xs) {
+    std::string row = "0,0,0,0,0,0,0,0,0,0";
+    for (const double x : xs) row += fmt::format(",{}", x);
+    return row + "\n";
+  };
+  const std::string rows = text.substr(text.find('\n') + 1);
+  EXPECT_EQ(rows, row_of(values) + row_of(values) + row_of(changed));
+  const std::string row = row_of(values);
+  EXPECT_NE(row.find(",-0,"), std::string::npos) << row;
+  EXPECT_NE(row.find(",1e+16,"), std::string::npos) << row;
+}
+
 TEST(SimSession, TracesCarryTheSafetyLayersStateFromTheLoop) {
   // The cartoon wall on the Omni (3.3 N): the soft start, the clamp and the passivity
   // observer all act, and the trace says so, as `run` would.

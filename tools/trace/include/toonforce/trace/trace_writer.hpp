@@ -12,6 +12,7 @@
 ///   w->write({t, x, v, f}, {faults, contact});
 
 #include <array>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <span>
@@ -63,6 +64,15 @@ class TraceWriter {
  private:
   TraceWriter(std::FILE* file, std::string path, std::vector<std::string> extra_columns);
   void append(std::string_view text);
+  char* put(char* out, std::size_t column, double x) noexcept;
+
+  /// A column's last value and its text: a value that repeats from one row to the next (a
+  /// held hand, an idle observer, a latched state) is copied, not formatted again.
+  struct LastValue {
+    std::uint64_t bits = 0;
+    std::uint8_t size = 0;  ///< 0: nothing yet
+    char text[26] = {};
+  };
 
   std::FILE* file_;
   std::string path_;
@@ -74,6 +84,7 @@ class TraceWriter {
   std::unique_ptr<char[]> buffer_;  ///< whole rows only, flushed before a row might not fit
   std::size_t used_ = 0;
   std::string memory_;
+  std::vector<LastValue> last_;  ///< one per column
 };
 
 }  // namespace toonforce
