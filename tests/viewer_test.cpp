@@ -6,10 +6,22 @@
 // trace reading for `toonforce view`, and the run and sim hooks. Counts only, never times.
 #include <gtest/gtest.h>
 
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
 #include <atomic>
+#include <chrono>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <functional>
+#include <map>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "toonforce/viewer/beast.hpp"
@@ -312,6 +324,182 @@ TEST(ViewerServer, PublishNeitherAllocatesNorWaits) {
   const ViewerStats s = server->stats();
   EXPECT_EQ(s.frames_in, 20000U);
   EXPECT_GT(s.frames_dropped_ring, 0U);
+}
+
+/// This process's resident memory [kB] (VmRSS in /proc/self/status), or -1.
+long resident_kb() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  }
+  return -1;
+}
+
+/// Waits (generously: a loaded machine is slow, never wrong) until `done` holds; its last value.
+bool eventually(const std::function<bool()>& done, std::chrono::seconds limit = std::chrono::seconds(60)) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > end) return done();
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+/// A plain blocking TCP socket to the server on 127.0.0.1 (POSIX, so that a receive timeout
+/// guards every read: a test that waits for an answer that never comes fails, it does not hang).
+int connect_raw(std::uint16_t port, int receive_buffer = 0) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  if (receive_buffer > 0) ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+  const timeval timeout{60, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(port);
+  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&to), sizeof to) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+/// The status code of the answer on `fd` ("101", "503", ...), "closed" or "timeout".
+std::string read_status(int fd) {
+  std::string head;
+  char c = 0;
+  while (head.size() < 12) {
+    const ssize_t n = ::recv(fd, &c, 1, 0);
+    if (n == 1) {
+      head.push_back(c);
+    } else {
+      return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK) ? "timeout" : "closed";
+    }
+  }
+  return head.rfind("HTTP/1.1 ", 0) == 0 ? head.substr(9, 3) : "garbage";
+}
+
+// Issue 16, item 7: 300 valid upgrades at once from a local process got 133 pages past the cap
+// of 16 (the count went up only once each handshake was written, so every request read before
+// then passed the check), and each page queued a copy of the whole history: 3.4 GB, kept after
+// the pages closed. Counts are exact; resident memory gets a generous bound (a page's copy of
+// this history is 7 MB, so 16 copies alone exceed it).
+TEST(ViewerServer, HundredsOfConcurrentUpgradesGetTheCapAndBoundedMemory) {
+  ViewerOptions options;
+  options.history_frames = 1U << 15;  // 7 MB of history, all of it published
+  options.send_buffer_bytes = 4096;   // what is queued stays in this process, not in the kernel
+  auto server = start_server(options);
+  std::atomic<int> stop{0};
+  for (std::size_t i = 0; i < options.history_frames; ++i) {
+    ViewFrame f{};
+    f[kTick] = static_cast<double>(i);
+    server->publish(f);
+    if (i % 4096 == 4095) server->wait_drained(stop);
+  }
+  server->wait_drained(stop);
+  const long before_kb = resident_kb();
+  ASSERT_GT(before_kb, 0);
+
+  constexpr int kClients = 300;
+  const std::string port = std::to_string(server->port());
+  const std::string upgrade = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1:" + port + "\r\nOrigin: http://127.0.0.1:" + port +
+                              "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+  std::vector<int> clients;
+  for (int i = 0; i < kClients; ++i) {
+    const int fd = connect_raw(server->port(), 4096);  // pages that read nothing
+    ASSERT_GE(fd, 0) << std::strerror(errno);
+    clients.push_back(fd);
+  }
+  for (const int fd : clients) {  // every request on the wire before the server answers one
+    static_cast<void>(::send(fd, upgrade.data(), upgrade.size(), MSG_NOSIGNAL));
+  }
+  std::map<std::string, int> answers;
+  for (const int fd : clients) ++answers[read_status(fd)];
+  EXPECT_EQ(answers["101"], 16) << "the cap of 16 pages";
+  EXPECT_EQ(answers["timeout"], 0);
+  EXPECT_EQ(answers["101"] + answers["503"] + answers["closed"], kClients);
+  EXPECT_TRUE(eventually([&] { return server->stats().pages_connected >= 16; }));
+  const ViewerStats held = server->stats();
+  EXPECT_EQ(held.pages_connected, 16U);
+  EXPECT_EQ(held.pages_open, 16U);
+  EXPECT_EQ(held.pages_refused, static_cast<std::uint64_t>(answers["503"]));
+  EXPECT_EQ(held.connections_refused, static_cast<std::uint64_t>(answers["closed"]));  // over max_connections
+  // Each page holds one history chunk (and the small hello and status), not the 7 MB history.
+  const std::size_t chunk_bytes = (4 + kHistoryChunkFrames * kViewStride) * sizeof(double);
+  EXPECT_GT(held.max_queued_bytes, 0U);
+  EXPECT_LE(held.max_queued_bytes, 16 * (chunk_bytes + 4096)) << "bytes queued for pages at most";
+  const long held_kb = resident_kb();
+  EXPECT_LT(held_kb - before_kb, 64 * 1024) << "resident memory with 16 pages open, kB: " << before_kb << " -> " << held_kb;
+
+  for (const int fd : clients) ::close(fd);
+  EXPECT_TRUE(eventually([&] { return server->stats().pages_open == 0; }));
+  EXPECT_EQ(server->stats().queued_bytes, 0U) << "what the pages held is released when they close";
+  const long after_kb = resident_kb();
+  EXPECT_LT(after_kb - before_kb, 64 * 1024) << "resident memory after the pages closed, kB: " << before_kb << " -> "
+                                             << after_kb;
+  std::printf("resident memory: %ld kB before, %ld kB with 16 pages of %d upgrades, %ld kB after they closed\n",
+              before_kb, held_kb, kClients, after_kb);
+}
+
+// The history goes out a chunk at a time, made when the page has taken the one before: a slow
+// page holds one chunk, and frames the ring overwrites meanwhile are lost for it, counted, and
+// seen by the page as a gap, like the live batches it could not take.
+TEST(ViewerServer, HistoryGoesOutAChunkAtATimeAndWhatTheRingLostIsCounted) {
+  ViewerOptions options;
+  options.history_frames = 3000;
+  options.send_buffer_bytes = 4096;
+  options.max_queued_batches = 4;
+  options.batch_interval_s = 0.005;
+  auto server = start_server(options);
+  std::atomic<int> stop{0};
+  std::uint64_t published = 0;
+  const auto publish = [&](int frames) {
+    for (int i = 0; i < frames; ++i) {
+      ViewFrame f{};
+      f[kTick] = static_cast<double>(published++);
+      server->publish(f);
+    }
+    server->wait_drained(stop);
+  };
+  for (int b = 0; b < 50; ++b) publish(100);  // 5000: the ring keeps 2000..4999
+  Client client(*server, "http://" + host_of(*server), 4096);
+  ASSERT_FALSE(client.ec);
+  ASSERT_TRUE(eventually([&] { return server->stats().pages_open == 1; }));
+  for (int b = 0; b < 200; ++b) publish(100);  // the page reads nothing meanwhile
+  server->finish();
+  EXPECT_LE(server->stats().max_queued_bytes, (4 + kHistoryChunkFrames * kViewStride) * sizeof(double) + 4096 +
+                                                  options.max_queued_batches * (4 + 100 * kViewStride) * sizeof(double));
+
+  std::string text;
+  std::vector<double> values;
+  double first_seq = -1;
+  double next_seq = 0;
+  double history_frames = 0;
+  double received = 0;
+  double gaps = 0;
+  while (client.next(text, values)) {
+    if (!text.empty()) {
+      if (text.find(R"("ended":true)") != std::string::npos) break;
+      continue;
+    }
+    ASSERT_EQ(values.size(), 4 + static_cast<std::size_t>(values[3]) * kViewStride);
+    if (first_seq < 0) first_seq = next_seq = values[2];
+    ASSERT_GE(values[2], next_seq) << "in order";
+    gaps += values[2] - next_seq;
+    for (std::size_t k = 0; k < static_cast<std::size_t>(values[3]); ++k) {
+      EXPECT_EQ(values[4 + k * kViewStride + kTick], values[2] + static_cast<double>(k));
+    }
+    next_seq = values[2] + values[3];
+    received += values[3];
+    if (values[0] == 2.0) history_frames += values[3];
+  }
+  EXPECT_EQ(first_seq, 2000.0) << "the oldest frame the ring kept";
+  EXPECT_GE(history_frames, static_cast<double>(kHistoryChunkFrames)) << "the chunk in flight arrives whole";
+  EXPECT_LT(history_frames, 3000.0) << "the rest of the history was overwritten before the page took it";
+  EXPECT_EQ(static_cast<std::uint64_t>(gaps), server->stats().frames_dropped_pages);
+  EXPECT_EQ(received + gaps + (static_cast<double>(published) - next_seq), static_cast<double>(published) - 2000.0);
 }
 
 TEST(ViewerServer, RefusesAnAddressItCannotUse) {
