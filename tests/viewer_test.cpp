@@ -6,7 +6,9 @@
 // trace reading for `toonforce view`, and the run and sim hooks. Counts only, never times.
 #include <gtest/gtest.h>
 
+#include <dirent.h>
 #include <netinet/in.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/time.h>
 #include <unistd.h>
@@ -500,6 +502,65 @@ TEST(ViewerServer, HistoryGoesOutAChunkAtATimeAndWhatTheRingLostIsCounted) {
   EXPECT_LT(history_frames, 3000.0) << "the rest of the history was overwritten before the page took it";
   EXPECT_EQ(static_cast<std::uint64_t>(gaps), server->stats().frames_dropped_pages);
   EXPECT_EQ(received + gaps + (static_cast<double>(published) - next_seq), static_cast<double>(published) - 2000.0);
+}
+
+/// The highest descriptor this process has open.
+int highest_fd() {
+  int highest = 2;
+  if (DIR* dir = ::opendir("/proc/self/fd")) {
+    while (const dirent* entry = ::readdir(dir)) highest = std::max(highest, std::atoi(entry->d_name));
+    ::closedir(dir);
+  }
+  return highest;
+}
+
+// Issue 16, item 7: out of file descriptors, accept() fails with EMFILE while the connection
+// stays in the backlog, so the listener is readable again at once and the accept loop spun at
+// 100 % CPU. The test runs the process out of descriptors (a lower RLIMIT_NOFILE, the rest
+// taken by dup), connects, and counts the accepts that fail over a wall interval: the server
+// waits at least kAcceptRetryMinS between them, so a slow machine only makes the count smaller.
+// Then it gives the descriptors back and the waiting connection is served.
+TEST(ViewerServer, OutOfDescriptorsTheAcceptLoopWaitsInsteadOfSpinning) {
+  auto server = start_server();
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  rlimit low = old;
+  low.rlim_cur = static_cast<rlim_t>(highest_fd() + 32);
+  ASSERT_LE(low.rlim_cur, old.rlim_cur);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  std::vector<int> fillers;
+  for (int fd = ::dup(STDERR_FILENO); fd >= 0; fd = ::dup(STDERR_FILENO)) fillers.push_back(fd);
+  const int dup_errno = errno;
+  ASSERT_FALSE(fillers.empty());
+  ::close(fillers.back());  // one for the client; none is left for the server's accept
+  fillers.pop_back();
+  const int client = connect_raw(server->port());
+  const int connect_errno = errno;
+  const auto give_back = [&] {
+    for (const int fd : fillers) ::close(fd);
+    fillers.clear();
+    ::setrlimit(RLIMIT_NOFILE, &old);
+  };
+  if (dup_errno != EMFILE || client < 0) give_back();
+  ASSERT_EQ(dup_errno, EMFILE);
+  ASSERT_GE(client, 0) << std::strerror(connect_errno);
+
+  const bool failing = eventually([&] { return server->stats().accept_failures > 0; });
+  const auto start = std::chrono::steady_clock::now();
+  const std::uint64_t failures_before = server->stats().accept_failures;
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const std::uint64_t failures = server->stats().accept_failures - failures_before;
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  give_back();
+  EXPECT_TRUE(failing) << "the server's accept must have failed for want of a descriptor";
+  EXPECT_LE(static_cast<double>(failures), 2.0 + wall_s / kAcceptRetryMinS)
+      << failures << " failed accepts in " << wall_s << " s: the accept loop spins";
+  std::printf("out of descriptors: %llu failed accepts in %.2f s\n", static_cast<unsigned long long>(failures), wall_s);
+
+  const std::string get = "GET / HTTP/1.1\r\nHost: " + host_of(*server) + "\r\nConnection: close\r\n\r\n";
+  ASSERT_EQ(::send(client, get.data(), get.size(), MSG_NOSIGNAL), static_cast<ssize_t>(get.size()));
+  EXPECT_EQ(read_status(client), "200") << "served once descriptors are back";
+  ::close(client);
 }
 
 TEST(ViewerServer, RefusesAnAddressItCannotUse) {

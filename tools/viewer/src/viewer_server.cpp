@@ -91,7 +91,7 @@ struct ViewerServer::Impl {
   ViewerOptions options;
   // Any thread. Before the io_context: sessions it destroys last still count themselves out.
   std::atomic<std::uint64_t> frames_dropped_pages{0}, pages_connected{0}, pages_refused{0}, messages_refused{0},
-      http_refused{0}, connections_refused{0};
+      http_refused{0}, connections_refused{0}, accept_failures{0};
   std::atomic<std::size_t> max_queued{0}, pages_open{0}, queued_bytes{0}, max_queued_bytes{0};
   /// Pages that hold a slot: taken when the upgrade request is read, given back when the page
   /// session ends. pages_open counts finished handshakes only, too late to be the cap.
@@ -102,6 +102,8 @@ struct ViewerServer::Impl {
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   asio::steady_timer timer{io};
+  asio::steady_timer accept_timer{io};  ///< the wait after a failed accept
+  std::chrono::duration<double> accept_delay{kAcceptRetryMinS};
   std::shared_ptr<const std::string> hello;  ///< one copy, shared by every page
   std::uint16_t port = 0;
   bool wildcard = false;            ///< bound to every address: any Host with our port
@@ -438,6 +440,19 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void ViewerServer::Impl::start_accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
+    if (ec && ec != asio::error::connection_aborted) {
+      // Out of descriptors (EMFILE, ENFILE) or memory: the connection stays in the backlog, the
+      // listener stays readable, and accepting again at once fails again at once, a loop at
+      // 100 % CPU. Wait instead, longer while it goes on, for descriptors to come back.
+      accept_failures.fetch_add(1);
+      accept_timer.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(accept_delay));
+      accept_delay = std::min(accept_delay * 2.0, std::chrono::duration<double>(kAcceptRetryMaxS));
+      accept_timer.async_wait([this](beast::error_code wait_ec) {
+        if (!wait_ec) start_accept();
+      });
+      return;
+    }
+    if (!ec) accept_delay = std::chrono::duration<double>(kAcceptRetryMinS);
     if (!ec && connections.load() >= options.max_connections) {
       // Bounded: a flood of connections costs one descriptor for a moment each, and the backlog
       // keeps moving (waiting instead would leave later clients stalled behind the flood).
@@ -535,6 +550,7 @@ ViewerServer::~ViewerServer() {
     beast::error_code ignored;
     impl->acceptor.close(ignored);
     impl->timer.cancel();
+    impl->accept_timer.cancel();
     impl->io.stop();
   });
   if (impl_->thread.joinable()) impl_->thread.join();
@@ -644,6 +660,7 @@ ViewerStats ViewerServer::stats() const noexcept {
   s.messages_refused = impl_->messages_refused.load();
   s.http_refused = impl_->http_refused.load();
   s.connections_refused = impl_->connections_refused.load();
+  s.accept_failures = impl_->accept_failures.load();
   s.max_queued = impl_->max_queued.load();
   s.pages_open = impl_->pages_open.load();
   s.queued_bytes = impl_->queued_bytes.load();

@@ -22,7 +22,7 @@
 /// connections at once (a slot is taken when the upgrade is read, so a burst cannot overshoot);
 /// a page holds one history chunk at a time (kHistoryChunkFrames, made when the one before has
 /// been written), never a copy of the whole history; when the last page closes the allocator
-/// gives freed memory back.
+/// gives freed memory back. A failing accept (out of descriptors) waits before it tries again.
 
 #include <atomic>
 #include <cstdint>
@@ -41,6 +41,10 @@ namespace toonforce::viewer {
 inline constexpr std::uint16_t kDefaultPort = 8765;
 /// Frames per history message. A page holds one at a time: 1024 frames are 221 kB.
 inline constexpr std::size_t kHistoryChunkFrames = 1024;
+/// After a failed accept (EMFILE, ENFILE, ENOBUFS, ENOMEM) the server waits this long before it
+/// accepts again, doubling up to kAcceptRetryMaxS while it keeps failing.
+inline constexpr double kAcceptRetryMinS = 0.05;
+inline constexpr double kAcceptRetryMaxS = 1.0;
 
 struct ViewerOptions {
   std::string address = "127.0.0.1";  ///< listen address; another one only when asked for
@@ -64,6 +68,7 @@ struct ViewerStats {
   std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
   std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
   std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
+  std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
   std::size_t max_queued = 0;             ///< the longest live queue any page had
   std::size_t pages_open = 0;             ///< WebSocket connections open now
   std::size_t queued_bytes = 0;           ///< bytes held for pages now (a message shared by pages counts for each)
