@@ -7,6 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <dirent.h>
+#include <ifaddrs.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <netinet/in.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
@@ -58,12 +63,12 @@ std::unique_ptr<ViewerServer> start_server(ViewerOptions options = {}) {
 
 std::string host_of(const ViewerServer& server) { return "127.0.0.1:" + std::to_string(server.port()); }
 
-/// One raw HTTP request; returns the response.
-http::response<http::string_body> request(const ViewerServer& server, http::verb verb, const std::string& target,
-                                          const std::string& host) {
+/// One raw HTTP request to a port (on 127.0.0.1 unless another address is given); the response.
+http::response<http::string_body> request_to(std::uint16_t port, http::verb verb, const std::string& target,
+                                             const std::string& host, const std::string& to = "127.0.0.1") {
   asio::io_context io;
   tcp::socket socket(io);
-  socket.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), server.port()));
+  socket.connect(tcp::endpoint(asio::ip::make_address(to), port));
   http::request<http::empty_body> req{verb, target, 11};
   req.set(http::field::host, host);
   http::write(socket, req);
@@ -73,6 +78,11 @@ http::response<http::string_body> request(const ViewerServer& server, http::verb
   parser.skip(verb == http::verb::head);
   http::read(socket, buffer, parser);
   return parser.release();
+}
+
+http::response<http::string_body> request(const ViewerServer& server, http::verb verb, const std::string& target,
+                                          const std::string& host, const std::string& to = "127.0.0.1") {
+  return request_to(server.port(), verb, target, host, to);
 }
 
 TEST(ViewerAssets, OnlyExactPathsOfEmbeddedFilesAreFound) {
@@ -145,7 +155,7 @@ struct Client {
   websocket::stream<tcp::socket> ws{io};
   beast::error_code ec;
 
-  Client(const ViewerServer& server, const std::string& origin, int receive_buffer = 0) {
+  Client(const ViewerServer& server, const std::string& origin, int receive_buffer = 0, const std::string& host = {}) {
     tcp::socket& s = ws.next_layer();
     s.open(tcp::v4());
     if (receive_buffer > 0) s.set_option(asio::socket_base::receive_buffer_size(receive_buffer));
@@ -153,7 +163,7 @@ struct Client {
     ws.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
       if (!origin.empty()) req.set(http::field::origin, origin);
     }));
-    ws.handshake(host_of(server), "/ws", ec);
+    ws.handshake(host.empty() ? host_of(server) : host, "/ws", ec);
   }
 
   /// The next message: text, or binary as doubles.
@@ -561,6 +571,153 @@ TEST(ViewerServer, OutOfDescriptorsTheAcceptLoopWaitsInsteadOfSpinning) {
   ASSERT_EQ(::send(client, get.data(), get.size(), MSG_NOSIGNAL), static_cast<ssize_t>(get.size()));
   EXPECT_EQ(read_status(client), "200") << "served once descriptors are back";
   ::close(client);
+}
+
+/// This host's IPv4 addresses other than loopback (a sandbox may have none).
+std::vector<std::string> other_ipv4_addresses() {
+  std::vector<std::string> out;
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return out;
+  for (const ifaddrs* i = list; i != nullptr; i = i->ifa_next) {
+    if (i->ifa_addr == nullptr || i->ifa_addr->sa_family != AF_INET) continue;
+    sockaddr_in in{};
+    std::memcpy(&in, i->ifa_addr, sizeof in);
+    const asio::ip::address_v4 address(ntohl(in.sin_addr.s_addr));
+    if (!address.is_loopback()) out.push_back(address.to_string());
+  }
+  ::freeifaddrs(list);
+  return out;
+}
+
+// Issue 16, item 7: with --view-address 0.0.0.0 any Host with the right port was accepted, so a
+// page of evil.example, its name rebound to this host, could read the viewer (DNS rebinding).
+// On every address the Host must name this server: the loopback names, this host's addresses,
+// or a name it was given.
+TEST(ViewerServer, OnEveryAddressTheHostMustStillNameThisServer) {
+  ViewerOptions options;
+  options.address = "0.0.0.0";
+  auto server = start_server(options);
+  const std::string port = std::to_string(server->port());
+  for (const std::string& host :
+       std::vector<std::string>{"evil.example:" + port, "viewer.lan:" + port, "localhost.evil.example:" + port,
+                                "127.0.0.1:" + port + "@evil", "0.0.0.0:" + port, "127.0.0.1"}) {
+    EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::misdirected_request) << host;
+  }
+  EXPECT_EQ(request(*server, http::verb::get, "/", "LOCALHOST:" + port).result(), http::status::ok);
+  const std::vector<std::string> names = server->host_names();
+  EXPECT_NE(std::find(names.begin(), names.end(), "127.0.0.1:" + port), names.end());
+  for (const std::string& host : names) {  // this host's addresses among them
+    EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::ok) << host;
+  }
+  for (const std::string& address : other_ipv4_addresses()) {
+    EXPECT_NE(std::find(names.begin(), names.end(), address + ":" + port), names.end()) << address;
+  }
+  // The rebinding page's socket: its Host and its Origin are its own name.
+  Client rebound(*server, "http://evil.example:" + port, 0, "evil.example:" + port);
+  EXPECT_EQ(rebound.ec, websocket::error::upgrade_declined);
+  EXPECT_EQ(server->stats().pages_connected, 0U);
+}
+
+// Serving to other hosts by a name is an explicit choice: ViewerOptions::hosts (--view-host).
+TEST(ViewerServer, NamesGivenForTheHostAreAcceptedAndNoOthers) {
+  ViewerOptions options;
+  options.address = "0.0.0.0";
+  options.hosts = {"Viewer.LAN", "192.0.2.7", "2001:DB8::1", "[2001:db8::2]"};
+  auto server = start_server(options);
+  const std::string port = std::to_string(server->port());
+  for (const std::string& host : std::vector<std::string>{"viewer.lan:" + port, "VIEWER.lan:" + port,
+                                                          "192.0.2.7:" + port, "[2001:db8::1]:" + port,
+                                                          "[2001:db8::2]:" + port}) {
+    EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::ok) << host;
+  }
+  for (const std::string& host : std::vector<std::string>{"viewer.lan", "viewer.lan:1", "other.lan:" + port,
+                                                          "www.viewer.lan:" + port}) {
+    EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::misdirected_request) << host;
+  }
+  Client page(*server, "http://viewer.lan:" + port, 0, "viewer.lan:" + port);
+  ASSERT_FALSE(page.ec) << page.ec.message();
+  std::string text;
+  std::vector<double> values;
+  ASSERT_TRUE(page.next(text, values));
+  EXPECT_EQ(text, R"({"type":"hello","test":true})");
+
+  // A name that is not one is refused before anything listens.
+  for (const std::string& bad : std::vector<std::string>{"evil example", "viewer.lan:8765", "", "a/b", "-x", "*"}) {
+    ViewerOptions o;
+    o.port = 0;
+    o.hosts = {bad};
+    auto refused = ViewerServer::start(o, "{}");
+    ASSERT_FALSE(refused) << bad;
+    EXPECT_NE(refused.error().find("host name"), std::string::npos) << refused.error();
+  }
+}
+
+// On one address other than loopback, the Host names that address (or a name given).
+TEST(ViewerServer, OnAnotherAddressTheHostMustNameThatAddress) {
+  const std::vector<std::string> addresses = other_ipv4_addresses();
+  if (addresses.empty()) GTEST_SKIP() << "this host has no IPv4 address but loopback";
+  ViewerOptions options;
+  options.address = addresses.front();
+  auto server = start_server(options);
+  const std::string port = std::to_string(server->port());
+  EXPECT_EQ(server->url(), "http://" + addresses.front() + ":" + port + "/");
+  EXPECT_EQ(request(*server, http::verb::get, "/", addresses.front() + ":" + port, addresses.front()).result(),
+            http::status::ok);
+  for (const std::string& host : std::vector<std::string>{"evil.example:" + port, "0.0.0.0:" + port}) {
+    EXPECT_EQ(request(*server, http::verb::get, "/", host, addresses.front()).result(),
+              http::status::misdirected_request)
+        << host;
+  }
+}
+
+// The option reaches the server: `toonforce view --host NAME` (and run/sim's --view-host, the
+// same plumbing) accepts NAME and still refuses other names.
+TEST(ViewerCommand, HostNamesGivenOnTheCommandLineAreAccepted) {
+  const std::string trace = ::testing::TempDir() + "/viewer_host_option.csv";
+  {
+    std::FILE* f = std::fopen(trace.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0,0\n", f);
+    std::fclose(f);
+  }
+  int err[2];
+  ASSERT_EQ(::pipe(err), 0);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, err[1], STDERR_FILENO);
+  posix_spawn_file_actions_addclose(&actions, err[0]);
+  std::vector<std::string> args{"toonforce", "view", trace, "--port", "0", "--host", "Viewer.LAN", "--host", "192.0.2.9"};
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  const int spawned = ::posix_spawn(&pid, TOONFORCE_BINARY, &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  ::close(err[1]);
+  ASSERT_EQ(spawned, 0);
+  // "viewer: http://127.0.0.1:PORT/ ..." on standard error.
+  std::string out;
+  std::size_t at = std::string::npos;
+  while ((at = out.find("http://127.0.0.1:")) == std::string::npos || out.find('/', at + 17) == std::string::npos) {
+    pollfd p{err[0], POLLIN, 0};
+    char buffer[512];
+    const ssize_t n = ::poll(&p, 1, 60000) == 1 ? ::read(err[0], buffer, sizeof buffer) : 0;
+    if (n <= 0) break;
+    out.append(buffer, static_cast<std::size_t>(n));
+  }
+  const auto port = static_cast<std::uint16_t>(at == std::string::npos ? 0 : std::atoi(out.c_str() + at + 17));
+  if (port != 0) {
+    EXPECT_EQ(request_to(port, http::verb::get, "/", "viewer.lan:" + std::to_string(port)).result(), http::status::ok);
+    EXPECT_EQ(request_to(port, http::verb::get, "/", "192.0.2.9:" + std::to_string(port)).result(), http::status::ok);
+    EXPECT_EQ(request_to(port, http::verb::get, "/", "evil.example:" + std::to_string(port)).result(),
+              http::status::misdirected_request);
+  }
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ::close(err[0]);
+  ASSERT_NE(port, 0) << out;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
 }
 
 TEST(ViewerServer, RefusesAnAddressItCannotUse) {

@@ -13,6 +13,9 @@
 // Debian machine that builds C++.
 #include "toonforce/viewer/viewer_server.hpp"
 
+#include <ifaddrs.h>
+#include <netinet/in.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -106,8 +109,7 @@ struct ViewerServer::Impl {
   std::chrono::duration<double> accept_delay{kAcceptRetryMinS};
   std::shared_ptr<const std::string> hello;  ///< one copy, shared by every page
   std::uint16_t port = 0;
-  bool wildcard = false;            ///< bound to every address: any Host with our port
-  std::set<std::string> hosts;      ///< lower-case "name:port" a request may name
+  std::set<std::string> hosts;      ///< lower-case Host values a request may give ("name:port")
   std::string url;
   std::unique_ptr<FrameRing> ring = std::make_unique<FrameRing>();
   std::atomic<bool> finish_requested{false};
@@ -123,14 +125,7 @@ struct ViewerServer::Impl {
 
   std::thread thread;
 
-  bool host_allowed(std::string_view host) const {
-    const std::string h = lower(host);
-    if (hosts.count(h) != 0) return true;
-    if (!wildcard) return false;
-    const std::size_t colon = h.rfind(':');
-    return colon != std::string::npos && colon + 1 < h.size() && h.substr(colon + 1) == std::to_string(port) &&
-           h.find_first_of("/@ ") == std::string::npos;
-  }
+  bool host_allowed(std::string_view host) const { return hosts.count(lower(host)) != 0; }
   /// A browser's WebSocket from our own page carries Origin http://<the Host it asked>.
   bool origin_allowed(std::string_view origin, std::string_view host) const {
     return host_allowed(host) && lower(origin) == "http://" + lower(host);
@@ -355,7 +350,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     http::request<http::string_body> request = parser_->release();
     const std::string_view host(request[http::field::host].data(), request[http::field::host].size());
     if (!server_.host_allowed(host)) {
-      refuse(request, http::status::misdirected_request, "this server answers to 127.0.0.1 or localhost only\n");
+      refuse(request, http::status::misdirected_request,
+             "this viewer answers only to its own names: 127.0.0.1, localhost, [::1], the address it listens on, "
+             "and names it was given (--view-host)\n");
       return;
     }
     if (websocket::is_upgrade(request)) {
@@ -559,9 +556,64 @@ ViewerServer::~ViewerServer() {
 
 namespace {
 
+/// An IP address as a Host header names it: IPv6 in brackets.
+std::string host_literal(const asio::ip::address& address) {
+  return address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
+}
+
+/// A name given for the Host header, lower case (IP addresses in their usual spelling), or why not.
+Result<std::string> host_name(const std::string& given) {
+  const std::string name = lower(given);
+  const auto bad = [&](std::string_view why) { return Error{fmt::format("viewer: host name '{}': {}", given, why)}; };
+  std::string_view inner = name;
+  if (inner.size() >= 2 && inner.front() == '[' && inner.back() == ']') inner = inner.substr(1, inner.size() - 2);
+  beast::error_code ec;
+  const asio::ip::address address = asio::ip::make_address(inner, ec);
+  if (!ec) return host_literal(address);
+  if (name.empty() || name.size() > 253) return bad("a DNS name has 1 to 253 characters");
+  if (name.find(':') != std::string::npos) return bad("give the name without a port (the viewer's port is added)");
+  if (name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789.-_") != std::string::npos ||
+      name.front() == '.' || name.front() == '-') {
+    return bad("not a DNS name or an IP address (letters, digits, '.', '-')");
+  }
+  return name;
+}
+
+/// The addresses of this host's interfaces (v4, and v6 too for "::"), as Host headers name
+/// them: what another host types to reach a server listening on every address. Link-local v6
+/// addresses are left out (a browser cannot give their zone).
+std::vector<std::string> interface_hosts(bool v6_too) {
+  std::vector<std::string> out;
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return out;
+  for (const ifaddrs* i = list; i != nullptr; i = i->ifa_next) {
+    if (i->ifa_addr == nullptr) continue;
+    if (i->ifa_addr->sa_family == AF_INET) {
+      sockaddr_in in{};
+      std::memcpy(&in, i->ifa_addr, sizeof in);
+      out.push_back(host_literal(asio::ip::address_v4(ntohl(in.sin_addr.s_addr))));
+    } else if (v6_too && i->ifa_addr->sa_family == AF_INET6) {
+      sockaddr_in6 in6{};
+      std::memcpy(&in6, i->ifa_addr, sizeof in6);
+      asio::ip::address_v6::bytes_type bytes{};
+      std::memcpy(bytes.data(), in6.sin6_addr.s6_addr, bytes.size());
+      const asio::ip::address_v6 v6(bytes);
+      if (!v6.is_link_local()) out.push_back(host_literal(v6));
+    }
+  }
+  ::freeifaddrs(list);
+  return out;
+}
+
 Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, std::string hello) {
   if (!(options.batch_interval_s > 0.0 && options.batch_interval_s <= 1.0)) {
     return Error{"viewer: the batch interval must be within (0, 1] s"};
+  }
+  std::vector<std::string> names;  // checked before anything is bound
+  for (const std::string& given : options.hosts) {
+    auto name = host_name(given);
+    if (!name) return Error{name.error()};
+    names.push_back(std::move(name.value()));
   }
   beast::error_code ec;
   const asio::ip::address address = asio::ip::make_address(options.address, ec);
@@ -584,15 +636,24 @@ Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, s
   }
   impl->port = impl->acceptor.local_endpoint().port();
   const std::string p = std::to_string(impl->port);
-  impl->hosts = {"127.0.0.1:" + p, "localhost:" + p, "[::1]:" + p};
-  impl->wildcard = address.is_unspecified();
+  const auto allow = [&](const std::string& name) {
+    impl->hosts.insert(name + ":" + p);
+    if (impl->port == 80) impl->hosts.insert(name);  // a browser leaves the default port out
+  };
+  for (const char* name : {"127.0.0.1", "localhost", "[::1]"}) allow(name);
+  // Any address: the Host must still name this server, never anything with our port (that let
+  // a rebinding page's own name through).
+  if (address.is_unspecified()) {
+    for (const std::string& name : interface_hosts(address.is_v6())) allow(name);
+  }
   std::string url_host = "127.0.0.1";
   if (!address.is_unspecified() && !address.is_loopback()) {
-    url_host = address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
-    impl->hosts.insert(lower(url_host) + ":" + p);
+    url_host = host_literal(address);
+    allow(url_host);
   } else if (address.is_v6() && address.is_loopback()) {
     url_host = "[::1]";
   }
+  for (const std::string& name : names) allow(name);
   impl->url = fmt::format("http://{}:{}/", url_host, impl->port);
   impl->history.resize(std::max<std::size_t>(options.history_frames, 1));
   impl->batch.reserve(FrameRing::kCapacity);
@@ -649,6 +710,7 @@ void ViewerServer::wait_drained(const std::atomic<int>& stop) const {
 
 std::uint16_t ViewerServer::port() const noexcept { return impl_->port; }
 std::string ViewerServer::url() const { return impl_->url; }
+std::vector<std::string> ViewerServer::host_names() const { return {impl_->hosts.begin(), impl_->hosts.end()}; }
 
 ViewerStats ViewerServer::stats() const noexcept {
   ViewerStats s;

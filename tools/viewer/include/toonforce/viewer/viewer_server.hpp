@@ -11,8 +11,10 @@
 /// Read-only: the socket carries telemetry one way. A page that sends anything is closed with
 /// a policy-violation code; no message changes the run or the scene. The WebSocket upgrade is
 /// refused (403) unless the Origin header is this server's own origin, and every request is
-/// refused (421) unless its Host header names this server (the loopback names, or the address
-/// given), which also defeats DNS rebinding. Only GET and HEAD of the embedded files are served.
+/// refused (421) unless its Host header names this server: the loopback names, the address
+/// given (on 0.0.0.0 or ::, the addresses of this host's interfaces), or a name in
+/// ViewerOptions::hosts. That defeats DNS rebinding on every address: a page of another name
+/// resolved to this host asks with its own name. Only GET and HEAD of the embedded files.
 ///
 /// A page that reads slower than frames come gets at most `max_queued_batches` live batches
 /// queued; older ones are dropped and counted (the page sees the gap in the sequence numbers
@@ -48,6 +50,9 @@ inline constexpr double kAcceptRetryMaxS = 1.0;
 
 struct ViewerOptions {
   std::string address = "127.0.0.1";  ///< listen address; another one only when asked for
+  /// More names the Host header may give (`--view-host`): DNS names or IP addresses, no port;
+  /// e.g. the name other hosts know this one by when it listens on another address.
+  std::vector<std::string> hosts;
   std::uint16_t port = kDefaultPort;   ///< 0: a free port (see ViewerServer::port())
   std::size_t history_frames = 1U << 17;  ///< kept for pages that connect late (131 s at 1 kHz)
   double batch_interval_s = 0.02;      ///< frames go out in batches this often (50 Hz)
@@ -100,6 +105,8 @@ class ViewerServer final : public TelemetrySink {
   std::uint16_t port() const noexcept;
   /// http://HOST:PORT/ to open (HOST 127.0.0.1 unless another address was given).
   std::string url() const;
+  /// Every Host header value a request may carry ("name:port", lower case, sorted).
+  std::vector<std::string> host_names() const;
   ViewerStats stats() const noexcept;
 
   struct Impl;
