@@ -2,27 +2,32 @@
 // only the embedded files are served (path traversal spellings are 404), the Host and Origin
 // checks, the socket is read-only (a message closes it with 1008 and changes nothing), a page
 // that does not read loses queued batches (counted, bounded queue) while publish() never waits
-// or allocates, and frames arrive in order with their sequence numbers. Also the hello message,
-// trace reading for `toonforce view`, and the run and sim hooks. Counts only, never times.
+// or allocates, and frames arrive in order with their sequence numbers. As a server (issue 16):
+// the page cap under hundreds of concurrent upgrades, the bytes and resident memory they cost,
+// the accept loop out of descriptors, the Host check on other addresses and the names given.
+// Also the hello message, trace reading for `toonforce view`, and the run and sim hooks. Counts
+// and bounds only, never times.
 #include <gtest/gtest.h>
 
 #include <dirent.h>
 #include <ifaddrs.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
-#include <sys/wait.h>
-#include <netinet/in.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <functional>
