@@ -44,6 +44,7 @@
 #include "toonforce/sim/sim_run.hpp"
 #include "toonforce/viewer/assets.hpp"
 #include "toonforce/viewer/hello.hpp"
+#include "toonforce/viewer/scene_json.hpp"
 #include "toonforce/viewer/trace_file.hpp"
 #include "toonforce/viewer/viewer_server.hpp"
 
@@ -752,14 +753,20 @@ TEST(ViewerHello, CarriesTheSceneGeometryAndTheColumns) {
   info.source = "sim";
   info.title = "a \"cliff\" </script>";
   info.rate_hz = 1000.0;
-  info.scene = &scene.value();
+  info.scene_json = scene_json(scene.value());
+  info.effect_values = {"cliff1.state", "cliff1.speed"};
   const std::string hello = make_hello(info);
   EXPECT_NE(hello.find(R"("type":"hello")"), std::string::npos);
+  // Every key of the effect, from its schema, defaults included.
+  EXPECT_NE(hello.find(R"({"key":"cliff","number":1,"line":)"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"("gap_min":0,"gap_max":0.02)"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"("speed_threshold":0.08)"), std::string::npos);
   EXPECT_NE(hello.find(R"("axis":[1,0,0])"), std::string::npos);
+  EXPECT_NE(hello.find(R"("tau":0.02)"), std::string::npos);
+  EXPECT_NE(hello.find(R"("values":["cliff1.state","cliff1.speed"])"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"(a \"cliff\" \u003c/script>)"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"("columns":["t","tick","x")"), std::string::npos);
+  EXPECT_NE(hello.find(R"("missed","cliff1.state","cliff1.speed","")"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"~([16,"watchdog (missed ticks)"])~"), std::string::npos);
 }
 
@@ -779,9 +786,9 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
   EXPECT_TRUE(std::isnan(run->frames[1][kLatched]));
 
   auto sim = parse_trace(
-      "t,x,y,z,vx,vy,vz,fx,fy,fz,faults,limits,contact,impact_t,cliff_state,true_x\n"
+      "t,x,y,z,vx,vy,vz,fx,fy,fz,faults,limits,contact,surface1.impact_t,cliff1.state,true_x\n"
       "0,0,0,0,0,0,0,0,0,0,0,0,0,nan,0,0\n"
-      "0.002,0,0,0,0,0,0,0,0,0,1,0,,,,0\n",
+      "0.002,0,0,0,0,0,0,0,0,0,1,0,,,1,0\n",
       "sim.csv");
   ASSERT_TRUE(sim) << sim.error();
   EXPECT_EQ(sim->source, "sim");
@@ -789,6 +796,10 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
   EXPECT_EQ(sim->frames[1][kTick], 1.0);  // no tick column: the row number
   EXPECT_TRUE(std::isnan(sim->frames[1][kContact]));
   EXPECT_DOUBLE_EQ(sim->rate_hz, 500.0);
+  // The effects' values, in the frame's effect columns, in the trace's order.
+  EXPECT_EQ(sim->effect_values, (std::vector<std::string>{"surface1.impact_t", "cliff1.state"}));
+  EXPECT_TRUE(std::isnan(sim->frames[0][kFirstEffectValue]));
+  EXPECT_EQ(sim->frames[1][kFirstEffectValue + 1], 1.0);
 
   const auto error = [](std::string_view text) {
     auto r = parse_trace(text, "bad.csv", 2);
@@ -812,7 +823,7 @@ class CountingSink final : public TelemetrySink {
  public:
   void publish(const TelemetryFrame& frame) noexcept override {
     ticks.push_back(frame.tick);
-    if (frame.cliff_state == 1) ++fallen;
+    if (frame.value_count > 0 && frame.values[0] == 1.0) ++fallen;  // a cliff scene: cliff1.state
   }
   void finish() noexcept override { ++finished; }
   std::vector<std::int64_t> ticks;

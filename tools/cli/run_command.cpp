@@ -84,7 +84,10 @@ void add_run(CLI::App& app) {
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
       hello.rate_hz = options->rate_hz;
-      hello.scene = scene ? &scene.value() : nullptr;
+      if (scene) {
+        hello.scene_json = viewer::scene_json(scene.value());
+        hello.effect_values = effect_value_names(make_runtime_scene<double>(scene.value()));
+      }
       if (scene && scene->safety.has_workspace) {
         hello.workspace_min_m = scene->safety.workspace_min_m;
         hello.workspace_max_m = scene->safety.workspace_max_m;

@@ -48,7 +48,8 @@ void add_view(CLI::App& app) {
     hello.title = std::filesystem::path(*trace_path).filename().string();
     hello.rate_hz = recording->rate_hz;
     hello.live = false;
-    hello.scene = scene ? &*scene : nullptr;
+    if (scene) hello.scene_json = viewer::scene_json(*scene);
+    hello.effect_values = recording->effect_values;
     viewer::ViewerOptions options;
     options.address = *address;
     options.hosts = *hosts;

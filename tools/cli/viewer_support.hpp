@@ -12,7 +12,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include "toonforce/trace/telemetry_trace.hpp"
 #include "toonforce/viewer/hello.hpp"
+#include "toonforce/viewer/scene_json.hpp"
 #include "toonforce/viewer/viewer_server.hpp"
 
 namespace toonforce::cli {
