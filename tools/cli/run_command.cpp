@@ -94,6 +94,7 @@ void add_run(CLI::App& app) {
       }
       viewer::ViewerOptions vo;
       vo.address = view->address;
+      vo.hosts = view->hosts;
       vo.port = static_cast<std::uint16_t>(view->port);
       auto started = start_viewer(vo, hello);
       if (!started) {

@@ -95,6 +95,7 @@ void add_sim(CLI::App& app) {
       hello.workspace_max_m = config.device.workspace_max_m;
       viewer::ViewerOptions vo;
       vo.address = view->address;
+      vo.hosts = view->hosts;
       vo.port = static_cast<std::uint16_t>(view->port);
       vo.has_loop = false;
       auto started = start_viewer(vo, hello);
