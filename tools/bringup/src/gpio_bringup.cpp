@@ -167,8 +167,8 @@ Result<ServoConfig> bench_config(double rate_hz, SceneDescription& scene) {
   if (!d) return Error{d.error()};
   scene = d.value();
   ServoConfig c = servo_config(scene, 1.0 / rate_hz);
-  c.controller.limits.has_max_force = true;
-  c.controller.limits.max_force_n = 2.0;
+  c.limits.has_max_force = true;
+  c.limits.max_force_n = 2.0;
   c.safety.soft_start_s = 0.1;
   c.safety.has_max_velocity = false;
   c.safety.thermal.continuous_force_n = 0.0;
