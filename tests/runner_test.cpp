@@ -202,7 +202,19 @@ TEST(RunCommand, ASimRunWritesOneTraceRowPerTickPlusTheFinalZeroForceRow) {
   EXPECT_EQ(last[9], 0.0);
   const auto json = stats_json(summary.value(), o);
   EXPECT_NE(json.find("\"frames_dropped\": 0"), std::string::npos);
+  EXPECT_NE(json.find("\"device_limited_ticks\": 0"), std::string::npos) << "the simulated device has no envelope";
+  EXPECT_EQ(format_run_summary(summary.value(), o).find("could not give the force"), std::string::npos);
   std::filesystem::remove(o.trace_path);
+}
+
+TEST(RunCommand, TicksADeviceCouldNotGiveInFullAreCountedAndSaid) {
+  RunOptions o;
+  o.device = "falcon";
+  RunSummary s;
+  s.device_limited_ticks = 7;
+  EXPECT_NE(stats_json(s, o).find("\"device_limited_ticks\": 7"), std::string::npos);
+  EXPECT_NE(format_run_summary(s, o).find("could not give the force asked in 7 tick(s)"), std::string::npos)
+      << format_run_summary(s, o);
 }
 
 TEST(RunCommand, AFalconThatIsNotThereIsAClearErrorBeforeTheLoopStarts) {

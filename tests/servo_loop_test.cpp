@@ -46,6 +46,23 @@ TYPED_TEST(ServoSafety, LimitsTheForceRateAndASkippedTickAllowsTwiceTheStep) {
   EXPECT_TRUE(has(s.limits, Limit::kRateLimited));
 }
 
+TYPED_TEST(ServoSafety, ADeviceThatCouldNotGiveTheForceIsFlaggedInTheLimitsNotAsAFault) {
+  // The Falcon outside its force envelope (motor words capped) says so in its next reading:
+  // the tick carries the device-envelope limit bit, the force is the loop's as before.
+  Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
+  rig.at(kAbove);
+  const TickStatus within = rig.at({0.0, 0.0, -0.005});
+  EXPECT_FALSE(has(within.limits, Limit::kDeviceLimited));
+  rig.device.force_limited = true;
+  const TickStatus limited = rig.at({0.0, 0.0, -0.005});
+  EXPECT_TRUE(has(limited.limits, Limit::kDeviceLimited));
+  EXPECT_NEAR(rig.force().z, 5.0, kForceTol<TypeParam>);
+  EXPECT_FALSE(limited.faults);
+  EXPECT_EQ(limited.state, LoopState::kActive);
+  rig.device.force_limited = false;
+  EXPECT_FALSE(has(rig.at({0.0, 0.0, -0.005}).limits, Limit::kDeviceLimited));
+}
+
 // ---- engage and soft start ---------------------------------------------------------------
 
 TYPED_TEST(ServoSafety, DoesNotEngageInsideAWallUntilTheSceneForceIsBelowEngageForce) {

@@ -16,6 +16,7 @@ struct FakeDeviceState {
   Vec3<double> position_m;
   Vec3<double> velocity_m_per_s;
   bool has_velocity = false;
+  bool force_limited = false;  ///< the device says it could not give the last force in full
   DeviceStatus read_status = DeviceStatus::kOk;
   DeviceStatus write_status = DeviceStatus::kOk;
   Vec3<double> last_written{1e9, 1e9, 1e9};  // "nothing written yet"
@@ -31,6 +32,7 @@ struct FakeDevice {
     r.position_m = state->position_m;
     r.velocity_m_per_s = state->velocity_m_per_s;
     r.has_velocity = state->has_velocity;
+    r.force_limited = state->force_limited;
     return state->read_status;
   }
   DeviceStatus write(const Vec3<double>& f) noexcept {

@@ -39,6 +39,7 @@ class RunConsumer final : public FrameConsumer {
   void consume(const TelemetryFrame& f) override {
     ++summary_.frames_written;
     if (f.faults != 0) ++summary_.fault_ticks;
+    if (has(f.limits, Limit::kDeviceLimited)) ++summary_.device_limited_ticks;
     summary_.fault_bits |= f.faults;
     summary_.peak_force_n = std::max(summary_.peak_force_n, std::sqrt(dot(f.force_n, f.force_n)));
     if (f.latched != latched_) {
@@ -234,6 +235,11 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   row("compute", r.compute.summary());
   row("slack", r.slack.summary());
   text += fmt::format("forces   peak {:.3f} N\n", s.peak_force_n);
+  if (s.device_limited_ticks > 0) {
+    text += fmt::format("device   could not give the force asked in {} tick(s): its force envelope is smaller "
+                        "there (`toonforce falcon envelope`); the hand felt less than the scene\n",
+                        s.device_limited_ticks);
+  }
   if (s.fault_bits == 0) {
     text += "faults   none\n";
   } else {
@@ -265,6 +271,7 @@ std::string stats_json(const RunSummary& s, const RunOptions& o) {
   out += fmt::format("  \"frames_written\": {},\n  \"frames_dropped\": {},\n", s.frames_written, s.frames_dropped);
   out += fmt::format("  \"fault_ticks\": {},\n  \"fault_bits\": {},\n  \"latched_at_end\": {},\n  \"rearms\": {},\n",
                      s.fault_ticks, s.fault_bits, s.latched_at_end, s.rearms);
+  out += fmt::format("  \"device_limited_ticks\": {},\n", s.device_limited_ticks);
   out += fmt::format("  \"faults\": {},\n", json_string(describe_faults(s.fault_bits)));
   out += fmt::format("  \"wake_latency_us\": {},\n", json_latency(r.wake.summary()));
   out += fmt::format("  \"compute_us\": {},\n", json_latency(r.compute.summary()));

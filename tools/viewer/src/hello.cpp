@@ -29,7 +29,8 @@ std::string make_hello(const HelloInfo& info) {
   }
   const std::pair<Limit, std::string_view> limit_names[] = {
       {Limit::kRateLimited, "rate-limited"}, {Limit::kClamped, "clamped"},       {Limit::kThermal, "thermal derating"},
-      {Limit::kPassivity, "passivity damping"}, {Limit::kSoftStart, "soft start"}, {Limit::kEngaging, "engaging"}};
+      {Limit::kPassivity, "passivity damping"}, {Limit::kSoftStart, "soft start"}, {Limit::kEngaging, "engaging"},
+      {Limit::kDeviceLimited, "device envelope"}};
   std::string limits;
   for (const auto& [bit, name] : limit_names) {
     limits += fmt::format("{}[{},{}]", limits.empty() ? "" : ",", static_cast<unsigned>(bit), json_string(name));

@@ -83,6 +83,9 @@ enum class Limit : std::uint8_t {
   kPassivity = 1U << 3,    ///< the passivity controller added damping this tick
   kSoftStart = 1U << 4,    ///< the soft-start ramp scaled the force down
   kEngaging = 1U << 5,     ///< waiting for the scene force to drop below engage_force
+  // The device: its reading says the force written the tick before was more than it could
+  // give (DeviceReading::force_limited; the Falcon's motor-word cap, docs/FALCON.md).
+  kDeviceLimited = 1U << 6,
 };
 constexpr std::uint8_t operator|(std::uint8_t bits, Limit l) noexcept {
   return static_cast<std::uint8_t>(bits | static_cast<std::uint8_t>(l));

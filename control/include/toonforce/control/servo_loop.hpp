@@ -125,6 +125,7 @@ class ServoLoop {
     const DeviceStatus write = device_.write(to_double(out.force_n));
     out.faults |= gate.faults | supervisor_.wrote(write);
     if (derated) out.limits = out.limits | Limit::kThermal;
+    if (reading.force_limited) out.limits = out.limits | Limit::kDeviceLimited;
     if constexpr (kIsFixed<S>) {
       if (take_fixed_saturated()) out.faults.set(Fault::kFixedSaturation);
     }

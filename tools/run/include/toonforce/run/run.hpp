@@ -67,6 +67,9 @@ struct RunSummary {
   std::uint32_t latched_at_end = 0;
   std::int64_t rearms = 0;           ///< latched faults cleared during the run
   double peak_force_n = 0.0;
+  /// Ticks whose reading said the force written before was more than the device could give
+  /// (Limit::kDeviceLimited): the user felt less than the scene asked.
+  std::int64_t device_limited_ticks = 0;
 };
 
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
