@@ -13,6 +13,7 @@ void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
 void add_report(CLI::App& app);
+void add_check(CLI::App& app);
 #if TOONFORCE_VIEWER
 void add_view(CLI::App& app);
 #endif
