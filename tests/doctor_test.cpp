@@ -187,6 +187,20 @@ TEST_F(FakeHost, NoIsolatedCpuWarns) {
   EXPECT_NE(i.fix.find("isolcpus"), std::string::npos);
 }
 
+// Issue 16: on a 2-CPU host doctor advised --cpu 3, a CPU the host does not have.
+TEST_F(FakeHost, TheIsolationAdviceNamesTheLastCpuThisHostHas) {
+  write("sys/devices/system/cpu/isolated", "\n");
+  write("sys/devices/system/cpu/online", "0-1\n");
+  const auto two = find(run(), "isolated CPUs").fix;
+  EXPECT_NE(two.find("isolcpus=managed_irq,domain,1 "), std::string::npos) << two;
+  EXPECT_NE(two.find("irqaffinity=0 "), std::string::npos) << two;
+  EXPECT_NE(two.find("toonforce run --cpu 1 "), std::string::npos) << two;
+  write("sys/devices/system/cpu/online", "0-7\n");
+  const auto eight = find(run(), "isolated CPUs").fix;
+  EXPECT_NE(eight.find("--cpu 7 "), std::string::npos) << eight;
+  EXPECT_NE(eight.find("irqaffinity=0-6 "), std::string::npos) << eight;
+}
+
 TEST_F(FakeHost, AFalconThisUserCannotOpenFailsWithTheUdevFix) {
   // Owned by root, group not ours, world read-only: the default for an unknown USB device.
   falcon("1-2", 2, 7, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);

@@ -229,5 +229,19 @@ TEST(HandScriptText, ParsesFromTextWithTheGivenSourceName) {
       << bad.error();
 }
 
+// Issue 16: `force = 1e308` drove `sim` to NaN and exited 0.
+TEST(HandScriptText, AForceNoHandCanPressWithIsRefusedWithItsRange) {
+  const auto bad = parse_hand_script(
+      "[hand]\nstart = [0, 0, 0]\n[[segment]]\ntype = \"hold\"\nduration = 1\nforce = 1e308\n", "hand.toml");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().find("hand.toml:6: segment[1].force"), std::string::npos) << bad.error();
+  EXPECT_NE(bad.error().find("up to 1e+12"), std::string::npos) << bad.error();
+  const auto strong = parse_hand_script(
+      "[hand]\nstart = [0, 0, 0]\n[[segment]]\ntype = \"hold\"\nduration = 1\nforce = 5000\n", "hand.toml");
+  ASSERT_FALSE(strong);
+  EXPECT_NE(strong.error().find("5000 N is more than a hand can press with: allowed 0 .. 1000 N"), std::string::npos)
+      << strong.error();
+}
+
 }  // namespace
 }  // namespace toonforce

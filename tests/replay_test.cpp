@@ -317,6 +317,23 @@ TEST(MotionCsv, AcceptsColumnsInAnyOrderAndReportsExtraOnes) {
   EXPECT_EQ(m->ignored_columns[0], "fx");
 }
 
+// Issue 16: an Excel "CSV UTF-8" file starts with a byte order mark; it made "no column 't'".
+TEST(MotionCsv, AUtf8ByteOrderMarkBeforeTheHeaderIsReadPast) {
+  const auto motion = parse_motion_csv("\xEF\xBB\xBFt,x,y,z\n0,0,0,0\n0.001,0,0,0\n", "excel.csv");
+  ASSERT_TRUE(motion) << motion.error();
+  EXPECT_EQ(motion->rows.size(), 2U);
+}
+
+// Issue 16: a directory was "empty", an unreadable file had no reason.
+TEST(MotionCsv, ADirectoryOrAMissingFileIsNamedWithTheReason) {
+  const auto dir = read_motion_csv(std::filesystem::temp_directory_path().string());
+  ASSERT_FALSE(dir);
+  EXPECT_NE(dir.error().find("is a directory"), std::string::npos) << dir.error();
+  const auto missing = read_motion_csv("/nonexistent/motion.csv");
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.error().find("No such file or directory"), std::string::npos) << missing.error();
+}
+
 TEST(MotionCsv, NonFinitePositionsAreValidRows) {
   const auto m = parse_motion_csv("t,x,y,z\n0,nan,0,0\n0.001,0,inf,0\n", "m.csv");
   ASSERT_TRUE(m) << m.error();

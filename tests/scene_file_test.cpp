@@ -174,6 +174,18 @@ const Malformed kMalformed[] = {
 };
 INSTANTIATE_TEST_SUITE_P(SceneFile, MalformedScene, ::testing::ValuesIn(kMalformed));
 
+// Issue 16: stiffness = 1e308 loaded, and the force's square overflowed: the clamp scaled it to
+// a silent 0 and the wall vanished.
+TEST(SceneFile, AValueLargeEnoughToOverflowTheLawIsRefusedWithTheAllowedRange) {
+  const auto scene = parse_scene("name = \"w\"\n[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n"
+                                 "stiffness = 1e308\n",
+                                 "huge.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find("huge.toml:5"), std::string::npos) << scene.error();
+  EXPECT_NE(scene.error().find("stiffness"), std::string::npos) << scene.error();
+  EXPECT_NE(scene.error().find("allowed magnitudes are up to 1e+12"), std::string::npos) << scene.error();
+}
+
 TEST(SceneFile, AcceptsNonAsciiInCommentsAndStrings) {
   const auto scene = parse_scene("# ice \xe2\x9d\x84 (paper \xc2\xa7" "4.1)\nname = \"glace \xc3\xa0 la \xc2\xa7\"\n", "utf8.toml");
   ASSERT_TRUE(scene) << scene.error();

@@ -119,6 +119,21 @@ TEST(NonFiniteGuard, NonFiniteSceneForceGivesZeroAndKeepsEffectStates) {
   EXPECT_FALSE(r.faults);
 }
 
+// Issue 16: stiffness = 1e308 gave a finite force (1e305 N) whose square overflows; the clamp
+// measured it as infinite and scaled it to a silent 0 with no fault ("peak 0 N, faults none").
+// Such a force is a fault, with zero force, like a non-finite one.
+TEST(NonFiniteGuard, AFiniteForceWhoseSquareOverflowsIsAFaultNotASilentZero) {
+  SpecLoop ctl(floor_scene(1e308), config({8.0, 0.0, true, false}));
+  const auto bad = ctl.tick(sample(0, {0, 0, -0.001}));
+  EXPECT_EQ(bad.force_n, (Vec3<double>{}));
+  EXPECT_TRUE(bad.faults.has(Fault::kNonFiniteForce));
+  // The same wall at a sane stiffness is clamped, not faulted.
+  SpecLoop sane(floor_scene(1e12), config({8.0, 0.0, true, false}));
+  const auto ok = sane.tick(sample(0, {0, 0, -0.001}));
+  EXPECT_NEAR(ok.force_n.z, 8.0, 1e-12);
+  EXPECT_FALSE(ok.faults);
+}
+
 TEST(VelocityEstimator, FollowsTheSpecsLowPassOfTheBackwardDifference) {
   // A damped wall makes the estimate visible in the force: F = k delta - b (n.v).
   const double b = 10.0;

@@ -737,7 +737,12 @@ TEST(ViewerServer, RefusesAnAddressItCannotUse) {
   options.address = "not-an-address";
   auto bad = ViewerServer::start(options, "{}");
   ASSERT_FALSE(bad);
-  EXPECT_NE(bad.error().find("not an IP address"), std::string::npos);
+  EXPECT_NE(bad.error().find("--view-address not-an-address: not an IP address"), std::string::npos) << bad.error();
+  // `toonforce view` calls it --address (issue 16: its errors named --view-address).
+  options.address_option = "--address";
+  auto bad_view = ViewerServer::start(options, "{}");
+  ASSERT_FALSE(bad_view);
+  EXPECT_NE(bad_view.error().find("--address not-an-address: not an IP address"), std::string::npos) << bad_view.error();
   auto first = start_server();
   options.address = "127.0.0.1";
   options.port = first->port();
@@ -816,6 +821,19 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
                 .find("more than 2 rows"),
             std::string::npos);
   EXPECT_NE(error("").find("empty"), std::string::npos);
+}
+
+// Issue 16: a SIGKILLed run or a full disk leaves a trace whose last row has no end of line;
+// the viewer shows the rows before it and says so (it refused the whole trace).
+TEST(TraceFile, ACutLastRowIsLeftOutAndNamedNotRefused) {
+  auto cut = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0,0\n0.002,0,0,0,0,0,0.", "cut.csv");
+  ASSERT_TRUE(cut) << cut.error();
+  EXPECT_EQ(cut->frames.size(), 2U);
+  EXPECT_NE(cut->note.find("cut.csv:4: the last row is cut"), std::string::npos) << cut->note;
+  auto whole = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n", "whole.csv");
+  ASSERT_TRUE(whole) << whole.error();
+  EXPECT_EQ(whole->frames.size(), 1U);
+  EXPECT_TRUE(whole->note.empty()) << whole->note;
 }
 
 /// Counts what it is given (a stand-in for the viewer, to check the hooks).

@@ -335,6 +335,7 @@ namespace {
 
 std::atomic<int>* g_stop = nullptr;
 EmergencyZero g_emergency;
+struct sigaction g_old_pipe {};
 
 extern "C" void on_stop_signal(int signo) {
   if (g_stop == nullptr) return;
@@ -352,10 +353,22 @@ extern "C" void on_fatal_signal(int signo) {
   raise(signo);
 }
 
-constexpr int kStopSignals[] = {SIGINT, SIGTERM};
-constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT};
+// Every signal whose default action ends the process and that can be caught, the fatal ones
+// (the process state is unknown after them) aside: each stops the loop like Ctrl-C, so that a
+// dropped SSH session (SIGHUP), a CPU or file-size limit (SIGXCPU, SIGXFSZ), a timer or a
+// stray `kill -USR1` ends with zero force, the summary and a whole trace.
+constexpr int kStopSignals[] = {SIGHUP,    SIGINT,  SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM,
+                                SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ, SIGIO,   SIGPWR};
+constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP};
 
 }  // namespace
+
+std::span<const int> stop_signals() noexcept { return kStopSignals; }
+
+std::string signal_name(int signo) {
+  const char* abbrev = signo > 0 ? sigabbrev_np(signo) : nullptr;
+  return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(signo);
+}
 
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   g_stop = &stop;
@@ -363,15 +376,24 @@ void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   struct sigaction action{};
   sigemptyset(&action.sa_mask);
   action.sa_handler = on_stop_signal;
+  // Restarted: a write of the trace under way when the signal comes completes (the loop polls
+  // the flag; nothing waits for EINTR), so the trace stays whole to its last row.
+  action.sa_flags = SA_RESTART;
   for (const int s : kStopSignals) sigaction(s, &action, nullptr);
   action.sa_handler = on_fatal_signal;
   action.sa_flags = static_cast<int>(SA_RESETHAND);
   for (const int s : kFatalSignals) sigaction(s, &action, nullptr);
+  // A closed pipe (`--trace - | head`) is a write error that the writer reports, never a death.
+  struct sigaction ignore{};
+  sigemptyset(&ignore.sa_mask);
+  ignore.sa_handler = SIG_IGN;
+  sigaction(SIGPIPE, &ignore, &g_old_pipe);
 }
 
 void restore_signals() {
   for (const int s : kStopSignals) signal(s, SIG_DFL);
   for (const int s : kFatalSignals) signal(s, SIG_DFL);
+  sigaction(SIGPIPE, &g_old_pipe, nullptr);  // as it was (the toonforce program ignores it throughout)
   g_stop = nullptr;
   g_emergency = EmergencyZero{};
 }

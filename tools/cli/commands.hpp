@@ -14,6 +14,7 @@ void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
 void add_report(CLI::App& app);
 void add_bringup(CLI::App& app);
+void add_check(CLI::App& app);
 #if TOONFORCE_VIEWER
 void add_view(CLI::App& app);
 #endif

@@ -1,4 +1,5 @@
 // toonforce replay --scene S.toml --input motion.csv --output forces.csv [--scalar ...] [--sine ...]
+#include <cctype>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -23,17 +24,22 @@ void add_replay(CLI::App& app) {
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
   cmd->add_option("--input", options->input_path, "Motion CSV: t,x,y,z[,vx,vy,vz]")->required();
   cmd->add_option("--output", options->output_path, "Forces CSV to write ('-' for standard output)")->required();
-  const std::map<std::string, ScalarKind> scalars{
-      {"double", ScalarKind::kDouble}, {"float", ScalarKind::kFloat}, {"q16.16", ScalarKind::kQ16_16}};
-  cmd->add_option("--scalar", options->scalar, "Scalar type of the computation")
-      ->transform(CLI::CheckedTransformer(scalars, CLI::ignore_case));
-  const std::map<std::string, SineMethod> sines{{"library", SineMethod::kLibrary},
-                                                {"polynomial", SineMethod::kPolynomial},
-                                                {"table", SineMethod::kTable}};
-  cmd->add_option("--sine", options->sine, "Sine method of impact transients (overrides the scene)")
-      ->transform(CLI::CheckedTransformer(sines, CLI::ignore_case));
+  // Words in, parsed in the callback: CLI11's CheckedTransformer on these uint8_t enumerations
+  // printed their values as raw bytes in --help (NUL for polynomial) and took `--sine 1`.
+  auto scalar = std::make_shared<std::string>("double");
+  auto sine = std::make_shared<std::string>();
+  cmd->add_option("--scalar", *scalar, "Scalar type of the computation (default double)")
+      ->check(CLI::IsMember({"double", "float", "q16.16"}, CLI::ignore_case));
+  cmd->add_option("--sine", *sine, "Sine method of impact transients (overrides the scene)")
+      ->check(CLI::IsMember({"library", "polynomial", "table"}, CLI::ignore_case));
   cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors");
-  cmd->callback([options, quiet] {
+  cmd->callback([options, quiet, scalar, sine] {
+    const auto lower = [](std::string text) {
+      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return text;
+    };
+    options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);
+    if (!sine->empty()) options->sine = parse_sine_method(lower(*sine));
     const auto summary = run_replay(*options);
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
@@ -42,6 +48,11 @@ void add_replay(CLI::App& app) {
       return;
     }
     if (!*quiet) std::fputs(format_summary(summary.value(), *options).c_str(), options->output_path == "-" ? stderr : stdout);
+    if (!summary->output_error.empty()) {
+      fmt::print(stderr, "toonforce: the output is incomplete: {}\n", summary->output_error);
+      set_exit_code(1);
+      return;
+    }
     set_exit_code(0);
   });
 }

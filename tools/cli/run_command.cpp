@@ -1,7 +1,10 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
 //               [--view [PORT]] [--view-address ADDR]
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <map>
 #include <memory>
 
@@ -121,24 +124,56 @@ void add_run(CLI::App& app) {
       options->sink = server.get();
     }
 #endif
+    // The statistics file is opened (created) before the loop starts: a path that cannot be
+    // written is a reason not to start, not a surprise after the session.
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> stats_file(nullptr, &std::fclose);
+    if (!options->stats_json_path.empty()) {
+      for (const std::string& input : {options->scene_path, options->hand_script_path}) {
+        std::error_code ec;
+        if (!input.empty() && std::filesystem::equivalent(options->stats_json_path, input, ec) && !ec) {
+          fmt::print(stderr, "--stats-json {} is an input of the run ({}): it would be overwritten; choose another file\n",
+                     options->stats_json_path, input);
+          set_exit_code(2);
+          return;
+        }
+      }
+      stats_file.reset(std::fopen(options->stats_json_path.c_str(), "wb"));
+      if (!stats_file) {
+        fmt::print(stderr, "--stats-json {}: cannot be created: {}\n", options->stats_json_path, std::strerror(errno));
+        set_exit_code(2);
+        return;
+      }
+    }
     const auto summary = run_servo(*options);
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
       if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
       set_exit_code(2);
+      if (stats_file) {
+        stats_file.reset();
+        std::filesystem::remove(options->stats_json_path);  // created above, for nothing
+      }
       return;
     }
-    if (!options->stats_json_path.empty()) {
-      std::FILE* f = std::fopen(options->stats_json_path.c_str(), "wb");
+    if (!*quiet) {  // beside a trace on standard output, on standard error
+      std::fputs(format_run_summary(summary.value(), *options).c_str(), options->trace_path == "-" ? stderr : stdout);
+    }
+    int status = 0;
+    if (stats_file) {
       const std::string json = stats_json(summary.value(), *options);
-      if (f == nullptr || std::fwrite(json.data(), 1, json.size(), f) != json.size() || std::fclose(f) != 0) {
-        fmt::print(stderr, "{}: cannot write the statistics\n", options->stats_json_path);
-        set_exit_code(1);
-        return;
+      std::FILE* f = stats_file.release();
+      if (std::fwrite(json.data(), 1, json.size(), f) != json.size() || std::fclose(f) != 0) {
+        fmt::print(stderr, "{}: cannot write the statistics: {}\n", options->stats_json_path, std::strerror(errno));
+        status = 1;
       }
     }
-    if (!*quiet) std::fputs(format_run_summary(summary.value(), *options).c_str(), stdout);
-    set_exit_code(0);
+    if (!summary->trace_error.empty()) {
+      fmt::print(stderr, "{}: the trace is incomplete: {}\n", options->trace_path, summary->trace_error);
+      status = 1;
+    }
+    std::fflush(stdout);
+    set_exit_code(status);
+    if (status != 0) return;
 #if TOONFORCE_VIEWER
     if (server) {
       std::fflush(stdout);

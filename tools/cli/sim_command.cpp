@@ -1,6 +1,7 @@
 // toonforce sim --scene S.toml --script hand.toml --duration SECONDS --trace out.csv [--plot out.svg|out.png]
 //   [--device falcon|omni] [--integrator ...] [--substeps N] [--rate HZ] [--seed N]
 //   [--sensor-noise M] [--scalar ...] [--sine ...] [--view [PORT]] [--view-address ADDR] [--view-pace X]
+#include <atomic>
 #include <cctype>
 #include <cstdio>
 #include <memory>
@@ -9,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/sim/sim_run.hpp"
 #if TOONFORCE_VIEWER
 #include "viewer_support.hpp"
@@ -113,10 +115,20 @@ void add_sim(CLI::App& app) {
         set_exit_code(1);
         return;
       }
+      restore_view_signals();
       options->sink = server.get();
     }
 #endif
+    // Every terminating signal (SIGINT, SIGTERM, SIGHUP, ...) stops the run after the tick under
+    // way, with the shut-down tick as the trace's last row and the summary; SIGPIPE is ignored
+    // (a closed `--trace -` is a write error).
+    static std::atomic<int> stop{0};
+    stop.store(0);
+    install_signal_handlers(stop, EmergencyZero{});
+    options->stop = &stop;
     const auto summary = run_sim(*options);
+    restore_signals();
+    options->stop = nullptr;
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
       if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
@@ -126,9 +138,14 @@ void add_sim(CLI::App& app) {
     if (!*quiet) {
       std::fputs(format_sim_summary(summary.value(), *options).c_str(), options->trace_path == "-" ? stderr : stdout);
     }
+    if (!summary->trace_error.empty()) {
+      fmt::print(stderr, "{}: the trace is incomplete: {}\n", options->trace_path, summary->trace_error);
+      set_exit_code(1);
+      return;
+    }
     set_exit_code(0);
 #if TOONFORCE_VIEWER
-    if (server) {
+    if (server && summary->stop_signal == 0) {
       std::fflush(stdout);
       serve_until_stopped(*server, "the simulation is over");
     }

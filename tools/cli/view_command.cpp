@@ -33,6 +33,7 @@ void add_view(CLI::App& app) {
       set_exit_code(1);
       return;
     }
+    if (!recording->note.empty()) fmt::print(stderr, "note: {}\n", recording->note);
     std::optional<SceneDescription> scene;
     if (!scene_path->empty()) {
       auto loaded = load_scene_file(*scene_path);
@@ -51,6 +52,7 @@ void add_view(CLI::App& app) {
     if (scene) hello.scene_json = viewer::scene_json(*scene);
     hello.effect_values = recording->effect_values;
     viewer::ViewerOptions options;
+    options.address_option = "--address";
     options.address = *address;
     options.hosts = *hosts;
     options.port = static_cast<std::uint16_t>(*port);

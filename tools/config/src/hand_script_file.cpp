@@ -11,6 +11,11 @@
 
 namespace toonforce {
 
+namespace {
+/// A hand presses with a few hundred newtons at the very most (and a haptic device takes ~10).
+constexpr double kMaxHandForceN = 1000.0;
+}  // namespace
+
 using host_sim::HandScript;
 using host_sim::HandSegment;
 using host_sim::SegmentKind;
@@ -109,7 +114,14 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
   // A stroke stops at its end; a strike aims through the wall and a crossing carries on.
   s.stop = s.kind == SegmentKind::kStroke;
   if (applies("stop", s.kind)) s.stop = r.optional_bool("stop").value_or(s.stop);
-  if (applies("force", s.kind)) s.force_n = r.optional_number("force", Range::kNonNegative);
+  if (applies("force", s.kind)) {
+    s.force_n = r.optional_number("force", Range::kNonNegative);
+    if (s.force_n && *s.force_n > kMaxHandForceN) {
+      r.error("force", fmt::format("{:g} N is more than a hand can press with: allowed 0 .. {:g} N", *s.force_n,
+                                   kMaxHandForceN));
+      s.force_n.reset();
+    }
+  }
   if (applies("normal", s.kind) && r.has("normal")) {
     if (const auto normal = r.required_vec3("normal", "")) {
       const double length = std::sqrt(dot(*normal, *normal));

@@ -157,6 +157,14 @@ std::optional<double> TableReader::to_number(std::string_view key, const toml::n
     error(key, fmt::format("must be {} (got {}){}{}", range_text(range), value, hint.empty() ? "" : "; ", hint));
     return std::nullopt;
   }
+  // No quantity of a scene or a hand script comes near 1e12 in SI units; beyond it the force
+  // laws' products (stiffness x depth, squared by the clamp) overflow a float and soon a
+  // double (issue 16: stiffness = 1e308 made the wall vanish).
+  if (std::abs(value) > kMaxMagnitude) {
+    error(key, fmt::format("{:g} is too large: allowed magnitudes are up to {:g} (larger ones overflow the force laws)",
+                           value, kMaxMagnitude));
+    return std::nullopt;
+  }
   if (scalar_ == ScalarKind::kQ16_16) {
     if (!representable<Q16_16>(value)) {
       error(key, fmt::format("{} is outside the Q16.16 range (about +-32768)", value));

@@ -10,6 +10,8 @@
 #include <optional>
 #include <sstream>
 
+#include <string>
+
 #include <fmt/format.h>
 
 #include "toonforce/hal/omni/install_check.hpp"
@@ -258,9 +260,29 @@ Finding check_isolation(const Host& host) {
   }
   f.verdict = Verdict::kWarn;
   f.finding = "none: the loop shares its CPU with everything else";
-  f.fix = "isolate one CPU for the loop (here the last of 4): add isolcpus=managed_irq,domain,3 nohz_full=3 "
-          "rcu_nocbs=3 irqaffinity=0-2 to GRUB_CMDLINE_LINUX_DEFAULT in /etc/default/grub, sudo update-grub, reboot, "
-          "then toonforce run --cpu 3 (docs/DEPLOY.md)";
+  // The last CPU this host has ("0-1" in /sys/devices/system/cpu/online: CPU 1), not a
+  // made-up 3 (issue 16: doctor advised --cpu 3 on a 2-CPU host).
+  const std::string online = host.read("/sys/devices/system/cpu/online").value_or("");
+  const std::size_t cut = online.find_last_of("-,");
+  int last = -1;
+  try {
+    last = online.empty() ? -1 : std::stoi(online.substr(cut == std::string::npos ? 0 : cut + 1));
+  } catch (...) {
+    last = -1;
+  }
+  if (last == 0) {
+    f.fix = "this host has one CPU: there is none to isolate for the loop; use a host with two or more";
+  } else if (last < 0) {
+    f.fix = "isolate one CPU for the loop, the last one, N: add isolcpus=managed_irq,domain,N nohz_full=N rcu_nocbs=N "
+            "irqaffinity=0-(N-1) to GRUB_CMDLINE_LINUX_DEFAULT in /etc/default/grub, sudo update-grub, reboot, then "
+            "toonforce run --cpu N (docs/DEPLOY.md)";
+  } else {
+    const std::string others = last == 1 ? "0" : fmt::format("0-{}", last - 1);
+    f.fix = fmt::format("isolate one CPU for the loop (here the last of {}): add isolcpus=managed_irq,domain,{} "
+                        "nohz_full={} rcu_nocbs={} irqaffinity={} to GRUB_CMDLINE_LINUX_DEFAULT in /etc/default/grub, "
+                        "sudo update-grub, reboot, then toonforce run --cpu {} (docs/DEPLOY.md)",
+                        last + 1, last, last, last, others, last);
+  }
   return f;
 }
 

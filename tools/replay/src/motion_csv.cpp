@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <sstream>
@@ -59,6 +62,9 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
 
   while (std::getline(in, raw)) {
     ++line_number;
+    // A UTF-8 byte order mark (Excel's "CSV UTF-8") before the header: read past it, and name
+    // it if the header is wrong anyway (it made "no column 't'" out of "\xEF\xBB\xBFt").
+    if (line_number == 1 && raw.rfind("\xEF\xBB\xBF", 0) == 0) raw.erase(0, 3);
     const std::string_view line = trim(raw);
     if (line.empty() || line.front() == '#') continue;
     const auto fields = split(line);
@@ -112,8 +118,12 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
 }
 
 Result<Motion> read_motion_csv(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    return Error{fmt::format("{}: is a directory, not a motion CSV file", path)};
+  }
   std::ifstream file(path, std::ios::binary);
-  if (!file) return Error{fmt::format("{}: cannot open the motion file", path)};
+  if (!file) return Error{fmt::format("{}: cannot open the motion file: {}", path, std::strerror(errno))};
   std::ostringstream text;
   text << file.rdbuf();
   return parse_motion_csv(text.str(), path);

@@ -2,7 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iterator>
+#include <utility>
 #include <memory>
 
 #include <fmt/format.h>
@@ -20,6 +25,24 @@ struct FileCloser {
   }
 };
 using File = std::unique_ptr<std::FILE, FileCloser>;
+
+/// Whole rows to the output; the first write error is reported at once on standard error, and
+/// nothing more is written (the forces never depend on the output: the run goes on).
+struct RowWriter {
+  std::FILE* out;
+  const std::string& path;
+  std::string& error;
+  std::string row;
+  void end_row() {
+    if (error.empty() && (std::fwrite(row.data(), 1, row.size(), out) != row.size() || std::ferror(out) != 0)) fail();
+    row.clear();
+  }
+  void fail() {
+    error = fmt::format("{}: writing failed: {}; nothing more is written, the replay goes on", path,
+                        std::strerror(errno != 0 ? errno : EIO));
+    std::fputs(("toonforce: " + error + "\n").c_str(), stderr);
+  }
+};
 
 std::string describe_faults(std::uint32_t bits) {
   std::string out;
@@ -76,7 +99,9 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
       MotionDevice{&motion, &row}, scene, replay_config(description, motion.rows[1].t_s - motion.rows[0].t_s));
   std::string header = "t,fx,fy,fz,faults,limits,scene_fx,scene_fy,scene_fz,contact";
   for (const std::string& n : names) header += "," + n;
-  fmt::print(out, "{}\n", header);
+  RowWriter w{out, options.output_path, summary.output_error, {}};
+  fmt::format_to(std::back_inserter(w.row), "{}\n", header);
+  w.end_row();
   std::vector<double> values(names.size());
   std::vector<double> previous_cliff(columns.cliff_states.size(), 0.0);
   for (; row < motion.rows.size(); ++row) {
@@ -85,15 +110,15 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     const Vec3<double> f = to_double(loop.force());
     const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
     const Vec3<double> scene_f = counted ? to_double(loop.scene_force()) : Vec3<double>{};
-    fmt::print(out, "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(), status.limits, scene_f.x,
+    fmt::format_to(std::back_inserter(w.row), "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(), status.limits, scene_f.x,
                scene_f.y, scene_f.z);
     if (!counted) {
-      fmt::print(out, ",{:,>{}}\n", "", names.size());  // effect states did not advance: nothing to report
+      fmt::format_to(std::back_inserter(w.row), ",{:,>{}}\n", "", names.size());  // effect states did not advance: nothing to report
     } else {
       const bool contact = loop.describe(values.data());
-      fmt::print(out, ",{}", contact ? 1 : 0);
-      for (const double v : values) fmt::print(out, ",{}", v);
-      fmt::print(out, "\n");
+      fmt::format_to(std::back_inserter(w.row), ",{}", contact ? 1 : 0);
+      for (const double v : values) fmt::format_to(std::back_inserter(w.row), ",{}", v);
+      w.row += '\n';
       if (contact) ++summary.ticks_in_contact;
       for (const std::size_t i : columns.impact_times) summary.impacts += values[i] == 0.0 ? 1U : 0U;
       for (std::size_t c = 0; c < columns.cliff_states.size(); ++c) {
@@ -102,6 +127,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
         previous_cliff[c] = state;
       }
     }
+    w.end_row();
     const double magnitude = std::sqrt(dot(f, f));
     if (magnitude > summary.peak_force_n) {
       summary.peak_force_n = magnitude;
@@ -113,8 +139,15 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     if (status.faults) ++summary.fault_ticks;
     summary.fault_bits |= status.faults.bits();
   }
-  if (std::ferror(out) != 0) return Error{fmt::format("{}: write failed", options.output_path)};
+  if (summary.output_error.empty() && std::fflush(out) != 0) w.fail();
   return summary;
+}
+
+/// Same file (or both standard output)?
+bool same_file(const std::string& a, const std::string& b) {
+  if (a == "-" || b == "-") return a == b;
+  std::error_code ec;
+  return std::filesystem::equivalent(a, b, ec) && !ec;
 }
 
 }  // namespace
@@ -125,11 +158,18 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   if (options.sine == SineMethod::kLibrary && options.scalar == ScalarKind::kQ16_16) {
     return Error{"--sine library needs a floating-point scalar; use polynomial or table with q16.16"};
   }
+  // Before anything is opened for writing: an output must never replace an input.
+  for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.input_path, "the motion"}}) {
+    if (same_file(options.output_path, input)) {
+      return Error{fmt::format("--output {} is {} ({}): it would be overwritten; choose another file",
+                               options.output_path, what, input)};
+    }
+  }
   auto motion = read_motion_csv(options.input_path);
   if (!motion) return Error{motion.error()};
 
   File out(options.output_path == "-" ? stdout : std::fopen(options.output_path.c_str(), "wb"));
-  if (!out) return Error{fmt::format("{}: cannot open for writing", options.output_path)};
+  if (!out) return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};
   if (options.sine) override_sine(scene.value(), *options.sine);
   Result<ReplaySummary> summary = with_scalar(
       options.scalar,
@@ -137,7 +177,9 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
       [](ScalarKind kind) -> Result<ReplaySummary> {
         return Error{fmt::format("--scalar {}: this build has no replay for it", scalar_kind_name(kind))};
       });
-  if (std::fflush(out.get()) != 0) return Error{fmt::format("{}: write failed", options.output_path)};
+  if (summary && summary->output_error.empty() && out.get() != stdout && std::fclose(out.release()) != 0) {
+    summary->output_error = fmt::format("{}: closing failed: {}", options.output_path, std::strerror(errno));
+  }
   return summary;
 }
 

@@ -4,7 +4,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -55,7 +59,14 @@ class RunConsumer final : public FrameConsumer {
       latched_ = f.latched;
     }
     summary_.latched_at_end = f.latched;
-    if (trace_ != nullptr && !write_frame(*trace_, f, values_, true)) write_failed = true;
+    if (trace_ != nullptr && !write_failed && !write_frame(*trace_, f, values_, true)) {
+      // Said at once; the loop goes on (its force never depends on the trace), unwritten.
+      write_failed = true;
+      summary_.trace_error = fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
+      fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
+                 f.t_s, std::strerror(errno != 0 ? errno : EIO));
+      std::fflush(messages_);
+    }
     if (sink_ != nullptr) sink_->publish(f);  // fan-out here, never in the servo thread
   }
   void finish() override {
@@ -120,8 +131,9 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
-  if (trace && !trace->close()) consumer.write_failed = true;
-  if (consumer.write_failed) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
+  if (trace && !trace->close() && summary.trace_error.empty()) {
+    summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
+  }
   return summary;
 }
 
@@ -136,7 +148,7 @@ std::string json_latency(const LatencySummary& s) {
 std::string stop_reason(int signal) {
   if (signal == 0) return "";
   if (signal == kStopByUser) return "stopped by the user";
-  return fmt::format("stopped by {}", signal == 2 ? "SIGINT" : signal == 15 ? "SIGTERM" : fmt::format("signal {}", signal));
+  return fmt::format("stopped by {}", signal_name(signal));
 }
 
 }  // namespace
@@ -186,6 +198,23 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   }
   if (!(options.duration_s >= 0.0) || !std::isfinite(options.duration_s)) {
     return Error{fmt::format("--duration {}: must be >= 0 seconds (0: until stopped)", options.duration_s)};
+  }
+  if (options.duration_s > 0.0 && std::llround(options.duration_s * options.rate_hz) < 1) {
+    return Error{fmt::format("--duration {:g}: less than one tick at {:g} Hz (allowed: 0, until stopped, or {:g} .. {:g} s)",
+                             options.duration_s, options.rate_hz, 1.0 / options.rate_hz, kMaxRunDurationS)};
+  }
+  if (options.duration_s > kMaxRunDurationS) {
+    return Error{fmt::format("--duration {:g}: over the maximum of {:g} s (30 days; 0 runs until stopped)",
+                             options.duration_s, kMaxRunDurationS)};
+  }
+  // No output may replace an input: both are checked before anything is opened for writing.
+  for (const auto& [output, flag] : {std::pair{options.trace_path, "--trace"}, std::pair{options.stats_json_path, "--stats-json"}}) {
+    for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.hand_script_path, "the hand script"}}) {
+      std::error_code ec;
+      if (!output.empty() && output != "-" && !input.empty() && std::filesystem::equivalent(output, input, ec) && !ec) {
+        return Error{fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
+      }
+    }
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
@@ -247,7 +276,10 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
                         s.fault_ticks, describe_faults(s.fault_bits), s.rearms,
                         s.latched_at_end == 0 ? "none" : describe_faults(s.latched_at_end));
   }
-  if (!o.trace_path.empty()) {
+  if (!o.trace_path.empty() && !s.trace_error.empty()) {
+    text += fmt::format("trace    {}: INCOMPLETE, {}\n", o.trace_path,
+                        s.trace_error);
+  } else if (!o.trace_path.empty()) {
     text += fmt::format("trace    {}: {} rows, {} frame(s) dropped (telemetry ring full)\n", o.trace_path,
                         s.frames_written, s.frames_dropped);
   } else if (s.frames_dropped != 0) {

@@ -1,6 +1,15 @@
 #include "toonforce/sim/sim_run.hpp"
 
+#include <signal.h>
+#include <string.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <utility>
 #include <cmath>
 #include <thread>
 
@@ -61,8 +70,29 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   if (options.duration_s && !(*options.duration_s > 0.0 && std::isfinite(*options.duration_s))) {
     return Error{fmt::format("--duration must be a positive number of seconds (got {})", *options.duration_s)};
   }
+  if (options.duration_s && *options.duration_s > kMaxSimDurationS) {
+    return Error{fmt::format("--duration {:g}: over the maximum of {:g} s simulated (one day)", *options.duration_s,
+                             kMaxSimDurationS)};
+  }
   if (options.sine == SineMethod::kLibrary && options.scalar == ScalarKind::kQ16_16) {
     return Error{"--sine library needs a floating-point scalar; use polynomial or table with q16.16"};
+  }
+  // Outputs, before anything is opened for writing: never one of the inputs, and a plot in a
+  // format the plotter writes (refused now, not after the run).
+  for (const auto& [output, flag] : {std::pair{options.trace_path, "--trace"}, std::pair{options.plot_path, "--plot"}}) {
+    for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.script_path, "the hand script"}}) {
+      std::error_code ec;
+      if (!output.empty() && output != "-" && std::filesystem::equivalent(output, input, ec) && !ec) {
+        return Error{fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
+      }
+    }
+  }
+  if (!options.plot_path.empty()) {
+    const std::string ext = std::filesystem::path(options.plot_path).extension().string();
+    if (ext != ".png" && ext != ".svg") {
+      return Error{fmt::format("--plot {}: the plot is written as .png or .svg (got '{}')", options.plot_path, ext)};
+    }
+    if (options.trace_path == "-") return Error{"--plot needs the trace in a file, not on standard output"};
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
@@ -74,6 +104,11 @@ Result<SimSummary> run_sim(const SimOptions& options) {
 
   const double duration_s = options.duration_s.value_or(hand->intent.duration_s());
   const std::int64_t ticks = session->ticks_for(duration_s);
+  if (!options.duration_s && duration_s > kMaxSimDurationS) {
+    return Error{fmt::format("{}: the hand script lasts {:g} s, over the maximum of {:g} s simulated (one day); "
+                             "give a shorter --duration",
+                             options.script_path, duration_s, kMaxSimDurationS)};
+  }
   if (ticks < 1) {
     return Error{fmt::format("nothing to simulate: {} s is less than one tick at {} Hz (give --duration)", duration_s,
                              options.rate_hz)};
@@ -97,27 +132,53 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   // (this thread is the simulation's own, not a real-time loop; the trace is unchanged).
   const bool paced = options.sink != nullptr && options.pace > 0.0;
   const auto wall_start = std::chrono::steady_clock::now();
-  for (std::int64_t k = 0; k < ticks; ++k) {
+  const auto stopped = [&options] { return options.stop != nullptr && options.stop->load() != 0; };
+  std::int64_t k = 0;
+  const auto write = [&](const SimRecord& record) {
+    if (!summary.trace_error.empty() || write_sim_record(*trace.value(), record, values)) return;
+    summary.trace_error = fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s,
+                                      std::strerror(errno != 0 ? errno : EIO));
+    std::fputs(fmt::format("toonforce: {}: {}; nothing more is written, the simulation goes on\n", options.trace_path,
+                           summary.trace_error)
+                   .c_str(),
+               stderr);
+  };
+  for (; k < ticks && !stopped(); ++k) {
     const SimRecord record = session->step();
-    write_sim_record(*trace.value(), record, values);
+    write(record);
     add_to_summary(summary, record, columns);
     if (!inside(record.true_position_m)) ++summary.ticks_outside_workspace;
     if (options.sink != nullptr) {
       options.sink->publish(record.frame);
       if (paced) {
-        std::this_thread::sleep_until(wall_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                       std::chrono::duration<double>(record.frame.t_s / options.pace)));
+        // In slices, so that a stop is heard within one even at a slow pace.
+        const auto due = wall_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                          std::chrono::duration<double>(record.frame.t_s / options.pace));
+        while (!stopped()) {
+          const auto now = std::chrono::steady_clock::now();
+          if (now >= due) break;
+          std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(due - now, std::chrono::milliseconds(20)));
+        }
       }
     }
   }
+  if (k < ticks && stopped()) {
+    // Stopped early: the loop's shut-down tick (zero force) is the trace's last row, as in `run`.
+    summary.stop_signal = options.stop->load();
+    const SimRecord record = session->shutdown();
+    write(record);
+    add_to_summary(summary, record, columns);
+    if (options.sink != nullptr) options.sink->publish(record.frame);
+  }
   if (options.sink != nullptr) options.sink->finish();
-  summary.duration_s = static_cast<double>(ticks) * session->config().plant.period_s;
+  summary.duration_s = static_cast<double>(k) * session->config().plant.period_s;
   summary.final_position_m = session->device().plant().position_m();
   summary.device_work_j = session->device().plant().device_work_j();
-  if (!trace.value()->close()) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
+  if (!trace.value()->close() && summary.trace_error.empty()) {
+    summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
+  }
 
-  if (!options.plot_path.empty()) {
-    if (options.trace_path == "-") return Error{"--plot needs the trace in a file, not on standard output"};
+  if (!options.plot_path.empty() && summary.trace_error.empty() && summary.stop_signal == 0) {
     PlotRequest request{options.trace_path, options.plot_path, options.plot_kind,
                         options.plot_title.empty() ? fmt::format("{} / {}", scene->name, hand->script.name)
                                                    : options.plot_title,
@@ -160,7 +221,18 @@ std::string format_sim_summary(const SimSummary& s, const SimOptions& options) {
                         "has no end stops, a real one would have stopped it\n",
                         s.ticks_outside_workspace);
   }
-  if (options.trace_path != "-") text += fmt::format("trace   {}\n", options.trace_path);
+  if (s.stop_signal != 0) {
+    const char* abbrev = sigabbrev_np(s.stop_signal);
+    text += fmt::format("stopped by {} after {:.6g} s simulated: the last trace row is the loop's shut-down tick "
+                        "(zero force)\n",
+                        abbrev != nullptr ? fmt::format("SIG{}", abbrev) : fmt::format("signal {}", s.stop_signal),
+                        s.duration_s);
+  }
+  if (!s.trace_error.empty()) {
+    text += fmt::format("trace   {}: INCOMPLETE, {}\n", options.trace_path, s.trace_error);
+  } else if (options.trace_path != "-") {
+    text += fmt::format("trace   {}\n", options.trace_path);
+  }
   if (!options.plot_path.empty()) text += fmt::format("plot    {}\n", options.plot_path);
   return text;
 }

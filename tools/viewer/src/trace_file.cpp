@@ -42,6 +42,16 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
   std::size_t line_no = 0;
   bool has_tick = false;
   std::vector<double> dts;
+  // Every writer ends each row with a newline: a last row without one was cut (a SIGKILLed run,
+  // a full disk). Leave it out and say so, rather than refuse the whole trace.
+  std::size_t cut_line = 0;
+  if (!text.empty() && text.back() != '\n') {
+    const std::size_t last_nl = text.rfind('\n');
+    if (last_nl != std::string_view::npos) {
+      cut_line = static_cast<std::size_t>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) + 2;
+      text = text.substr(0, last_nl + 1);
+    }
+  }
   while (!text.empty()) {
     const std::size_t nl = text.find('\n');
     std::string_view line = text.substr(0, nl);
@@ -116,6 +126,11 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
     rec.frames.push_back(frame);
   }
   if (map.empty()) return Error{fmt::format("{}: empty: no header row", name)};
+  if (cut_line != 0) {
+    rec.note = fmt::format("{}:{}: the last row is cut (no end of line: the run was killed or the disk filled); it is "
+                           "left out, the {} rows before it are shown",
+                           name, cut_line, rec.frames.size());
+  }
   if (!dts.empty()) {
     std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
     rec.rate_hz = 1.0 / dts[dts.size() / 2];

@@ -618,8 +618,8 @@ Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, s
   beast::error_code ec;
   const asio::ip::address address = asio::ip::make_address(options.address, ec);
   if (ec) {
-    return Error{fmt::format("--view-address {}: not an IP address (use 127.0.0.1, ::1, or an address of this host)",
-                             options.address)};
+    return Error{fmt::format("{} {}: not an IP address (use 127.0.0.1, ::1, or an address of this host)",
+                             options.address_option, options.address)};
   }
   auto impl = std::make_unique<ViewerServer::Impl>();
   impl->options = options;

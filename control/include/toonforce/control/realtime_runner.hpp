@@ -17,6 +17,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <span>
 #include <string>
 
 #include "toonforce/common/result.hpp"
@@ -99,11 +100,18 @@ Result<RunReport> run_on_device(PeriodicTask& task, DeviceDriver& device, const 
 /// The advice printed when SCHED_FIFO is refused.
 std::string realtime_permission_advice(int priority);
 
-/// SIGINT and SIGTERM store their number in `stop` (async-signal-safe); a second one while
-/// the first is being handled exits at once. Fatal signals (SIGSEGV, SIGBUS, SIGFPE, SIGILL,
-/// SIGABRT) call `emergency` (best effort: it should be a single device write), then re-raise
-/// with the default action. `restore_signals()` puts the default handlers back.
+/// Every catchable signal whose default action would end the process (stop_signals(): SIGHUP,
+/// SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM, SIGXCPU, SIGXFSZ, ...) stores its number
+/// in `stop` (async-signal-safe); a second one while the first is being handled calls
+/// `emergency` and exits at once. SIGPIPE is ignored (a closed pipe is a write error). Fatal
+/// signals (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP) call `emergency` (best
+/// effort: it should be a single device write), then re-raise with the default action.
+/// `restore_signals()` puts the default handlers back.
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency);
 void restore_signals();
+/// The signals install_signal_handlers() turns into a stop.
+std::span<const int> stop_signals() noexcept;
+/// "SIGHUP", "SIGINT", ... ("signal N" for a number without a name).
+std::string signal_name(int signo);
 
 }  // namespace toonforce

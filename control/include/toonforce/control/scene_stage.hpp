@@ -42,11 +42,13 @@ class SceneStage {
   /// The scene's force on `in`, the effects' new states committed if it is finite.
   SceneForce<S> force(const TickInput<S>& in) noexcept {
     const Vec3<S> f = scene_.force(in, states_[current_], states_[1 - current_], active_.data());
-    // One test for the three components: a sum is non-finite if any term is (or if the sum of
-    // three finite ones overflows, a force no device could take either). A Q value is always
+    // One test for the three components: the squared magnitude is non-finite if any component
+    // is, and also when a finite force is so large that its square overflows (stiffness = 1e308):
+    // the clamp and the rate limit measure the force by that square, and would scale such a
+    // force to a silent 0 (issue 16). Such a force is a fault, like a NaN. A Q value is always
     // finite (it saturates instead).
     if constexpr (!kIsFixed<S>) {
-      if (!is_finite(f.x + f.y + f.z)) return {};
+      if (!is_finite(dot(f, f))) return {};
     }
     current_ = 1 - current_;  // commit
     last_position_m_ = in.position_m;  // what describe() needs besides the velocity

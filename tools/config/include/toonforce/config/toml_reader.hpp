@@ -19,6 +19,9 @@
 
 namespace toonforce {
 
+/// The largest magnitude any number of a scene or hand script may have.
+inline constexpr double kMaxMagnitude = 1e12;
+
 // The scalar type a file's numbers must fit (spec effects.md §7: a value outside the Q16.16
 // range is an error at load) is a ScalarKind (toonforce/math/scalar_kind.hpp).
 

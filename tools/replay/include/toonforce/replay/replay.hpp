@@ -41,6 +41,9 @@ struct ReplaySummary {
   std::size_t clamped = 0;       ///< ticks
   std::size_t fault_ticks = 0;
   std::uint32_t fault_bits = 0;  ///< union over the run
+  /// Non-empty: writing the output failed (the message, said at once on standard error); the
+  /// output stops there (nothing more is written) and the exit status is 1.
+  std::string output_error;
 };
 
 Result<ReplaySummary> run_replay(const ReplayOptions& options);

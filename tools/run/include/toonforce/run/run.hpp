@@ -22,6 +22,9 @@
 
 namespace toonforce {
 
+/// The longest `--duration` (30 days; 0 runs until stopped).
+inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
+
 struct RunOptions {
   std::string device;               ///< sim | falcon | omni
   /// --device sim: the simulated hand follows this script (docs/HAND_SCRIPTS.md) and then holds
@@ -66,6 +69,7 @@ struct RunSummary {
   std::uint32_t fault_bits = 0;      ///< union over the run
   std::uint32_t latched_at_end = 0;
   std::int64_t rearms = 0;           ///< latched faults cleared during the run
+  std::string trace_error;           ///< non-empty: the trace could not be written (the run went on)
   double peak_force_n = 0.0;
   /// Ticks whose reading said the force written before was more than the device could give
   /// (Limit::kDeviceLimited): the user felt less than the scene asked.

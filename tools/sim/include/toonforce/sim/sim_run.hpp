@@ -2,6 +2,7 @@
 /// `toonforce sim` (interfaces.md): a scene, a hand script and a simulated device in closed
 /// loop for a given simulated duration; writes the trace and optionally a plot.
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -11,6 +12,9 @@
 #include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
+
+/// The longest simulation `sim` runs (one simulated day: 86.4 million ticks at 1 kHz).
+inline constexpr double kMaxSimDurationS = 86400.0;
 
 struct SimOptions {
   std::string scene_path;
@@ -33,6 +37,9 @@ struct SimOptions {
   /// With a sink: simulated seconds per wall-clock second (1: real time, as a person would
   /// feel it; 0: as fast as the machine goes). The trace is the same either way.
   double pace = 1.0;
+  /// Non-zero (a signal's number, set by a handler): the run stops after the tick under way,
+  /// writes the loop's shut-down tick (zero force) as the trace's last row and reports.
+  const std::atomic<int>* stop = nullptr;
 };
 
 struct SimSummary {
@@ -59,7 +66,8 @@ struct SimSummary {
   std::int64_t soft_start_ticks = 0;
   std::int64_t passivity_ticks = 0;  ///< the passivity controller damped
   std::uint32_t last_state = 0;      ///< LoopState at the end
-  bool stopped = false;              ///< a signal stopped the run before its end
+  std::string trace_error;           ///< non-empty: the trace could not be written (the run went on)
+  int stop_signal = 0;               ///< the signal that stopped the run before its end (0: none)
 };
 
 /// Accumulates the summary from records (shared by the CLI, the figures and the benchmark).

@@ -24,6 +24,9 @@ struct TraceRecording {
   double rate_hz = 0.0;    ///< from the median time step (0: fewer than two rows)
   bool has_loop = false;   ///< the trace has the servo loop's timing columns
   std::vector<std::string> effect_values;  ///< the effects' value columns, in the frame's order
+  /// Non-empty: the last row was cut (no end of line: a killed run, a full disk); it is left
+  /// out and this says so, with its line.
+  std::string note;
 };
 
 Result<TraceRecording> read_trace(const std::string& path, std::size_t max_rows = kMaxTraceRows);

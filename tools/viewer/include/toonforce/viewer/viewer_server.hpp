@@ -61,6 +61,8 @@ struct ViewerOptions {
   std::size_t max_connections = 32;    ///< HTTP connections (not yet pages) open at once; more are closed at once
   int send_buffer_bytes = 0;           ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
   bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
+  /// The option that gave `address`, for messages (`toonforce view` calls it --address).
+  std::string address_option = "--view-address";
 };
 
 /// Counters for the summary and the tests (any thread).
