@@ -23,9 +23,20 @@
 
 namespace toonforce {
 
+/// Where the sticky flag lives. On a host it is per thread (one servo loop per thread, and
+/// tests tick loops on several threads at once). A bare-metal target defines
+/// TOONFORCE_SINGLE_THREADED: it runs one loop and has no thread-local storage (arm-none-eabi
+/// compiles `thread_local` into calls of __aeabi_read_tp, which only an operating system
+/// provides), so there the flag is a plain global (tools/mcu builds this way).
+#if defined(TOONFORCE_SINGLE_THREADED)
+#define TOONFORCE_FIXED_FLAG_STORAGE inline
+#else
+#define TOONFORCE_FIXED_FLAG_STORAGE inline thread_local
+#endif
+
 namespace detail {
-/// The sticky saturation flag of the calling thread (one servo loop per thread).
-inline thread_local bool fixed_saturated_flag = false;
+/// The sticky saturation flag of the calling thread (of the program when single-threaded).
+TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
