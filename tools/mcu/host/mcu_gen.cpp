@@ -1,0 +1,427 @@
+// toonforce_mcu_gen: the host half of the microcontroller images (issue 18, tools/mcu/README.md).
+//
+//   toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float]
+//                              --scene NAME=SCENE.toml ... --motion NAME=MOTION.csv ...
+//     Writes DIR/image.hpp (each scene as a compile-time Scene<...> type with its parameters
+//     and controller settings as constants) and DIR/motions.cpp (each motion's rows as data in
+//     the image's .motion section). It reads the files with the very functions `toonforce
+//     replay` uses (load_scene_file, make_runtime_scene, controller_config, read_motion_csv),
+//     so the image starts from the same numbers bit for bit: parameters are printed as raw
+//     Q16.16 integers or hexadecimal float literals, never as rounded decimals.
+//
+//   toonforce_mcu_gen compare --target TARGET.txt --host SCENE/MOTION=REPLAY.csv ...
+//     Compares the forces an image wrote (raw Q16.16 integers) with `toonforce replay
+//     --scalar q16.16` of the same scene and motion, row by row, bit for bit (force, fault
+//     and limit bits). Exit 0 when every pair matches.
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/replay/motion_csv.hpp"
+
+namespace toonforce::mcu {
+namespace {
+
+struct Named {
+  std::string name;
+  std::string path;
+};
+
+bool split_named(std::string_view arg, Named& out) {
+  const auto eq = arg.find('=');
+  if (eq == std::string_view::npos || eq == 0 || eq + 1 == arg.size()) return false;
+  out.name = std::string(arg.substr(0, eq));
+  out.path = std::string(arg.substr(eq + 1));
+  return true;
+}
+
+/// A C++ identifier from a scene or motion name ("cartoon_wall" -> "CartoonWall").
+std::string camel(std::string_view name) {
+  std::string out;
+  bool up = true;
+  for (const char c : name) {
+    if (c == '_' || c == '-' || c == ' ') {
+      up = true;
+      continue;
+    }
+    out += up ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+    up = false;
+  }
+  return out;
+}
+
+// ---- literals that reproduce a value exactly -----------------------------------------------
+
+std::string lit(double v) {
+  if (std::isnan(v)) return "__builtin_nan(\"\")";
+  if (std::isinf(v)) return v > 0 ? "__builtin_inf()" : "-__builtin_inf()";
+  return fmt::format("{:a}", v);  // hexadecimal: exact
+}
+std::string lit(float v) { return fmt::format("{:a}F", v); }
+std::string lit(Q16_16 v) { return fmt::format("S::from_raw({})", v.raw()); }
+
+template <class S>
+std::string lit(const Vec3<S>& v) {
+  return fmt::format("Vec3<S>{{{}, {}, {}}}", lit(v.x), lit(v.y), lit(v.z));
+}
+template <class S>
+std::string lit(const Plane<S>& p) {
+  return fmt::format("Plane<S>{{{}, {}}}", lit(p.point_m), lit(p.normal));
+}
+
+std::string_view sine_name(SineMethod m) {
+  switch (m) {
+    case SineMethod::kLibrary: return "SineMethod::kLibrary";
+    case SineMethod::kPolynomial: return "SineMethod::kPolynomial";
+    case SineMethod::kTable: return "SineMethod::kTable";
+  }
+  return "?";
+}
+
+/// One scene as a compile-time type and its constructor arguments, from the run-time scene
+/// replay builds from the same file: same parameters, and each surface gets only the laws the
+/// file gives it (a wall without damping is a SpringWall; no tangential law, no impact: none),
+/// which is what makes a scene's image carry only its effects.
+template <class S>
+std::string scene_struct(const std::string& name, const SceneDescription& d, const RuntimeScene<S>& rt,
+                         const ControllerConfig& config) {
+  std::vector<std::string> types;
+  std::vector<std::string> args;
+  for (const auto& entry : d.order) {
+    if (entry.kind == SceneDescription::Kind::kSurface) {
+      const auto& p = rt.surface(entry.index);
+      const bool damped = p.wall.damping_n_s_per_m != S{};
+      const std::string wall = damped ? "PenaltyWall<S>" : "SpringWall<S>";
+      std::string tangential = "NoTangential<S>";
+      std::string tangential_arg = "{}";
+      switch (p.tangential.kind) {
+        case AnyTangential<S>::Kind::kNone: break;
+        case AnyTangential<S>::Kind::kFriction:
+          tangential = "RealisticFriction<S>";
+          tangential_arg = fmt::format("{{{}, {}, {}}}", lit(p.tangential.friction.viscous_n_s_per_m),
+                                       lit(p.tangential.friction.coulomb),
+                                       lit(p.tangential.friction.regularization_speed_m_per_s));
+          break;
+        case AnyTangential<S>::Kind::kSlippery:
+          tangential = "SuperSlippery<S>";
+          tangential_arg = fmt::format("{{{}, {}}}", lit(p.tangential.slippery.mu_n_s_per_m),
+                                       lit(p.tangential.slippery.max_tangential_force_n));
+          break;
+      }
+      std::string impact = "NoImpact<S>";
+      std::string impact_arg = "{}";
+      if (p.impact.enabled) {
+        const auto& i = p.impact.law;
+        impact = "ImpactTransient<S>";
+        impact_arg = fmt::format("{{{}, {}, {}, {}, {}, {}, {}}}", lit(i.recoil_gain_n_per_m),
+                                 lit(i.oscillation_gain_n_per_m), lit(i.duration_s), lit(i.frequency_hz),
+                                 lit(i.min_impact_speed_m_per_s), lit(i.rearm_distance_m), sine_name(i.sine));
+      }
+      types.push_back(fmt::format("Surface<{}, {}, {}>", wall, tangential, impact));
+      args.push_back(fmt::format("{{{}, {{{}, {}}}, {}, {}}}", lit(p.plane), lit(p.wall.stiffness_n_per_m),
+                                 lit(p.wall.damping_n_s_per_m), tangential_arg, impact_arg));
+    } else {
+      const auto& c = rt.cliff(entry.index);
+      types.push_back("CartoonCliff<S>");
+      args.push_back(fmt::format("{{{}, {}, {}, {}, {{{}, {}}}, {}, {}, {}, {}}}", lit(c.ground), lit(c.axis),
+                                 lit(c.gap_min_m), lit(c.gap_max_m), lit(c.wall.stiffness_n_per_m),
+                                 lit(c.wall.damping_n_s_per_m), lit(c.speed_threshold_m_per_s), lit(c.tau_s),
+                                 lit(c.rearm_height_m), lit(c.fall_force_n)));
+    }
+  }
+  std::string type_list;
+  std::string arg_list;
+  for (std::size_t i = 0; i < types.size(); ++i) {
+    type_list += (i ? ",\n                    " : "") + types[i];
+    arg_list += (i ? ",\n        " : "") + args[i];
+  }
+  const auto& l = config.limits;
+  return fmt::format(
+      "/// {} ({})\n"
+      "struct {}Scene {{\n"
+      "  static constexpr char kName[] = \"{}\";\n"
+      "  using Type = Scene<{}>;\n"
+      "  static constexpr Type make() noexcept {{\n"
+      "    return Type(\n"
+      "        {});\n"
+      "  }}\n"
+      "  static constexpr ControllerConfig kConfig{{ForceLimits{{{}, {}, {}, {}}}, {}, {}}};\n"
+      "}};\n\n",
+      d.name, d.source, camel(name), name, type_list, arg_list, lit(l.max_force_n), lit(l.max_force_rate_n_per_s),
+      l.has_max_force, l.has_max_force_rate, lit(config.velocity_cutoff_hz), lit(config.period_s));
+}
+
+int generate(const std::string& out_dir, ScalarKind scalar, const std::vector<Named>& scenes,
+             const std::vector<Named>& motions) {
+  std::string header =
+      "// Generated by toonforce_mcu_gen from the scene and motion files named below; do not edit.\n"
+      "#pragma once\n#include \"mcu_types.hpp\"\n\nnamespace toonforce::mcu::image {\n\n";
+  header += fmt::format("using S = {};\n\n", scalar == ScalarKind::kQ16_16 ? "Q16_16" : "float");
+  std::string scene_names;
+  for (const auto& s : scenes) {
+    auto d = load_scene_file(s.path, scalar);
+    if (!d) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s\n", d.error().c_str());
+      return 1;
+    }
+    // Stamped time (period 0), as `toonforce replay` runs a motion.
+    const ControllerConfig config = controller_config(d.value(), 0.0);
+    if (scalar == ScalarKind::kQ16_16) {
+      header += scene_struct(s.name, d.value(), make_runtime_scene<Q16_16>(d.value()), config);
+    } else {
+      header += scene_struct(s.name, d.value(), make_runtime_scene<float>(d.value()), config);
+    }
+    scene_names += (scene_names.empty() ? "" : ", ") + camel(s.name) + "Scene";
+  }
+  header += fmt::format("using Scenes = SceneList<{}>;\n\n", scene_names);
+
+  std::string source =
+      "// Generated by toonforce_mcu_gen from the motion files named below; do not edit.\n"
+      "#include \"image.hpp\"\n\nnamespace toonforce::mcu::image {\nnamespace {\n\n";
+  std::string table;
+  for (const auto& m : motions) {
+    auto motion = read_motion_csv(m.path);
+    if (!motion) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s\n", motion.error().c_str());
+      return 1;
+    }
+    const auto& rows = motion->rows;
+    const std::string id = camel(m.name);
+    source += fmt::format("// {}: {} rows\n[[gnu::section(\".motion\")]] constexpr MotionRow k{}Rows[] = {{\n", m.path,
+                          rows.size(), id);
+    for (const auto& r : rows) {
+      source += fmt::format("    {{{}, {{{}, {}, {}}}}},\n", lit(r.t_s), lit(r.position_m.x), lit(r.position_m.y),
+                            lit(r.position_m.z));
+    }
+    source += "};\n";
+    std::string velocity = "nullptr";
+    if (motion->has_velocity) {
+      source += fmt::format("[[gnu::section(\".motion\")]] constexpr Vec3<double> k{}Velocity[] = {{\n", id);
+      for (const auto& r : rows) source += fmt::format("    {},\n", lit(r.velocity_m_per_s));
+      source += "};\n";
+      velocity = fmt::format("k{}Velocity", id);
+    }
+    source += "\n";
+    table += fmt::format("    Motion{{\"{}\", k{}Rows, {}, {}}},\n", m.name, id, velocity, rows.size());
+  }
+  source += "}  // namespace\n\n";
+  source += fmt::format("const Motion kMotions[] = {{\n{}}};\nconst std::size_t kMotionCount = {};\n\n", table,
+                        motions.size());
+  source += "}  // namespace toonforce::mcu::image\n";
+  header += "extern const Motion kMotions[];\nextern const std::size_t kMotionCount;\n\n";
+  header += "}  // namespace toonforce::mcu::image\n";
+
+  // Written only when changed, so a rebuild that changes nothing recompiles nothing.
+  const auto write_if_changed = [](const std::string& path, const std::string& text) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream old;
+    old << in.rdbuf();
+    if (in && old.str() == text) return true;
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << text;
+    return static_cast<bool>(out);
+  };
+  if (!write_if_changed(out_dir + "/image.hpp", header) || !write_if_changed(out_dir + "/motions.cpp", source)) {
+    std::fprintf(stderr, "toonforce_mcu_gen: cannot write into %s\n", out_dir.c_str());
+    return 1;
+  }
+  return 0;
+}
+
+// ---- compare --------------------------------------------------------------------------------
+
+struct Row {
+  std::int64_t f[3] = {};
+  std::uint32_t faults = 0;
+  std::uint32_t limits = 0;
+};
+
+/// Q16.16 raw value of a force printed by replay: fmt prints the shortest decimal that reads
+/// back as the same double, and a Q16.16 value as a double is raw / 2^16 exactly.
+bool raw_of(const std::string& field, std::int64_t& raw) {
+  char* end = nullptr;
+  const double v = std::strtod(field.c_str(), &end);
+  if (end == field.c_str() || *end != '\0') return false;
+  const double scaled = v * 65536.0;
+  if (scaled != std::floor(scaled)) return false;  // not a Q16.16 value at all
+  raw = static_cast<std::int64_t>(scaled);
+  return true;
+}
+
+std::vector<std::string> fields_of(const std::string& line) {
+  std::vector<std::string> fields;
+  std::string field;
+  std::istringstream in(line);
+  while (std::getline(in, field, ',')) fields.push_back(field);
+  if (!line.empty() && line.back() == ',') fields.emplace_back();
+  return fields;
+}
+
+bool read_replay(const std::string& path, std::vector<Row>& rows, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  std::getline(in, line);  // header: t,fx,fy,fz,faults,limits,...
+  if (line.rfind("t,fx,fy,fz,faults,limits", 0) != 0) {
+    error = path + ": not a replay output (header '" + line + "')";
+    return false;
+  }
+  std::size_t n = 1;
+  while (std::getline(in, line)) {
+    ++n;
+    const auto f = fields_of(line);
+    Row r;
+    if (f.size() < 6 || !raw_of(f[1], r.f[0]) || !raw_of(f[2], r.f[1]) || !raw_of(f[3], r.f[2])) {
+      error = fmt::format("{}:{}: a force is not a Q16.16 value: '{}'", path, n, line);
+      return false;
+    }
+    r.faults = static_cast<std::uint32_t>(std::stoul(f[4]));
+    r.limits = static_cast<std::uint32_t>(std::stoul(f[5]));
+    rows.push_back(r);
+  }
+  return true;
+}
+
+/// The target's output: "run SCENE MOTION ROWS", then ROWS lines "f FX FY FZ FAULTS LIMITS",
+/// then "end". Other lines (figures) are skipped here.
+bool read_target(const std::string& path, std::map<std::string, std::vector<Row>>& runs, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  std::string current;
+  std::size_t n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    std::istringstream words(line);
+    std::string tag;
+    words >> tag;
+    if (tag == "run") {
+      std::string scene, motion;
+      words >> scene >> motion;
+      current = scene + "/" + motion;
+      runs[current].clear();
+    } else if (tag == "f") {
+      Row r;
+      if (current.empty() || !(words >> r.f[0] >> r.f[1] >> r.f[2] >> r.faults >> r.limits)) {
+        error = fmt::format("{}:{}: bad force line '{}'", path, n, line);
+        return false;
+      }
+      runs[current].push_back(r);
+    } else if (tag == "end") {
+      current.clear();
+    }
+  }
+  return true;
+}
+
+int compare(const std::string& target_path, const std::vector<Named>& host) {
+  std::map<std::string, std::vector<Row>> runs;
+  std::string error;
+  if (!read_target(target_path, runs, error)) {
+    std::fprintf(stderr, "toonforce_mcu_gen: %s\n", error.c_str());
+    return 1;
+  }
+  int failures = 0;
+  for (const auto& h : host) {
+    std::vector<Row> expected;
+    if (!read_replay(h.path, expected, error)) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s\n", error.c_str());
+      return 1;
+    }
+    const auto it = runs.find(h.name);
+    if (it == runs.end()) {
+      std::printf("FAIL %s: the image wrote no run of it\n", h.name.c_str());
+      ++failures;
+      continue;
+    }
+    const auto& got = it->second;
+    std::size_t mismatches = 0;
+    std::size_t first = 0;
+    for (std::size_t k = 0; k < std::min(got.size(), expected.size()); ++k) {
+      const Row& a = got[k];
+      const Row& b = expected[k];
+      const bool same = a.f[0] == b.f[0] && a.f[1] == b.f[1] && a.f[2] == b.f[2] && a.faults == b.faults &&
+                        a.limits == b.limits;
+      if (!same && mismatches++ == 0) first = k;
+    }
+    if (got.size() != expected.size() || mismatches != 0) {
+      ++failures;
+      std::printf("FAIL %s: %zu rows on the target, %zu from replay; %zu differ", h.name.c_str(), got.size(),
+                  expected.size(), mismatches);
+      if (mismatches != 0) {
+        const Row& a = got[first];
+        const Row& b = expected[first];
+        std::printf(", first at row %zu: target (%lld %lld %lld faults %u limits %u) replay (%lld %lld %lld faults %u "
+                    "limits %u) [raw Q16.16]",
+                    first, static_cast<long long>(a.f[0]), static_cast<long long>(a.f[1]),
+                    static_cast<long long>(a.f[2]), a.faults, a.limits, static_cast<long long>(b.f[0]),
+                    static_cast<long long>(b.f[1]), static_cast<long long>(b.f[2]), b.faults, b.limits);
+      }
+      std::printf("\n");
+    } else {
+      std::printf("ok   %s: %zu rows bit-identical\n", h.name.c_str(), got.size());
+    }
+  }
+  return failures == 0 ? 0 : 1;
+}
+
+int usage() {
+  std::fputs(
+      "usage: toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] --scene NAME=FILE... --motion "
+      "NAME=FILE...\n"
+      "       toonforce_mcu_gen compare --target FILE --host SCENE/MOTION=REPLAY.csv...\n",
+      stderr);
+  return 2;
+}
+
+}  // namespace
+}  // namespace toonforce::mcu
+
+int main(int argc, char** argv) {
+  using namespace toonforce::mcu;
+  if (argc < 2) return usage();
+  const std::string_view mode = argv[1];
+  std::string out_dir, target;
+  toonforce::ScalarKind scalar = toonforce::ScalarKind::kQ16_16;
+  std::vector<Named> scenes, motions, host;
+  for (int i = 2; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (i + 1 >= argc) return usage();
+    const std::string_view value = argv[++i];
+    Named named;
+    if (arg == "--out-dir") {
+      out_dir = value;
+    } else if (arg == "--target") {
+      target = value;
+    } else if (arg == "--scalar") {
+      const auto kind = toonforce::parse_scalar_kind(value);
+      if (!kind || *kind == toonforce::ScalarKind::kDouble) return usage();  // no double on the target
+      scalar = *kind;
+    } else if ((arg == "--scene" || arg == "--motion" || arg == "--host") && split_named(value, named)) {
+      (arg == "--scene" ? scenes : arg == "--motion" ? motions : host).push_back(named);
+    } else {
+      return usage();
+    }
+  }
+  if (mode == "generate" && !out_dir.empty() && !scenes.empty() && !motions.empty()) {
+    return generate(out_dir, scalar, scenes, motions);
+  }
+  if (mode == "compare" && !target.empty() && !host.empty()) return compare(target, host);
+  return usage();
+}

@@ -1,0 +1,56 @@
+# CTest tests of the microcontroller images (issue 18), included by tests/CMakeLists.txt when
+# TOONFORCE_MCU is on. Label mcu: `ctest -L mcu`, the cortex-m3 test preset.
+set(_mcu_src ${PROJECT_SOURCE_DIR}/tools/mcu)
+set(_mcu_bin ${PROJECT_BINARY_DIR}/tools/mcu)
+set(_mcu_m3_dir ${_mcu_bin}/cortex-m3)
+include(${_mcu_src}/images.cmake)
+
+# The images are built by a test every other one needs (a fixture): a plain build leaves
+# them out, and a failed cross build is a failed test.
+add_test(NAME mcu_m3_build COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target toonforce_mcu_cortex_m3)
+set_tests_properties(mcu_m3_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m3_images TIMEOUT 900)
+foreach(image IN LISTS TOONFORCE_MCU_SCENES ITEMS all_scenes)
+  if(image STREQUAL "all_scenes")
+    set(scenes ${TOONFORCE_MCU_SCENES})
+  else()
+    set(scenes ${image})
+  endif()
+  string(REPLACE ";" "," scenes_arg "${scenes}")
+  string(REPLACE ";" "," motions_arg "${TOONFORCE_MCU_MOTIONS}")
+  add_test(NAME mcu_m3_${image}
+    COMMAND ${CMAKE_COMMAND}
+      -DQEMU=${TOONFORCE_QEMU_ARM} -DMACHINE=mps2-an385 -DCPU=cortex-m3
+      -DSHIFT=${TOONFORCE_MCU_ICOUNT_SHIFT}
+      -DIMAGE=${_mcu_m3_dir}/${image}.elf
+      -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
+      -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scenes_arg} -DMOTIONS=${motions_arg}
+      -DOUT_DIR=${_mcu_bin}/runs/cortex-m3/${image}
+      -P ${_mcu_src}/run_image.cmake)
+  set_tests_properties(mcu_m3_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
+
+# No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table.
+find_program(TOONFORCE_ARM_OBJDUMP arm-none-eabi-objdump REQUIRED)
+set(_no_float -DNM=${TOONFORCE_ARM_NM} -DOBJDUMP=${TOONFORCE_ARM_OBJDUMP})
+foreach(image IN LISTS TOONFORCE_MCU_SCENES ITEMS all_scenes)
+  add_test(NAME mcu_m3_no_float_${image} COMMAND ${CMAKE_COMMAND} ${_no_float}
+    -DIMAGE=${_mcu_m3_dir}/${image}.elf -P ${_mcu_src}/check_no_float.cmake)
+  # Today's Controller takes its Sample in double and converts on the target (1/dt, the
+  # positions, the impact's time), so the whole-loop images link the soft-double helpers;
+  # the servo-loop rewrite (issue 14) takes Q16.16 inputs, and then this test is switched on.
+  set_tests_properties(mcu_m3_no_float_${image} PROPERTIES LABELS mcu DISABLED ON FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  add_test(NAME mcu_m3_no_float_effects_${scene} COMMAND ${CMAKE_COMMAND} ${_no_float}
+    -DIMAGE=${_mcu_m3_dir}/effects_probe_${scene}.elf -P ${_mcu_src}/check_no_float.cmake)
+  set_tests_properties(mcu_m3_no_float_effects_${scene} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
+# The impact transient computes its time since the trigger in double (spec effects.md §0,
+# ImpactTransient::force): open until the loop hands the effects their time in Q16.16.
+set_tests_properties(mcu_m3_no_float_effects_cartoon_wall PROPERTIES DISABLED ON)
+
+# No heap: an image that allocates does not link.
+add_test(NAME mcu_m3_heap_link_fails
+  COMMAND ${CMAKE_COMMAND} --build ${_mcu_m3_dir} --target alloc_probe)
+set_tests_properties(mcu_m3_heap_link_fails PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images
+  PASS_REGULAR_EXPRESSION "something allocates \\(malloc or operator new is linked\\)")
