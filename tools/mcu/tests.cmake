@@ -9,11 +9,15 @@ include(${_mcu_src}/images.cmake)
 # them out, and a failed cross build is a failed test.
 add_test(NAME mcu_m3_build COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target toonforce_mcu_cortex_m3)
 set_tests_properties(mcu_m3_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m3_images TIMEOUT 900)
-foreach(image IN LISTS TOONFORCE_MCU_SCENES ITEMS all_scenes)
-  if(image STREQUAL "all_scenes")
+# Each image under QEMU, its forces compared with the host's; the size images too (the figures
+# are taken from images that work).
+set(_mcu_images ${TOONFORCE_MCU_SCENES} all_scenes)
+list(TRANSFORM _mcu_images PREPEND size_ OUTPUT_VARIABLE _mcu_size_images)
+foreach(image IN LISTS _mcu_images _mcu_size_images)
+  if(image MATCHES "all_scenes$")
     set(scenes ${TOONFORCE_MCU_SCENES})
   else()
-    set(scenes ${image})
+    string(REGEX REPLACE "^size_" "" scenes "${image}")
   endif()
   string(REPLACE ";" "," scenes_arg "${scenes}")
   string(REPLACE ";" "," motions_arg "${TOONFORCE_MCU_MOTIONS}")

@@ -6,7 +6,7 @@
 //   run SCENE MOTION ROWS             then ROWS lines "f FX FY FZ FAULTS LIMITS" (raw Q16.16)
 //   end
 //   count SCENE MOTION TICKS loop SUM MAX effects SUM MAX     instructions per tick
-//   stack SCENE loop BYTES            deepest stack below the loop's caller
+//   stack SCENE tick BYTES            deepest stack one loop tick used (below its caller)
 //   sizeof SCENE controller BYTES     the loop's state (Controller: scene, states, safety)
 //   stack program BYTES               the whole program's high-water mark
 //   done
@@ -108,6 +108,9 @@ template <class F>
   return instructions_of(board::systick_elapsed(before, after)) - g_empty_window;
 }
 
+/// The stack below the caller painted before each counted tick [bytes]: more than a tick uses.
+constexpr std::uint32_t kTickStackWindow = 1024;
+
 struct Tally {
   std::uint64_t sum = 0;
   std::uint32_t max = 0;
@@ -203,12 +206,17 @@ struct Run {
     MotionDevice device(motion);
     const std::size_t rows = device.rows();
 
-    // Pass 1: the whole loop tick, counted; its forces are the image's output.
+    // Pass 1: the whole loop tick, counted, its stack depth measured (a painted window below
+    // this frame, repainted before each tick); its forces are the image's output.
     loop = kFreshLoop;
     Tally whole;
     out << "run " << SceneDef::kName << ' ' << motion.name << ' ' << rows << '\n';
+    const std::uint32_t sp = board::stack_pointer();
     for (std::size_t k = 0; k < rows; ++k) {
+      paint_window(sp, kTickStackWindow);
       whole.add(count([&] { loop_tick(device, k); }));
+      const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
+      if (depth > tick_stack) tick_stack = depth;
       device.print_last();
     }
     out << "end\n";
@@ -234,14 +242,15 @@ struct Run {
     return agree;
   }
 
+  static inline std::uint32_t tick_stack = 0;  // deepest stack of one loop tick [bytes]
+
   static bool play_all() noexcept {
-    const std::uint32_t sp = board::stack_pointer();
-    paint_stack_below(sp);
     bool ok = true;
     for (std::size_t m = 0; m < image::kMotionCount; ++m) ok = play(image::kMotions[m]) && ok;
-    out << "stack " << SceneDef::kName << " loop " << stack_used_below(sp) << '\n';
+    out << "stack " << SceneDef::kName << " tick " << tick_stack << '\n';
+    if (tick_stack >= kTickStackWindow) out << "error: the tick's stack went past the painted window\n";
     out << "sizeof " << SceneDef::kName << " controller " << sizeof(Loop) << '\n';
-    return ok;
+    return ok && tick_stack < kTickStackWindow;
   }
 };
 
@@ -250,6 +259,28 @@ bool play_scenes(SceneList<Scenes...>) noexcept {
   bool ok = true;
   ((ok = Run<Scenes>::play_all() && ok), ...);
   return ok;
+}
+
+/// The size images (TOONFORCE_MCU_SIZE_ONLY): each motion through the loop and its forces out,
+/// nothing else (no counting, no second pass, no stack probes), so that what the size figures
+/// show is the loop, its scene, the device and the start-up code.
+template <class SceneDef>
+void play_plain() noexcept {
+  using R = Run<SceneDef>;
+  for (std::size_t m = 0; m < image::kMotionCount; ++m) {
+    MotionDevice device(image::kMotions[m]);
+    R::loop = R::kFreshLoop;
+    out << "run " << SceneDef::kName << ' ' << image::kMotions[m].name << ' ' << device.rows() << '\n';
+    for (std::size_t k = 0; k < device.rows(); ++k) {
+      R::loop_tick(device, k);
+      device.print_last();
+    }
+    out << "end\n";
+  }
+}
+template <class... Scenes>
+void play_scenes_plain(SceneList<Scenes...>) noexcept {
+  (play_plain<Scenes>(), ...);
 }
 
 /// Checks the counter on blocks of known length: nothing, and 100 NOPs.
@@ -270,6 +301,11 @@ bool calibrate() noexcept {
 
 int run_image() {
   using namespace toonforce::mcu;
+#if defined(TOONFORCE_MCU_SIZE_ONLY)
+  play_scenes_plain(image::Scenes{});
+  out << "done\n";
+  return 0;
+#endif
   bool ok = calibrate();
   ok = play_scenes(image::Scenes{}) && ok;
   out << "stack program " << stack_high_water() << '\n';

@@ -13,6 +13,12 @@
 //     Compares the forces an image wrote (raw Q16.16 integers) with `toonforce replay
 //     --scalar q16.16` of the same scene and motion, row by row, bit for bit (force, fault
 //     and limit bits). Exit 0 when every pair matches.
+//
+//   toonforce_mcu_gen figures --size IMAGE=SIZE_A.txt ... --run SCENE=TARGET.txt ...
+//     The Markdown tables of docs/PERFORMANCE.md's Microcontroller section: each image's
+//     sizes (from `arm-none-eabi-size -A`) and each scene's instructions per tick, stack and
+//     state (from an image's output).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -381,11 +387,123 @@ int compare(const std::string& target_path, const std::vector<Named>& host) {
   return failures == 0 ? 0 : 1;
 }
 
+// ---- figures --------------------------------------------------------------------------------
+
+/// Section sizes from `arm-none-eabi-size -A IMAGE` ("NAME SIZE ADDRESS" lines).
+bool read_sections(const std::string& path, std::map<std::string, std::uint64_t>& sections, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string name;
+    std::uint64_t size = 0;
+    if (words >> name >> size && !name.empty() && name[0] == '.') sections[name] = size;
+  }
+  if (!sections.count(".text")) {
+    error = path + ": no .text section listed (not the output of size -A?)";
+    return false;
+  }
+  return true;
+}
+
+struct SceneFigures {
+  std::uint64_t ticks = 0, loop_sum = 0, loop_max = 0, effects_sum = 0, effects_max = 0;
+  std::uint64_t stack_tick = 0, controller_bytes = 0;
+};
+
+/// The figure lines of an image's output (main.cpp): count, stack and sizeof, per scene.
+bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& scenes, std::uint64_t& program_stack,
+                  std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string tag, scene, what;
+    words >> tag >> scene;
+    if (tag == "count") {
+      // "count SCENE MOTION TICKS loop SUM MAX effects SUM MAX"
+      std::string motion, loop, effects;
+      std::uint64_t ticks = 0, ls = 0, lm = 0, es = 0, em = 0;
+      if (!(words >> motion >> ticks >> loop >> ls >> lm >> effects >> es >> em)) {
+        error = path + ": bad line '" + line + "'";
+        return false;
+      }
+      SceneFigures& f = scenes[scene];
+      f.ticks += ticks;
+      f.loop_sum += ls;
+      f.loop_max = std::max(f.loop_max, lm);
+      f.effects_sum += es;
+      f.effects_max = std::max(f.effects_max, em);
+    } else if (tag == "stack" && scene == "program") {
+      words >> program_stack;
+    } else if (tag == "stack") {
+      words >> what >> scenes[scene].stack_tick;
+    } else if (tag == "sizeof") {
+      words >> what >> scenes[scene].controller_bytes;
+    }
+  }
+  return true;
+}
+
+int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
+  std::string error;
+  std::printf("| image | text | data | bss | flash (text + data) | static RAM (data + bss) | .motion (test data, not counted) |\n");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  for (const auto& s : sizes) {
+    std::map<std::string, std::uint64_t> sec;
+    if (!read_sections(s.path, sec, error)) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s\n", error.c_str());
+      return 1;
+    }
+    // As arm-none-eabi-size's Berkeley columns count them, less the test data and the stack:
+    // text = code and read-only data (vectors, .text, .rodata, exception index, init array).
+    const std::uint64_t text = sec[".vectors"] + sec[".text"] + sec[".rodata"] + sec[".ARM.exidx"] + sec[".init_array"];
+    const std::uint64_t data = sec[".data"];
+    const std::uint64_t bss = sec[".bss"];
+    std::printf("| %s | %llu | %llu | %llu | %llu | %llu | %llu |\n", s.name.c_str(),
+                static_cast<unsigned long long>(text), static_cast<unsigned long long>(data),
+                static_cast<unsigned long long>(bss), static_cast<unsigned long long>(text + data),
+                static_cast<unsigned long long>(data + bss), static_cast<unsigned long long>(sec[".motion"]));
+  }
+  std::printf("\n| scene | ticks | whole loop tick, mean | whole loop tick, worst | effects + safety, mean | "
+              "effects + safety, worst | stack per tick [B] | loop state [B] |\n");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  for (const auto& r : runs) {
+    std::map<std::string, SceneFigures> scenes;
+    std::uint64_t program_stack = 0;
+    if (!read_figures(r.path, scenes, program_stack, error)) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s\n", error.c_str());
+      return 1;
+    }
+    const auto it = scenes.find(r.name);
+    if (it == scenes.end() || it->second.ticks == 0) {
+      std::fprintf(stderr, "toonforce_mcu_gen: %s: no figures of scene %s\n", r.path.c_str(), r.name.c_str());
+      return 1;
+    }
+    const SceneFigures& f = it->second;
+    const auto mean = [&](std::uint64_t sum) { return static_cast<double>(sum) / static_cast<double>(f.ticks); };
+    std::printf("| %s | %llu | %.0f | %llu | %.0f | %llu | %llu | %llu |\n", r.name.c_str(),
+                static_cast<unsigned long long>(f.ticks), mean(f.loop_sum), static_cast<unsigned long long>(f.loop_max),
+                mean(f.effects_sum), static_cast<unsigned long long>(f.effects_max),
+                static_cast<unsigned long long>(f.stack_tick), static_cast<unsigned long long>(f.controller_bytes));
+  }
+  return 0;
+}
+
 int usage() {
   std::fputs(
       "usage: toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] --scene NAME=FILE... --motion "
       "NAME=FILE...\n"
-      "       toonforce_mcu_gen compare --target FILE --host SCENE/MOTION=REPLAY.csv...\n",
+      "       toonforce_mcu_gen compare --target FILE --host SCENE/MOTION=REPLAY.csv...\n"
+      "       toonforce_mcu_gen figures --size IMAGE=SIZE_A.txt... --run SCENE=TARGET.txt...\n",
       stderr);
   return 2;
 }
@@ -399,7 +517,7 @@ int main(int argc, char** argv) {
   const std::string_view mode = argv[1];
   std::string out_dir, target;
   toonforce::ScalarKind scalar = toonforce::ScalarKind::kQ16_16;
-  std::vector<Named> scenes, motions, host;
+  std::vector<Named> scenes, motions, host, sizes, runs;
   for (int i = 2; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (i + 1 >= argc) return usage();
@@ -415,6 +533,8 @@ int main(int argc, char** argv) {
       scalar = *kind;
     } else if ((arg == "--scene" || arg == "--motion" || arg == "--host") && split_named(value, named)) {
       (arg == "--scene" ? scenes : arg == "--motion" ? motions : host).push_back(named);
+    } else if ((arg == "--size" || arg == "--run") && split_named(value, named)) {
+      (arg == "--size" ? sizes : runs).push_back(named);
     } else {
       return usage();
     }
@@ -423,5 +543,6 @@ int main(int argc, char** argv) {
     return generate(out_dir, scalar, scenes, motions);
   }
   if (mode == "compare" && !target.empty() && !host.empty()) return compare(target, host);
+  if (mode == "figures" && (!sizes.empty() || !runs.empty())) return figures(sizes, runs);
   return usage();
 }
