@@ -1,12 +1,20 @@
 # Runs one microcontroller image under qemu-system-arm and compares its forces with the
-# host's `toonforce replay --scalar q16.16` of each of its scenes and motions, bit for bit.
+# host's `toonforce replay --scalar SCALAR` of each of its scenes and motions, bit for bit.
 # Variables: QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR
-# (SCENES and MOTIONS comma-separated).
+# (SCENES and MOTIONS comma-separated); SCALAR (default q16.16) and SINE (replay --sine, as
+# the image was generated with) optional.
 foreach(var QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run_image.cmake: ${var} is not set")
   endif()
 endforeach()
+if(NOT DEFINED SCALAR)
+  set(SCALAR q16.16)
+endif()
+set(sine_args)
+if(SINE)
+  set(sine_args --sine ${SINE})
+endif()
 string(REPLACE "," ";" SCENES "${SCENES}")
 string(REPLACE "," ";" MOTIONS "${MOTIONS}")
 file(MAKE_DIRECTORY "${OUT_DIR}")
@@ -42,7 +50,7 @@ foreach(scene IN LISTS SCENES)
     set(csv "${OUT_DIR}/replay_${scene}_${motion}.csv")
     execute_process(
       COMMAND "${TOONFORCE}" replay --scene "${SOURCE_DIR}/scenes/${scene}.toml"
-              --input "${SOURCE_DIR}/scenes/motions/${motion}.csv" --output "${csv}" --scalar q16.16 --quiet
+              --input "${SOURCE_DIR}/scenes/motions/${motion}.csv" --output "${csv}" --scalar ${SCALAR} ${sine_args} --quiet
       RESULT_VARIABLE rc ERROR_VARIABLE err)
     if(NOT rc EQUAL 0)
       message(FATAL_ERROR "toonforce replay of ${scene} with ${motion} failed: ${err}")
@@ -51,7 +59,7 @@ foreach(scene IN LISTS SCENES)
   endforeach()
 endforeach()
 
-execute_process(COMMAND "${GEN}" compare --target "${target_out}" ${host_args}
+execute_process(COMMAND "${GEN}" compare --scalar ${SCALAR} --target "${target_out}" ${host_args}
   RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 message("${out}${err}")
 string(REGEX MATCHALL "(calibration|count|stack|sizeof)[^\n]*" figures "${target_text}")

@@ -8,7 +8,9 @@ include(${_mcu_src}/images.cmake)
 # The images are built by a test every other one needs (a fixture): a plain build leaves
 # them out, and a failed cross build is a failed test.
 add_test(NAME mcu_m3_build COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target toonforce_mcu_cortex_m3)
-set_tests_properties(mcu_m3_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m3_images TIMEOUT 900)
+# Both builds (Cortex-M3 here, M4F below) run in the top build directory: one at a time.
+set_tests_properties(mcu_m3_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m3_images TIMEOUT 900
+  RESOURCE_LOCK mcu_build)
 # Each image under QEMU, its forces compared with the host's; the size images too (the figures
 # are taken from images that work).
 set(_mcu_images ${TOONFORCE_MCU_SCENES} all_scenes)
@@ -77,3 +79,24 @@ add_test(NAME mcu_m3_heap_link_fails
   COMMAND ${CMAKE_COMMAND} --build ${_mcu_m3_dir} --target alloc_probe)
 set_tests_properties(mcu_m3_heap_link_fails PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images
   PASS_REGULAR_EXPRESSION "something allocates \\(malloc or operator new is linked\\)")
+
+# The Cortex-M4F images in float (mps2-an386), compared bit for bit with `toonforce replay
+# --scalar float --sine polynomial`.
+set(_mcu_m4f_dir ${_mcu_bin}/cortex-m4f)
+add_test(NAME mcu_m4f_build COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target toonforce_mcu_cortex_m4f)
+set_tests_properties(mcu_m4f_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m4f_images TIMEOUT 900
+  RESOURCE_LOCK mcu_build)
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  foreach(image ${scene} size_${scene})
+    add_test(NAME mcu_m4f_${image}
+      COMMAND ${CMAKE_COMMAND}
+        -DQEMU=${TOONFORCE_QEMU_ARM} -DMACHINE=mps2-an386 -DCPU=cortex-m4
+        -DSHIFT=${TOONFORCE_MCU_ICOUNT_SHIFT} -DSCALAR=float -DSINE=polynomial
+        -DIMAGE=${_mcu_m4f_dir}/${image}.elf
+        -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
+        -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scene} -DMOTIONS=${motions_arg}
+        -DOUT_DIR=${_mcu_bin}/runs/cortex-m4f/${image}
+        -P ${_mcu_src}/run_image.cmake)
+    set_tests_properties(mcu_m4f_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m4f_images)
+  endforeach()
+endforeach()
