@@ -3,7 +3,8 @@
 // the forces out for the host to compare bit for bit. Around the ticks it counts instructions
 // (SysTick under QEMU -icount) and measures the stack (painted). Output, one line each:
 //   calibration EMPTY NOPS            instructions the counter sees around nothing and 100 nops
-//   run SCENE MOTION ROWS             then ROWS lines "f FX FY FZ FAULTS LIMITS" (raw Q16.16)
+//   run SCENE MOTION ROWS             then ROWS lines "f FX FY FZ FAULTS LIMITS" (raw Q16.16,
+//                                     or a float's bits)
 //   end
 //   count SCENE MOTION TICKS loop SUM MAX effects SUM MAX     instructions per tick
 //   stack SCENE tick BYTES            deepest stack one loop tick used (below its caller)
@@ -11,7 +12,6 @@
 //   stack program BYTES               the whole program's high-water mark
 //   done
 #include <cstdint>
-#include <type_traits>
 
 #include "board.hpp"
 #include "image.hpp"
