@@ -1,4 +1,4 @@
-// Embedding toonforce, 1 of 2: a scene composed at compile time from a library effect (a
+// Embedding toonforce, 1 of 3: a scene composed at compile time from a library effect (a
 // penalty-wall floor) and an effect written here (a magnetic detent), run by the servo loop on
 // the simulated Falcon with a simulated hand holding it, in simulated time.
 //
@@ -12,10 +12,12 @@
 //
 // Build against an installed toonforce (examples/README.md):
 //   cmake -S examples -B build-examples -DCMAKE_PREFIX_PATH=/usr/local && cmake --build build-examples
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/effects/penalty_wall.hpp"
@@ -31,9 +33,11 @@ using toonforce::Vec3;
 /// from there to twice the radius the pull fades linearly to zero, so the force is continuous
 /// everywhere (a force that jumps when the handle crosses a boundary does work on the hand).
 ///
-/// An effect is a type with Scalar, Params, State, kNeeds and two static noexcept functions
-/// (the Effect concept, toonforce/effects/scene.hpp). force() runs on every servo tick, so like
-/// the library's laws it allocates nothing, throws nothing and calls nothing.
+/// An effect is a type with Scalar, Params, State, kNeeds, kKey and a static noexcept force()
+/// (the Effect concept, toonforce/effects/effect.hpp), and what it shows in traces and the
+/// viewer (kValues, describe()). force() runs on every servo tick, so like the library's laws
+/// it allocates nothing, throws nothing and calls nothing. (scene_with_own_effect.cpp goes on:
+/// its own effect in a scene file.)
 struct Detent {
   using Scalar = double;
   struct Params {
@@ -42,7 +46,9 @@ struct Detent {
     double radius_m = 0.0;
   };
   struct State {};  // a detent remembers nothing between ticks
+  static constexpr std::string_view kKey = "detent";
   static constexpr toonforce::Needs kNeeds = toonforce::Needs::kNone;  // position only: no velocity estimate
+  static constexpr std::array<toonforce::ValueInfo, 1> kValues{{{"distance", "m", "from the centre"}}};
 
   static Vec3<double> force(const Params& p, State&, const toonforce::TickInput<double>& in) noexcept {
     const Vec3<double> to_centre = p.centre_m - in.position_m;
@@ -51,8 +57,11 @@ struct Detent {
     if (distance_m >= 2.0 * p.radius_m) return {};
     return to_centre * (p.stiffness_n_per_m * (2.0 * p.radius_m - distance_m) / p.radius_m);
   }
-  static void describe(const Params&, const State&, const toonforce::TickInput<double>&,
-                       toonforce::Diagnostics&) noexcept {}
+  static bool describe(const Params& p, const State&, const toonforce::TickInput<double>& in, double* values) noexcept {
+    const Vec3<double> to_centre = p.centre_m - in.position_m;
+    values[0] = std::sqrt(dot(to_centre, to_centre));
+    return values[0] <= p.radius_m;
+  }
 };
 static_assert(toonforce::Effect<Detent>);
 
@@ -134,11 +143,11 @@ int main() {
   // The servo loop's settings: the safety layer's documented defaults, the device's force
   // limit, and a force-rate limit as the bundled Falcon scenes use.
   toonforce::ServoConfig config;
-  config.controller.period_s = kPeriodS;
-  config.controller.limits.has_max_force = true;
-  config.controller.limits.max_force_n = falcon.max_force_n;
-  config.controller.limits.has_max_force_rate = true;
-  config.controller.limits.max_force_rate_n_per_s = 2000.0;
+  config.period_s = kPeriodS;
+  config.limits.has_max_force = true;
+  config.limits.max_force_n = falcon.max_force_n;
+  config.limits.has_max_force_rate = true;
+  config.limits.max_force_rate_n_per_s = 2000.0;
   if (const std::string problems = toonforce::check_servo_config(config); !problems.empty()) {
     std::fprintf(stderr, "servo configuration: %s", problems.c_str());
     return 1;

@@ -1,21 +1,21 @@
-// Embedding toonforce, 2 of 2: a scene from a TOML file, loaded and checked through the library
+// Embedding toonforce, 2 of 3: a scene from a TOML file, loaded and checked through the library
 // (toonforce::config), run by the servo loop with the scene's own safety settings on the
 // simulated Falcon, held by a simulated hand that follows a hand script file.
 //
 //   run_scene_file SCENE.toml HAND.toml [--realtime] [--no-mlock]
 //
 // By default the loop runs in simulated time, as fast as the machine goes, with the same
-// result every time. --realtime runs the same loop under toonforce's real-time runner
-// (toonforce::control_rt: SCHED_FIFO where permitted, memory locked unless --no-mlock, absolute
-// 1 ms deadlines, SIGINT/SIGTERM stop it with the force zeroed first), as `toonforce run` does
-// on a real device; the simulated device then advances one period per exchange.
+// result every time. --realtime runs the same loop as a servo session (toonforce::control_rt:
+// SCHED_FIFO where permitted, memory locked unless --no-mlock, absolute 1 ms deadlines, the
+// frames handed to this program on a thread of their own, SIGINT/SIGTERM stop it with the force
+// zeroed first), as `toonforce run` does on a real device; the simulated device then advances
+// one period per exchange.
 //
 // Prints where the handle first touched something, the peak force, and the highest point the
 // handle reached after that contact (how far the scene threw it back: try scenes/wall.toml and
 // scenes/cartoon_wall.toml with scenes/hands/strike.toml). Exit status 0 when the run ended
 // without a latched safety fault, 1 when it did, 2 when the files or settings are wrong.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -25,8 +25,8 @@
 
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/servo_loop.hpp"
+#include "toonforce/control/servo_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 
 namespace {
@@ -34,47 +34,27 @@ namespace {
 using Loop = toonforce::ServoLoop<toonforce::DriverRef, toonforce::RuntimeScene<double>>;
 constexpr double kRateHz = 1000.0;
 
-/// What the run did, updated after every tick (outside the tick: the loop itself stays
-/// allocation- and I/O-free).
-struct Watch {
+/// What the run did, from each tick's telemetry frame (outside the tick: the loop itself stays
+/// allocation- and I/O-free). In real time the session hands the frames over on its writer
+/// thread (a FrameConsumer); in simulated time this program gives them itself.
+struct Watch final : toonforce::FrameConsumer {
   double first_contact_s = std::numeric_limits<double>::quiet_NaN();
   double contact_z_m = 0.0;
   double highest_after_m = -std::numeric_limits<double>::infinity();
   double peak_force_n = 0.0;
 
-  void after_tick(const Loop& loop, const toonforce::host_sim::SimDriver& driver) noexcept {
-    const toonforce::Vec3<double>& x = driver.device().plant().position_m();
-    const toonforce::Vec3<double> f = loop.force();
-    peak_force_n = std::max(peak_force_n, std::sqrt(dot(f, f)));
+  void consume(const toonforce::TelemetryFrame& f) override {
+    peak_force_n = std::max(peak_force_n, std::sqrt(dot(f.force_n, f.force_n)));
     if (std::isnan(first_contact_s)) {
-      if (loop.controller().diagnostics().in_contact) {
-        first_contact_s = driver.device().time_s();
-        contact_z_m = x.z;
+      if (f.in_contact) {  // some effect of the scene says the handle touches it
+        first_contact_s = f.t_s;
+        contact_z_m = f.position_m.z;
       }
     } else {
-      highest_after_m = std::max(highest_after_m, x.z);
+      highest_after_m = std::max(highest_after_m, f.position_m.z);
     }
   }
 };
-
-/// The servo loop as a periodic task of the real-time runner (--realtime).
-class Task final : public toonforce::PeriodicTask {
- public:
-  Task(Loop& loop, const toonforce::host_sim::SimDriver& driver, Watch& watch)
-      : loop_(loop), driver_(driver), watch_(watch) {}
-  void tick(std::int64_t k) noexcept override { static_cast<void>(loop_.tick(k)); }
-  void publish(std::int64_t, const toonforce::TickTiming&) noexcept override { watch_.after_tick(loop_, driver_); }
-  void shutdown(std::int64_t k) noexcept override { static_cast<void>(loop_.shutdown(k)); }
-
- private:
-  Loop& loop_;
-  const toonforce::host_sim::SimDriver& driver_;
-  Watch& watch_;
-};
-
-void zero(void* driver) noexcept { static_cast<toonforce::DeviceDriver*>(driver)->emergency_zero(); }
-
-std::atomic<int> g_stop{0};
 
 }  // namespace
 
@@ -135,32 +115,32 @@ int main(int argc, char** argv) {
   const auto ticks = static_cast<std::int64_t>(std::llround(duration_s * kRateHz));
   Watch watch;
   std::printf("scene '%s' (%zu surface(s), %zu cliff(s)), hand '%s', %.3f s on the %s\n",
-              scene.value().name.c_str(), scene.value().surfaces.size(), scene.value().cliffs.size(),
+              scene.value().name.c_str(), scene.value().of<toonforce::RuntimeSurface>().size(),
+              scene.value().of<toonforce::CartoonCliff>().size(),
               hand.value().script.name.c_str(), static_cast<double>(ticks) / kRateHz, device.info().name.c_str());
 
   if (!realtime) {
+    toonforce::TelemetryFrame frame;
     for (std::int64_t k = 0; k < ticks; ++k) {
       static_cast<void>(loop->tick(k));
-      watch.after_tick(*loop, device);
+      loop->fill_frame(frame);
+      watch.consume(frame);
     }
     static_cast<void>(loop->shutdown(ticks));
   } else {
-    toonforce::RealtimeOptions options;
-    options.rate_hz = kRateHz;
-    options.deadlines = ticks;
-    options.allow_non_realtime = true;  // an example: run anyway, and say so
-    options.lock_memory = lock_memory;
-    options.watchdog_periods = config.safety.watchdog_periods;
-    const toonforce::EmergencyZero emergency{zero, &device};
-    toonforce::install_signal_handlers(g_stop, emergency);
-    Task task(*loop, device, watch);
-    const auto report = toonforce::run_realtime(task, options, emergency, g_stop);
-    toonforce::restore_signals();
+    toonforce::SessionOptions options;
+    options.realtime.rate_hz = kRateHz;
+    options.realtime.deadlines = ticks;
+    options.realtime.allow_non_realtime = true;  // an example: run anyway, and say so
+    options.realtime.lock_memory = lock_memory;
+    options.realtime.watchdog_periods = config.safety.watchdog_periods;
+    options.interactive = false;
+    const auto report = toonforce::run_loop(*loop, device, watch, options);
     if (!report) {
       std::fprintf(stderr, "%s\n", report.error().c_str());
       return 2;
     }
-    const toonforce::RunReport& r = report.value();
+    const toonforce::RunReport& r = report->report;
     const toonforce::LatencySummary wake = r.wake.summary();
     std::printf("real time: %s; %lld ticks, %lld deadlines missed; wake-up latency median %.1f us, "
                 "p99 %.1f us, max %.1f us\n%s",

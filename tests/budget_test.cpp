@@ -1,10 +1,14 @@
 // Instruction budgets per tick, counted by callgrind (deterministic: the same binary on the
 // same inputs counts the same instructions, whatever the machine's load; no time is measured
-// here). Issue 8's target for a paper scene's tick (its effects plus the safety stage,
-// ForceSafety, double): at most 400 instructions, on every tick of a scenario that drives
-// every branch of the scene (tools/report/src/scenario.cpp; scenario_test.cpp checks that it
-// does). toonforce_tick_count compiles the ticks with -O3 in every build type, so this debug
-// test budgets what a release build runs.
+// here), on scenarios that drive every branch of each paper scene (tools/report/src/
+// scenario.cpp; scenario_test.cpp checks that they do). toonforce_tick_count compiles the
+// ticks with -O3 in every build type, so this debug test budgets what a release build runs.
+//   - issue 8: a paper scene's effects plus the safety stage (ForceSafety), double: at most 400
+//     instructions on every tick;
+//   - issue 14: the whole servo loop tick, read to write, every safety stage on (engage and
+//     soft start, passivity, thermal, velocity and workspace limits, rate limit, clamp),
+//     scripted device, double: at most 600 instructions mean over the scenario, for the scene
+//     composed at compile time and for the scene file's run-time scene.
 #include <gtest/gtest.h>
 
 #include <map>
@@ -52,6 +56,39 @@ TEST(InstructionBudget, EveryTickOfEveryPaperSceneFitsIn400InstructionsInDouble)
       }
       EXPECT_LE(static_cast<double>(c.max()) - harness, kTargetInstructionsPerTick)
           << id << ": the most expensive tick of the scenario (mean " << c.mean() - harness << ")";
+    }
+  }
+#endif
+}
+
+TEST(InstructionBudget, TheWholeLoopTickOfEveryPaperSceneAveragesAtMost600InstructionsInDouble) {
+#ifdef TOONFORCE_SANITIZED
+  GTEST_SKIP() << "callgrind cannot run a sanitizer-instrumented binary; the debug and release builds run this test";
+#else
+  CallgrindOptions options;
+  options.valgrind = TOONFORCE_VALGRIND;
+  options.tick_count = TOONFORCE_TICK_COUNT;
+  options.root = TOONFORCE_SOURCE_DIR;
+  options.filter = "harness/";
+  for (const std::string_view scene : kPaperScenes) options.filter += ",loop/" + std::string(scene) + "/double/";
+  auto counted = count_instructions(options);
+  ASSERT_TRUE(counted) << counted.error();
+  std::map<std::string, const CountedCase*> by_id;
+  for (const auto& c : counted->cases) by_id[c.id] = &c;
+  ASSERT_TRUE(by_id.count("harness/empty"));
+  const double harness = by_id["harness/empty"]->mean();
+  for (const std::string_view scene : kPaperScenes) {
+    for (const char* form : {"compile-time", "runtime"}) {
+      const std::string id = "loop/" + std::string(scene) + "/double/" + form;
+      ASSERT_TRUE(by_id.count(id)) << id;
+      const CountedCase& c = *by_id[id];
+      ASSERT_TRUE(c.per_tick) << id;
+      ASSERT_GE(c.ticks, 1000U) << id;
+      // The loop does real work on every tick: read, gate, scene, chain, write.
+      for (std::size_t k = 0; k < c.per_tick_counts.size(); ++k) {
+        ASSERT_GT(static_cast<double>(c.per_tick_counts[k]) - harness, 200.0) << id << " tick " << k;
+      }
+      EXPECT_LE(c.mean() - harness, kTargetLoopInstructionsPerTick) << id << " (worst tick " << static_cast<double>(c.max()) - harness << ")";
     }
   }
 #endif

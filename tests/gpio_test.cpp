@@ -14,8 +14,8 @@
 #include <type_traits>
 
 #include "alloc_counter.hpp"
-#include "toonforce/control/controller.hpp"
-#include "toonforce/control/pins.hpp"
+#include "toonforce/control/servo_loop.hpp"
+#include "toonforce/hal/pins.hpp"
 #include "toonforce/effects/scene.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/hal/gpio/emulated_gpio.hpp"
@@ -240,47 +240,66 @@ TEST_F(GpioEmulation, PassesThePullResistorToTheKernel) {
   EXPECT_EQ(emu().line(0, 5).bias, Bias::kPullUp);
 }
 
-// ---- a stand-in for the servo loop --------------------------------------------------------------
+// ---- the servo loop on these pins ------------------------------------------------------------
 
-// The servo loop (issue 3) is not on this branch; this stands in for it in what concerns the
-// pins, with the contract it is specified to keep: each tick reads the e-stop and the enable,
-// computes the force with the Controller, zeroes it while the e-stop is latched (engaged or
-// unreadable, until released AND re-armed) or the enable is not active, shows the lights and
-// toggles the tick pin. Swap in ServoLoop<..., PinsT> when merging.
+// The servo loop itself with the pins under test, on a device that holds the handle where the
+// test puts it: every tick reads the e-stop and the enable, zeroes the force while the e-stop
+// is latched (engaged or unreadable, until released AND re-armed) or the enable is not active,
+// shows the lights and toggles the tick pin. Engage and soft start are off (engage_force above
+// any force here, no ramp) so the wall's force shows the gate alone.
 using Wall = Surface<SpringWall<double>>;
 using WallScene = Scene<Wall>;
 constexpr double kPeriodS = 1e-3;
 
+struct HeldDevice {
+  const Vec3<double>* position_m;
+  Vec3<double>* written_n;
+  DeviceStatus read(DeviceReading& r) noexcept {
+    r.position_m = *position_m;
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>& f) noexcept {
+    *written_n = f;
+    return DeviceStatus::kOk;
+  }
+};
+
+inline ServoConfig pins_config() {
+  ServoConfig c;
+  c.period_s = kPeriodS;
+  c.safety.engage_force_n = 1e3;
+  c.safety.soft_start_s = 0.0;
+  return c;
+}
+
 template <class PinsT>
-class StandInLoop {
+class PinnedLoop {
  public:
-  explicit StandInLoop(PinsT pins)
-      : pins_(pins),
-        controller_(WallScene{Wall::Params{Plane<double>{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}}},
-                    ControllerConfig{{}, VelocityEstimator<double>::kDefaultCutoffHz, kPeriodS}) {}
+  explicit PinnedLoop(PinsT pins)
+      : loop_(HeldDevice{&position_m_, &written_n_}, WallScene{Wall::Params{Plane<double>{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}}},
+              pins_config(), pins) {}
 
   /// One tick with the handle at `position_m`; the force commanded.
   Vec3<double> tick(const Vec3<double>& position_m) noexcept {
-    if (pins_.estop.read() != PinLevel::kInactive) latched_ = true;  // kError is engaged too
-    const bool enabled = pins_.enable.read() == PinLevel::kActive;
-    const auto result = controller_.tick(Sample{position_m, {}, false, Instant{ticks_, 0.0}, kPeriodS});
-    ++ticks_;
-    pins_.lights.show(latched_ ? LightState::kFault : enabled ? LightState::kArmed : LightState::kIdle);
-    pins_.tick.toggle();
-    return latched_ || !enabled ? Vec3<double>{} : result.force_n;
+    position_m_ = position_m;
+    last_ = loop_.tick(k_++);
+    return written_n_;
   }
-  /// The operator's re-arm: clears the latch only once the e-stop reads released.
+  /// The operator's re-arm (taken at the next tick, which runs here): false while the e-stop
+  /// still reads engaged.
   bool rearm() noexcept {
-    if (pins_.estop.read() == PinLevel::kInactive) latched_ = false;
-    return !latched_;
+    loop_.request_rearm();
+    static_cast<void>(tick(position_m_));
+    return !last_.rearm_refused && !loop_.latched();
   }
-  PinsT& pins() noexcept { return pins_; }
+  PinsT& pins() noexcept { return loop_.pins(); }
 
  private:
-  PinsT pins_;
-  Controller<WallScene> controller_;
-  std::int64_t ticks_ = 0;
-  bool latched_ = false;
+  Vec3<double> position_m_{};
+  Vec3<double> written_n_{};
+  TickStatus last_{};
+  std::int64_t k_ = 0;
+  ServoLoop<HeldDevice, WallScene, PinsT> loop_;
 };
 
 const Vec3<double> kInWall{0.0, 0.0, -0.002};  // 2 mm deep: 2 N up
@@ -290,7 +309,7 @@ TEST_F(GpioEmulation, TickPinTogglesOncePerTick) {
   GpioOptions o;
   o.tick_pin = "gpiochip1:0";
   const auto session = open(o);
-  StandInLoop loop(session.pins());
+  PinnedLoop loop(session.pins());
   for (int k = 1; k <= 25; ++k) {
     loop.tick(kInWall);
     const auto line = emu().line(1, 0);
@@ -348,7 +367,7 @@ TEST_F(GpioEmulation, EstopZeroesForceInTheTickItEngagesAndStaysLatchedUntilRear
   GpioOptions o;
   o.estop_pin = "ESTOP:active-low";
   const auto session = open(o);
-  StandInLoop loop(session.pins());
+  PinnedLoop loop(session.pins());
   emu().drive(0, 4, 1);  // released
   for (int k = 0; k < 5; ++k) EXPECT_NEAR(loop.tick(kInWall).z, kWallForceN, 1e-9);
 
@@ -368,7 +387,7 @@ TEST_F(GpioEmulation, EnableGatesForceLikeADeadman) {
   GpioOptions o;
   o.enable_pin = "ENABLE";
   const auto session = open(o);
-  StandInLoop loop(session.pins());
+  PinnedLoop loop(session.pins());
   emu().drive(0, 5, 0);
   EXPECT_EQ(loop.tick(kInWall).z, 0.0) << "not held: no force";
   emu().drive(0, 5, 1);
@@ -382,7 +401,7 @@ TEST_F(GpioEmulation, ReadErrorIsTheSafeState) {
   o.estop_pin = "ESTOP:active-low";
   o.enable_pin = "ENABLE";
   const auto session = open(o);
-  StandInLoop loop(session.pins());
+  PinnedLoop loop(session.pins());
   emu().drive(0, 4, 1);
   emu().drive(0, 5, 1);
   EXPECT_NEAR(loop.tick(kInWall).z, kWallForceN, 1e-9);
@@ -476,7 +495,7 @@ TEST_F(GpioEmulation, AbsentPinsBehaveLikeTheNullPinsAndTouchNoDevice) {
 
 TEST_F(GpioEmulation, TickPathAllocatesNothing) {
   const auto session = open(all_pins());
-  StandInLoop loop(session.pins());
+  PinnedLoop loop(session.pins());
   emu().drive(0, 4, 1);
   emu().drive(0, 5, 1);
   loop.tick(kInWall);  // first-call effects out of the way

@@ -268,6 +268,18 @@ TEST(RunCommand, TheSimulatedDeviceFollowsAHandScriptOrReportsItsErrors) {
 
 // ---- the trace writer (shared with toonforce sim) -------------------------------------------------
 
+std::vector<std::string> fields_of_line(std::string line) {
+  if (!line.empty() && line.back() == '\n') line.pop_back();
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = line.find(',', start);
+    out.push_back(line.substr(start, comma - start));
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
+}
+
 TEST(TraceWriter, StartsWithTheSpecColumnsAndWritesNumbersThatReadBackExactly) {
   const auto path = temp_path("trace.csv");
   {
@@ -291,7 +303,30 @@ TEST(TraceWriter, StartsWithTheSpecColumnsAndWritesNumbersThatReadBackExactly) {
 }
 
 TEST(TraceWriter, TelemetryColumnsMatchWhatWriteFrameWrites) {
-  EXPECT_EQ(telemetry_columns().size(), kTelemetryExtraColumns);
+  const std::vector<std::string> values{"surface1.contact", "surface1.impact_t", "cliff1.state"};
+  for (const bool timing : {false, true}) {
+    const auto columns = telemetry_columns(values, timing);
+    EXPECT_EQ(columns.size(), telemetry_extra_count(values.size(), timing));
+    const auto writer = TraceWriter::in_memory(columns);
+    TelemetryFrame f;
+    f.value_count = 3;
+    f.values = {};
+    f.values[2] = 7.0;  // cliff1.state: a value a reader can find in its column
+    f.timing.compute_ns = 2500;
+    ASSERT_TRUE(write_frame(*writer, f, values.size(), timing));
+    const std::string text = writer->text();
+    const auto header = fields_of_line(text.substr(0, text.find('\n')));
+    const auto row = fields_of_line(text.substr(text.find('\n') + 1));
+    ASSERT_EQ(header.size(), row.size()) << "timing " << timing;
+    const auto at = [&](std::string_view name) {
+      for (std::size_t i = 0; i < header.size(); ++i) {
+        if (header[i] == name) return row[i];
+      }
+      return std::string("missing");
+    };
+    EXPECT_EQ(at("cliff1.state"), "7");
+    EXPECT_EQ(at("compute_us"), timing ? "2.5" : "missing");
+  }
 }
 
 // ---- the real binary as a child process ---------------------------------------------------------

@@ -10,9 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "spec_loop.hpp"
 #include "toonforce/config/scene_file.hpp"
 
-namespace toonforce {
+namespace toonforce::test {
 namespace {
 
 constexpr double kDt = 1e-3;
@@ -29,16 +30,13 @@ std::vector<Vec3<double>> forces(const std::string& scene_name, ScalarKind kind,
                                  bool given_velocity, std::vector<bool>* fault = nullptr) {
   const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/" + scene_name + ".toml", kind);
   EXPECT_TRUE(scene) << scene.error();
-  Controller ctl(make_runtime_scene<S>(scene.value()), controller_config(scene.value(), kDt));
+  SpecLoop ctl(make_runtime_scene<S>(scene.value()), servo_config(scene.value(), kDt));
   std::vector<Vec3<double>> out;
   for (int k = 0; k < ticks; ++k) {
     const Point p = motion(k * kDt);
-    Sample s;
-    s.position_m = p.x;
+    Sample s = sample(k, p.x);
     s.velocity_m_per_s = p.v;
     s.has_velocity = given_velocity;
-    s.now = Instant{k, 0.0};
-    s.dt_s = kDt;
     const auto r = ctl.tick(s);
     out.push_back(to_double(r.force_n));
     if (fault != nullptr) fault->push_back(static_cast<bool>(r.faults));
@@ -103,14 +101,11 @@ TEST(ScalarAgreement, VelocityEstimateInQ16IsBoundedByOneCountPerTick) {
   const auto dd = parse_scene(scene_text, "damped.toml", ScalarKind::kDouble);
   const auto dq = parse_scene(scene_text, "damped.toml", ScalarKind::kQ16_16);
   ASSERT_TRUE(dd && dq);
-  Controller cd(make_runtime_scene<double>(dd.value()), controller_config(dd.value(), kDt));
-  Controller cq(make_runtime_scene<Q16_16>(dq.value()), controller_config(dq.value(), kDt));
+  SpecLoop cd(make_runtime_scene<double>(dd.value()), servo_config(dd.value(), kDt));
+  SpecLoop cq(make_runtime_scene<Q16_16>(dq.value()), servo_config(dq.value(), kDt));
   double worst = 0.0;
   for (int k = 0; k < kTicks; ++k) {
-    Sample s;
-    s.position_m = in_and_out(k * kDt).x;
-    s.now = Instant{k, 0.0};
-    s.dt_s = kDt;
+    const Sample s = sample(k, in_and_out(k * kDt).x);
     const auto a = to_double(cd.tick(s).force_n);
     const auto b = to_double(cq.tick(s).force_n);
     if (clear_of_contact_edge(k) && a.z > 0.5) worst = std::max(worst, std::abs(a.z - b.z));
@@ -182,4 +177,4 @@ TEST(ScalarAgreement, CartoonCliffTakesTheSameDecisions) {
 }
 
 }  // namespace
-}  // namespace toonforce
+}  // namespace toonforce::test

@@ -5,7 +5,9 @@
 // over), and that the paths are what they say (C1 and periodic).
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "toonforce/config/scene_file.hpp"
@@ -16,13 +18,19 @@ namespace {
 
 constexpr double kRateHz = 1000.0;
 
+/// What the scene's effects show after a tick (their values, read by name).
+struct Shown {
+  bool in_contact = false;
+  double impact_time_s = std::numeric_limits<double>::quiet_NaN();
+};
+
 struct TickView {
   PathPoint p;
   Vec3<double> scene_force;
   Vec3<double> force;
   std::uint8_t limits = 0;
-  Diagnostics before;  ///< after the previous tick
-  Diagnostics after;
+  Shown before;  ///< after the previous tick
+  Shown after;
   bool fallen_before = false;
   bool fallen_after = false;
   bool impact_running_before = false;
@@ -36,11 +44,17 @@ void run_scenario(std::string_view scene, Look look) {
   ASSERT_TRUE(desc) << desc.error();
   const RuntimeScene<double> rt = make_runtime_scene<double>(desc.value());
   RuntimeScene<double>::State state{};
+  std::array<ActiveForce<double>, RuntimeScene<double>::kActiveCapacity> active{};
+  std::array<double, RuntimeScene<double>::kValueCapacity> values{};
   ForceSafety<double> safety(desc->limits);
+  const bool has_cliff = rt.count<CartoonCliff<double>>() > 0;
+  const bool has_surface = rt.count<RuntimeSurface<double>>() > 0;
+  const auto& cliffs = std::get<1>(state.effects);
+  const auto& surfaces = std::get<0>(state.effects);
   const KeyframePath path = paper_scenario(scene);
   const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * kRateHz));
   ASSERT_GT(ticks, 0);
-  Diagnostics previous{};
+  Shown previous{};
   for (std::int64_t k = 0; k < 2 * ticks; ++k) {
     TickView v;
     v.p = path.at(static_cast<double>(k % ticks) / kRateHz);
@@ -51,14 +65,15 @@ void run_scenario(std::string_view scene, Look look) {
     in.now = Instant{k, 0.0};
     in.period_s = 1.0 / kRateHz;
     v.before = previous;
-    v.fallen_before = rt.cliff_count() > 0 && state.cliffs[0].fallen;
-    v.impact_running_before = rt.surface_count() > 0 && state.surfaces[0].impact.running;
-    v.scene_force = rt.force(in, state);
+    v.fallen_before = has_cliff && cliffs[0].fallen;
+    v.impact_running_before = has_surface && surfaces[0].impact.running;
+    v.scene_force = rt.force(in, state, active.data());
     const auto out = safety.limit(v.scene_force, kRateHz);
     v.force = out.force_n;
     v.limits = out.limits;
-    v.after = rt.diagnostics(state, in);
-    v.fallen_after = rt.cliff_count() > 0 && state.cliffs[0].fallen;
+    v.after.in_contact = rt.describe(state, in, values.data());
+    v.after.impact_time_s = has_surface ? values[1] : std::numeric_limits<double>::quiet_NaN();  // surface1.impact_t
+    v.fallen_after = has_cliff && cliffs[0].fallen;
     previous = v.after;
     if (k >= ticks) look(v);
   }

@@ -50,18 +50,23 @@ speed_threshold = 0.08
   EXPECT_TRUE(s.limits.has_max_force);
   EXPECT_FALSE(s.limits.has_max_force_rate);  // absent: no rate limit
   EXPECT_EQ(s.velocity_cutoff_hz, 50.0);
-  ASSERT_EQ(s.surfaces.size(), 1U);
-  EXPECT_EQ(s.surfaces[0].plane.normal.z, 1.0);  // normalised
-  EXPECT_EQ(s.surfaces[0].stiffness_n_per_m, 1500.0);  // an integer is a number
-  EXPECT_EQ(s.surfaces[0].damping_n_s_per_m, 0.0);
-  EXPECT_EQ(s.surfaces[0].slippery->max_tangential_force_n, 2.0);
-  EXPECT_EQ(s.surfaces[0].impact->min_impact_speed_m_per_s, 0.05);
-  EXPECT_EQ(s.surfaces[0].impact->rearm_distance_m, 0.001);
-  ASSERT_EQ(s.cliffs.size(), 1U);
-  EXPECT_EQ(s.cliffs[0].axis.x, 1.0);
-  EXPECT_EQ(s.cliffs[0].tau_s, 0.02);
-  EXPECT_EQ(s.cliffs[0].rearm_height_m, 0.001);
-  EXPECT_EQ(s.cliffs[0].fall_force_n, 0.0);
+  const auto& surfaces = s.of<RuntimeSurface>();
+  ASSERT_EQ(surfaces.size(), 1U);
+  EXPECT_EQ(surfaces[0].plane.normal.z, 1.0);  // normalised
+  EXPECT_EQ(surfaces[0].wall.stiffness_n_per_m, 1500.0);  // an integer is a number
+  EXPECT_EQ(surfaces[0].wall.damping_n_s_per_m, 0.0);
+  EXPECT_EQ(surfaces[0].tangential.kind, TangentialKind::kSlippery);
+  EXPECT_EQ(surfaces[0].tangential.slippery.max_tangential_force_n, 2.0);  // the default
+  EXPECT_TRUE(surfaces[0].impact.enabled);
+  EXPECT_EQ(surfaces[0].impact.law.min_impact_speed_m_per_s, 0.05);
+  EXPECT_EQ(surfaces[0].impact.law.rearm_distance_m, 0.001);
+  EXPECT_EQ(surfaces[0].impact.law.sine, SineMethod::kAuto);  // not chosen: the scalar's own
+  const auto& cliffs = s.of<CartoonCliff>();
+  ASSERT_EQ(cliffs.size(), 1U);
+  EXPECT_EQ(cliffs[0].axis.x, 1.0);
+  EXPECT_EQ(cliffs[0].tau_s, 0.02);
+  EXPECT_EQ(cliffs[0].rearm_height_m, 0.001);
+  EXPECT_EQ(cliffs[0].fall_force_n, 0.0);
 }
 
 TEST(SceneFile, KeepsFileOrderAcrossSurfacesAndCliffs) {
@@ -81,8 +86,13 @@ stiffness = 100
 )", "order.toml");
   ASSERT_TRUE(scene) << scene.error();
   ASSERT_EQ(scene->order.size(), 2U);
-  EXPECT_EQ(scene->order[0].kind, SceneDescription::Kind::kCliff);
-  EXPECT_EQ(scene->order[1].kind, SceneDescription::Kind::kSurface);
+  EXPECT_EQ(scene->order[0].kind, 1U);  // the cliff first, as written
+  EXPECT_EQ(scene->order[0].line, 2U);
+  EXPECT_EQ(scene->order[1].kind, 0U);
+  // The run-time scene adds them in that order: cliff1's values come before surface1's.
+  const RuntimeScene<double> runtime = make_runtime_scene<double>(scene.value());
+  EXPECT_EQ(runtime.effect_info(0).key, "cliff");
+  EXPECT_EQ(runtime.effect_info(1).key, "surface");
 }
 
 struct Malformed {
@@ -128,7 +138,9 @@ const Malformed kMalformed[] = {
     {"positive viscous friction",
      "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.friction]\nviscous = 2.0\n",
      "surface[1].friction.viscous: must be <= 0 (got 2)", 6},
-    {"unknown top-level table", "[[surfaces]]\npoint = [0, 0, 0]\n", "unknown key 'surfaces' (did you mean 'surface'?)", 1},
+    {"unknown top-level table", "[[surfaces]]\npoint = [0, 0, 0]\n", "unknown effect [[surfaces]] (did you mean 'surface'?)", 1},
+    {"an effect this program does not have", "[[magnet]]\ncentre = [0, 0, 0]\n",
+     "unknown effect [[magnet]] (the effects this program reads: [[surface]], [[cliff]])", 1},
     {"surface written as a single table", "[surface]\npoint = [0, 0, 0]\n", "surface: must be an array of tables", 1},
     {"cliff axis along the normal",
      "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 1]\ngap_min = 0\ngap_max = 0.02\n"
@@ -145,7 +157,7 @@ const Malformed kMalformed[] = {
     {"unknown sine method",
      "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.impact]\nrecoil_gain = 300\n"
      "oscillation_gain = 600\nduration = 0.1\nfrequency = 30\nsine = \"cordic\"\n",
-     "surface[1].impact.sine: unknown sine method 'cordic'", 10},
+     "surface[1].impact.sine: unknown sine 'cordic' (one of library, polynomial, table)", 10},
     {"device limit of zero", "[device]\nmax_force = 0\n", "device.max_force: must be > 0 (got 0)", 2},
     {"unknown key in device", "[device]\nmax_froce = 8\n", "device: unknown key 'max_froce' (did you mean 'max_force'?)", 2},
     {"TOML syntax error", "[[surface]]\npoint = [0, 0, 0\n", "TOML syntax", 2},
@@ -215,7 +227,7 @@ TEST(SceneFile, SaysWhenTheFileIsMissing) {
 
 TEST(SceneFile, RefusesMoreSurfacesThanASceneHolds) {
   std::string text;
-  for (std::size_t i = 0; i <= RuntimeScene<double>::kMaxSurfaces; ++i) text += kSurface;
+  for (std::size_t i = 0; i <= RuntimeSurface<double>::kMaxPerScene; ++i) text += kSurface;
   const auto scene = parse_scene(text, "many.toml");
   ASSERT_FALSE(scene);
   EXPECT_NE(scene.error().find("more than the 16 a scene holds"), std::string::npos) << scene.error();

@@ -23,8 +23,8 @@ TEST(ServoSceneKeys, ReadsEverySafetyKey) {
       "keys.toml");
   ASSERT_TRUE(scene) << scene.error();
   const ServoConfig c = servo_config(scene.value(), 1e-3);
-  EXPECT_EQ(c.controller.period_s, 1e-3);
-  EXPECT_EQ(c.controller.limits.max_force_n, 6.0);
+  EXPECT_EQ(c.period_s, 1e-3);
+  EXPECT_EQ(c.limits.max_force_n, 6.0);
   EXPECT_EQ(c.safety.engage_force_n, 0.3);
   EXPECT_EQ(c.safety.soft_start_s, 0.5);
   EXPECT_TRUE(c.safety.has_max_velocity);

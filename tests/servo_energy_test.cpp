@@ -125,7 +125,7 @@ TYPED_TEST(ServoEnergy, ObserverEnergyIsMinusTheWorkTheDeviceDidOnTheHandle) {
   // observer sums F_{k-1}.(x_k - x_{k-1}) once per tick. With the force held over each tick
   // they agree (to the Q16.16 position resolution in the fixed build).
   const double tol = kIsFixed<TypeParam> ? 2e-3 : 1e-9;
-  EXPECT_NEAR(run.loop.observer().energy().to_double(), -run.device.device_work_j(), tol);
+  EXPECT_NEAR(run.loop.passivity().observer().energy().to_double(), -run.device.device_work_j(), tol);
   EXPECT_GT(std::abs(run.device.device_work_j()), 1e-4) << "the scenario must exchange energy";
 }
 
@@ -200,44 +200,38 @@ TYPED_TEST(ServoEnergy, PassivityControllerLeavesAnEpisodeWithinBudgetUntouched)
   for (std::size_t k = 0; k < off.frames.size(); ++k) {
     ASSERT_EQ(off.frames[k].force_n, on.frames[k].force_n) << k;
   }
-  EXPECT_GT(on.loop.passivity().max_episode_energy(on.loop.active_slots()).to_double(), 0.01);
+  EXPECT_GT(on.loop.passivity().controller().max_episode_energy(on.loop.passivity().slots()).to_double(), 0.01);
 }
 
 // ---- active effects -----------------------------------------------------------------------------
 
-TEST(ActiveEffects, SlotsReproduceTheForcesTheActiveEffectsAdded) {
+TEST(ActiveEffects, SlotsAreTheForcesTheActiveEffectsAdded) {
   const std::string toml = floor_toml(1000.0,
                                       "  [surface.slippery]\n  mu = 4.0\n"
                                       "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
                                       "  duration = 0.15\n  frequency = 30.0\n");
   const RuntimeScene<double> scene = scene_from<double>(toml);
-  ASSERT_EQ(ActiveEffects<RuntimeScene<double>>::slots(scene), 2U);
-  ControllerConfig config;
-  config.period_s = kPeriodS;
-  Controller<RuntimeScene<double>> controller(scene, config);
+  ASSERT_EQ(scene.active_slots(), 2U);
+  RuntimeScene<double>::State state{};
   int triggers = 0;
   int running = 0;
   for (std::int64_t k = 0; k < 200; ++k) {
-    Sample s;
-    s.now = Instant{k, 0.0};
-    s.dt_s = kPeriodS;
-    s.has_velocity = true;
-    s.velocity_m_per_s = {0.1, 0.0, k < 3 ? -0.2 : 0.0};
-    s.position_m = {0.0001 * static_cast<double>(k), 0.0, k < 2 ? 0.0005 - 0.0002 * static_cast<double>(k) : -0.0002};
-    std::array<ActiveForce<double>, 2> slots{};
-    const auto result = controller.tick(s, [&](const Vec3<double>& f, const TickInput<double>& in,
-                                               const RuntimeScene<double>::State& st) noexcept {
-      ActiveEffects<RuntimeScene<double>>::collect(scene, st, in, slots.data());
-      const double delta = -in.position_m.z;
-      const Vec3<double> wall{0.0, 0.0, delta > 0 ? 1000.0 * delta : 0.0};
-      const Vec3<double> sum = wall + slots[0].force_n + slots[1].force_n;
-      EXPECT_NEAR(sum.x, f.x, 1e-12);
-      EXPECT_NEAR(sum.y, f.y, 1e-12);
-      EXPECT_NEAR(sum.z, f.z, 1e-12);
-      return Shaped<double>{f, false};
-    });
-    EXPECT_FALSE(result.faults);
-    EXPECT_EQ(slots[0].in_episode, s.position_m.z < 0.0) << k;  // slippery: in contact
+    TickInput<double> in{};
+    in.now = Instant{k, 0.0};
+    in.period_s = kPeriodS;
+    in.rate_hz = 1.0 / kPeriodS;
+    in.velocity_m_per_s = {0.1, 0.0, k < 3 ? -0.2 : 0.0};
+    in.position_m = {0.0001 * static_cast<double>(k), 0.0, k < 2 ? 0.0005 - 0.0002 * static_cast<double>(k) : -0.0002};
+    std::array<ActiveForce<double>, RuntimeScene<double>::kActiveCapacity> slots{};
+    const Vec3<double> f = scene.force(in, state, slots.data());
+    // The wall alone, plus what the two active parts say they added, is the whole force.
+    const double delta = -in.position_m.z;
+    const Vec3<double> wall{0.0, 0.0, delta > 0 ? 1000.0 * delta : 0.0};
+    const Vec3<double> sum = wall + slots[0].force_n + slots[1].force_n;
+    EXPECT_NEAR(sum.x, f.x, 1e-12) << k;
+    EXPECT_NEAR(sum.y, f.y, 1e-12) << k;
+    EXPECT_NEAR(sum.z, f.z, 1e-12) << k;
+    EXPECT_EQ(slots[0].in_episode, in.position_m.z < 0.0) << k;  // slippery: in contact
     triggers += slots[1].triggered ? 1 : 0;
     running += slots[1].in_episode ? 1 : 0;
   }

@@ -34,8 +34,8 @@ TYPED_TEST(ServoSafety, ClampsTheForceToMaxForceKeepingItsDirection) {
 
 TYPED_TEST(ServoSafety, LimitsTheForceRateAndASkippedTickAllowsTwiceTheStep) {
   ServoConfig c = bare_config();
-  c.controller.limits.has_max_force_rate = true;
-  c.controller.limits.max_force_rate_n_per_s = 1000.0;  // 1 N per 1 ms tick
+  c.limits.has_max_force_rate = true;
+  c.limits.max_force_rate_n_per_s = 1000.0;  // 1 N per 1 ms tick
   Rig<TypeParam> rig(floor_toml(1000.0), c);
   rig.at(kAbove);
   rig.at({0, 0, -0.006});  // a 6 N step
@@ -257,6 +257,9 @@ TYPED_TEST(ServoSafety, EnableActsAsADeadmanAndReEngagesWhenPressedAgain) {
 TYPED_TEST(ServoSafety, AHomingDeviceGetsNoForceAndEngagesOnceReady) {
   Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
   rig.device.read_status = DeviceStatus::kNotReady;
+  // A device that is not ready says so on its writes too (the Omni while it calibrates): that
+  // is no more a device error than the read's.
+  rig.device.write_status = DeviceStatus::kNotReady;
   for (int i = 0; i < 20; ++i) {  // longer than the device timeout: homing is not silence
     const TickStatus s = rig.at({0, 0, -0.003});
     EXPECT_EQ(s.state, LoopState::kHoming);
@@ -265,6 +268,7 @@ TYPED_TEST(ServoSafety, AHomingDeviceGetsNoForceAndEngagesOnceReady) {
   }
   EXPECT_EQ(rig.pins.light, LightState::kHoming);
   rig.device.read_status = DeviceStatus::kOk;
+  rig.device.write_status = DeviceStatus::kOk;
   EXPECT_EQ(rig.at(kAbove).state, LoopState::kActive);
   EXPECT_EQ(rig.pins.light, LightState::kArmed);
 }
@@ -382,22 +386,22 @@ TEST(ServoLoop, ShutdownCommandsZeroAtOnceAndGoesIdle) {
 
 TEST(ServoConfig, TheDeviceLimitsWhatTheSceneLeavesOpenAndTheSmallerClampWins) {
   ServoConfig c;
-  c.controller.period_s = 1e-3;
-  c.controller.limits.has_max_force = true;
-  c.controller.limits.max_force_n = 10.0;
+  c.period_s = 1e-3;
+  c.limits.has_max_force = true;
+  c.limits.max_force_n = 10.0;
   DeviceInfo omni;
   omni.max_force_n = 3.3;
   omni.max_continuous_force_n = 0.88;
   omni.workspace_min_m = {-0.08, -0.06, -0.035};
   omni.workspace_max_m = {0.08, 0.06, 0.035};
   const ServoConfig merged = with_device(c, omni);
-  EXPECT_EQ(merged.controller.limits.max_force_n, 3.3);
+  EXPECT_EQ(merged.limits.max_force_n, 3.3);
   EXPECT_TRUE(merged.safety.has_workspace);
   EXPECT_EQ(merged.safety.workspace_max_m, omni.workspace_max_m);
   EXPECT_EQ(merged.safety.thermal.continuous_force_n, 0.88);
   EXPECT_EQ(check_servo_config(merged), "");
-  c.controller.limits.max_force_n = 2.0;
-  EXPECT_EQ(with_device(c, omni).controller.limits.max_force_n, 2.0);
+  c.limits.max_force_n = 2.0;
+  EXPECT_EQ(with_device(c, omni).limits.max_force_n, 2.0);
   c.safety.thermal.derate_start = 1.0;
   c.safety.thermal.continuous_force_n = 1.0;
   EXPECT_NE(check_servo_config(c).find("thermal_derate_start"), std::string::npos);

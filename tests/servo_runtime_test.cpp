@@ -30,8 +30,8 @@ const std::string kEverything = floor_toml(1500.0,
 /// Every safety feature on, with limits tight enough that each one acts in the scenario.
 ServoConfig everything_on() {
   ServoConfig c;
-  c.controller.period_s = kPeriodS;
-  c.controller.limits = {4.0, 1500.0, true, true};
+  c.period_s = kPeriodS;
+  c.limits = {4.0, 1500.0, true, true};
   c.safety.soft_start_s = 0.2;
   c.safety.has_max_velocity = true;
   c.safety.max_velocity_m_per_s = 0.5;

@@ -91,9 +91,9 @@ RuntimeScene<S> scene_from(const std::string& toml) {
 /// Everything off but the clamp at 8 N: each test turns on what it tests.
 inline ServoConfig bare_config() {
   ServoConfig c;
-  c.controller.period_s = kPeriodS;
-  c.controller.limits.has_max_force = true;
-  c.controller.limits.max_force_n = 8.0;
+  c.period_s = kPeriodS;
+  c.limits.has_max_force = true;
+  c.limits.max_force_n = 8.0;
   c.safety.soft_start_s = 0.0;
   c.safety.has_max_velocity = false;
   c.safety.has_workspace = false;

@@ -122,7 +122,7 @@ def drift(rows, out):
             ax.set_ylabel("max error in that hour [N]")
         ax.grid(True, which="both", linewidth=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle("Drift: the Controller at 1 kHz on the repeating scenario against the 40 kHz double reference")
+    fig.suptitle("Drift: the servo loop at 1 kHz on the repeating scenario against the 40 kHz double reference")
     fig.tight_layout(rect=(0, 0, 1, 0.93))
     save(fig, out)
 

@@ -24,6 +24,7 @@ deterministic: no dates or versions are written into the files.
 import argparse
 import csv
 import math
+import re
 import sys
 
 try:
@@ -50,6 +51,13 @@ def read_trace(path):
                 columns[name].append(float(value) if value not in ("", None) else math.nan)
     if not columns["t"]:
         sys.exit(f"plot_trace.py: {path}: the trace has no rows")
+    # The effects' values are named after their effect ("surface1.impact_t", "cliff1.state"):
+    # the figures use any surface's running impact and the first cliff's state.
+    n = len(columns["t"])
+    impacts = [columns[name] for name in columns if re.fullmatch(r"surface\d+\.impact_t", name)]
+    columns["impact_t"] = [next((col[i] for col in impacts if not math.isnan(col[i])), math.nan) for i in range(n)]
+    cliff = next((name for name in columns if re.fullmatch(r"cliff\d+\.state", name)), None)
+    columns["cliff_state"] = columns[cliff] if cliff else [math.nan] * n
     return columns
 
 

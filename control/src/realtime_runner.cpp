@@ -242,6 +242,93 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
   return std::move(*report);
 }
 
+// ---- a device's own servo thread ----------------------------------------------------------------
+
+namespace {
+
+/// What the device's servo thread needs: the task, where to count, when to stop.
+struct ClockedRun {
+  PeriodicTask& task;
+  RunReport& report;
+  std::int64_t deadlines;
+  const std::atomic<int>& stop;
+  std::atomic<std::int64_t>& heartbeat;
+  std::int64_t last_tick = -1;
+  std::int64_t missed = 0;
+};
+
+TickVerdict clocked_tick(void* context, const ClockedTick& clock) noexcept {
+  auto& run = *static_cast<ClockedRun*>(context);
+  if (run.last_tick >= 0 && clock.tick > run.last_tick + 1) run.missed += clock.tick - run.last_tick - 1;
+  run.last_tick = clock.tick;
+  if (run.stop.load(std::memory_order_relaxed) != 0 || (run.deadlines > 0 && run.report.ticks >= run.deadlines)) {
+    run.task.shutdown(clock.tick);  // zero force inside the frame, then the device stops
+    run.heartbeat.store(clock.tick + 1, std::memory_order_release);
+    return TickVerdict::kStop;
+  }
+  const std::int64_t start = now_ns();  // vDSO: no system call
+  run.task.tick(clock.tick);
+  run.heartbeat.store(clock.tick + 1, std::memory_order_release);
+  const std::int64_t compute = now_ns() - start;
+  const auto period_ns = static_cast<std::int64_t>(std::llround(clock.period_s * 1e9));
+  TickTiming timing;
+  timing.wake_latency_ns =
+      run.report.ticks == 0 ? 0 : static_cast<std::int64_t>(std::llround(clock.dt_s * 1e9)) - period_ns;
+  timing.compute_ns = compute;
+  timing.slack_ns = period_ns - compute;
+  timing.missed_total = run.missed;
+  run.report.wake.record(timing.wake_latency_ns);
+  run.report.compute.record(timing.compute_ns);
+  run.report.slack.record(timing.slack_ns);
+  ++run.report.ticks;
+  run.task.publish(clock.tick, timing);
+  return TickVerdict::kContinue;
+}
+
+void zero_device(void* device) noexcept { static_cast<DeviceDriver*>(device)->emergency_zero(); }
+
+}  // namespace
+
+Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, const RealtimeOptions& options,
+                                     const std::atomic<int>& stop) {
+  auto report = std::make_unique<RunReport>();  // histograms allocated here, before the loop
+  report->setup.priority = -1;  // the device's thread: its priority is not ours to set
+  report->setup.notes = "wake-up latency here is the jitter of the device scheduler's period\n";
+  if (options.lock_memory && !kSanitized) {
+    report->setup.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    if (!report->setup.memory_locked) report->setup.notes += "mlockall refused: memory not locked\n";
+  }
+  std::atomic<std::int64_t> heartbeat{0};
+  std::atomic<bool> done{false};
+  const double rate_hz = device.info().nominal_rate_hz > 0.0 ? device.info().nominal_rate_hz : options.rate_hz;
+  Watchdog watchdog{heartbeat, done, EmergencyZero{zero_device, &device},
+                    options.watchdog_periods * static_cast<std::int64_t>(std::llround(1e9 / rate_hz))};
+  std::thread watchdog_thread([&watchdog] {
+    pthread_setname_np(pthread_self(), "toonforce-wdog");
+    watchdog.run();
+  });
+  ClockedRun run{task, *report, options.deadlines, stop, heartbeat};
+  const std::int64_t begin = now_ns();
+  auto ended = device.run_clocked(&clocked_tick, &run);
+  done.store(true, std::memory_order_release);
+  watchdog_thread.join();
+  if (!ended) return Error{ended.error()};
+  report->elapsed_s = static_cast<double>(now_ns() - begin) * 1e-9;
+  report->missed = run.missed;
+  report->watchdog_trips = watchdog.trips.load();
+  report->stop_signal = stop.load();
+  if (!ended->device_stopped.empty()) {
+    report->setup.notes += fmt::format("the device stopped the run: {}\n", ended->device_stopped);
+  }
+  return std::move(*report);
+}
+
+Result<RunReport> run_on_device(PeriodicTask& task, DeviceDriver& device, const RealtimeOptions& options,
+                                const std::atomic<int>& stop) {
+  if (device.info().clocking == Clocking::kDeviceThread) return run_device_clocked(task, device, options, stop);
+  return run_realtime(task, options, EmergencyZero{zero_device, &device}, stop);
+}
+
 // ---- signals -----------------------------------------------------------------------------------
 
 namespace {

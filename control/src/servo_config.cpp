@@ -6,7 +6,7 @@
 namespace toonforce {
 
 ServoConfig with_device(ServoConfig config, const DeviceInfo& device) {
-  ForceLimits& limits = config.controller.limits;
+  ForceLimits& limits = config.limits;
   if (device.max_force_n > 0.0) {
     limits.max_force_n = limits.has_max_force ? std::min(limits.max_force_n, device.max_force_n) : device.max_force_n;
     limits.has_max_force = true;
@@ -32,8 +32,9 @@ std::string check_servo_config(const ServoConfig& config) {
     problems += '\n';
   };
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (!finite_positive(config.controller.period_s)) problem("the servo period must be > 0");
-  const ForceLimits& limits = config.controller.limits;
+  if (!finite_positive(config.period_s)) problem("the servo period must be > 0");
+  if (!finite_positive(config.velocity_cutoff_hz)) problem("velocity_cutoff must be > 0");
+  const ForceLimits& limits = config.limits;
   if (limits.has_max_force && !finite_positive(limits.max_force_n)) problem("max_force must be > 0");
   if (limits.has_max_force_rate && !finite_positive(limits.max_force_rate_n_per_s)) problem("max_force_rate must be > 0");
   const SafetyConfig& s = config.safety;

@@ -10,7 +10,7 @@
 
 #include "alloc_counter.hpp"
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/emulator_transport.hpp"
 #include "toonforce/hal/falcon/emulator/falcon_emulator.hpp"
@@ -204,7 +204,7 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
   const DeviceInfo& info = rig.driver->info();
   EXPECT_EQ(info.name, "Novint Falcon (emulated)");
   EXPECT_EQ(info.nominal_rate_hz, 1000.0);
-  EXPECT_FALSE(info.self_clocked);
+  EXPECT_EQ(info.clocking, Clocking::kHostTimer);
   EXPECT_GT(info.max_force_n, 0.0);
   // The HDAL box (-60..60, -60..60, 75..175) mm about z = 110 mm, as (x, -z, y).
   EXPECT_NEAR(info.workspace_min_m.x, -0.060, 1e-12);
@@ -216,40 +216,38 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
 }
 
 TEST(FalconDriver, ServoLoopRendersTheWallSceneOnTheEmulatedFalcon) {
-  // The whole tick: read -> Controller (scenes/wall.toml: floor z = 0, 1500 N/m, safety stage)
-  // -> write, against an emulated grip pushed 10 mm into the floor by a 200 N/m hand. The
-  // floor must hold it at the force balance: 1500 d = 200 (0.010 - d), d = 1.18 mm, 1.76 N up.
+  // The servo loop, every stage, on the emulated Falcon (scenes/wall.toml: floor z = 0,
+  // 1500 N/m), against an emulated grip pushed 10 mm into the floor by a 200 N/m hand once the
+  // loop is engaged above it. The floor must hold it at the force balance:
+  // 1500 d = 200 (0.010 - d), d = 1.18 mm, 1.76 N up.
   auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/wall.toml");
   ASSERT_TRUE(scene) << scene.error();
-  Controller<RuntimeScene<double>> controller(make_runtime_scene<double>(scene.value()),
-                                              controller_config(scene.value(), 0.001));
   EmulatorOptions o = Rig::with_firmware();
   o.hand_stiffness_n_per_m = 200.0;
   o.hand_damping_n_s_per_m = 6.0;
   Rig rig(o);
   rig.home();
-  const Vec3<double> above = scene_to_falcon({0, 0, 0.02}, kCentre);
-  rig.emu.set_grip_position(above);
-  for (int k = 0; k < 300; ++k) rig.tick();
+  const ServoConfig config = with_device(servo_config(scene.value(), 0.001), rig.driver->info());
+  ASSERT_EQ(check_servo_config(config), "");
+  ServoLoop<DriverRef, RuntimeScene<double>> loop(DriverRef(*rig.driver), make_runtime_scene<double>(scene.value()),
+                                                  config);
+  rig.emu.set_grip_position(scene_to_falcon({0, 0, 0.02}, kCentre));
+  std::int64_t k = 0;
+  for (; k < 300; ++k) ASSERT_TRUE(loop.tick(k).ok()) << k;  // engages above the floor, ramps in
+  EXPECT_EQ(loop.state(), LoopState::kActive);
   rig.emu.set_grip_position(scene_to_falcon({0, 0, -0.010}, kCentre));  // the hand pushes down
-  DeviceReading reading;
-  TickResult<double> last{};
-  for (int k = 0; k < 1500; ++k) {
-    const DeviceStatus s = rig.driver->read(reading);
-    ASSERT_EQ(s, DeviceStatus::kOk) << k << ": " << rig.driver->last_error();
-    Sample sample;
-    sample.position_m = reading.position_m;
-    sample.now = Instant{k, 0.001 * k};
-    sample.dt_s = 0.001;
-    last = controller.tick(sample);
-    ASSERT_EQ(rig.driver->write(last.force_n), DeviceStatus::kOk) << k;
+  for (; k < 1800; ++k) {
+    const TickStatus s = loop.tick(k);
+    ASSERT_TRUE(s.ok()) << k << ": " << rig.driver->last_error() << " faults " << s.faults.bits();
   }
-  const double penetration = -reading.position_m.z;
+  TelemetryFrame f;
+  loop.fill_frame(f);
+  const double penetration = -f.position_m.z;
   EXPECT_NEAR(penetration, 0.010 * 200.0 / 1700.0, 0.15e-3);
-  EXPECT_NEAR(last.force_n.z, 1500.0 * penetration, 0.05);
+  EXPECT_NEAR(loop.force().z, 1500.0 * penetration, 0.05);
   // The device pushes the grip up (scene +z = Falcon +y) with the scene's force.
   const Vec3<double> pushed = rig.emu.motor_force_n();
-  EXPECT_NEAR(pushed.y, last.force_n.z, 0.05);
+  EXPECT_NEAR(pushed.y, loop.force().z, 0.05);
   EXPECT_NEAR(pushed.x, 0.0, 0.05);
   EXPECT_NEAR(pushed.z, 0.0, 0.05);
 }

@@ -5,18 +5,29 @@
 #include <string_view>
 
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/servo_loop.hpp"
 
 namespace {
 
+struct ScriptedDevice {
+  const toonforce::Vec3<double>* position;
+  toonforce::DeviceStatus read(toonforce::DeviceReading& r) noexcept {
+    r.position_m = *position;
+    return toonforce::DeviceStatus::kOk;
+  }
+  toonforce::DeviceStatus write(const toonforce::Vec3<double>&) noexcept { return toonforce::DeviceStatus::kOk; }
+};
+
 template <toonforce::Scalar S>
 void run(const toonforce::SceneDescription& d) {
-  toonforce::Controller ctl(toonforce::make_runtime_scene<S>(d), toonforce::controller_config(d, 1e-3));
+  const toonforce::ServoConfig config = toonforce::servo_config(d, 1e-3);
+  if (!toonforce::check_servo_config(config).empty()) return;
+  toonforce::Vec3<double> x{};
+  toonforce::ServoLoop<ScriptedDevice, toonforce::RuntimeScene<S>> loop(ScriptedDevice{&x},
+                                                                      toonforce::make_runtime_scene<S>(d), config);
   for (int k = 0; k < 50; ++k) {
-    toonforce::Sample s;
-    s.position_m = {0.001 * k - 0.02, 0.0, 0.01 - 0.0004 * k};
-    s.now = toonforce::Instant{k, 0.0};
-    s.dt_s = 1e-3;
-    static_cast<void>(ctl.tick(s));
+    x = {0.001 * k - 0.02, 0.0, 0.01 - 0.0004 * k};
+    static_cast<void>(loop.tick(k));
   }
 }
 

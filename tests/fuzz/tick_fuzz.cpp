@@ -1,6 +1,8 @@
-// libFuzzer target: the tick (effects plus safety) fed arbitrary doubles as positions,
-// velocities and periods, through every bundled scene in every scalar type. Whatever comes
-// in, the force that goes out is finite, within max_force, and within the force-rate limit.
+// libFuzzer target: the servo loop's tick fed arbitrary doubles as positions, velocities and
+// periods, through every bundled scene in every scalar type, as replay runs it (effects.md §6
+// stages, stamped time) and as a device runs it (every stage, fixed period). Whatever comes in,
+// the force that goes out is finite, within max_force, and within the force-rate limit unless
+// the tick cut it to zero.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -11,6 +13,7 @@
 #include <vector>
 
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/servo_loop.hpp"
 
 namespace {
 
@@ -38,33 +41,59 @@ void require(bool ok) {
   if (!ok) std::abort();  // libFuzzer reports the input
 }
 
+/// A device that reports what the fuzzer gives it.
+struct FuzzDevice {
+  const toonforce::DeviceReading* reading;
+  toonforce::DeviceStatus read(toonforce::DeviceReading& r) noexcept {
+    r = *reading;
+    return toonforce::DeviceStatus::kOk;
+  }
+  toonforce::DeviceStatus write(const toonforce::Vec3<double>&) noexcept { return toonforce::DeviceStatus::kOk; }
+};
+
+/// dt of the values' tick: any finite positive period a device could report, from 10 us to 1 s.
+double dt_of(double v) { return std::isfinite(v) ? std::fmin(1.0, std::fmax(1e-5, std::fabs(v))) : 1e-3; }
+
+template <class Loop>
+void check(Loop& loop, const toonforce::TickStatus& status, double max_force, double max_rate, double dt,
+           toonforce::Vec3<double>& previous) {
+  using S = typename Loop::S;
+  const auto f = toonforce::to_double(loop.force());
+  require(std::isfinite(f.x) && std::isfinite(f.y) && std::isfinite(f.z));
+  const double magnitude = std::sqrt(toonforce::dot(f, f));
+  // Q16.16 rounds each component: allow a few LSB over the limits.
+  const double slack = toonforce::kIsFixed<S> ? 1e-3 : (std::is_same_v<S, float> ? 1e-5 : 1e-9);
+  require(magnitude <= max_force + slack);
+  const auto step = f - previous;
+  const bool cut = status.faults || f == toonforce::Vec3<double>{};  // a cut to zero bypasses the rate limit
+  require(std::sqrt(toonforce::dot(step, step)) <= max_rate * dt + slack || cut);
+  previous = f;
+}
+
 template <toonforce::Scalar S>
 void run(const toonforce::SceneDescription& d, const double* v, std::size_t n) {
-  toonforce::Controller ctl(toonforce::make_runtime_scene<S>(d), toonforce::controller_config(d, 0.0));
+  if (n < 7) return;
+  toonforce::DeviceReading reading;
+  const toonforce::RuntimeScene<S> scene = toonforce::make_runtime_scene<S>(d);
+  toonforce::ServoLoop<FuzzDevice, toonforce::RuntimeScene<S>, toonforce::NullPins, toonforce::kSpecStages> replayed(
+      FuzzDevice{&reading}, scene, toonforce::replay_config(d, dt_of(v[6])));
+  toonforce::ServoConfig every = toonforce::servo_config(d, 1e-3);
+  every.safety.soft_start_s = 0.0;  // the rate limit is what this checks, from the first tick
+  toonforce::ServoLoop<FuzzDevice, toonforce::RuntimeScene<S>> device(FuzzDevice{&reading}, scene, every);
   const double max_force = d.limits.max_force_n;
   const double max_rate = d.limits.max_force_rate_n_per_s;
   double t = 0.0;
-  toonforce::Vec3<double> previous{};
+  toonforce::Vec3<double> previous_replayed{};
+  toonforce::Vec3<double> previous_device{};
   for (std::size_t i = 0; i + 7 <= n; i += 7) {
-    toonforce::Sample s;
-    s.position_m = {v[i], v[i + 1], v[i + 2]};
-    s.velocity_m_per_s = {v[i + 3], v[i + 4], v[i + 5]};
-    s.has_velocity = std::signbit(v[i + 6]);
-    // dt: any finite positive period a device could report, from 10 us to 1 s.
-    const double dt = std::isfinite(v[i + 6]) ? std::fmin(1.0, std::fmax(1e-5, std::fabs(v[i + 6]))) : 1e-3;
-    t += dt;
-    s.now = toonforce::Instant{static_cast<std::int64_t>(i), t};
-    s.dt_s = dt;
-    const auto r = ctl.tick(s);
-    const auto f = toonforce::to_double(r.force_n);
-    require(std::isfinite(f.x) && std::isfinite(f.y) && std::isfinite(f.z));
-    const double magnitude = std::sqrt(toonforce::dot(f, f));
-    // Q16.16 rounds each component: allow a few LSB over the limits.
-    const double slack = toonforce::kIsFixed<S> ? 1e-3 : (std::is_same_v<S, float> ? 1e-5 : 1e-9);
-    require(magnitude <= max_force + slack);
-    const auto step = f - previous;
-    require(std::sqrt(toonforce::dot(step, step)) <= max_rate * dt + slack || r.faults);
-    previous = f;
+    reading.position_m = {v[i], v[i + 1], v[i + 2]};
+    reading.velocity_m_per_s = {v[i + 3], v[i + 4], v[i + 5]};
+    reading.has_velocity = std::signbit(v[i + 6]);
+    const double dt = dt_of(v[i + 6]);
+    if (i > 0) t += dt;
+    const auto k = static_cast<std::int64_t>(i / 7);
+    check(replayed, replayed.tick(toonforce::Instant{k, t}), max_force, max_rate, dt, previous_replayed);
+    check(device, device.tick(k), max_force, max_rate, 1e-3, previous_device);
   }
 }
 

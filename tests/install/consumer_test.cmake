@@ -6,8 +6,11 @@
 #   2. the installed binary finds the installed scenes and hand scripts (toonforce figures);
 #   3. find_package(toonforce): builds the installed examples with toonforce's warnings (and
 #      -Werror under CI) and runs them: compose_scene checks its equilibria itself;
-#      run_scene_file must keep the handle on the realistic wall and throw it off the cartoon
+#      run_scene_file must keep the handle at the realistic wall and throw it off the cartoon
 #      wall (the paper's figures 2-3), in simulated time and once under the real-time runner;
+#      scene_with_own_effect reads its own [[magnet]] effect from a scene file (its passivity
+#      budget, trace columns and file:line:key errors), and the installed toonforce, which
+#      does not know that effect, refuses the file by name;
 #   4. find_package(toonforce COMPONENTS falcon gpio omni): tests/install/backends, run;
 #   5. pkg-config: the examples and the backends consumer compiled with nothing but
 #      `c++ $(pkg-config --cflags --libs ...)`, and run;
@@ -122,7 +125,9 @@ run_step("compose_scene (checks its own equilibria)" COMMAND "${WORK_DIR}/exampl
 message("${out}")
 
 # The highest point the handle reaches after striking the floor at z = 0: the realistic wall
-# keeps it in contact (the hand presses on), the cartoon wall's recoil throws it off.
+# keeps it there (an undamped spring gives back a fraction of a millimetre before the hand's
+# damping and press settle it: 0.17 mm in docs/FIGURES.md), the cartoon wall's recoil throws it
+# several millimetres out (6.1 mm there).
 function(highest_after_strike program scene out_var)
   run_step("${program} ${scene}.toml" COMMAND "${program}" "${prefix}/share/toonforce/scenes/${scene}.toml"
            "${prefix}/share/toonforce/scenes/hands/strike.toml" ${ARGN} OUTPUT out)
@@ -135,8 +140,8 @@ endfunction()
 function(check_strikes program)
   highest_after_strike("${program}" wall wall_mm ${ARGN})
   highest_after_strike("${program}" cartoon_wall cartoon_mm ${ARGN})
-  expect("the realistic wall keeps the handle in the surface (highest ${wall_mm} mm < 0)" wall_mm LESS 0)
-  expect("the cartoon wall throws the handle out (highest ${cartoon_mm} mm > 0)" cartoon_mm GREATER 0)
+  expect("the realistic wall keeps the handle within 1 mm of the surface (highest ${wall_mm} mm)" wall_mm LESS 1)
+  expect("the cartoon wall throws the handle out by more than 3 mm (highest ${cartoon_mm} mm)" cartoon_mm GREATER 3)
 endfunction()
 check_strikes("${WORK_DIR}/examples/run_scene_file")
 # Under the real-time runner (control_rt): whatever the timing of this machine, the run must
@@ -148,6 +153,30 @@ message("${out}${err}")
 expect("run_scene_file --realtime exits 0 or 1 (got ${rc})" rc EQUAL 0 OR rc EQUAL 1)
 string(FIND "${out}" "real time: " at)
 expect("run_scene_file --realtime reports its timing" NOT at EQUAL -1)
+
+# An effect the library does not know, from a scene file by its key (issue 14).
+set(examples_data "${prefix}/share/doc/toonforce/examples/scenes")
+function(check_own_effect program)
+  run_step("${program} magnet.toml" COMMAND "${program}" "${examples_data}/magnet.toml" "${examples_data}/visit_magnet.toml"
+           --trace "${WORK_DIR}/magnet.csv" OUTPUT out)
+  message("${out}")
+  # The program checks its own physics (captured, budget held, exceeded without the controller);
+  # here: the trace carries the effect's values under its key, beside the library's.
+  file(STRINGS "${WORK_DIR}/magnet.csv" header LIMIT_COUNT 1)
+  string(FIND "${header}" ",surface1.contact,surface1.impact_t,magnet1.captured,magnet1.distance" at)
+  expect("the trace has the magnet's columns after the surface's: ${header}" NOT at EQUAL -1)
+  execute_process(COMMAND "${program}" "${examples_data}/magnet_typo.toml" "${examples_data}/visit_magnet.toml"
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  expect("a typo in the example's own table exits 2 (got ${rc})" rc EQUAL 2)
+  string(FIND "${err}" "magnet_typo.toml:18: magnet[1]: unknown key 'stifness' (did you mean 'stiffness'?)" at)
+  expect("the typo is named by file, line and key:\n${err}" NOT at EQUAL -1)
+endfunction()
+check_own_effect("${WORK_DIR}/examples/scene_with_own_effect")
+execute_process(COMMAND "${prefix}/bin/toonforce" sim --scene "${examples_data}/magnet.toml"
+                        --script "${examples_data}/visit_magnet.toml" --trace "${WORK_DIR}/refused.csv"
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(FIND "${err}" "magnet.toml:16: unknown effect [[magnet]]" at)
+expect("toonforce sim refuses the example's effect by name (rc ${rc}):\n${err}" NOT rc EQUAL 0 AND NOT at EQUAL -1)
 
 # ---- 4. find_package with backend components ----------------------------------------------------
 run_step("configure the backends consumer (find_package COMPONENTS falcon gpio omni)"
@@ -167,10 +196,12 @@ endfunction()
 file(MAKE_DIRECTORY "${WORK_DIR}/pkg-config")
 pkg_config_build(compose_scene "${prefix}/share/doc/toonforce/examples/compose_scene.cpp" toonforce)
 pkg_config_build(run_scene_file "${prefix}/share/doc/toonforce/examples/run_scene_file.cpp" toonforce)
+pkg_config_build(scene_with_own_effect "${prefix}/share/doc/toonforce/examples/scene_with_own_effect.cpp" toonforce)
 pkg_config_build(backends "${SOURCE_DIR}/tests/install/backends/backends.cpp" toonforce-falcon toonforce-gpio
                  toonforce-omni)
 run_step("compose_scene (pkg-config)" COMMAND "${WORK_DIR}/pkg-config/compose_scene")
 check_strikes("${WORK_DIR}/pkg-config/run_scene_file")
+check_own_effect("${WORK_DIR}/pkg-config/scene_with_own_effect")
 run_step("backends (pkg-config)"
   COMMAND "${WORK_DIR}/pkg-config/backends" "${prefix}/lib/udev/rules.d/60-novint-falcon.rules")
 

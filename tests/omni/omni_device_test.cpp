@@ -45,7 +45,7 @@ TEST_F(OmniDeviceTest, OpensWithTheLimitsTheDeviceReports) {
   EXPECT_NEAR(l.usable_workspace_max_m.y, 0.035, 1e-12);
   EXPECT_NEAR(l.usable_workspace_max_m.z, 0.060, 1e-12);
   const DeviceInfo& info = d.info();
-  EXPECT_TRUE(info.self_clocked);
+  EXPECT_EQ(info.clocking, Clocking::kDeviceThread);
   EXPECT_DOUBLE_EQ(info.max_force_n, 2.5);
   EXPECT_DOUBLE_EQ(info.max_continuous_force_n, 0.7);
   EXPECT_DOUBLE_EQ(info.nominal_rate_hz, 1000.0);

@@ -40,7 +40,7 @@ DeviceInfo SimpleSimConfig::default_info() {
   info.workspace_min_m = {-0.06, -0.06, -0.06};
   info.workspace_max_m = {0.06, 0.06, 0.06};
   info.nominal_rate_hz = 1000.0;
-  info.self_clocked = false;
+  info.clocking = Clocking::kHostTimer;
   return info;
 }
 

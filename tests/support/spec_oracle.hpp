@@ -75,7 +75,7 @@ inline std::vector<V> replay(const Scene& scene, const std::vector<Row>& rows, b
       f_prev = {0, 0, 0};
       continue;
     }
-    // The effects' and the estimator's own dt: since their last update (controller.hpp).
+    // The effects' and the estimator's own dt: since their last update (hip_sensor.hpp).
     const double dt_state = first_good ? dt : r.t - t_prev_good;
     V v{};
     bool needs_velocity = !scene.cliffs.empty();

@@ -175,7 +175,7 @@ test('fig4_slow: slowing over the gap, the character falls and the page says "fa
 test('fig4_fast: crossing decisively, the ground holds and the page says "bridged"', async () => {
   await scenario(SCENARIOS[4], async (page, end) => {
     assert.equal(end.cliff, 'bridged');
-    const fell = await page.evaluate(() => window.toonforceViewer.findFrame('cliff_state', '==', 1));
+    const fell = await page.evaluate(() => window.toonforceViewer.findFrame('cliff1.state', '==', 1));
     assert.equal(fell, -1, 'the cliff never dropped the HIP');
     // Over the gap, mid-crossing, the arrow holds the HIP up (out of the ground, +z).
     const over = await page.evaluate(() => window.toonforceViewer.findFrame('x', '>', 0.01));
@@ -202,7 +202,7 @@ test('fig3_wall: in contact the force arrow points out of the wall', async () =>
 
 test('fig3_cartoon_wall: the impact transient shows, recoil and oscillation', async () => {
   await scenario(SCENARIOS[3], async (page) => {
-    const hit = await page.evaluate(() => window.toonforceViewer.findFrame('impact_t', '>', 0.015));
+    const hit = await page.evaluate(() => window.toonforceViewer.findFrame('surface1.impact_t', '>', 0.015));
     assert.ok(hit >= 0, 'an impact transient ran');
     await scrubTo(page, hit);
     const s = await snapshot(page);
@@ -335,5 +335,37 @@ test('toonforce view: a recorded trace plays, pauses and scrubs', async () => {
     run.child.kill('SIGTERM');
     const { code } = await run.exited;
     assert.equal(code, 0);
+  }
+});
+
+test("toonforce view: a program's own effect shows its values by name (no library edit)", async () => {
+  // A trace as examples/scene_with_own_effect.cpp writes it: the library's surface and the
+  // program's [[magnet]], whose values the viewer has never heard of.
+  const trace = path.join(os.tmpdir(), `toonforce-viewer-${process.pid}-magnet.csv`);
+  const rows = ['t,x,y,z,vx,vy,vz,fx,fy,fz,contact,surface1.contact,surface1.impact_t,magnet1.captured,magnet1.distance'];
+  for (let k = 0; k < 200; ++k) {
+    const captured = k >= 100 ? 1 : 0;
+    const distance = captured ? 0.004 : 0.02;
+    rows.push(`${k / 1000},${distance},0,0,0,0,0,0,0,0,${captured},0,nan,${captured},${distance}`);
+  }
+  fs.writeFileSync(trace, rows.join('\n') + '\n');
+  const run = startToonforce(['view', trace, '--port', '0']);
+  try {
+    const { page, errors } = await openPage(await run.url);
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().frames === 200, null, { timeout: 60000 });
+    await scrubTo(page, 50);
+    const before = await snapshot(page);
+    assert.equal(before.effects.magnet1, 'captured 0 · distance 0.02', 'free: the values as the trace has them');
+    assert.match(before.effects.surface1, /^contact 0 · impact_t –$/);
+    await scrubTo(page, 150);
+    const after = await snapshot(page);
+    assert.equal(after.effects.magnet1, 'captured 1 · distance 0.004');
+    assert.equal(after.contact, 'yes', 'the effect says the HIP touches it: the page shows contact');
+    assert.deepEqual(errors, []);
+    await page.close();
+  } finally {
+    run.child.kill('SIGTERM');
+    await run.exited;
+    fs.rmSync(trace, { force: true });
   }
 });

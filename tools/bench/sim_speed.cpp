@@ -57,17 +57,20 @@ toonforce::Result<Measurement> measure(const toonforce::FigureSpec& spec, const 
   while (m.simulated_s < seconds) {
     auto session = SimSession::create(scene.value(), hand.value(), config);  // set-up: not timed
     if (!session) return Error{session.error()};
-    auto writer = trace ? SimTraceWriter::open("/dev/null") : SimTraceWriter::in_memory();
+    const std::vector<std::string> columns = sim_trace_columns(session->value_names());
+    auto writer = trace ? TraceWriter::open("/dev/null", columns)
+                        : Result<std::unique_ptr<TraceWriter>>(TraceWriter::in_memory(columns));
     if (!writer) return Error{writer.error()};
+    const std::size_t values = session->value_names().size();
     const std::int64_t ticks = session->ticks_for(spec.duration_s);
     const auto start = Clock::now();
     const double cpu_start = thread_cpu_s();
     for (std::int64_t k = 0; k < ticks; ++k) {
       const SimRecord record = session->step();
-      if (trace) writer->write(record);
-      guard += record.force_n.z;
+      if (trace) write_sim_record(*writer.value(), record, values);
+      guard += record.frame.force_n.z;
     }
-    if (trace) static_cast<void>(writer->close());
+    if (trace) static_cast<void>(writer.value()->close());
     cpu += thread_cpu_s() - cpu_start;
     wall += std::chrono::duration<double>(Clock::now() - start).count();
     m.ticks += ticks;

@@ -31,7 +31,7 @@ void add_latency(CLI::App& report) {
   auto options = std::make_shared<report::LatencyOptions>();
   auto no_callgrind = std::make_shared<bool>(false);
   CLI::App* cmd = report.add_subcommand(
-      "latency", "ns and instructions per tick of each effect, paper scene and Controller, per scalar type");
+      "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
   cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
   cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(CLI::PositiveNumber);
   cmd->add_option("--filter", options->filter, "Only rows whose id contains one of these comma-separated texts");

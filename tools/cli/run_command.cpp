@@ -84,13 +84,17 @@ void add_run(CLI::App& app) {
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
       hello.rate_hz = options->rate_hz;
-      hello.scene = scene ? &scene.value() : nullptr;
+      if (scene) {
+        hello.scene_json = viewer::scene_json(scene.value());
+        hello.effect_values = effect_value_names(make_runtime_scene<double>(scene.value()));
+      }
       if (scene && scene->safety.has_workspace) {
         hello.workspace_min_m = scene->safety.workspace_min_m;
         hello.workspace_max_m = scene->safety.workspace_max_m;
       }
       viewer::ViewerOptions vo;
       vo.address = view->address;
+      vo.hosts = view->hosts;
       vo.port = static_cast<std::uint16_t>(view->port);
       auto started = start_viewer(vo, hello);
       if (!started) {

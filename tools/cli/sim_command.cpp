@@ -85,13 +85,17 @@ void add_sim(CLI::App& app) {
       hello.source = "sim";
       hello.title = fmt::format("{} / {}", scene ? scene->name : options->scene_path, options->script_path);
       hello.rate_hz = options->rate_hz;
-      hello.scene = scene ? &scene.value() : nullptr;
+      if (scene) {
+        hello.scene_json = viewer::scene_json(scene.value());
+        hello.effect_values = effect_value_names(make_runtime_scene<double>(scene.value()));
+      }
       hello.pacing = options->pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", options->pace)
                                          : "simulated time, as fast as it runs";
       hello.workspace_min_m = config.device.workspace_min_m;
       hello.workspace_max_m = config.device.workspace_max_m;
       viewer::ViewerOptions vo;
       vo.address = view->address;
+      vo.hosts = view->hosts;
       vo.port = static_cast<std::uint16_t>(view->port);
       vo.has_loop = false;
       auto started = start_viewer(vo, hello);

@@ -30,16 +30,31 @@ void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
   cmd->add_option("--view-address", flags.address,
                   "Listen on this address instead of 127.0.0.1 (e.g. 0.0.0.0: other hosts can watch; read-only)")
       ->needs(flags.view);
+  cmd->add_option("--view-host", flags.hosts, kViewHostHelp)->type_name("NAME")->allow_extra_args(false)->take_all()->needs(flags.view);
 }
 
 Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerOptions& options,
                                                            const viewer::HelloInfo& hello,
-                                                           std::optional<std::vector<viewer::ViewFrame>> recording) {
+                                                           std::optional<std::vector<viewer::ViewFrame>> recording,
+                                                           std::string_view host_option) {
   auto server = recording ? viewer::ViewerServer::start_recording(options, viewer::make_hello(hello), std::move(recording))
                           : viewer::ViewerServer::start(options, viewer::make_hello(hello));
   if (!server) return server;
+  const bool other_hosts = options.address != "127.0.0.1" && options.address != "::1";
   fmt::print(stderr, "viewer: {} (open it in a browser){}\n", server.value()->url(),
-             options.address == "127.0.0.1" || options.address == "::1" ? "" : "; read-only, but visible to other hosts");
+             other_hosts ? "; read-only, but visible to other hosts" : "");
+  if (other_hosts) {
+    // The names a request may give, the loopback ones aside: say them, since any other is refused.
+    const std::string port = std::to_string(server.value()->port());
+    std::string urls;
+    for (const std::string& host : server.value()->host_names()) {
+      if (host == "127.0.0.1:" + port || host == "localhost:" + port || host == "[::1]:" + port) continue;
+      if (host.find(':') == std::string::npos || host.back() == ']') continue;  // port 80's bare form
+      urls += fmt::format("{}http://{}/", urls.empty() ? "" : ", ", host);
+    }
+    fmt::print(stderr, "viewer: other hosts open {}; requests naming another host are refused (add names with {} NAME)\n",
+               urls.empty() ? "nothing yet" : urls, host_option);
+  }
   std::fflush(stderr);
   return server;
 }

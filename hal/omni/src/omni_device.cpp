@@ -278,7 +278,7 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   device->info_.workspace_min_m = limits.usable_workspace_min_m;
   device->info_.workspace_max_m = limits.usable_workspace_max_m;
   device->info_.nominal_rate_hz = options.scheduler_rate_hz;
-  device->info_.self_clocked = true;
+  device->info_.clocking = Clocking::kDeviceThread;  // the vendor's scheduler calls the tick
   init_guard.armed = false;
   claim.armed = false;  // the device releases it
   return device;
@@ -300,6 +300,18 @@ OmniDevice::~OmniDevice() {
 }
 
 // ---- run control (owner thread) -------------------------------------------------------------
+
+Result<ClockedEnd> OmniDevice::run_clocked(ClockedTickFn tick, void* context) {
+  auto started = start(tick, context);
+  if (!started) return Error{started.error()};
+  while (running()) static_cast<void>(wait_until_stopped(std::chrono::milliseconds(100)));
+  stop();
+  ClockedEnd end;
+  // A fatal HD error or too many overruns is the device's doing; a kStop or stop() is ours.
+  const auto reason = static_cast<EndReason>(end_reason_.load());
+  if (reason == EndReason::kFatalHdError || reason == EndReason::kOverruns) end.device_stopped = last_error();
+  return end;
+}
 
 Result<OmniStarted> OmniDevice::start(ClockedTickFn tick, void* context) {
   if (tick == nullptr) return Error{"start(): no tick function"};

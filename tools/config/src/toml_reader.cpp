@@ -10,21 +10,6 @@
 
 namespace toonforce {
 
-std::optional<ScalarKind> parse_scalar_kind(std::string_view name) {
-  if (name == "double") return ScalarKind::kDouble;
-  if (name == "float") return ScalarKind::kFloat;
-  if (name == "q16.16") return ScalarKind::kQ16_16;
-  return std::nullopt;
-}
-
-std::string_view scalar_kind_name(ScalarKind kind) {
-  switch (kind) {
-    case ScalarKind::kDouble: return "double";
-    case ScalarKind::kFloat: return "float";
-    case ScalarKind::kQ16_16: return "q16.16";
-  }
-  return "?";
-}
 
 void ErrorList::add(const toml::source_region& where, std::string_view path, std::string_view problem) {
   add(where.begin.line, path, problem);
@@ -134,6 +119,15 @@ std::uint32_t TableReader::line_of(std::string_view key) const {
 }
 
 void TableReader::error(std::string_view key, std::string_view problem) {
+  const std::size_t dot = key.find('.');
+  if (dot != std::string_view::npos) {  // a key of a sub-table: its own line
+    const toml::node* sub = table_.get(key.substr(0, dot));
+    if (const toml::table* t = sub != nullptr ? sub->as_table() : nullptr) {
+      const toml::node* node = t->get(key.substr(dot + 1));
+      errors_.add(node != nullptr ? node->source().begin.line : t->source().begin.line, key_path(key), problem);
+      return;
+    }
+  }
   errors_.add(line_of(key), key_path(key), problem);
 }
 
@@ -144,7 +138,8 @@ const toml::node* TableReader::take(std::string_view key) {
   return node;
 }
 
-std::optional<double> TableReader::to_number(std::string_view key, const toml::node& node, Range range) {
+std::optional<double> TableReader::to_number(std::string_view key, const toml::node& node, Range range,
+                                             std::string_view hint) {
   double value = 0.0;
   if (const auto* f = node.as_floating_point()) {
     value = f->get();
@@ -159,7 +154,7 @@ std::optional<double> TableReader::to_number(std::string_view key, const toml::n
     return std::nullopt;
   }
   if (!in_range(value, range)) {
-    error(key, fmt::format("must be {} (got {})", range_text(range), value));
+    error(key, fmt::format("must be {} (got {}){}{}", range_text(range), value, hint.empty() ? "" : "; ", hint));
     return std::nullopt;
   }
   if (scalar_ == ScalarKind::kQ16_16) {
@@ -184,19 +179,20 @@ std::optional<double> TableReader::to_number(std::string_view key, const toml::n
   return value;
 }
 
-std::optional<double> TableReader::required_number(std::string_view key, Range range, std::string_view unit) {
+std::optional<double> TableReader::required_number(std::string_view key, Range range, std::string_view unit,
+                                                    std::string_view hint) {
   const toml::node* node = take(key);
   if (node == nullptr) {
     error("", fmt::format("missing required key '{}'{}{}", key, unit.empty() ? "" : " ", unit));
     return std::nullopt;
   }
-  return to_number(key, *node, range);
+  return to_number(key, *node, range, hint);
 }
 
-double TableReader::number_or(std::string_view key, double fallback, Range range) {
+double TableReader::number_or(std::string_view key, double fallback, Range range, std::string_view hint) {
   const toml::node* node = take(key);
   if (node == nullptr) return fallback;
-  return to_number(key, *node, range).value_or(fallback);
+  return to_number(key, *node, range, hint).value_or(fallback);
 }
 
 std::optional<double> TableReader::optional_number(std::string_view key, Range range) {
@@ -301,12 +297,19 @@ std::vector<const toml::table*> TableReader::array_of_tables(std::string_view ke
   return tables;
 }
 
-void TableReader::finish() {
+void TableReader::finish() { finish("table", ""); }
+
+void TableReader::finish(std::string_view what, std::string_view note) {
   for (const auto& [key, node] : table_) {
     const std::string name(key.str());
     if (std::find(read_.begin(), read_.end(), name) != read_.end()) continue;
-    std::string problem = fmt::format("unknown key '{}'", name);
-    if (auto near = nearest_key(name, known_)) problem += fmt::format(" (did you mean '{}'?)", *near);
+    const bool tables = node.is_array_of_tables();
+    std::string problem = tables ? fmt::format("unknown {} [[{}]]", what, name) : fmt::format("unknown key '{}'", name);
+    if (auto near = nearest_key(name, known_)) {
+      problem += fmt::format(" (did you mean '{}'?)", *near);
+    } else if (tables && !note.empty()) {
+      problem += fmt::format(" ({})", note);
+    }
     errors_.add(key.source().begin.line != 0 ? key.source().begin.line : node.source().begin.line,
                 path_, problem);
   }

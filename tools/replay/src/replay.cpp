@@ -7,7 +7,9 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/replay/motion_csv.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
 namespace {
@@ -30,13 +32,28 @@ std::string describe_faults(std::uint32_t bits) {
   return out;
 }
 
+/// The motion as a device: each tick reads the current row (its position, and its velocity when
+/// the file gives one); what the loop writes is the row's force.
+struct MotionDevice {
+  const Motion* motion;
+  const std::size_t* row;
+  DeviceStatus read(DeviceReading& reading) noexcept {
+    const MotionRow& r = motion->rows[*row];
+    reading.position_m = r.position_m;
+    reading.velocity_m_per_s = r.velocity_m_per_s;
+    reading.has_velocity = motion->has_velocity;
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+};
+
 template <Scalar S>
 Result<ReplaySummary> replay_as(const SceneDescription& description, const Motion& motion,
                                 const ReplayOptions& options, std::FILE* out) {
   ReplaySummary summary;
   summary.scene_name = description.name;
-  summary.surfaces = description.surfaces.size();
-  summary.cliffs = description.cliffs.size();
+  summary.surfaces = description.of<RuntimeSurface>().size();
+  summary.cliffs = description.of<CartoonCliff>().size();
   summary.rows = motion.rows.size();
   summary.duration_s = motion.rows.back().t_s - motion.rows.front().t_s;
   summary.given_velocity = motion.has_velocity;
@@ -48,46 +65,53 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     summary.median_rate_hz = 1.0 / dts[dts.size() / 2];
   }
 
-  // Stamped time (period 0): dt and impact times come from the rows' t (spec §0).
-  Controller<RuntimeScene<S>> controller(make_runtime_scene<S>(description, options.sine),
-                                         controller_config(description, 0.0));
-  fmt::print(out, "t,fx,fy,fz,faults,limits,scene_fx,scene_fy,scene_fz,contact,impact_t,cliff_state\n");
-  int previous_cliff_state = -1;
-  for (std::size_t k = 0; k < motion.rows.size(); ++k) {
-    const MotionRow& row = motion.rows[k];
-    Sample sample;
-    sample.position_m = row.position_m;
-    sample.velocity_m_per_s = row.velocity_m_per_s;
-    sample.has_velocity = motion.has_velocity;
-    sample.now = Instant{static_cast<std::int64_t>(k), row.t_s};
-    // The first tick's dt is the recording's period (the reader guarantees two rows).
-    sample.dt_s = k == 0 ? motion.rows[1].t_s - row.t_s : row.t_s - motion.rows[k - 1].t_s;
-
-    const TickResult<S> r = controller.tick(sample);
-    const Vec3<double> f = to_double(r.force_n);
-    const Vec3<double> scene = to_double(r.scene_force_n);
-    fmt::print(out, "{},{},{},{},{},{},{},{},{}", row.t_s, f.x, f.y, f.z, r.faults.bits(), r.limits, scene.x,
-               scene.y, scene.z);
-    if (r.faults.has(Fault::kNonFiniteInput) || r.faults.has(Fault::kNonFiniteForce)) {
-      fmt::print(out, ",,,\n");  // effect states did not advance on this tick: nothing to report
+  // The servo loop with only the stages of effects.md §6, in the rows' stamped time: dt and
+  // impact times come from the rows' t (spec §0); the first tick's dt is the recording's period
+  // (the reader guarantees two rows).
+  const RuntimeScene<S> scene = make_runtime_scene<S>(description);
+  const std::vector<std::string> names = effect_value_names(scene);
+  const SummaryColumns columns = SummaryColumns::of(names);
+  std::size_t row = 0;
+  ServoLoop<MotionDevice, RuntimeScene<S>, NullPins, kSpecStages> loop(
+      MotionDevice{&motion, &row}, scene, replay_config(description, motion.rows[1].t_s - motion.rows[0].t_s));
+  std::string header = "t,fx,fy,fz,faults,limits,scene_fx,scene_fy,scene_fz,contact";
+  for (const std::string& n : names) header += "," + n;
+  fmt::print(out, "{}\n", header);
+  std::vector<double> values(names.size());
+  std::vector<double> previous_cliff(columns.cliff_states.size(), 0.0);
+  for (; row < motion.rows.size(); ++row) {
+    const MotionRow& r = motion.rows[row];
+    const TickStatus status = loop.tick(Instant{static_cast<std::int64_t>(row), r.t_s});
+    const Vec3<double> f = to_double(loop.force());
+    const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
+    const Vec3<double> scene_f = counted ? to_double(loop.scene_force()) : Vec3<double>{};
+    fmt::print(out, "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(), status.limits, scene_f.x,
+               scene_f.y, scene_f.z);
+    if (!counted) {
+      fmt::print(out, ",{:,>{}}\n", "", names.size());  // effect states did not advance: nothing to report
     } else {
-      const Diagnostics d = controller.diagnostics();
-      fmt::print(out, ",{},{},{}\n", d.in_contact ? 1 : 0, d.impact_time_s, d.cliff_state);
-      if (d.in_contact) ++summary.ticks_in_contact;
-      if (d.impact_time_s == 0.0) ++summary.impacts;
-      if (d.cliff_state == 1 && previous_cliff_state == 0) ++summary.cliff_falls;
-      previous_cliff_state = d.cliff_state;
+      const bool contact = loop.describe(values.data());
+      fmt::print(out, ",{}", contact ? 1 : 0);
+      for (const double v : values) fmt::print(out, ",{}", v);
+      fmt::print(out, "\n");
+      if (contact) ++summary.ticks_in_contact;
+      for (const std::size_t i : columns.impact_times) summary.impacts += values[i] == 0.0 ? 1U : 0U;
+      for (std::size_t c = 0; c < columns.cliff_states.size(); ++c) {
+        const double state = values[columns.cliff_states[c]];
+        if (state == 1.0 && previous_cliff[c] == 0.0) ++summary.cliff_falls;
+        previous_cliff[c] = state;
+      }
     }
     const double magnitude = std::sqrt(dot(f, f));
     if (magnitude > summary.peak_force_n) {
       summary.peak_force_n = magnitude;
-      summary.peak_force_t_s = row.t_s;
+      summary.peak_force_t_s = r.t_s;
     }
-    summary.peak_scene_force_n = std::max(summary.peak_scene_force_n, std::sqrt(dot(scene, scene)));
-    if ((r.limits & static_cast<std::uint8_t>(Limit::kRateLimited)) != 0) ++summary.rate_limited;
-    if ((r.limits & static_cast<std::uint8_t>(Limit::kClamped)) != 0) ++summary.clamped;
-    if (r.faults) ++summary.fault_ticks;
-    summary.fault_bits |= r.faults.bits();
+    summary.peak_scene_force_n = std::max(summary.peak_scene_force_n, std::sqrt(dot(scene_f, scene_f)));
+    if ((status.limits & static_cast<std::uint8_t>(Limit::kRateLimited)) != 0) ++summary.rate_limited;
+    if ((status.limits & static_cast<std::uint8_t>(Limit::kClamped)) != 0) ++summary.clamped;
+    if (status.faults) ++summary.fault_ticks;
+    summary.fault_bits |= status.faults.bits();
   }
   if (std::ferror(out) != 0) return Error{fmt::format("{}: write failed", options.output_path)};
   return summary;
@@ -106,12 +130,13 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
 
   File out(options.output_path == "-" ? stdout : std::fopen(options.output_path.c_str(), "wb"));
   if (!out) return Error{fmt::format("{}: cannot open for writing", options.output_path)};
-  Result<ReplaySummary> summary = Error{""};
-  switch (options.scalar) {
-    case ScalarKind::kDouble: summary = replay_as<double>(scene.value(), motion.value(), options, out.get()); break;
-    case ScalarKind::kFloat: summary = replay_as<float>(scene.value(), motion.value(), options, out.get()); break;
-    case ScalarKind::kQ16_16: summary = replay_as<Q16_16>(scene.value(), motion.value(), options, out.get()); break;
-  }
+  if (options.sine) override_sine(scene.value(), *options.sine);
+  Result<ReplaySummary> summary = with_scalar(
+      options.scalar,
+      [&]<Scalar S>() { return replay_as<S>(scene.value(), motion.value(), options, out.get()); },
+      [](ScalarKind kind) -> Result<ReplaySummary> {
+        return Error{fmt::format("--scalar {}: this build has no replay for it", scalar_kind_name(kind))};
+      });
   if (std::fflush(out.get()) != 0) return Error{fmt::format("{}: write failed", options.output_path)};
   return summary;
 }

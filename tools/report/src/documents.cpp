@@ -78,7 +78,7 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "is what the maps show.\n\n";
   md += "## How a point is classified\n\n"
         "Each point is one closed-loop run on the host simulation (host_sim: the device and hand physics, the same "
-        "Controller as `toonforce sim`, every T). Its energy is\n\n"
+        "servo loop as `toonforce sim`, with the spec's stages, every T). Its energy is\n\n"
         "    V = 1/2 m |v|^2 + 1/2 k_hand |x - r|^2 + 1/2 K max(0, depth)^2 - F_press . x  -  (the same at rest "
         "at equilibrium)\n\n"
         "from the simulation's true state at every tick (m the moving mass, k_hand and r the hand's stiffness and "

@@ -145,16 +145,29 @@ std::string latency_markdown(const LatencyReport& r) {
                       scalar_kind_name(row.info.scalar), times(row), cell(row.instructions_mean, 1));
   }
 
-  md += "\n### The whole Controller tick\n\n";
-  md += "`Controller::tick()` as replay, `toonforce sim` and the servo loop run it on the scene file's RuntimeScene: "
-        "measurement in double converted to the scalar, non-finite guard, velocity estimate (the scenario's "
-        "positions only, as from a Falcon), the effects on a copy of their state, the safety stage.\n\n";
-  md += "| scene | scalar | mean ns | median ns | p99.9 ns | max ns | instructions, mean | instructions, worst tick |\n";
-  md += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
-  for (const auto& row : r.rows) {
-    if (row.info.level != Level::kController) continue;
-    md += fmt::format("| {} | {} | {} | {} | {} |\n", row.info.subject, scalar_kind_name(row.info.scalar), times(row),
-                      cell(row.instructions_mean, 1), cell(row.instructions_max, 0));
+  md += "\n### The whole servo loop tick\n\n";
+  md += fmt::format(
+      "`ServoLoop::tick()`, read to write, on a scripted device that plays the scene's scenario (positions only, "
+      "as from a Falcon: the loop estimates velocity): the supervisor, the effects on a copy of their state with "
+      "the non-finite guard, and the safety chain. **every stage**: engage and soft start, passivity observer and "
+      "controller, thermal model, velocity limit and workspace, rate limit, clamp, all configured on (the "
+      "`run` loop); **spec stages**: only effects.md §6's (rate limit, clamp), as `toonforce replay` runs it. "
+      "Target (issue 14), double, every stage: at most {:.0f} instructions mean per tick.\n\n",
+      kTargetLoopInstructionsPerTick);
+  md += "| scene | stages | scalar | form | mean ns | median ns | p99.9 ns | max ns | instructions, mean | instructions, worst tick | target |\n";
+  md += "| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
+  for (const Level level : {Level::kLoop, Level::kSpecLoop}) {
+    for (const auto& row : r.rows) {
+      if (row.info.level != level) continue;
+      std::string target;
+      if (level == Level::kLoop && row.info.scalar == ScalarKind::kDouble && row.instructions_mean) {
+        target = *row.instructions_mean <= kTargetLoopInstructionsPerTick ? "met" : "MISSED";
+      }
+      md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} |\n", row.info.subject,
+                        level == Level::kLoop ? "every stage" : "spec stages", scalar_kind_name(row.info.scalar),
+                        row.info.form, times(row), cell(row.instructions_mean, 1), cell(row.instructions_max, 0),
+                        target);
+    }
   }
   for (const auto& row : r.rows) {
     if (row.info.level != Level::kHarness) continue;

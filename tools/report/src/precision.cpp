@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/report/scenario.hpp"
 #include "toonforce/report/workloads.hpp"
 
@@ -25,24 +25,42 @@ std::int64_t ticks_per_pass(const KeyframePath& path, double rate_hz) {
   return static_cast<std::int64_t>(std::llround(path.period_s() * rate_hz));
 }
 
-/// The Controller on `passes` passes of the scenario at `rate_hz`; the forces of the last.
+/// Positions played to the loop as a device would give them (no velocity).
+struct PlayedPositions {
+  const Vec3<double>* position_m;
+  DeviceStatus read(DeviceReading& r) noexcept {
+    r.position_m = *position_m;
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+};
+
+/// Replay's servo loop (effects.md §6 stages) at `rate_hz` on the scenario's positions.
+template <Scalar S>
+using SpecLoop = ServoLoop<PlayedPositions, RuntimeScene<S>, NullPins, kSpecStages>;
+
+template <Scalar S>
+RuntimeScene<S> scene_with(SceneDescription desc, std::optional<SineMethod> sine) {
+  if (sine) override_sine(desc, *sine);
+  return make_runtime_scene<S>(desc);
+}
+
+/// The loop on `passes` passes of the scenario at `rate_hz`; the forces of the last.
 template <Scalar S>
 Forces run_passes(const SceneDescription& desc, std::string_view scene, double rate_hz,
                   std::optional<SineMethod> sine, int passes) {
-  Controller<RuntimeScene<S>> ctl(make_runtime_scene<S>(desc, sine), controller_config(desc, 1.0 / rate_hz));
+  Vec3<double> x{};
+  SpecLoop<S> loop(PlayedPositions{&x}, scene_with<S>(desc, sine), servo_config(desc, 1.0 / rate_hz));
   const KeyframePath path = paper_scenario(scene);
   const std::int64_t n = ticks_per_pass(path, rate_hz);
   Forces out;
   out.force_n.reserve(static_cast<std::size_t>(n));
   for (std::int64_t k = 0; k < passes * n; ++k) {
-    Sample s;
     // k % n / rate: the same double for the same instant at every rate dividing the other.
-    s.position_m = path.at(static_cast<double>(k % n) / rate_hz).position_m;
-    s.now = Instant{k, 0.0};
-    s.dt_s = 1.0 / rate_hz;
-    const TickResult<S> r = ctl.tick(s);
+    x = path.at(static_cast<double>(k % n) / rate_hz).position_m;
+    const TickStatus r = loop.tick(k);
     if (k >= (passes - 1) * n) {
-      out.force_n.push_back(to_double(r.force_n));
+      out.force_n.push_back(to_double(loop.force()));
       if (r.faults) ++out.fault_ticks;
     }
   }
@@ -51,12 +69,9 @@ Forces run_passes(const SceneDescription& desc, std::string_view scene, double r
 
 Forces run_any(const SceneDescription& desc, std::string_view scene, ScalarKind kind, double rate_hz,
                std::optional<SineMethod> sine, int passes = 2) {
-  switch (kind) {
-    case ScalarKind::kDouble: return run_passes<double>(desc, scene, rate_hz, sine, passes);
-    case ScalarKind::kFloat: return run_passes<float>(desc, scene, rate_hz, sine, passes);
-    case ScalarKind::kQ16_16: return run_passes<Q16_16>(desc, scene, rate_hz, sine, passes);
-  }
-  return {};
+  return with_scalar(
+      kind, [&]<Scalar S>() { return run_passes<S>(desc, scene, rate_hz, sine, passes); },
+      [](ScalarKind) { return Forces{}; });
 }
 
 double cpu_seconds() {
@@ -65,7 +80,7 @@ double cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
-/// The drift run: the Controller at `rate_hz` for `hours`, every tick after the first pass
+/// The drift run: the loop at `rate_hz` for `hours`, every tick after the first pass
 /// compared with the reference at the same phase.
 template <Scalar S>
 DriftSeries drift_run(const SceneDescription& desc, std::string_view scene, const std::vector<Vec3<double>>& reference,
@@ -73,14 +88,14 @@ DriftSeries drift_run(const SceneDescription& desc, std::string_view scene, cons
   DriftSeries d;
   d.scene = std::string(scene);
   d.scalar = kIsFixed<S> ? ScalarKind::kQ16_16 : std::same_as<S, float> ? ScalarKind::kFloat : ScalarKind::kDouble;
-  Controller<RuntimeScene<S>> ctl(make_runtime_scene<S>(desc), controller_config(desc, 1.0 / rate_hz));
+  Vec3<double> x{};
+  SpecLoop<S> loop(PlayedPositions{&x}, make_runtime_scene<S>(desc), servo_config(desc, 1.0 / rate_hz));
   const KeyframePath path = paper_scenario(scene);
   const std::int64_t n = ticks_per_pass(path, rate_hz);
-  std::vector<Sample> samples(static_cast<std::size_t>(n));
+  std::vector<Vec3<double>> samples(static_cast<std::size_t>(n));
   std::vector<Vec3<double>> expected(static_cast<std::size_t>(n));
   for (std::int64_t j = 0; j < n; ++j) {
-    samples[static_cast<std::size_t>(j)].position_m = path.at(static_cast<double>(j) / rate_hz).position_m;
-    samples[static_cast<std::size_t>(j)].dt_s = 1.0 / rate_hz;
+    samples[static_cast<std::size_t>(j)] = path.at(static_cast<double>(j) / rate_hz).position_m;
     expected[static_cast<std::size_t>(j)] = reference[static_cast<std::size_t>(j * reference_step)];
   }
   const auto total = static_cast<std::int64_t>(std::llround(hours * 3600.0 * rate_hz));
@@ -91,11 +106,10 @@ DriftSeries drift_run(const SceneDescription& desc, std::string_view scene, cons
   std::int64_t bucket_n = 0;
   std::int64_t phase = 0;
   for (std::int64_t k = 0; k < total; ++k) {
-    Sample s = samples[static_cast<std::size_t>(phase)];
-    s.now = Instant{k, 0.0};
-    const TickResult<S> r = ctl.tick(s);
+    x = samples[static_cast<std::size_t>(phase)];
+    static_cast<void>(loop.tick(k));
     if (k >= n) {  // after the first pass (start-up transient of the filters)
-      const double e = norm(to_double(r.force_n) - expected[static_cast<std::size_t>(phase)]);
+      const double e = norm(to_double(loop.force()) - expected[static_cast<std::size_t>(phase)]);
       bucket_max = std::max(bucket_max, e);
       bucket_sum += e * e;
       ++bucket_n;
@@ -150,8 +164,9 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
     for (const double rate : options.rates_hz) {
       same_rate.push_back(run_any(reference_desc.value(), scene, ScalarKind::kDouble, rate, SineMethod::kLibrary));
     }
-    const bool has_impact = std::any_of(reference_desc->surfaces.begin(), reference_desc->surfaces.end(),
-                                        [](const auto& s) { return s.impact.has_value(); });
+    const auto& surfaces = reference_desc->of<RuntimeSurface>();
+    const bool has_impact =
+        std::any_of(surfaces.begin(), surfaces.end(), [](const auto& s) { return s.impact.enabled; });
 
     for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16}) {
       auto desc = load_scene_file(path, kind);
@@ -194,7 +209,7 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
           row.held_rms_error_n = std::sqrt(held_sum / static_cast<double>(reference.force_n.size()));
           row.fault_ticks = test.fault_ticks;
 
-          auto timed = make_controller_case(options.root, scene, kind, rate, sine);
+          auto timed = make_spec_loop_case(options.root, scene, kind, rate, sine);
           if (!timed) return Error{timed.error()};
           say(fmt::format("timing {}", timed.value()->info().id));
           timed.value()->run(std::max<std::uint64_t>(timed.value()->info().ticks_per_pass, 10000));
@@ -269,13 +284,13 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   md += fmt::format("Measured {} UTC on {}; load average {} before, {} after. Clock: {}.\n\n", r.machine.date_utc,
                     describe(r.machine), r.load_before, r.load_after, describe(r.clock));
   md += fmt::format(
-      "Reference: the Controller in double with the library sine at {:g} Hz on the same scripted scenario, the "
+      "Reference: replay's servo loop (effects.md §6 stages) in double with the library sine at {:g} Hz on the same scripted scenario, the "
       "velocity estimated from the positions (the scenes' 50 Hz cut-off) as on a Falcon; forces include the "
       "scenes' safety stage (2000 N/s, 8 N). Each run covers two passes of the periodic scenario and only the "
       "second is compared. Every rate divides {:g} Hz, so each of its ticks falls on a reference tick: "
       "**sampled** error = |F - F_ref| at the configuration's own ticks; **held** error = at every reference tick, "
       "the configuration's last force (zero-order hold: what the device renders) against the reference's. Cost: "
-      "the Controller tick of that configuration, each of {} ticks timed alone (mean; the median is in steps of "
+      "replay's servo loop tick of that configuration, each of {} ticks timed alone (mean; the median is in steps of "
       "the counter, 10 ns here). CPU per second = mean ns x rate. **Max vs double, same rate** = the sampled error "
       "against double with the library sine at the same rate: the scalar type's and the sine method's own share.\n\n",
       r.options.reference_rate_hz, r.options.reference_rate_hz, r.options.timing_ticks);
@@ -334,7 +349,7 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   if (!r.drift.empty()) {
     md += fmt::format(
         "\n### Drift over {:g} simulated hours\n\n"
-        "The Controller at {:g} Hz on the repeating scenario ({:g} ticks per run), every tick after the first pass "
+        "Replay's servo loop at {:g} Hz on the repeating scenario ({:g} ticks per run), every tick after the first pass "
         "compared with the reference at the same phase of the scenario (sampled error). Time inside the effects is "
         "integer ticks (spec effects.md §0), so nothing should accumulate: the error of the last hour should equal "
         "the first's. Spread = (largest hourly value / smallest) - 1.\n\n",

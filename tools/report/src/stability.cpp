@@ -11,7 +11,7 @@
 
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/host_sim/sim_device.hpp"
 
 namespace toonforce::report {
@@ -77,9 +77,10 @@ Outcome classify_with(const std::vector<double>& energy, double runaway_ratio) {
 Result<Outcome> run_with(const Experiment& e, double runaway_ratio) {
   auto desc = parse_scene(e.scene_toml, "sweep.toml");
   if (!desc) return Error{desc.error()};
-  ControllerConfig config = controller_config(desc.value(), e.period_s);
+  // The servo loop with the stages of effects.md §6 only: the control law itself (the map is
+  // of the law's stability, which the safety layer would otherwise hide).
+  ServoConfig config = servo_config(desc.value(), e.period_s);
   if (e.velocity_cutoff_hz > 0.0) config.velocity_cutoff_hz = e.velocity_cutoff_hz;
-  Controller<RuntimeScene<double>> controller(make_runtime_scene<double>(desc.value()), config);
 
   // The hand holds at its aim for the whole run, pressing with `press_n` at once.
   host_sim::HandScript script;
@@ -103,9 +104,12 @@ Result<Outcome> run_with(const Experiment& e, double runaway_ratio) {
   plant.integrator = e.integrator;
   plant.substeps = e.substeps;
   plant.period_s = e.period_s;
-  auto device = host_sim::SimDevice::create(e.device, std::move(*intent), plant);
-  if (!device) return Error{device.error()};
-  device->set_state(e.start_m, e.start_velocity_m_per_s);
+  auto created = host_sim::SimDevice::create(e.device, std::move(*intent), plant);
+  if (!created) return Error{created.error()};
+  created->set_state(e.start_m, e.start_velocity_m_per_s);
+  ServoLoop<host_sim::SimDevice, RuntimeScene<double>, NullPins, kSpecStages> loop(
+      std::move(created).value(), make_runtime_scene<double>(desc.value()), config);
+  const host_sim::SimDevice* device = &loop.device();
 
   const double mass = e.device.mass_kg + e.hand.mass_kg;
   const auto energy = [&](const Vec3<double>& x, const Vec3<double>& v) {
@@ -122,17 +126,8 @@ Result<Outcome> run_with(const Experiment& e, double runaway_ratio) {
   v.push_back(energy(device->plant().position_m(), device->plant().velocity_m_per_s()) - rest);
   double max_force = 0.0;
   for (std::int64_t k = 0; k < ticks; ++k) {
-    DeviceReading reading;
-    static_cast<void>(device->read(reading));
-    Sample s;
-    s.position_m = reading.position_m;
-    s.velocity_m_per_s = reading.velocity_m_per_s;
-    s.has_velocity = reading.has_velocity;
-    s.now = Instant{k, 0.0};
-    s.dt_s = e.period_s;
-    const TickResult<double> r = controller.tick(s);
-    max_force = std::max(max_force, norm(r.force_n));
-    static_cast<void>(device->write(r.force_n));
+    static_cast<void>(loop.tick(k));
+    max_force = std::max(max_force, norm(loop.force()));
     const double now = energy(device->plant().position_m(), device->plant().velocity_m_per_s()) - rest;
     v.push_back(now);
     if (!std::isfinite(now) || now > 1e6) break;  // gone: no need to run on

@@ -10,7 +10,7 @@
 #include <fmt/format.h>
 
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 #include "toonforce/report/scenario.hpp"
 #include "toonforce/report/tsc_clock.hpp"
 
@@ -22,7 +22,8 @@ std::string_view level_name(Level level) noexcept {
     case Level::kEffect: return "effect";
     case Level::kSafety: return "safety";
     case Level::kScene: return "scene";
-    case Level::kController: return "controller";
+    case Level::kSpecLoop: return "spec-loop";
+    case Level::kLoop: return "loop";
   }
   return "?";
 }
@@ -150,7 +151,8 @@ struct EffectWork {
     state = initial_state;
     in = &inputs[i % inputs.size()];
   }
-  Vec3<S> tick() noexcept { return E::force(params, state, *in); }
+  Vec3<S> tick() noexcept { return effect::force<E>(params, state, *in, active.data()); }
+  std::array<ActiveForce<S>, (effect::kActiveSlots<E> > 0 ? effect::kActiveSlots<E> : 1)> active{};
 };
 
 /// The safety stage alone: from a previous output to a new scene force.
@@ -188,23 +190,86 @@ struct SceneWork {
     current.now.tick = static_cast<std::int64_t>(i);  // time runs on across passes
   }
   typename ForceSafety<S>::Output tick() noexcept {
-    return safety.limit(scene.force(current, state), current.rate_hz);
+    return safety.limit(scene.force(current, state, active.data()), current.rate_hz);
   }
+  std::array<ActiveForce<S>, (SceneT::kActiveCapacity > 0 ? SceneT::kActiveCapacity : 1)> active{};
 };
 
-/// The whole per-tick controller on measured positions (velocity estimated).
-template <class SceneT>
-struct ControllerWork {
-  Controller<SceneT> controller;
-  std::vector<Sample> samples;
-  Sample current{};
+/// The whole servo loop tick (read, supervisor, velocity, scene, the safety chain, write) on a
+/// scripted device that plays the scenario's positions: with every stage (kLoop), or with
+/// effects.md §6's only, as replay runs it (kSpecLoop).
+template <class SceneT, LoopStages kStages>
+struct LoopWork {
+  struct Script {
+    const std::vector<Vec3<double>>* samples = nullptr;
+    std::size_t next = 0;
+  };
+  struct ScriptedDevice {
+    Script* script;
+    DeviceStatus read(DeviceReading& r) noexcept {
+      r.position_m = (*script->samples)[script->next];
+      r.has_velocity = false;
+      return DeviceStatus::kOk;
+    }
+    DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+  };
+  using Loop = ServoLoop<ScriptedDevice, SceneT, NullPins, kStages>;
+
+  LoopWork(SceneT scene, ServoConfig config, std::vector<Vec3<double>> samples)
+      : scene_(std::move(scene)), config_(config),
+        samples_(std::make_shared<std::vector<Vec3<double>>>(std::move(samples))) {
+    rebuild();
+  }
+  LoopWork(const LoopWork& o) : scene_(o.scene_), config_(o.config_), samples_(o.samples_) { rebuild(); }
+  LoopWork& operator=(const LoopWork& o) {
+    scene_ = o.scene_;
+    config_ = o.config_;
+    samples_ = o.samples_;
+    rebuild();
+    return *this;
+  }
+  std::size_t size() const noexcept { return samples_->size(); }
 
   void prepare(std::uint64_t i) noexcept {
-    current = samples[i % samples.size()];
-    current.now.tick = static_cast<std::int64_t>(i);
+    script_->next = static_cast<std::size_t>(i % samples_->size());
+    k_ = static_cast<std::int64_t>(i);
   }
-  TickResult<typename SceneT::Scalar> tick() noexcept { return controller.tick(current); }
+  TickStatus tick() noexcept { return loop_->tick(k_); }
+
+ private:
+  void rebuild() {
+    script_ = std::make_unique<Script>();
+    script_->samples = samples_.get();
+    loop_ = std::make_unique<Loop>(ScriptedDevice{script_.get()}, scene_, config_);
+  }
+  SceneT scene_;
+  ServoConfig config_;
+  std::shared_ptr<std::vector<Vec3<double>>> samples_;
+  std::unique_ptr<Script> script_;
+  std::unique_ptr<Loop> loop_;
+  std::int64_t k_ = 0;
 };
+
+/// Every stage of the servo loop's safety layer on, as on a Falcon-class device: engage, soft
+/// start, velocity limit, workspace, thermal model (continuous force below the clamp),
+/// passivity observer and controller, rate limit, clamp.
+/// Replay's configuration at a fixed rate: the [device] clamp and rate limit only.
+ServoConfig spec_config(const SceneDescription& desc, double rate_hz) { return servo_config(desc, 1.0 / rate_hz); }
+
+ServoConfig every_stage_config(const SceneDescription& desc, double rate_hz) {
+  ServoConfig c = servo_config(desc, 1.0 / rate_hz);
+  c.limits.has_max_force = true;
+  c.limits.max_force_n = desc.limits.has_max_force ? desc.limits.max_force_n : 8.0;
+  c.limits.has_max_force_rate = true;
+  c.limits.max_force_rate_n_per_s = desc.limits.has_max_force_rate ? desc.limits.max_force_rate_n_per_s : 2000.0;
+  c.safety.has_workspace = true;
+  c.safety.workspace_min_m = {-0.06, -0.06, -0.06};
+  c.safety.workspace_max_m = {0.06, 0.06, 0.06};
+  c.safety.has_max_velocity = true;
+  c.safety.thermal.continuous_force_n = 0.5 * c.limits.max_force_n;
+  c.safety.passivity.controller = true;
+  return c;
+}
 
 // ---- inputs ---------------------------------------------------------------------------------
 
@@ -264,18 +329,12 @@ std::vector<TickInput<S>> scenario_inputs(std::string_view scene) {
   return inputs;
 }
 
-/// The same scenario as device samples (positions only: the controller estimates velocity).
-std::vector<Sample> scenario_samples(std::string_view scene, double rate_hz = kRateHz) {
+/// The same scenario as device readings (positions only: the loop estimates velocity).
+std::vector<Vec3<double>> scenario_samples(std::string_view scene, double rate_hz = kRateHz) {
   const KeyframePath path = paper_scenario(scene);
   const auto ticks = static_cast<std::int64_t>(std::llround(path.period_s() * rate_hz));
-  std::vector<Sample> samples;
-  for (std::int64_t k = 0; k < ticks; ++k) {
-    Sample s;
-    s.position_m = path.at(static_cast<double>(k) / rate_hz).position_m;
-    s.now = Instant{k, 0.0};
-    s.dt_s = 1.0 / rate_hz;
-    samples.push_back(s);
-  }
+  std::vector<Vec3<double>> samples;
+  for (std::int64_t k = 0; k < ticks; ++k) samples.push_back(path.at(static_cast<double>(k) / rate_hz).position_m);
   return samples;
 }
 
@@ -298,38 +357,44 @@ class CaseBuilder {
   }
 
   void scenes() {
-    scene_pair("wall", loaded_.wall, [](const RuntimeScene<S>& rt) {
-      const auto& s = rt.surface(0);
-      return Scene<Surface<SpringWall<S>>>({s.plane, {s.wall.stiffness_n_per_m, S{}}});
-    });
-    scene_pair("realistic_friction", loaded_.friction, [](const RuntimeScene<S>& rt) {
-      const auto& s = rt.surface(0);
-      return Scene<Surface<SpringWall<S>, RealisticFriction<S>>>(
-          {s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.friction, {}});
-    });
-    scene_pair("slippery", loaded_.slippery, [](const RuntimeScene<S>& rt) {
-      const auto& s = rt.surface(0);
-      return Scene<Surface<SpringWall<S>, SuperSlippery<S>>>(
-          {s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.slippery, {}});
-    });
-    scene_pair("cartoon_wall", loaded_.cartoon, [](const RuntimeScene<S>& rt) {
-      const auto& s = rt.surface(0);
-      return Scene<Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>>(
-          {s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, s.impact.law});
-    });
-    scene_pair("cliff", loaded_.cliff, [](const RuntimeScene<S>& rt) { return Scene<CartoonCliff<S>>(rt.cliff(0)); });
+    for (const auto& [name, desc] : paper_scenes()) {
+      const RuntimeScene<S> runtime = make_runtime_scene<S>(*desc);
+      auto inputs = scenario_inputs<S>(name);
+      const std::size_t ticks = inputs.size();
+      with_compiled(name, runtime, [&](const auto& compiled) {
+        using Compiled = std::remove_cvref_t<decltype(compiled)>;
+        add(Level::kScene, name, "scenario", "compile-time", ticks,
+            SceneWork<Compiled>{compiled, ForceSafety<S>(desc->limits), inputs, {}, {}});
+      });
+      add(Level::kScene, name, "scenario", "runtime", ticks,
+          SceneWork<RuntimeScene<S>>{runtime, ForceSafety<S>(desc->limits), std::move(inputs), {}, {}});
+    }
   }
 
-  void controllers() {
-    const std::pair<const char*, const SceneDescription*> scenes[] = {
-        {"wall", &loaded_.wall},       {"realistic_friction", &loaded_.friction}, {"slippery", &loaded_.slippery},
-        {"cartoon_wall", &loaded_.cartoon}, {"cliff", &loaded_.cliff}};
-    for (const auto& [name, desc] : scenes) {
-      ControllerWork<RuntimeScene<S>> work{
-          Controller<RuntimeScene<S>>(make_runtime_scene<S>(*desc), controller_config(*desc, 1.0 / kRateHz)),
-          scenario_samples(name), {}};
-      const auto ticks = work.samples.size();
-      add(Level::kController, name, "scenario", "runtime", ticks, std::move(work));
+  /// The servo loop as replay runs it (effects.md §6 stages only), on the scene file's scene.
+  void spec_loops() {
+    for (const auto& [name, desc] : paper_scenes()) {
+      LoopWork<RuntimeScene<S>, kSpecStages> work(make_runtime_scene<S>(*desc), spec_config(*desc, kRateHz),
+                                                  scenario_samples(name));
+      const auto ticks = work.size();
+      add(Level::kSpecLoop, name, "scenario", "runtime", ticks, std::move(work));
+    }
+  }
+
+  /// The whole servo loop, every stage on, for the scene composed at compile time and from its file.
+  void loops() {
+    for (const auto& [name, desc] : paper_scenes()) {
+      const RuntimeScene<S> runtime = make_runtime_scene<S>(*desc);
+      const ServoConfig config = every_stage_config(*desc, kRateHz);
+      with_compiled(name, runtime, [&](const auto& compiled) {
+        using Compiled = std::remove_cvref_t<decltype(compiled)>;
+        LoopWork<Compiled, kEveryStage> work(compiled, config, scenario_samples(name));
+        const auto ticks = work.size();
+        add(Level::kLoop, name, "scenario", "compile-time", ticks, std::move(work));
+      });
+      LoopWork<RuntimeScene<S>, kEveryStage> work(runtime, config, scenario_samples(name));
+      const auto ticks = work.size();
+      add(Level::kLoop, name, "scenario", "runtime", ticks, std::move(work));
     }
   }
 
@@ -361,7 +426,7 @@ class CaseBuilder {
   static Vec3<double> any_velocity(Lcg& r) { return {r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2)}; }
 
   void penalty_wall() {
-    const auto s = make_runtime_scene<S>(loaded_.wall).surface(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.wall).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using Spring = Surface<SpringWall<S>>;
     const typename Spring::Params spring{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, {}};
     effect<Spring>("penalty wall", "out of contact", spring, {},
@@ -375,7 +440,7 @@ class CaseBuilder {
   }
 
   void friction() {
-    const auto s = make_runtime_scene<S>(loaded_.friction).surface(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.friction).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, RealisticFriction<S>>;
     const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.friction, {}};
     const std::string name = "realistic friction";
@@ -390,7 +455,7 @@ class CaseBuilder {
   }
 
   void slippery() {
-    const auto s = make_runtime_scene<S>(loaded_.slippery).surface(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.slippery).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, SuperSlippery<S>>;
     const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.slippery, {}};
     const std::string name = "super-slippery";
@@ -404,7 +469,7 @@ class CaseBuilder {
   }
 
   void impact() {
-    const auto s = make_runtime_scene<S>(loaded_.cartoon).surface(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.cartoon).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>;
     typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, s.impact.law};
     const std::string name = "impact transient";
@@ -449,7 +514,7 @@ class CaseBuilder {
   }
 
   void cliff() {
-    const typename CartoonCliff<S>::Params p = make_runtime_scene<S>(loaded_.cliff).cliff(0);
+    const typename CartoonCliff<S>::Params p = make_runtime_scene<S>(loaded_.cliff).template params<CartoonCliff<S>>(0);
     using C = CartoonCliff<S>;
     const std::string name = "cartoon cliff";
     // Gap x in [0, 0.02]; threshold 0.08 m/s; rearm height 1 mm.
@@ -524,16 +589,33 @@ class CaseBuilder {
     add(Level::kSafety, name, "rate-limited and clamped", "", both.inputs.size(), std::move(both));
   }
 
-  template <class MakeScene>
-  void scene_pair(const char* name, const SceneDescription& desc, MakeScene make_scene) {
-    const RuntimeScene<S> runtime = make_runtime_scene<S>(desc);
-    auto inputs = scenario_inputs<S>(name);
-    const std::size_t ticks = inputs.size();
-    using Compiled = decltype(make_scene(runtime));
-    add(Level::kScene, name, "scenario", "compile-time", ticks,
-        SceneWork<Compiled>{make_scene(runtime), ForceSafety<S>(desc.limits), inputs, {}, {}});
-    add(Level::kScene, name, "scenario", "runtime", ticks,
-        SceneWork<RuntimeScene<S>>{runtime, ForceSafety<S>(desc.limits), std::move(inputs), {}, {}});
+  std::array<std::pair<const char*, const SceneDescription*>, 5> paper_scenes() const {
+    return {{{"wall", &loaded_.wall},
+             {"realistic_friction", &loaded_.friction},
+             {"slippery", &loaded_.slippery},
+             {"cartoon_wall", &loaded_.cartoon},
+             {"cliff", &loaded_.cliff}}};
+  }
+
+  /// Calls `f` with the paper scene `name` composed at compile time from its file's run-time
+  /// scene: only its own laws (a spring wall where the file's has no damping).
+  template <class F>
+  static void with_compiled(std::string_view name, const RuntimeScene<S>& rt, F&& f) {
+    if (name == "cliff") {
+      f(Scene<CartoonCliff<S>>(rt.template params<CartoonCliff<S>>(0)));
+      return;
+    }
+    const auto& s = rt.template params<RuntimeSurface<S>>(0);
+    const typename SpringWall<S>::Params wall{s.wall.stiffness_n_per_m, S{}};
+    if (name == "wall") {
+      f(Scene<Surface<SpringWall<S>>>({s.plane, wall, {}, {}}));
+    } else if (name == "realistic_friction") {
+      f(Scene<Surface<SpringWall<S>, RealisticFriction<S>>>({s.plane, wall, s.tangential.friction, {}}));
+    } else if (name == "slippery") {
+      f(Scene<Surface<SpringWall<S>, SuperSlippery<S>>>({s.plane, wall, s.tangential.slippery, {}}));
+    } else {
+      f(Scene<Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>>({s.plane, wall, {}, s.impact.law}));
+    }
   }
 
   const Loaded& loaded_;
@@ -565,41 +647,41 @@ Result<bool> add_scalar(const std::string& root, std::vector<std::unique_ptr<Tic
   if (!loaded) return Error{loaded.error()};
   CaseBuilder<S>(loaded.value(), effects).effects();
   CaseBuilder<S>(loaded.value(), scenes).scenes();
-  CaseBuilder<S>(loaded.value(), controllers).controllers();
+  CaseBuilder<S>(loaded.value(), controllers).spec_loops();
+  CaseBuilder<S>(loaded.value(), controllers).loops();
   return true;
 }
 
 template <Scalar S>
-std::unique_ptr<TickCase> controller_case(const SceneDescription& desc, std::string_view scene, double rate_hz,
-                                          std::optional<SineMethod> sine) {
-  ControllerWork<RuntimeScene<S>> work{
-      Controller<RuntimeScene<S>>(make_runtime_scene<S>(desc, sine), controller_config(desc, 1.0 / rate_hz)),
-      scenario_samples(scene, rate_hz), {}};
+std::unique_ptr<TickCase> spec_loop_case(SceneDescription desc, std::string_view scene, double rate_hz,
+                                         std::optional<SineMethod> sine) {
+  if (sine) override_sine(desc, *sine);
+  LoopWork<RuntimeScene<S>, kSpecStages> work(make_runtime_scene<S>(desc), spec_config(desc, rate_hz),
+                                              scenario_samples(scene, rate_hz));
   CaseInfo info;
-  info.level = Level::kController;
-  info.scalar = kind_of<S>();
+  info.level = Level::kSpecLoop;
+  info.scalar = scalar_kind_of<S>();
   info.subject = std::string(scene);
   info.branch = "scenario";
   info.form = "runtime";
-  info.ticks_per_pass = work.samples.size();
-  info.id = fmt::format("controller/{}/{}/{:g}Hz/{}", scene, scalar_kind_name(info.scalar), rate_hz,
+  info.ticks_per_pass = work.size();
+  info.id = fmt::format("spec-loop/{}/{}/{:g}Hz/{}", scene, scalar_kind_name(info.scalar), rate_hz,
                         sine ? sine_method_name(*sine) : std::string_view("default"));
   return make_case(std::move(info), std::move(work));
 }
 
 }  // namespace
 
-Result<std::unique_ptr<TickCase>> make_controller_case(const std::string& root, std::string_view scene,
-                                                       ScalarKind scalar, double rate_hz,
-                                                       std::optional<SineMethod> sine) {
+Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, std::string_view scene,
+                                                      ScalarKind scalar, double rate_hz,
+                                                      std::optional<SineMethod> sine) {
   auto desc = load(root, scene, scalar);
   if (!desc) return Error{desc.error()};
-  switch (scalar) {
-    case ScalarKind::kDouble: return controller_case<double>(desc.value(), scene, rate_hz, sine);
-    case ScalarKind::kFloat: return controller_case<float>(desc.value(), scene, rate_hz, sine);
-    case ScalarKind::kQ16_16: return controller_case<Q16_16>(desc.value(), scene, rate_hz, sine);
-  }
-  return Error{"unknown scalar type"};
+  return with_scalar(
+      scalar, [&]<Scalar S>() -> Result<std::unique_ptr<TickCase>> {
+        return spec_loop_case<S>(desc.value(), scene, rate_hz, sine);
+      },
+      [](ScalarKind) -> Result<std::unique_ptr<TickCase>> { return Error{"scalar not built"}; });
 }
 
 Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root) {

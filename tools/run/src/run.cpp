@@ -1,20 +1,17 @@
 #include "toonforce/run/run.hpp"
 
-#include <poll.h>
-#include <sys/mman.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <thread>
 
 #include <fmt/format.h>
 
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_loop.hpp"
+#include "toonforce/control/servo_session.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/trace/json.hpp"
@@ -32,118 +29,50 @@ ScalarKind RunOptions::default_run_scalar() noexcept {
 
 namespace {
 
-/// 16384 frames: 1.6 s of telemetry at 10 kHz, 16 s at 1 kHz, before the writer must catch up.
-using TelemetryRing = SpscRing<TelemetryFrame, 16384>;
-
-void sleep_ms(int ms) noexcept {
-  timespec ts{0, static_cast<long>(ms) * 1'000'000L};
-  nanosleep(&ts, nullptr);
-}
-
-/// One servo tick per period, telemetry out through the ring. Everything here runs on the
-/// servo thread: no allocation, no lock, no blocking.
-template <Scalar S, class PinsT>
-class ServoTask final : public PeriodicTask {
+/// The frames of a run, on the session's writer thread: trace rows, fault messages, counts,
+/// the live viewer.
+class RunConsumer final : public FrameConsumer {
  public:
-  using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT>;
-  ServoTask(Loop& loop, TelemetryRing& ring) : loop_(loop), ring_(ring) {}
+  RunConsumer(TraceWriter* trace, std::size_t values, std::FILE* messages, TelemetrySink* sink, RunSummary& summary)
+      : trace_(trace), values_(values), messages_(messages), sink_(sink), summary_(summary) {}
 
-  void tick(std::int64_t k) noexcept override { static_cast<void>(loop_.tick(k)); }
-  void publish(std::int64_t, const TickTiming& timing) noexcept override {
-    loop_.fill_frame(frame_);
-    frame_.timing = timing;
-    missed_ = timing.missed_total;
-    static_cast<void>(ring_.push(frame_));  // a full ring drops and counts, never waits
-  }
-  void shutdown(std::int64_t k) noexcept override {
-    static_cast<void>(loop_.shutdown(k));  // zero force before anything else
-    loop_.fill_frame(frame_);
-    frame_.timing = TickTiming{};
-    frame_.timing.missed_total = missed_;
-    // The run is over: the last frame (force zero) may wait for the writer, up to a second.
-    for (int i = 0; i < 1000; ++i) {
-      if (ring_.try_push(frame_)) return;
-      sleep_ms(1);
+  void consume(const TelemetryFrame& f) override {
+    ++summary_.frames_written;
+    if (f.faults != 0) ++summary_.fault_ticks;
+    summary_.fault_bits |= f.faults;
+    summary_.peak_force_n = std::max(summary_.peak_force_n, std::sqrt(dot(f.force_n, f.force_n)));
+    if (f.latched != latched_) {
+      const std::uint32_t added = f.latched & ~latched_;
+      if (added != 0) {
+        fmt::print(messages_, "t = {:.3f} s: fault latched: {}; force off until re-armed{}\n", f.t_s,
+                   describe_faults(added), interactive_ ? " (type r and Enter)" : "");
+      } else if (f.latched == 0) {
+        fmt::print(messages_, "t = {:.3f} s: re-armed\n", f.t_s);
+        ++summary_.rearms;
+      }
+      std::fflush(messages_);
+      latched_ = f.latched;
     }
-    static_cast<void>(ring_.push(frame_));
+    summary_.latched_at_end = f.latched;
+    if (trace_ != nullptr && !write_frame(*trace_, f, values_, true)) write_failed = true;
+    if (sink_ != nullptr) sink_->publish(f);  // fan-out here, never in the servo thread
   }
+  void finish() override {
+    if (sink_ != nullptr) sink_->finish();
+  }
+  void set_interactive(bool interactive) noexcept { interactive_ = interactive; }
 
- private:
-  Loop& loop_;
-  TelemetryRing& ring_;
-  TelemetryFrame frame_{};
-  std::int64_t missed_ = 0;
-};
-
-/// The writer thread: trace rows, fault messages, counts.
-struct Writer {
-  TelemetryRing& ring;
-  TraceWriter* trace;
-  std::FILE* messages;
-  TelemetrySink* sink;
-  bool interactive;
-  std::atomic<bool> finished{false};
-  RunSummary& summary;
   bool write_failed = false;
 
-  void run() {
-    TelemetryFrame f;
-    std::uint32_t latched = 0;
-    for (;;) {
-      if (!ring.pop(f)) {
-        if (finished.load(std::memory_order_acquire)) {
-          if (!ring.pop(f)) break;
-        } else {
-          sleep_ms(2);
-          continue;
-        }
-      }
-      ++summary.frames_written;
-      if (f.faults != 0) ++summary.fault_ticks;
-      summary.fault_bits |= f.faults;
-      summary.peak_force_n = std::max(summary.peak_force_n, std::sqrt(dot(f.force_n, f.force_n)));
-      if (f.latched != latched) {
-        const std::uint32_t added = f.latched & ~latched;
-        if (added != 0) {
-          fmt::print(messages, "t = {:.3f} s: fault latched: {}; force off until re-armed{}\n", f.t_s,
-                     describe_faults(added), interactive ? " (type r and Enter)" : "");
-        } else if (f.latched == 0) {
-          fmt::print(messages, "t = {:.3f} s: re-armed\n", f.t_s);
-          ++summary.rearms;
-        }
-        std::fflush(messages);
-        latched = f.latched;
-      }
-      summary.latched_at_end = f.latched;
-      if (trace != nullptr && !write_frame(*trace, f)) write_failed = true;
-      if (sink != nullptr) sink->publish(f);  // fan-out here, never in the servo thread
-    }
-    if (sink != nullptr) sink->finish();
-  }
+ private:
+  TraceWriter* trace_;
+  std::size_t values_;
+  std::FILE* messages_;
+  TelemetrySink* sink_;
+  RunSummary& summary_;
+  std::uint32_t latched_ = 0;
+  bool interactive_ = false;
 };
-
-/// Reads 'r' (re-arm) and 'q' (stop) lines from a terminal while the run lasts.
-template <class Loop>
-void read_commands(Loop& loop, std::atomic<int>& stop, const std::atomic<bool>& finished) {
-  char buffer[64];
-  while (!finished.load(std::memory_order_acquire) && stop.load() == 0) {
-    pollfd in{STDIN_FILENO, POLLIN, 0};
-    if (poll(&in, 1, 100) <= 0 || (in.revents & POLLIN) == 0) continue;
-    const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
-    if (n <= 0) return;  // end of input
-    for (ssize_t i = 0; i < n; ++i) {
-      if (buffer[i] == 'r') loop.request_rearm();
-      if (buffer[i] == 'q') {
-        int expected = 0;
-        stop.compare_exchange_strong(expected, kStopByUser);
-      }
-    }
-  }
-}
-
-std::atomic<int> g_stop{0};
-
-void zero_driver(void* driver) noexcept { static_cast<DeviceDriver*>(driver)->emergency_zero(); }
 
 template <Scalar S, class PinsT>
 Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver,
@@ -155,58 +84,43 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   }
   RunSummary summary;
   summary.scene_name = scene.name;
-  summary.surfaces = scene.surfaces.size();
-  summary.cliffs = scene.cliffs.size();
+  summary.surfaces = scene.of<RuntimeSurface>().size();
+  summary.cliffs = scene.of<CartoonCliff>().size();
   summary.device_name = driver.info().name;
 
+  // Everything the servo thread touches is allocated here, before it starts.
+  const RuntimeScene<S> runtime = make_runtime_scene<S>(scene);
+  const std::vector<std::string> values = effect_value_names(runtime);
   std::unique_ptr<TraceWriter> trace;
   if (!options.trace_path.empty()) {
-    auto opened = TraceWriter::open(options.trace_path, telemetry_columns());
+    auto opened = TraceWriter::open(options.trace_path, telemetry_columns(values, true));
     if (!opened) return Error{opened.error()};
     trace = std::move(opened.value());
   }
-  // Everything the servo thread touches is allocated here, before it starts.
   using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT>;
-  auto loop = std::make_unique<Loop>(DriverRef(driver), make_runtime_scene<S>(scene), config, pins);
-  auto ring = std::make_unique<TelemetryRing>();
-  ServoTask<S, PinsT> task(*loop, *ring);
+  auto loop = std::make_unique<Loop>(DriverRef(driver), runtime, config, pins);
 
-  RealtimeOptions rt;
-  rt.rate_hz = options.rate_hz;
-  rt.deadlines = options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * options.rate_hz)) : 0;
-  rt.priority = options.priority;
-  rt.cpu = options.cpu;
-  rt.allow_non_realtime = options.allow_non_realtime;
-  rt.lock_memory = options.lock_memory;
-  rt.watchdog_periods = config.safety.watchdog_periods;
-  const EmergencyZero emergency{zero_driver, &driver};
+  SessionOptions session;
+  session.realtime.rate_hz = options.rate_hz;
+  session.realtime.deadlines =
+      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * options.rate_hz)) : 0;
+  session.realtime.priority = options.priority;
+  session.realtime.cpu = options.cpu;
+  session.realtime.allow_non_realtime = options.allow_non_realtime;
+  session.realtime.lock_memory = options.lock_memory;
+  session.realtime.watchdog_periods = config.safety.watchdog_periods;
+  session.handle_signals = options.handle_signals;
+  session.interactive = options.interactive;
+  session.messages = options.messages;
+  RunConsumer consumer(trace.get(), values.size(), options.messages, options.sink, summary);
+  consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
 
-  g_stop.store(0);
-  if (options.handle_signals) install_signal_handlers(g_stop, emergency);
-  const bool interactive = options.interactive && isatty(STDIN_FILENO) != 0;
-  Writer writer{*ring, trace.get(), options.messages, options.sink, interactive, {}, summary};
-  std::thread writer_thread([&writer] { writer.run(); });
-  std::atomic<bool> finished{false};
-  std::thread command_thread;
-  if (interactive) {
-    fmt::print(options.messages, "running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n");
-    command_thread = std::thread([&] { read_commands(*loop, g_stop, finished); });
-  }
-
-  auto* clocked = driver.info().self_clocked ? dynamic_cast<OmniDevice*>(&driver) : nullptr;
-  auto report = clocked != nullptr ? run_device_clocked(task, *clocked, rt.deadlines, rt.lock_memory, g_stop)
-                                   : run_realtime(task, rt, emergency, g_stop);
-  finished.store(true);
-  writer.finished.store(true, std::memory_order_release);
-  writer_thread.join();
-  if (command_thread.joinable()) command_thread.join();
-  if (options.handle_signals) restore_signals();
+  auto report = run_loop(*loop, driver, consumer, session);
   if (!report) return Error{report.error()};
-
-  summary.report = std::move(report.value());
-  summary.frames_dropped = ring->dropped();
-  if (trace && !trace->close()) writer.write_failed = true;
-  if (writer.write_failed) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
+  summary.report = std::move(report->report);
+  summary.frames_dropped = report->frames_dropped;
+  if (trace && !trace->close()) consumer.write_failed = true;
+  if (consumer.write_failed) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
   return summary;
 }
 
@@ -225,76 +139,6 @@ std::string stop_reason(int signal) {
 }
 
 }  // namespace
-
-namespace {
-
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);  // vDSO: no system call
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
-/// What the vendor's servo thread needs: the task, where to count, when to stop.
-struct ClockedRun {
-  PeriodicTask& task;
-  RunReport& report;
-  std::int64_t deadlines;
-  const std::atomic<int>& stop;
-  std::int64_t last_tick = -1;
-  std::int64_t missed = 0;
-};
-
-TickVerdict clocked_tick(void* context, const ClockedTick& clock) noexcept {
-  auto& run = *static_cast<ClockedRun*>(context);
-  if (run.last_tick >= 0 && clock.tick > run.last_tick + 1) run.missed += clock.tick - run.last_tick - 1;
-  run.last_tick = clock.tick;
-  if (run.stop.load(std::memory_order_relaxed) != 0 || (run.deadlines > 0 && run.report.ticks >= run.deadlines)) {
-    run.task.shutdown(clock.tick);  // zero force inside the frame, then the device stops
-    return TickVerdict::kStop;
-  }
-  const std::int64_t start = monotonic_ns();
-  run.task.tick(clock.tick);
-  const std::int64_t compute = monotonic_ns() - start;
-  const auto period_ns = static_cast<std::int64_t>(std::llround(clock.period_s * 1e9));
-  TickTiming timing;
-  timing.wake_latency_ns = run.report.ticks == 0 ? 0 : static_cast<std::int64_t>(std::llround(clock.dt_s * 1e9)) - period_ns;
-  timing.compute_ns = compute;
-  timing.slack_ns = period_ns - compute;
-  timing.missed_total = run.missed;
-  run.report.wake.record(timing.wake_latency_ns);
-  run.report.compute.record(timing.compute_ns);
-  run.report.slack.record(timing.slack_ns);
-  ++run.report.ticks;
-  run.task.publish(clock.tick, timing);
-  return TickVerdict::kContinue;
-}
-
-}  // namespace
-
-Result<RunReport> run_device_clocked(PeriodicTask& task, OmniDevice& device, std::int64_t deadlines, bool lock_memory,
-                                     const std::atomic<int>& stop) {
-  RunReport report;
-  report.setup.priority = -1;  // the vendor's scheduler thread: its priority is not ours to set
-  report.setup.notes = "wake-up latency here is the jitter of the device scheduler's period\n";
-  if (lock_memory) {
-    report.setup.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-    if (!report.setup.memory_locked) report.setup.notes += "mlockall refused: memory not locked\n";
-  }
-  ClockedRun run{task, report, deadlines, stop};
-  const std::int64_t begin = monotonic_ns();
-  auto started = device.start(&clocked_tick, &run);
-  if (!started) return Error{started.error()};
-  while (device.running()) static_cast<void>(device.wait_until_stopped(std::chrono::milliseconds(100)));
-  device.stop();
-  report.elapsed_s = static_cast<double>(monotonic_ns() - begin) * 1e-9;
-  report.missed = run.missed;
-  report.stop_signal = stop.load();
-  const bool we_stopped = stop.load() != 0 || (deadlines > 0 && report.ticks >= deadlines);
-  if (const std::string why = device.last_error(); !we_stopped && !why.empty()) {
-    report.setup.notes += fmt::format("the device stopped the run: {}\n", why);
-  }
-  return report;
-}
 
 std::string describe_faults(std::uint32_t bits) {
   std::string out;
@@ -350,22 +194,13 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   // The GPIO pins are opened (and checked) before the loop starts; without GPIO options the
   // loop is built with NullPins and runs no GPIO code at all.
   auto result = gpio::with_gpio_pins(options.gpio, [&](auto& pins) -> Result<RunSummary> {
-    switch (options.scalar) {
-#if TOONFORCE_FIRMWARE
-      case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver, pins);
-      case ScalarKind::kDouble:
-      case ScalarKind::kFloat: break;
-    }
-    return Error{fmt::format("--scalar {}: this is a firmware build (TOONFORCE_FIRMWARE=ON): the servo loop is "
-                             "compiled for q16.16 only",
-                             scalar_kind_name(options.scalar))};
-#else
-      case ScalarKind::kDouble: return run_as<double>(options, scene.value(), driver, pins);
-      case ScalarKind::kFloat: return run_as<float>(options, scene.value(), driver, pins);
-      case ScalarKind::kQ16_16: return run_as<Q16_16>(options, scene.value(), driver, pins);
-    }
-    return Error{"unknown scalar type"};
-#endif
+    return with_scalar(
+        options.scalar, [&]<Scalar S>() { return run_as<S>(options, scene.value(), driver, pins); },
+        [](ScalarKind kind) -> Result<RunSummary> {
+          return Error{fmt::format("--scalar {}: this is a firmware build (TOONFORCE_FIRMWARE=ON): the servo loop is "
+                                   "compiled for q16.16 only",
+                                   scalar_kind_name(kind))};
+        });
   });
   if (!result) return Error{result.error()};
   return std::move(result.value());

@@ -1,75 +1,66 @@
 #include "toonforce/sim/closed_loop.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
+
+#include "toonforce/control/servo_loop.hpp"
+#include "toonforce/host_sim/sim_driver.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
 
 namespace {
 
-/// The controller part of the loop, one per scalar type.
+/// The loop for one scalar type, behind one virtual call per tick.
 class Loop {
  public:
   virtual ~Loop() = default;
-  virtual SimRecord step(host_sim::SimDevice& device, double period_s) noexcept = 0;
+  virtual void step(SimRecord& record) noexcept = 0;
+  virtual void shutdown(SimRecord& record) noexcept = 0;
+  virtual host_sim::SimDevice& device() noexcept = 0;
 };
 
 template <Scalar S>
 class ScalarLoop final : public Loop {
  public:
-  ScalarLoop(const SceneDescription& scene, const ControllerConfig& config, std::optional<SineMethod> sine)
-      : controller_(make_runtime_scene<S>(scene, sine), config) {}
+  ScalarLoop(host_sim::SimDevice device, const RuntimeScene<S>& scene, const ServoConfig& config)
+      : loop_(std::move(device), scene, config) {}
 
-  SimRecord step(host_sim::SimDevice& device, double period_s) noexcept override {
-    SimRecord record;
-    record.tick = device.tick();
-    record.t_s = static_cast<double>(record.tick) * period_s;
-    const host_sim::HandTarget target = device.plant().hand(record.t_s);
-    record.true_position_m = device.plant().position_m();
-    record.true_velocity_m_per_s = device.plant().velocity_m_per_s();
-    record.hand_target_m = target.position_m;
-    record.segment = target.segment;
-    record.grasping = target.grasping;
-
-    DeviceReading reading;
-    const DeviceStatus status = device.read(reading);
-    Sample sample;
-    sample.position_m = reading.position_m;
-    sample.velocity_m_per_s = reading.velocity_m_per_s;
-    sample.has_velocity = reading.has_velocity;
-    sample.now = Instant{record.tick, 0.0};
-    sample.dt_s = period_s;
-    const TickResult<S> result = controller_.tick(sample);
-    // A device that is not ok gets zero force (hal/device.hpp); the simulated one always is.
-    const Vec3<double> force = status == DeviceStatus::kOk ? to_double(result.force_n) : Vec3<double>{};
-
-    record.position_m = reading.position_m;
-    record.force_n = force;
-    record.faults = result.faults.bits();
-    record.limits = result.limits;
-    record.has_diagnostics = !result.faults.has(Fault::kNonFiniteInput) && !result.faults.has(Fault::kNonFiniteForce);
-    if (record.has_diagnostics) {
-      record.velocity_m_per_s = to_double(controller_.last_velocity_m_per_s());
-      record.diagnostics = controller_.diagnostics();
-    }
-    static_cast<void>(device.write(force));
-    record.device_force_n = device.applied_force_n();
-    return record;
+  void step(SimRecord& r) noexcept override {
+    host_sim::SimDevice& d = loop_.device();
+    const std::int64_t k = d.tick();
+    const host_sim::HandTarget target = d.plant().hand(d.time_s());
+    r.true_position_m = d.plant().position_m();
+    r.true_velocity_m_per_s = d.plant().velocity_m_per_s();
+    r.hand_target_m = target.position_m;
+    r.segment = target.segment;
+    r.grasping = target.grasping;
+    static_cast<void>(loop_.tick(k));
+    loop_.fill_frame(r.frame);
+    r.device_force_n = d.applied_force_n();
   }
+  void shutdown(SimRecord& r) noexcept override {
+    host_sim::SimDevice& d = loop_.device();
+    r.true_position_m = d.plant().position_m();
+    r.true_velocity_m_per_s = d.plant().velocity_m_per_s();
+    static_cast<void>(loop_.shutdown(d.tick()));
+    loop_.fill_frame(r.frame);
+    r.device_force_n = d.applied_force_n();
+  }
+  host_sim::SimDevice& device() noexcept override { return loop_.device(); }
 
  private:
-  Controller<RuntimeScene<S>> controller_;
+  ServoLoop<host_sim::SimDevice, RuntimeScene<S>> loop_;
 };
 
 }  // namespace
 
 struct SimSession::Impl {
-  Impl(host_sim::SimDevice d, SimConfig c, ControllerConfig cc)
-      : device(std::move(d)), config(std::move(c)), controller_config(cc) {}
-  host_sim::SimDevice device;
   SimConfig config;
-  ControllerConfig controller_config;
+  ServoConfig servo;
+  std::vector<std::string> names;
   std::unique_ptr<Loop> loop;
 };
 
@@ -82,31 +73,63 @@ Result<SimSession> SimSession::create(const SceneDescription& scene, const HandS
                                       const SimConfig& config) {
   auto device = host_sim::SimDevice::create(config.device, hand.intent, config.plant, config.seed);
   if (!device) return Error{device.error()};
-  // On a device, the force limit is the smaller of the scene's and the device's (effects.md §6).
-  ControllerConfig controller = toonforce::controller_config(scene, config.plant.period_s);
-  if (config.device.max_force_n > 0.0 &&
-      (!controller.limits.has_max_force || config.device.max_force_n < controller.limits.max_force_n)) {
-    controller.limits.max_force_n = config.device.max_force_n;
-    controller.limits.has_max_force = true;
+  auto impl = std::make_unique<Impl>();
+  impl->config = config;
+  // The configuration `run --device sim` uses: the scene's, the device's limits filling the gaps.
+  impl->servo = with_device(toonforce::servo_config(scene, config.plant.period_s),
+                            host_sim::device_info(config.device, config.plant.period_s));
+  if (const std::string problems = check_servo_config(impl->servo); !problems.empty()) {
+    return Error{fmt::format("{}: the servo configuration does not work:\n{}", scene.source, problems)};
   }
-  auto impl = std::make_unique<Impl>(std::move(device).value(), config, controller);
-  switch (config.scalar) {
-    case ScalarKind::kDouble: impl->loop = std::make_unique<ScalarLoop<double>>(scene, controller, config.sine); break;
-    case ScalarKind::kFloat: impl->loop = std::make_unique<ScalarLoop<float>>(scene, controller, config.sine); break;
-    case ScalarKind::kQ16_16: impl->loop = std::make_unique<ScalarLoop<Q16_16>>(scene, controller, config.sine); break;
-  }
+  auto built = with_scalar(
+      config.scalar,
+      [&]<Scalar S>() -> Result<bool> {
+        const RuntimeScene<S> runtime = make_runtime_scene<S>(scene);
+        impl->names = effect_value_names(runtime);
+        impl->loop = std::make_unique<ScalarLoop<S>>(std::move(device).value(), runtime, impl->servo);
+        return true;
+      },
+      [](ScalarKind kind) -> Result<bool> {
+        return Error{fmt::format("--scalar {}: this build has no servo loop for it", scalar_kind_name(kind))};
+      });
+  if (!built) return Error{built.error()};
   return SimSession(std::move(impl));
 }
 
-SimRecord SimSession::step() noexcept { return impl_->loop->step(impl_->device, impl_->config.plant.period_s); }
+SimRecord SimSession::step() noexcept {
+  SimRecord record;
+  impl_->loop->step(record);
+  return record;
+}
+
+SimRecord SimSession::shutdown() noexcept {
+  SimRecord record;
+  impl_->loop->shutdown(record);
+  return record;
+}
 
 std::int64_t SimSession::ticks_for(double duration_s) const noexcept {
   return std::llround(duration_s / impl_->config.plant.period_s);
 }
 
-const host_sim::SimDevice& SimSession::device() const noexcept { return impl_->device; }
-host_sim::SimDevice& SimSession::device() noexcept { return impl_->device; }
+const host_sim::SimDevice& SimSession::device() const noexcept { return impl_->loop->device(); }
+host_sim::SimDevice& SimSession::device() noexcept { return impl_->loop->device(); }
 const SimConfig& SimSession::config() const noexcept { return impl_->config; }
-const ControllerConfig& SimSession::controller_config() const noexcept { return impl_->controller_config; }
+const ServoConfig& SimSession::servo_config() const noexcept { return impl_->servo; }
+const std::vector<std::string>& SimSession::value_names() const noexcept { return impl_->names; }
+
+std::size_t SimSession::value_index(std::string_view name) const noexcept {
+  for (std::size_t i = 0; i < impl_->names.size(); ++i) {
+    if (impl_->names[i] == name) return i;
+  }
+  return impl_->names.size();
+}
+
+double value_of(const SimRecord& record, const std::vector<std::string>& names, std::string_view name) noexcept {
+  for (std::size_t i = 0; i < names.size() && i < record.frame.value_count; ++i) {
+    if (names[i] == name) return record.frame.values[i];
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
 
 }  // namespace toonforce

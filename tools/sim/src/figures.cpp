@@ -58,7 +58,7 @@ SimOptions figure_sim_options(const FigureSpec& spec, const std::string& root) {
   return options;
 }
 
-Result<std::vector<SimRecord>> run_figure(const FigureSpec& spec, const std::string& root) {
+Result<FigureRun> run_figure(const FigureSpec& spec, const std::string& root) {
   const SimOptions options = figure_sim_options(spec, root);
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
@@ -67,10 +67,12 @@ Result<std::vector<SimRecord>> run_figure(const FigureSpec& spec, const std::str
   auto session = SimSession::create(scene.value(), hand.value(), sim_config(options));
   if (!session) return Error{session.error()};
   const std::int64_t ticks = session->ticks_for(spec.duration_s);
-  std::vector<SimRecord> records;
-  records.reserve(static_cast<std::size_t>(ticks));
-  for (std::int64_t k = 0; k < ticks; ++k) records.push_back(session->step());
-  return records;
+  FigureRun run;
+  run.value_names = session->value_names();
+  run.scene = std::move(scene).value();
+  run.records.reserve(static_cast<std::size_t>(ticks));
+  for (std::int64_t k = 0; k < ticks; ++k) run.records.push_back(session->step());
+  return run;
 }
 
 Result<std::vector<std::string>> run_figures(const FiguresOptions& options) {

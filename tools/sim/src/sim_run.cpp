@@ -8,44 +8,38 @@
 
 #include "toonforce/sim/plot.hpp"
 #include "toonforce/sim/sim_trace.hpp"
+#include "toonforce/control/supervisor.hpp"
 
 namespace toonforce {
 
-void add_to_summary(SimSummary& s, const SimRecord& r) {
+void add_to_summary(SimSummary& s, const SimRecord& r, const SummaryColumns& columns) {
+  const TelemetryFrame& f = r.frame;
   ++s.ticks;
-  const double magnitude = std::sqrt(dot(r.force_n, r.force_n));
+  const double magnitude = std::sqrt(dot(f.force_n, f.force_n));
   if (magnitude > s.peak_force_n) {
     s.peak_force_n = magnitude;
-    s.peak_force_t_s = r.t_s;
+    s.peak_force_t_s = f.t_s;
   }
-  if (r.has_diagnostics) {
-    if (r.diagnostics.in_contact) ++s.ticks_in_contact;
-    if (r.diagnostics.impact_time_s == 0.0) ++s.impacts;
-    if (r.diagnostics.cliff_state == 1 && s.last_cliff_state == 0) ++s.cliff_falls;
-    s.last_cliff_state = r.diagnostics.cliff_state;
+  if (f.in_contact) ++s.ticks_in_contact;
+  for (const std::size_t i : columns.impact_times) {
+    if (i < f.value_count && f.values[i] == 0.0) ++s.impacts;
   }
-  if ((r.limits & static_cast<std::uint8_t>(Limit::kRateLimited)) != 0) ++s.rate_limited;
-  if ((r.limits & static_cast<std::uint8_t>(Limit::kClamped)) != 0) ++s.clamped;
-  if (r.faults != 0) ++s.fault_ticks;
-  s.fault_bits |= r.faults;
-}
-
-TelemetryFrame telemetry_frame(const SimRecord& r) noexcept {
-  TelemetryFrame f;
-  f.t_s = r.t_s;
-  f.tick = r.tick;
-  f.position_m = r.position_m;
-  f.velocity_m_per_s = r.velocity_m_per_s;
-  f.force_n = r.force_n;
-  f.scene_force_n = r.force_n;
-  f.faults = r.faults;
-  f.limits = r.limits;
-  if (r.has_diagnostics) {
-    f.in_contact = r.diagnostics.in_contact;
-    f.impact_time_s = r.diagnostics.impact_time_s;
-    f.cliff_state = r.diagnostics.cliff_state;
+  s.last_cliff_states.resize(columns.cliff_states.size(), 0.0);
+  for (std::size_t c = 0; c < columns.cliff_states.size(); ++c) {
+    const std::size_t i = columns.cliff_states[c];
+    if (i >= f.value_count) continue;
+    if (f.values[i] == 1.0 && s.last_cliff_states[c] == 0.0) ++s.cliff_falls;
+    s.last_cliff_states[c] = f.values[i];
   }
-  return f;
+  const auto limited = [&f](Limit l) { return (f.limits & static_cast<std::uint8_t>(l)) != 0; };
+  if (limited(Limit::kRateLimited)) ++s.rate_limited;
+  if (limited(Limit::kClamped)) ++s.clamped;
+  if (limited(Limit::kEngaging)) ++s.engaging_ticks;
+  if (limited(Limit::kSoftStart)) ++s.soft_start_ticks;
+  if (limited(Limit::kPassivity)) ++s.passivity_ticks;
+  if (f.faults != 0) ++s.fault_ticks;
+  s.fault_bits |= f.faults;
+  s.last_state = f.state;
 }
 
 SimConfig sim_config(const SimOptions& options) {
@@ -57,7 +51,6 @@ SimConfig sim_config(const SimOptions& options) {
   config.plant.period_s = 1.0 / options.rate_hz;
   config.seed = options.seed;
   config.scalar = options.scalar;
-  config.sine = options.sine;
   return config;
 }
 
@@ -73,6 +66,7 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
+  if (options.sine) override_sine(scene.value(), *options.sine);
   auto hand = load_hand_script(options.script_path);
   if (!hand) return Error{hand.error()};
   auto session = SimSession::create(scene.value(), hand.value(), sim_config(options));
@@ -84,8 +78,10 @@ Result<SimSummary> run_sim(const SimOptions& options) {
     return Error{fmt::format("nothing to simulate: {} s is less than one tick at {} Hz (give --duration)", duration_s,
                              options.rate_hz)};
   }
-  auto trace = SimTraceWriter::open(options.trace_path);
+  auto trace = TraceWriter::open(options.trace_path, sim_trace_columns(session->value_names()));
   if (!trace) return Error{trace.error()};
+  const std::size_t values = session->value_names().size();
+  const SummaryColumns columns = SummaryColumns::of(session->value_names());
 
   SimSummary summary;
   summary.scene_name = scene->name;
@@ -103,14 +99,14 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   for (std::int64_t k = 0; k < ticks; ++k) {
     const SimRecord record = session->step();
-    trace->write(record);
-    add_to_summary(summary, record);
+    write_sim_record(*trace.value(), record, values);
+    add_to_summary(summary, record, columns);
     if (!inside(record.true_position_m)) ++summary.ticks_outside_workspace;
     if (options.sink != nullptr) {
-      options.sink->publish(telemetry_frame(record));
+      options.sink->publish(record.frame);
       if (paced) {
         std::this_thread::sleep_until(wall_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                       std::chrono::duration<double>(record.t_s / options.pace)));
+                                                       std::chrono::duration<double>(record.frame.t_s / options.pace)));
       }
     }
   }
@@ -118,7 +114,7 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   summary.duration_s = static_cast<double>(ticks) * session->config().plant.period_s;
   summary.final_position_m = session->device().plant().position_m();
   summary.device_work_j = session->device().plant().device_work_j();
-  if (auto closed = trace->close(); !closed) return Error{closed.error()};
+  if (!trace.value()->close()) return Error{fmt::format("{}: writing the trace failed (disk full?)", options.trace_path)};
 
   if (!options.plot_path.empty()) {
     if (options.trace_path == "-") return Error{"--plot needs the trace in a file, not on standard output"};
@@ -127,8 +123,8 @@ Result<SimSummary> run_sim(const SimOptions& options) {
                                                    : options.plot_title,
                         {}};
     // A cliff across x on a horizontal ground: the plot can draw its gap and threshold.
-    if (!scene->cliffs.empty()) {
-      const auto& c = scene->cliffs.front();
+    if (!scene->of<CartoonCliff>().empty()) {
+      const auto& c = scene->of<CartoonCliff>().front();
       if (std::abs(c.axis.x - 1.0) < 1e-9 && std::abs(c.ground.normal.z - 1.0) < 1e-9) {
         request.extra_args = {"--gap", fmt::format("{}", c.ground.point_m.x + c.gap_min_m),
                               fmt::format("{}", c.ground.point_m.x + c.gap_max_m), "--threshold",
@@ -153,8 +149,10 @@ std::string format_sim_summary(const SimSummary& s, const SimOptions& options) {
   text += fmt::format("forces  peak {:.4g} N at t = {:.6g} s; the device did {:.4g} J of work on the hand\n",
                       s.peak_force_n, s.peak_force_t_s, s.device_work_j);
   text += fmt::format("effects impacts triggered {}; cliff falls {}\n", s.impacts, s.cliff_falls);
-  text += fmt::format("safety  rate-limited {} ticks, clamped {} ticks, faults {} ticks\n", s.rate_limited, s.clamped,
-                      s.fault_ticks);
+  text += fmt::format("safety  engaging {} ticks, soft start {} ticks, passivity damping {} ticks, rate-limited {} "
+                      "ticks, clamped {} ticks, faults {} ticks; loop {} at the end\n",
+                      s.engaging_ticks, s.soft_start_ticks, s.passivity_ticks, s.rate_limited, s.clamped, s.fault_ticks,
+                      to_string(static_cast<LoopState>(s.last_state)));
   text += fmt::format("end     handle at [{:.4g}, {:.4g}, {:.4g}] m\n", s.final_position_m.x, s.final_position_m.y,
                       s.final_position_m.z);
   if (s.ticks_outside_workspace > 0) {

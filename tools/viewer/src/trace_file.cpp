@@ -63,7 +63,14 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
         }
       }
       for (const std::string& h : header) {
-        map.push_back(view_column(h));
+        std::size_t column = view_column(h);
+        // An effect's value ("surface1.impact_t"): the next of the frame's effect columns.
+        if (column == kViewStride && h.find('.') != std::string::npos &&
+            rec.effect_values.size() < kViewEffectValues) {
+          column = kFirstEffectValue + rec.effect_values.size();
+          rec.effect_values.push_back(h);
+        }
+        map.push_back(column);
         if (h == "tick") has_tick = true;
       }
       const auto has = [&header](std::string_view c) { return std::find(header.begin(), header.end(), c) != header.end(); };

@@ -4,10 +4,17 @@
 
 namespace toonforce::viewer {
 
-ViewFrame view_frame(const TelemetryFrame& f, bool has_loop) noexcept {
+std::vector<std::string> view_columns(const std::vector<std::string>& effect_values) {
+  std::vector<std::string> columns(kViewColumns.begin(), kViewColumns.end());
+  for (std::size_t i = 0; i < kViewEffectValues; ++i) columns.push_back(i < effect_values.size() ? effect_values[i] : "");
+  return columns;
+}
+
+ViewFrame view_frame(const TelemetryFrame& f, bool has_timing) noexcept {
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  const auto ns_to_us = [has_loop](std::int64_t ns) { return has_loop ? static_cast<double>(ns) * 1e-3 : kNaN; };
+  const auto ns_to_us = [has_timing](std::int64_t ns) { return has_timing ? static_cast<double>(ns) * 1e-3 : kNaN; };
   ViewFrame v;
+  v.fill(kNaN);
   v[kT] = f.t_s;
   v[kTick] = static_cast<double>(f.tick);
   v[kX] = f.position_m.x;
@@ -25,16 +32,15 @@ ViewFrame view_frame(const TelemetryFrame& f, bool has_loop) noexcept {
   v[kFaults] = static_cast<double>(f.faults);
   v[kLatched] = static_cast<double>(f.latched);
   v[kLimits] = static_cast<double>(f.limits);
-  v[kState] = has_loop ? static_cast<double>(f.state) : kNaN;
+  v[kState] = static_cast<double>(f.state);
   v[kContact] = f.in_contact ? 1.0 : 0.0;
-  v[kImpactT] = f.impact_time_s;
-  v[kCliffState] = static_cast<double>(f.cliff_state);
   v[kMaxForce] = f.max_force_n;
-  v[kGain] = has_loop ? f.gain : kNaN;
+  v[kGain] = f.gain;
   v[kWakeLatencyUs] = ns_to_us(f.timing.wake_latency_ns);
   v[kComputeUs] = ns_to_us(f.timing.compute_ns);
   v[kSlackUs] = ns_to_us(f.timing.slack_ns);
-  v[kMissed] = has_loop ? static_cast<double>(f.timing.missed_total) : kNaN;
+  v[kMissed] = has_timing ? static_cast<double>(f.timing.missed_total) : kNaN;
+  for (std::size_t i = 0; i < kViewEffectValues && i < f.value_count; ++i) v[kFirstEffectValue + i] = f.values[i];
   return v;
 }
 

@@ -13,6 +13,9 @@
 // Debian machine that builds C++.
 #include "toonforce/viewer/viewer_server.hpp"
 
+#include <ifaddrs.h>
+#include <netinet/in.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -20,6 +23,10 @@
 #include <limits>
 #include <set>
 #include <thread>
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <fmt/format.h>
 
@@ -47,8 +54,6 @@ using FrameRing = SpscRing<ViewFrame, 8192>;
 constexpr std::size_t kBatchHeader = 4;
 constexpr double kLiveBatch = 1.0;
 constexpr double kHistoryBatch = 2.0;
-constexpr std::size_t kHistoryChunkFrames = 4096;
-constexpr std::size_t kMaxPages = 16;
 
 std::string lower(std::string_view text) {
   std::string out(text);
@@ -56,13 +61,19 @@ std::string lower(std::string_view text) {
   return out;
 }
 
-std::shared_ptr<const std::string> make_batch(double kind, std::uint64_t first_seq, std::span<const ViewFrame> frames) {
+/// A batch of frames given in up to two runs (the history ring wraps).
+std::shared_ptr<const std::string> make_batch(double kind, std::uint64_t first_seq, std::span<const ViewFrame> frames,
+                                              std::span<const ViewFrame> more = {}) {
   auto out = std::make_shared<std::string>();
-  out->resize((kBatchHeader + frames.size() * kViewStride) * sizeof(double));
+  const std::size_t count = frames.size() + more.size();
+  out->resize((kBatchHeader + count * kViewStride) * sizeof(double));
   const std::array<double, kBatchHeader> header{kind, static_cast<double>(kViewStride), static_cast<double>(first_seq),
-                                                static_cast<double>(frames.size())};
+                                                static_cast<double>(count)};
   std::memcpy(out->data(), header.data(), sizeof header);
   if (!frames.empty()) std::memcpy(out->data() + sizeof header, frames.data(), frames.size() * sizeof(ViewFrame));
+  if (!more.empty()) {
+    std::memcpy(out->data() + sizeof header + frames.size() * sizeof(ViewFrame), more.data(), more.size() * sizeof(ViewFrame));
+  }
   return out;
 }
 
@@ -72,6 +83,7 @@ struct Message {
   bool droppable = false;  ///< live batches: a slow page may lose them
   std::size_t frames = 0;
   bool status = false;     ///< a newer status replaces a queued one (and drops no batch)
+  std::size_t bytes() const noexcept { return data ? data->size() : 0; }
 };
 
 class PageSession;
@@ -82,16 +94,22 @@ struct ViewerServer::Impl {
   ViewerOptions options;
   // Any thread. Before the io_context: sessions it destroys last still count themselves out.
   std::atomic<std::uint64_t> frames_dropped_pages{0}, pages_connected{0}, pages_refused{0}, messages_refused{0},
-      http_refused{0};
-  std::atomic<std::size_t> max_queued{0}, pages_open{0};
+      http_refused{0}, connections_refused{0}, accept_failures{0};
+  std::atomic<std::size_t> max_queued{0}, pages_open{0}, queued_bytes{0}, max_queued_bytes{0};
+  /// Pages that hold a slot: taken when the upgrade request is read, given back when the page
+  /// session ends. pages_open counts finished handshakes only, too late to be the cap.
+  std::atomic<std::size_t> page_slots{0};
+  std::atomic<std::size_t> connections{0};  ///< HTTP sessions alive (not yet, or never, pages)
+  bool stopping = false;                    ///< set on the server thread before the io_context stops
 
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   asio::steady_timer timer{io};
-  std::string hello;
+  asio::steady_timer accept_timer{io};  ///< the wait after a failed accept
+  std::chrono::duration<double> accept_delay{kAcceptRetryMinS};
+  std::shared_ptr<const std::string> hello;  ///< one copy, shared by every page
   std::uint16_t port = 0;
-  bool wildcard = false;            ///< bound to every address: any Host with our port
-  std::set<std::string> hosts;      ///< lower-case "name:port" a request may name
+  std::set<std::string> hosts;      ///< lower-case Host values a request may give ("name:port")
   std::string url;
   std::unique_ptr<FrameRing> ring = std::make_unique<FrameRing>();
   std::atomic<bool> finish_requested{false};
@@ -107,35 +125,69 @@ struct ViewerServer::Impl {
 
   std::thread thread;
 
-  bool host_allowed(std::string_view host) const {
-    const std::string h = lower(host);
-    if (hosts.count(h) != 0) return true;
-    if (!wildcard) return false;
-    const std::size_t colon = h.rfind(':');
-    return colon != std::string::npos && colon + 1 < h.size() && h.substr(colon + 1) == std::to_string(port) &&
-           h.find_first_of("/@ ") == std::string::npos;
-  }
+  bool host_allowed(std::string_view host) const { return hosts.count(lower(host)) != 0; }
   /// A browser's WebSocket from our own page carries Origin http://<the Host it asked>.
   bool origin_allowed(std::string_view origin, std::string_view host) const {
     return host_allowed(host) && lower(origin) == "http://" + lower(host);
+  }
+
+  /// Takes a page slot if one is free: check and take are one atomic step.
+  bool reserve_page() noexcept {
+    std::size_t taken = page_slots.load();
+    do {
+      if (taken >= options.max_pages) return false;
+    } while (!page_slots.compare_exchange_weak(taken, taken + 1));
+    return true;
+  }
+  void release_page() noexcept {
+    if (page_slots.fetch_sub(1) == 1 && !stopping) trim_memory();
+  }
+  /// Bytes a page holds (queued, or being written): the count behind the memory bound.
+  void hold_bytes(std::size_t bytes) noexcept {
+    const std::size_t now = queued_bytes.fetch_add(bytes) + bytes;
+    std::size_t seen = max_queued_bytes.load();
+    while (now > seen && !max_queued_bytes.compare_exchange_weak(seen, now)) {
+    }
+  }
+  void free_bytes(std::size_t bytes) noexcept { queued_bytes.fetch_sub(bytes); }
+  /// The last page has gone: give the memory its batches used back to the system. glibc keeps
+  /// freed blocks of a thread's arena for reuse; under `run --view` memory is locked, so what it
+  /// keeps stays resident and locked in the real-time process.
+  static void trim_memory() noexcept {
+#if defined(__GLIBC__)
+    malloc_trim(0);
+#endif
   }
 
   void start_accept();
   void on_timer();
   void add_page(const std::shared_ptr<PageSession>& page);
   void broadcast(const Message& message);
+  /// The next history message of a page that wants frames [next, end): at most
+  /// kHistoryChunkFrames from the history ring. Frames the ring lost since the page came
+  /// (overwritten by newer ones) are skipped and added to `lost`.
+  Message history_chunk(std::uint64_t& next, std::uint64_t end, std::uint64_t& lost) const;
   std::shared_ptr<const std::string> status_json(std::uint64_t page_dropped) const;
 };
 
 namespace {
 
 /// One WebSocket page: hello, history, then live batches; never reads anything but a close.
+/// It holds at most: the message being written, one status, max_queued_batches live batches
+/// (shared with the other pages), and the history as a range, made into one chunk at a time
+/// when the one before has been written.
 class PageSession : public std::enable_shared_from_this<PageSession> {
  public:
+  /// The caller took a page slot for this session (reserve_page); the session gives it back.
   PageSession(tcp::socket socket, ViewerServer::Impl& server) : ws_(std::move(socket)), server_(server) {}
   ~PageSession() {
+    drop_queue();
+    server_.free_bytes(current_.bytes());
     if (counted_) server_.pages_open.fetch_sub(1);
+    server_.release_page();
   }
+  PageSession(const PageSession&) = delete;
+  PageSession& operator=(const PageSession&) = delete;
 
   void accept(http::request<http::string_body> request) {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
@@ -152,75 +204,104 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
     });
   }
 
+  /// The first messages: the hello, then history frames [first, end) as they can be written.
+  void join(Message hello, std::uint64_t first, std::uint64_t end) {
+    send(std::move(hello));  // nothing is in flight yet: the hello goes out first
+    history_next_ = first;
+    history_end_ = end;      // from here on, history goes before anything queued
+  }
+
   void send(Message message) {
     if (closing_) return;
-    const std::size_t first = writing_ ? 1 : 0;  // the front is being written: keep it
     if (message.status) {
-      for (std::size_t i = first; i < queue_.size(); ++i) {
-        if (queue_[i].status) {
-          queue_.erase(queue_.begin() + static_cast<std::ptrdiff_t>(i));
+      for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+        if (it->status) {
+          server_.free_bytes(it->bytes());
+          queue_.erase(it);
           break;
         }
       }
     } else if (message.droppable) {
       std::size_t queued = 0;
-      for (std::size_t i = first; i < queue_.size(); ++i) queued += queue_[i].droppable ? 1U : 0U;
+      for (const Message& m : queue_) queued += m.droppable ? 1U : 0U;
       while (queued >= server_.options.max_queued_batches && queued > 0) {
-        for (std::size_t i = first; i < queue_.size(); ++i) {
-          if (!queue_[i].droppable) continue;
-          dropped_ += queue_[i].frames;
-          server_.frames_dropped_pages.fetch_add(queue_[i].frames);
-          queue_.erase(queue_.begin() + static_cast<std::ptrdiff_t>(i));
+        for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+          if (!it->droppable) continue;
+          lose(it->frames);
+          server_.free_bytes(it->bytes());
+          queue_.erase(it);
           break;
         }
         --queued;
       }
       if (server_.options.max_queued_batches == 0) {
-        dropped_ += message.frames;
-        server_.frames_dropped_pages.fetch_add(message.frames);
+        lose(message.frames);
         return;
       }
       std::size_t seen = server_.max_queued.load();
       while (queued + 1 > seen && !server_.max_queued.compare_exchange_weak(seen, queued + 1)) {
       }
     }
+    server_.hold_bytes(message.bytes());
     queue_.push_back(std::move(message));
-    if (!writing_) write_next();
+    write_next();
   }
 
   std::uint64_t dropped() const noexcept { return dropped_; }
 
  private:
+  void lose(std::uint64_t frames) {
+    dropped_ += frames;
+    server_.frames_dropped_pages.fetch_add(frames);
+  }
+
+  void drop_queue() {
+    for (const Message& m : queue_) server_.free_bytes(m.bytes());
+    queue_.clear();
+    history_next_ = history_end_;
+  }
+
   void write_next() {
+    if (writing_ || closing_) return;
+    if (history_next_ < history_end_) {
+      std::uint64_t lost = 0;
+      current_ = server_.history_chunk(history_next_, history_end_, lost);
+      lose(lost);
+      if (current_.data) server_.hold_bytes(current_.bytes());
+    }
+    if (!current_.data) {
+      if (queue_.empty()) return;
+      current_ = std::move(queue_.front());  // its bytes stay held while it is written
+      queue_.pop_front();
+    }
     writing_ = true;
-    const Message& m = queue_.front();
-    ws_.text(m.text);
-    ws_.binary(!m.text);
-    ws_.async_write(asio::buffer(*m.data), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    ws_.text(current_.text);
+    ws_.binary(!current_.text);
+    ws_.async_write(asio::buffer(*current_.data), [self = shared_from_this()](beast::error_code ec, std::size_t) {
       self->writing_ = false;
+      self->server_.free_bytes(self->current_.bytes());
+      self->current_ = Message{};
       if (ec) {
         self->closing_ = true;
-        self->queue_.clear();
+        self->drop_queue();
         return;
       }
-      self->queue_.pop_front();
-      if (!self->queue_.empty() && !self->closing_) self->write_next();
+      self->write_next();
     });
   }
 
   void read() {
     ws_.async_read(in_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      if (ec) {  // closed by the page, or the connection failed
+      if (ec) {  // closed by the page, or the connection failed: nothing more will be written
         self->closing_ = true;
+        self->drop_queue();
         return;
       }
       // Read-only: there is no message a page may send. Close with 1008 (policy violation).
       self->server_.messages_refused.fetch_add(1);
       self->closing_ = true;
       self->in_.consume(self->in_.size());
-      if (self->queue_.size() > (self->writing_ ? 1U : 0U)) {
-        self->queue_.erase(self->queue_.begin() + (self->writing_ ? 1 : 0), self->queue_.end());
-      }
+      self->drop_queue();
       self->ws_.async_close(websocket::close_reason(websocket::close_code::policy_error, "read-only: send nothing"),
                             [self](beast::error_code) {});
     });
@@ -229,7 +310,10 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
   websocket::stream<beast::tcp_stream> ws_;
   ViewerServer::Impl& server_;
   beast::flat_buffer in_;
-  std::deque<Message> queue_;
+  Message current_;                 ///< being written (no data: nothing is)
+  std::deque<Message> queue_;       ///< waiting, after the history
+  std::uint64_t history_next_ = 0;  ///< history still to send: [history_next_, history_end_)
+  std::uint64_t history_end_ = 0;
   bool writing_ = false;
   bool closing_ = false;
   bool counted_ = false;
@@ -239,7 +323,12 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
 /// One HTTP connection: the page's files, or the upgrade to a PageSession.
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket socket, ViewerServer::Impl& server) : stream_(std::move(socket)), server_(server) {}
+  HttpSession(tcp::socket socket, ViewerServer::Impl& server) : stream_(std::move(socket)), server_(server) {
+    server_.connections.fetch_add(1);
+  }
+  ~HttpSession() { server_.connections.fetch_sub(1); }
+  HttpSession(const HttpSession&) = delete;
+  HttpSession& operator=(const HttpSession&) = delete;
 
   void read() {
     parser_.emplace();
@@ -261,7 +350,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     http::request<http::string_body> request = parser_->release();
     const std::string_view host(request[http::field::host].data(), request[http::field::host].size());
     if (!server_.host_allowed(host)) {
-      refuse(request, http::status::misdirected_request, "this server answers to 127.0.0.1 or localhost only\n");
+      refuse(request, http::status::misdirected_request,
+             "this viewer answers only to its own names: 127.0.0.1, localhost, [::1], the address it listens on, "
+             "and names it was given (--view-host)\n");
       return;
     }
     if (websocket::is_upgrade(request)) {
@@ -271,7 +362,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       } else if (!server_.origin_allowed(origin, host)) {
         server_.pages_refused.fetch_add(1);
         refuse(request, http::status::forbidden, "WebSocket origin refused: only the viewer's own page may connect\n");
-      } else if (server_.pages_open.load() >= kMaxPages) {
+      } else if (!server_.reserve_page()) {
         server_.pages_refused.fetch_add(1);
         refuse(request, http::status::service_unavailable, "too many pages open\n");
       } else {
@@ -346,7 +437,26 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void ViewerServer::Impl::start_accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
-    if (!ec) {
+    if (ec && ec != asio::error::connection_aborted) {
+      // Out of descriptors (EMFILE, ENFILE) or memory: the connection stays in the backlog, the
+      // listener stays readable, and accepting again at once fails again at once, a loop at
+      // 100 % CPU. Wait instead, longer while it goes on, for descriptors to come back.
+      accept_failures.fetch_add(1);
+      accept_timer.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(accept_delay));
+      accept_delay = std::min(accept_delay * 2.0, std::chrono::duration<double>(kAcceptRetryMaxS));
+      accept_timer.async_wait([this](beast::error_code wait_ec) {
+        if (!wait_ec) start_accept();
+      });
+      return;
+    }
+    if (!ec) accept_delay = std::chrono::duration<double>(kAcceptRetryMinS);
+    if (!ec && connections.load() >= options.max_connections) {
+      // Bounded: a flood of connections costs one descriptor for a moment each, and the backlog
+      // keeps moving (waiting instead would leave later clients stalled behind the flood).
+      connections_refused.fetch_add(1);
+      beast::error_code ignored;
+      socket.close(ignored);
+    } else if (!ec) {
       if (options.send_buffer_bytes > 0) {
         beast::error_code ignored;
         socket.set_option(asio::socket_base::send_buffer_size(options.send_buffer_bytes), ignored);
@@ -365,22 +475,30 @@ std::shared_ptr<const std::string> ViewerServer::Impl::status_json(std::uint64_t
 
 void ViewerServer::Impl::add_page(const std::shared_ptr<PageSession>& page) {
   pages.push_back(page);
-  page->send(Message{std::make_shared<const std::string>(hello), true, false, 0});
-  // What was published before the page came, oldest first, in chunks; never dropped.
-  const std::size_t capacity = history.size();
-  const std::uint64_t count = std::min<std::uint64_t>(next_seq, capacity);
-  std::vector<ViewFrame> chunk;
-  chunk.reserve(kHistoryChunkFrames);
-  std::uint64_t first = next_seq - count;
-  for (std::uint64_t s = first; s < next_seq; ++s) {
-    chunk.push_back(history[static_cast<std::size_t>(s % capacity)]);
-    if (chunk.size() == kHistoryChunkFrames || s + 1 == next_seq) {
-      page->send(Message{make_batch(kHistoryBatch, first, chunk), false, false, chunk.size()});
-      first = s + 1;
-      chunk.clear();
-    }
-  }
+  // What was published before the page came, oldest first, a chunk at a time (history_chunk);
+  // not dropped unless the ring overwrites it before this page has taken it.
+  const std::uint64_t count = std::min<std::uint64_t>(next_seq, history.size());
+  page->join(Message{hello, true, false, 0}, next_seq - count, next_seq);
   page->send(Message{status_json(0), true, false, 0, true});
+}
+
+Message ViewerServer::Impl::history_chunk(std::uint64_t& next, std::uint64_t end, std::uint64_t& lost) const {
+  const std::size_t capacity = history.size();
+  const std::uint64_t oldest = next_seq - std::min<std::uint64_t>(next_seq, capacity);
+  if (next < oldest) {
+    const std::uint64_t resume = std::min(oldest, end);
+    lost += resume - next;
+    next = resume;
+  }
+  if (next >= end) return Message{};
+  const auto count = static_cast<std::size_t>(std::min<std::uint64_t>(end - next, kHistoryChunkFrames));
+  const auto at = static_cast<std::size_t>(next % capacity);
+  const std::size_t head = std::min(count, capacity - at);  // up to the end of the ring, then from its start
+  const std::span<const ViewFrame> ring_frames(history);
+  Message m{make_batch(kHistoryBatch, next, ring_frames.subspan(at, head), ring_frames.subspan(0, count - head)), false,
+            false, count};
+  next += count;
+  return m;
 }
 
 void ViewerServer::Impl::broadcast(const Message& message) {
@@ -425,19 +543,77 @@ ViewerServer::ViewerServer(std::unique_ptr<Impl> impl) noexcept : impl_(std::mov
 ViewerServer::~ViewerServer() {
   if (!impl_) return;
   asio::post(impl_->io, [impl = impl_.get()] {
+    impl->stopping = true;  // sessions the io_context destroys from here on call back into nothing
     beast::error_code ignored;
     impl->acceptor.close(ignored);
     impl->timer.cancel();
+    impl->accept_timer.cancel();
     impl->io.stop();
   });
   if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->stopping = true;
 }
 
 namespace {
 
+/// An IP address as a Host header names it: IPv6 in brackets.
+std::string host_literal(const asio::ip::address& address) {
+  return address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
+}
+
+/// A name given for the Host header, lower case (IP addresses in their usual spelling), or why not.
+Result<std::string> host_name(const std::string& given) {
+  const std::string name = lower(given);
+  const auto bad = [&](std::string_view why) { return Error{fmt::format("viewer: host name '{}': {}", given, why)}; };
+  std::string_view inner = name;
+  if (inner.size() >= 2 && inner.front() == '[' && inner.back() == ']') inner = inner.substr(1, inner.size() - 2);
+  beast::error_code ec;
+  const asio::ip::address address = asio::ip::make_address(inner, ec);
+  if (!ec) return host_literal(address);
+  if (name.empty() || name.size() > 253) return bad("a DNS name has 1 to 253 characters");
+  if (name.find(':') != std::string::npos) return bad("give the name without a port (the viewer's port is added)");
+  if (name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789.-_") != std::string::npos ||
+      name.front() == '.' || name.front() == '-') {
+    return bad("not a DNS name or an IP address (letters, digits, '.', '-')");
+  }
+  return name;
+}
+
+/// The addresses of this host's interfaces (v4, and v6 too for "::"), as Host headers name
+/// them: what another host types to reach a server listening on every address. Link-local v6
+/// addresses are left out (a browser cannot give their zone).
+std::vector<std::string> interface_hosts(bool v6_too) {
+  std::vector<std::string> out;
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return out;
+  for (const ifaddrs* i = list; i != nullptr; i = i->ifa_next) {
+    if (i->ifa_addr == nullptr) continue;
+    if (i->ifa_addr->sa_family == AF_INET) {
+      sockaddr_in in{};
+      std::memcpy(&in, i->ifa_addr, sizeof in);
+      out.push_back(host_literal(asio::ip::address_v4(ntohl(in.sin_addr.s_addr))));
+    } else if (v6_too && i->ifa_addr->sa_family == AF_INET6) {
+      sockaddr_in6 in6{};
+      std::memcpy(&in6, i->ifa_addr, sizeof in6);
+      asio::ip::address_v6::bytes_type bytes{};
+      std::memcpy(bytes.data(), in6.sin6_addr.s6_addr, bytes.size());
+      const asio::ip::address_v6 v6(bytes);
+      if (!v6.is_link_local()) out.push_back(host_literal(v6));
+    }
+  }
+  ::freeifaddrs(list);
+  return out;
+}
+
 Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, std::string hello) {
   if (!(options.batch_interval_s > 0.0 && options.batch_interval_s <= 1.0)) {
     return Error{"viewer: the batch interval must be within (0, 1] s"};
+  }
+  std::vector<std::string> names;  // checked before anything is bound
+  for (const std::string& given : options.hosts) {
+    auto name = host_name(given);
+    if (!name) return Error{name.error()};
+    names.push_back(std::move(name.value()));
   }
   beast::error_code ec;
   const asio::ip::address address = asio::ip::make_address(options.address, ec);
@@ -447,7 +623,7 @@ Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, s
   }
   auto impl = std::make_unique<ViewerServer::Impl>();
   impl->options = options;
-  impl->hello = std::move(hello);
+  impl->hello = std::make_shared<const std::string>(std::move(hello));
   const tcp::endpoint endpoint(address, options.port);
   impl->acceptor.open(endpoint.protocol(), ec);
   if (!ec) impl->acceptor.set_option(asio::socket_base::reuse_address(true), ec);
@@ -460,15 +636,24 @@ Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, s
   }
   impl->port = impl->acceptor.local_endpoint().port();
   const std::string p = std::to_string(impl->port);
-  impl->hosts = {"127.0.0.1:" + p, "localhost:" + p, "[::1]:" + p};
-  impl->wildcard = address.is_unspecified();
+  const auto allow = [&](const std::string& name) {
+    impl->hosts.insert(name + ":" + p);
+    if (impl->port == 80) impl->hosts.insert(name);  // a browser leaves the default port out
+  };
+  for (const char* name : {"127.0.0.1", "localhost", "[::1]"}) allow(name);
+  // Any address: the Host must still name this server, never anything with our port (that let
+  // a rebinding page's own name through).
+  if (address.is_unspecified()) {
+    for (const std::string& name : interface_hosts(address.is_v6())) allow(name);
+  }
   std::string url_host = "127.0.0.1";
   if (!address.is_unspecified() && !address.is_loopback()) {
-    url_host = address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
-    impl->hosts.insert(lower(url_host) + ":" + p);
+    url_host = host_literal(address);
+    allow(url_host);
   } else if (address.is_v6() && address.is_loopback()) {
     url_host = "[::1]";
   }
+  for (const std::string& name : names) allow(name);
   impl->url = fmt::format("http://{}:{}/", url_host, impl->port);
   impl->history.resize(std::max<std::size_t>(options.history_frames, 1));
   impl->batch.reserve(FrameRing::kCapacity);
@@ -525,6 +710,7 @@ void ViewerServer::wait_drained(const std::atomic<int>& stop) const {
 
 std::uint16_t ViewerServer::port() const noexcept { return impl_->port; }
 std::string ViewerServer::url() const { return impl_->url; }
+std::vector<std::string> ViewerServer::host_names() const { return {impl_->hosts.begin(), impl_->hosts.end()}; }
 
 ViewerStats ViewerServer::stats() const noexcept {
   ViewerStats s;
@@ -535,8 +721,12 @@ ViewerStats ViewerServer::stats() const noexcept {
   s.pages_refused = impl_->pages_refused.load();
   s.messages_refused = impl_->messages_refused.load();
   s.http_refused = impl_->http_refused.load();
+  s.connections_refused = impl_->connections_refused.load();
+  s.accept_failures = impl_->accept_failures.load();
   s.max_queued = impl_->max_queued.load();
   s.pages_open = impl_->pages_open.load();
+  s.queued_bytes = impl_->queued_bytes.load();
+  s.max_queued_bytes = impl_->max_queued_bytes.load();
   return s;
 }
 

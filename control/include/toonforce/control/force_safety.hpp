@@ -45,17 +45,24 @@ class ForceSafety {
 
   /// Steps 2 and 3 on a finite scene force; `rate_hz` is 1/dt since the previous output.
   constexpr Output limit(const Vec3<S>& scene_force_n, S rate_hz) noexcept {
+    return limit_step(scene_force_n, has_max_force_rate_ ? max_force_rate_n_per_s_ / rate_hz : S{});
+  }
+  /// The same with the largest step, max_force_rate * dt, already known (a loop on a fixed
+  /// period computes it once: max_step_for()).
+  constexpr Output limit_step(const Vec3<S>& scene_force_n, S max_step) noexcept {
     Output out{scene_force_n, 0};
+    // Each limit compares squares first: the norm (a square root) only when the limit bites.
     if (has_max_force_rate_) {
       const Vec3<S> step = out.force_n - previous_n_;
-      const S max_step = max_force_rate_n_per_s_ / rate_hz;  // max_force_rate * dt
-      const S step_size = norm(step);
-      if (step_size > max_step) {
-        out.force_n = previous_n_ + scale_by_ratio(step, max_step, step_size);
-        out.limits = out.limits | Limit::kRateLimited;
+      if (dot(step, step) > max_step * max_step) {
+        const S step_size = norm(step);
+        if (step_size > max_step) {
+          out.force_n = previous_n_ + scale_by_ratio(step, max_step, step_size);
+          out.limits = out.limits | Limit::kRateLimited;
+        }
       }
     }
-    if (has_max_force_) {
+    if (has_max_force_ && dot(out.force_n, out.force_n) > max_force_n_ * max_force_n_) {
       const S magnitude = norm(out.force_n);
       if (magnitude > max_force_n_) {
         out.force_n = scale_by_ratio(out.force_n, max_force_n_, magnitude);
@@ -73,6 +80,10 @@ class ForceSafety {
     has_max_force_ = true;
   }
   constexpr S max_force() const noexcept { return max_force_n_; }
+  /// max_force_rate * dt for a tick at `rate_hz` (0 without a rate limit).
+  constexpr S max_step_for(S rate_hz) const noexcept {
+    return has_max_force_rate_ ? max_force_rate_n_per_s_ / rate_hz : S{};
+  }
   constexpr bool has_max_force() const noexcept { return has_max_force_; }
   constexpr const Vec3<S>& previous_output() const noexcept { return previous_n_; }
 

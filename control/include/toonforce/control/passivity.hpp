@@ -8,7 +8,8 @@
 /// estimate, so filter lag cannot hide energy. E_obs >= 0 means passive so far; the
 /// super-slippery surface and the impact transient drive it down by design.
 ///
-/// Controller (spec effects.md §6): each active effect (ActiveEffects slots) has an energy
+/// Controller (spec effects.md §6): each active part of an effect (its ActiveForce slots, which
+/// the effect reports itself, effects/effect.hpp) has an energy
 /// budget per episode (a contact, a transient). Its episode energy E_i is the work its own
 /// force did on the HIP (the share of it that reached the device), minus what the controller
 /// dissipated on its behalf. Only the excess X_i = E_i - budget is dissipated, by a damping
@@ -30,8 +31,9 @@
 #include <array>
 #include <cstddef>
 
-#include "toonforce/control/active_effects.hpp"
-#include "toonforce/control/wide.hpp"
+#include "toonforce/control/hip_sensor.hpp"
+#include "toonforce/effects/tick.hpp"
+#include "toonforce/math/wide.hpp"
 
 namespace toonforce {
 
@@ -81,7 +83,7 @@ class PassivityController {
     for (std::size_t i = 0; i < slots; ++i) {
       Slot& s = slots_[i];
       if (!s.in_episode) continue;
-      s.energy += Wide<S>::dot((s.force_n + s.damping_n) * applied, displacement_m);
+      s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m * applied);
     }
   }
 
@@ -89,27 +91,50 @@ class PassivityController {
   /// the damping force for the excess energies (zero when the controller is off).
   constexpr Vec3<S> update(const ActiveForce<S>* forces, std::size_t slots, const Vec3<S>& velocity_m_per_s,
                            S rate_hz) noexcept {
-    const S speed = norm(velocity_m_per_s);
-    const bool can_damp = enabled_ && speed > min_speed_;
-    const S cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
+    bool episodes = false;
+    return update(forces, slots, velocity_m_per_s, rate_hz, episodes);
+  }
+  /// The same, saying in `episodes` whether any slot is in an episode.
+  constexpr Vec3<S> update(const ActiveForce<S>* forces, std::size_t slots, const Vec3<S>& velocity_m_per_s,
+                           S rate_hz, bool& episodes) noexcept {
+    episodes = false;
+    damped_ = false;
+    // The speed (a square root) only when some episode is over its budget: most ticks have none.
+    S speed{};
+    S cap{};
+    bool speed_known = false;
     Vec3<S> total{};
     for (std::size_t i = 0; i < slots; ++i) {
       Slot& s = slots_[i];
       const ActiveForce<S>& f = forces[i];
-      if (f.in_episode && (!s.in_episode || f.triggered)) s.energy = Wide<S>{};  // a new episode
-      s.in_episode = f.in_episode;
+      if (!f.in_episode) {  // no episode: nothing to book (account() skips the slot)
+        s.in_episode = false;
+        continue;
+      }
+      if (!s.in_episode || f.triggered) s.energy = Wide<S>{};  // a new episode
+      s.in_episode = true;
       s.force_n = f.force_n;
       s.damping_n = Vec3<S>{};
-      if (!s.in_episode || !can_damp || !(s.energy > budget_)) continue;
+      episodes = true;
+      if (!enabled_ || !(s.energy > budget_)) continue;
+      if (!speed_known) {
+        speed = norm(velocity_m_per_s);
+        cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
+        speed_known = true;
+      }
+      if (!(speed > min_speed_)) continue;
       // |F| = X / (|v| dt) = X rate / |v|, capped; along -v.
       const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
       const S power = excess * rate_hz;
       const S magnitude = power < cap * speed ? power / speed : cap;
       s.damping_n = velocity_m_per_s * (-(magnitude / speed));
       total += s.damping_n;
+      damped_ = true;
     }
     return total;
   }
+  /// The last update() damped some slot.
+  constexpr bool damped() const noexcept { return damped_; }
 
   /// The largest episode energy among running episodes [J] (0 if none).
   constexpr Wide<S> max_episode_energy(std::size_t slots) const noexcept {
@@ -139,6 +164,84 @@ class PassivityController {
   S max_damping_n_s_per_m_;
   S max_force_n_;
   std::array<Slot, (kSlots > 0 ? kSlots : 1)> slots_{};
+  bool damped_ = false;
+};
+
+/// The passivity stage of the servo loop: the observer on every tick with a position, and the
+/// controller's damping for the active parts' energy beyond their budget. It keeps what it
+/// needs between ticks: the last good position and the share of the last tick's wanted force
+/// that reached the device (the ramp, the rate limit and the clamp may have scaled it).
+template <Scalar S, std::size_t kSlots>
+class Passivity {
+ public:
+  /// `slots` of the scene's active parts are in use; `max_force_n` caps the damping; the
+  /// controller turns an excess energy into a force over one period `period_s`.
+  Passivity(const PassivityConfig& config, std::size_t slots, double max_force_n, double period_s) noexcept
+      : controller_(config, max_force_n), slots_(slots), rate_hz_(scalar_cast<S>(1.0 / period_s)) {}
+
+  /// Start of a tick: `held_force_n`, commanded since the last good position, moved the HIP to
+  /// this tick's position (zero-order hold).
+  void observe(const Vec3<S>& held_force_n, const Vec3<S>& position_m, bool position_finite) noexcept {
+    if (!position_finite) return;
+    if (has_position_) {
+      const Vec3<S> dx = position_m - previous_m_;
+      observer_.observe(held_force_n, dx);
+      if (episodes_) controller_.account(dx, applied_, slots_);  // only a running episode books work
+    }
+    previous_m_ = position_m;
+    has_position_ = true;
+  }
+  /// After a tick that counted: the damping for this tick's active parts into `damping_n`
+  /// (zero when none exceeds its budget or the controller is off); true if there is some.
+  bool damping(const ActiveForce<S>* active, const Vec3<S>& velocity_m_per_s, Vec3<S>& damping_n) noexcept {
+    damping_n = controller_.update(active, slots_, velocity_m_per_s, rate_hz_, episodes_);
+    return controller_.damped();
+  }
+  /// End of a tick that commanded `out_n` for a wanted `wanted_n`: the share that reached the
+  /// device, for the next interval's bookkeeping (only needed while an episode runs).
+  void settle(const Vec3<S>& wanted_n, const Vec3<S>& out_n) noexcept {
+    if (!episodes_) {
+      applied_ = S{};
+      return;
+    }
+    constexpr S kOne = scalar_cast<S>(1.0);
+    if (out_n == wanted_n) {  // nothing scaled it (active, no limit bit): all of it
+      applied_ = wanted_n == Vec3<S>{} ? S{} : kOne;
+      return;
+    }
+    const S wanted_squared = dot(wanted_n, wanted_n);
+    applied_ = wanted_squared > S{} ? max(S{}, min(kOne, dot(out_n, wanted_n) / wanted_squared)) : S{};
+  }
+  /// End of a tick whose force was cut: nothing of the effects' forces reached the device.
+  void cut() noexcept { applied_ = S{}; }
+
+  /// Whether the controller may need the velocity (it damps along -v).
+  bool needs_velocity() const noexcept { return controller_.enabled() && slots_ > 0; }
+  const PassivityObserver<S>& observer() const noexcept { return observer_; }
+  const PassivityController<S, kSlots>& controller() const noexcept { return controller_; }
+  std::size_t slots() const noexcept { return slots_; }
+
+ private:
+  PassivityObserver<S> observer_;
+  PassivityController<S, kSlots> controller_;
+  std::size_t slots_;
+  S rate_hz_;
+  Vec3<S> previous_m_{};
+  bool has_position_ = false;
+  bool episodes_ = false;  ///< some active part is in an episode this tick
+  S applied_{};
+};
+
+/// No passivity stage (replay: effects.md §6 only).
+template <Scalar S, std::size_t kSlots>
+class NoPassivity {
+ public:
+  NoPassivity(const PassivityConfig&, std::size_t, double, double) noexcept {}
+  void observe(const Vec3<S>&, const Vec3<S>&, bool) noexcept {}
+  bool damping(const ActiveForce<S>*, const Vec3<S>&, Vec3<S>&) noexcept { return false; }
+  void settle(const Vec3<S>&, const Vec3<S>&) noexcept {}
+  void cut() noexcept {}
+  bool needs_velocity() const noexcept { return false; }
 };
 
 }  // namespace toonforce

@@ -8,11 +8,12 @@
 /// in fixed histograms. A watchdog thread outside the loop commands zero force through
 /// `EmergencyZero` when the loop's heartbeat stops for `watchdog_periods` periods.
 ///
-/// The runner knows nothing of scenes or devices: it drives a `PeriodicTask`. One tick is the
-/// task's `tick(k)`; the runner measures around it, then calls `publish(k, timing)` (telemetry),
-/// and at the end, or when `stop` becomes non-zero (a signal), `shutdown(k)`, which must
-/// command zero force. A self-clocked device calls the servo loop's tick itself and does not
-/// use this runner.
+/// The runner knows nothing of scenes: it drives a `PeriodicTask`. One tick is the task's
+/// `tick(k)`; the runner measures around it, then calls `publish(k, timing)` (telemetry), and at
+/// the end, or when `stop` becomes non-zero (a signal), `shutdown(k)`, which must command zero
+/// force. A device clocked by its own servo thread (hal/device.hpp, Clocking::kDeviceThread)
+/// runs the same task from that thread instead (`run_on_device`); `run_on_device` picks
+/// the right one from the device's clocking, so a caller never needs to know the backend.
 
 #include <atomic>
 #include <cstdint>
@@ -21,6 +22,7 @@
 #include "toonforce/common/result.hpp"
 #include "toonforce/control/latency_histogram.hpp"
 #include "toonforce/control/telemetry.hpp"
+#include "toonforce/hal/device.hpp"
 
 namespace toonforce {
 
@@ -80,6 +82,19 @@ struct RunReport {
 /// invalid or SCHED_FIFO is refused and not allowed to go without it.
 Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& options, EmergencyZero emergency,
                                const std::atomic<int>& stop);
+
+/// Runs `task` inside a self-clocked device's own servo thread (DeviceDriver::run_clocked), for
+/// `options.deadlines` ticks (0: until `stop`). The device owns that thread's priority and
+/// timing, so the report's "wake-up latency" is the jitter of its period (the time between
+/// ticks minus the nominal period) and "missed" the periods it skipped. The same heartbeat
+/// watchdog as run_realtime's watches it from outside.
+Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, const RealtimeOptions& options,
+                                     const std::atomic<int>& stop);
+
+/// run_realtime on the host's timer, or run_device_clocked, as `device` is clocked; the
+/// watchdog's emergency zero is the device's.
+Result<RunReport> run_on_device(PeriodicTask& task, DeviceDriver& device, const RealtimeOptions& options,
+                                const std::atomic<int>& stop);
 
 /// The advice printed when SCHED_FIFO is refused.
 std::string realtime_permission_advice(int priority);

@@ -1,19 +1,41 @@
 #pragma once
-/// Settings of the servo loop's safety layer (spec effects.md §6 "The servo loop adds more"),
-/// in double as a scene file or a program gives them; the loop converts them once. Defaults
-/// are the documented ones (docs/spec/interfaces.md, [device] keys marked as toonforce
-/// extensions). `with_device` fills what the scene leaves open from the device's nominal
-/// figures; `check_servo_config` says what is wrong with a configuration before anything runs.
+/// Settings of the servo loop (spec effects.md §6 "The servo loop adds more"), in double as a
+/// scene file or a program gives them; the loop converts them once. Defaults are the documented
+/// ones (docs/spec/interfaces.md, [device] keys marked as toonforce extensions). `with_device`
+/// fills what the scene leaves open from the device's nominal figures; `check_servo_config` says
+/// what is wrong with a configuration before anything runs.
+///
+/// Which stages a loop has at all is a compile-time choice (LoopStages): `toonforce run`, `sim`
+/// and the tests have every stage; `replay` has only those of effects.md §6 (non-finite guard,
+/// rate limit, clamp), so a replayed force is the spec's, and a stage no configuration of that
+/// loop can turn on costs nothing.
 
 #include <cstdint>
 #include <string>
 
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/engage.hpp"
+#include "toonforce/control/force_safety.hpp"
+#include "toonforce/control/motion_limits.hpp"
 #include "toonforce/control/passivity.hpp"
+#include "toonforce/control/supervisor.hpp"
 #include "toonforce/control/thermal_model.hpp"
+#include "toonforce/control/velocity_estimator.hpp"
 #include "toonforce/hal/device.hpp"
 
 namespace toonforce {
+
+/// The stages a servo loop is built with (a template argument of ServoLoop).
+struct LoopStages {
+  bool supervisor = true;     ///< latches, watchdog, e-stop, enable, homing, device silence
+  bool engage = true;         ///< engage below engage_force, then the soft start
+  bool passivity = true;      ///< observer, and the controller for the active effects' budgets
+  bool thermal = true;        ///< the motor thermal model derating the clamp
+  bool motion_limits = true;  ///< velocity limit and workspace bounds
+};
+/// Every stage: a loop that drives a device (run, sim, the examples).
+inline constexpr LoopStages kEveryStage{};
+/// Only effects.md §6 (non-finite guard, force-rate limit, clamp): replay.
+inline constexpr LoopStages kSpecStages{false, false, false, false, false};
 
 struct SafetyConfig {
   /// [N] forces engage (after enable, start and re-arm) only once the scene force at the
@@ -39,8 +61,20 @@ struct SafetyConfig {
 };
 
 struct ServoConfig {
-  ControllerConfig controller;  ///< limits, velocity cut-off; period_s > 0 (the servo period)
+  /// [s] > 0: the servo period (ticks are integer multiples of it). With `time_from_stamps`,
+  /// the first tick's dt; every later dt is the difference of the ticks' stamps (replay).
+  double period_s = 0.0;
+  bool time_from_stamps = false;
+  ForceLimits limits;  ///< the clamp and the force-rate limit (effects.md §6)
+  double velocity_cutoff_hz = VelocityEstimator<double>::kDefaultCutoffHz;
   SafetyConfig safety;
+
+  SupervisorConfig supervisor() const noexcept { return {safety.watchdog_periods, safety.device_timeout_periods}; }
+  EngageConfig engage() const noexcept { return {safety.engage_force_n, safety.soft_start_s, period_s}; }
+  MotionLimitsConfig motion_limits() const noexcept {
+    return {safety.has_max_velocity, safety.max_velocity_m_per_s, safety.has_workspace, safety.workspace_min_m,
+            safety.workspace_max_m};
+  }
 };
 
 /// The configuration for a device: the clamp becomes the smaller of the configured and the

@@ -24,6 +24,10 @@ struct TickTiming {
   std::int64_t missed_total = 0;     ///< deadlines skipped since the start
 };
 
+/// The most effect values a frame carries (what the scene's effects show, in order:
+/// SceneType::effect_info names them). A scene file's reader refuses a scene that shows more.
+inline constexpr std::size_t kMaxEffectValues = 64;
+
 /// One tick of the servo loop, scene frame, SI units.
 struct TelemetryFrame {
   double t_s = 0.0;           ///< tick * period
@@ -37,15 +41,16 @@ struct TelemetryFrame {
   std::uint32_t latched = 0;  ///< latched Fault bits
   std::uint8_t limits = 0;    ///< Limit bits
   std::uint8_t state = 0;     ///< LoopState
-  bool in_contact = false;
-  double impact_time_s = std::numeric_limits<double>::quiet_NaN();  ///< NaN when none runs
-  int cliff_state = -1;       ///< -1 none, 0 supported, 1 fallen
+  bool in_contact = false;    ///< the HIP touches some effect's geometry
   double max_force_n = 0.0;   ///< the clamp in force (thermal derating included)
   double temperature = 0.0;   ///< thermal model, 0 cold, 1 rated
   double observed_energy_j = 0.0;  ///< Hannaford-Ryu E_obs (>= 0 passive)
   double episode_energy_j = 0.0;   ///< largest active-effect episode energy
   double gain = 0.0;          ///< soft-start gain 0..1
   TickTiming timing;
+  std::uint16_t value_count = 0;  ///< of `values` in use
+  /// The effects' values (effects/effect.hpp kValues: "surface1.impact_t", "cliff1.state", ...).
+  std::array<double, kMaxEffectValues> values{};
 };
 static_assert(std::is_trivially_copyable_v<TelemetryFrame>);
 

@@ -19,7 +19,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "toonforce/control/wide.hpp"
+#include "toonforce/math/wide.hpp"
 
 namespace toonforce {
 
@@ -48,7 +48,8 @@ class ThermalModel {
     if (!enabled_ || ticks <= 0) return;
     const Vec3<S> relative = held_force_n * inverse_continuous_n_;
     const Wide<S> target = Wide<S>::dot(relative, relative);  // u = (|F| / F_c)^2
-    temperature_ = target + (temperature_ - target) * decay_per_tick_.power(ticks);
+    // One period, the usual case: r itself, no repeated squaring.
+    temperature_ = target + (temperature_ - target) * (ticks == 1 ? decay_per_tick_ : decay_per_tick_.power(ticks));
   }
 
   /// The clamp the temperature allows now [N].
@@ -76,6 +77,20 @@ class ThermalModel {
   S derate_span_inverse_;
   Decay<S> decay_per_tick_;
   Wide<S> temperature_{};
+};
+
+/// No thermal model: the clamp stays where it was configured.
+template <Scalar S>
+class NoThermal {
+ public:
+  NoThermal(const ThermalConfig&, double, double max_force_n) noexcept : max_force_n_(scalar_cast<S>(max_force_n)) {}
+  constexpr void advance(const Vec3<S>&, std::int64_t) noexcept {}
+  constexpr S allowed_force() const noexcept { return max_force_n_; }
+  constexpr bool enabled() const noexcept { return false; }
+  constexpr Wide<S> temperature() const noexcept { return {}; }
+
+ private:
+  S max_force_n_;
 };
 
 }  // namespace toonforce

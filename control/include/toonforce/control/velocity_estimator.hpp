@@ -20,10 +20,18 @@ class VelocityEstimator {
   /// The estimate at this tick, from the position and 1/dt since the last committed update.
   /// Does not change the estimator: `commit` does, once the tick is known to be good.
   constexpr Vec3<S> estimate(const Vec3<S>& position_m, S rate_hz) const noexcept {
+    return estimate(position_m, rate_hz, gain(rate_hz));
+  }
+  /// The same with the filter's gain a for this rate already known (gain(rate_hz)): a loop on a
+  /// fixed period computes it once.
+  constexpr Vec3<S> estimate(const Vec3<S>& position_m, S rate_hz, S a) const noexcept {
     if (!started_) return velocity_;
-    constexpr S kOne = scalar_cast<S>(1.0);
-    const S a = kOne / (kOne + rate_hz * time_constant_s_);
     return velocity_ + ((position_m - previous_m_) * rate_hz - velocity_) * a;
+  }
+  /// a = 1 / (1 + rate / (2 pi f_c)).
+  constexpr S gain(S rate_hz) const noexcept {
+    constexpr S kOne = scalar_cast<S>(1.0);
+    return kOne / (kOne + rate_hz * time_constant_s_);
   }
   /// Makes `estimate`'s result the estimator's state.
   constexpr void commit(const Vec3<S>& position_m, const Vec3<S>& velocity_m_per_s) noexcept {
@@ -51,6 +59,8 @@ template <Scalar S>
 struct NoVelocityEstimator {
   constexpr explicit NoVelocityEstimator(double = 0.0) noexcept {}
   constexpr Vec3<S> estimate(const Vec3<S>&, S) const noexcept { return {}; }
+  constexpr Vec3<S> estimate(const Vec3<S>&, S, S) const noexcept { return {}; }
+  constexpr S gain(S) const noexcept { return {}; }
   constexpr void commit(const Vec3<S>&, const Vec3<S>&) noexcept {}
   constexpr Vec3<S> update(const Vec3<S>&, S) noexcept { return {}; }
 };

@@ -12,6 +12,9 @@
 /// below ground (the HIP went sideways under a ledge) only the ledge's side face pushes, along
 /// +-a toward the strip, k times the distance past the edge.
 
+#include <array>
+#include <cmath>
+
 #include "toonforce/effects/penalty_wall.hpp"
 
 namespace toonforce {
@@ -19,6 +22,8 @@ namespace toonforce {
 template <Scalar S>
 struct CartoonCliff {
   using Scalar = S;
+  static constexpr std::string_view kKey = "cliff";
+  static constexpr std::size_t kMaxPerScene = 8;
   struct Params {
     Plane<S> ground;
     Vec3<S> axis;                       ///< a, unit, perpendicular to the ground normal
@@ -35,6 +40,28 @@ struct CartoonCliff {
     bool fallen = false;
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
+  static constexpr std::array<ValueInfo, 2> kValues{{{"state", "", "0 supported, 1 fallen"},
+                                                     {"speed", "m/s", "filtered lateral speed s_f"}}};
+
+  /// Scene-file keys of `[[cliff]]` (spec effects.md §5, interfaces.md).
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(inline_fields(&Params::ground, Plane<S>::schema()), unit_vector("axis", &Params::axis),
+                  number("gap_min", &Params::gap_min_m, "m", Range::kAny),
+                  number("gap_max", &Params::gap_max_m, "m", Range::kAny),
+                  inline_fields(&Params::wall, PenaltyWall<S>::schema()),
+                  number("speed_threshold", &Params::speed_threshold_m_per_s, "m/s", Range::kPositive),
+                  number("tau", &Params::tau_s, "s", Range::kNonNegative, 0.02),
+                  number("rearm_height", &Params::rearm_height_m, "m", Range::kNonNegative, 0.001),
+                  number("fall_force", &Params::fall_force_n, "N", Range::kNonNegative, 0.0));
+  }
+  /// The gap runs across the ground: the axis lies in the ground plane, gap_min < gap_max.
+  static void check(const Params& p, schema::Problems& problems, ScalarKind) {
+    const double across = std::fabs(to_double(dot(p.ground.normal, p.axis)));
+    if (across > 1e-6) problems.add("axis", "must be perpendicular to the normal; |axis.normal| after normalising is", across);
+    if (!(p.gap_min_m < p.gap_max_m)) problems.add("gap_max", "must be greater than gap_min");
+  }
+  static constexpr Needs needs(const Params&) noexcept { return kNeeds; }
 
   static constexpr Vec3<S> force(const Params& p, State& s, const TickInput<S>& in) noexcept {
     const Vec3<S>& n = p.ground.normal;
@@ -62,10 +89,11 @@ struct CartoonCliff {
     return {};
   }
 
-  static constexpr void describe(const Params& p, const State& s, const TickInput<S>& in,
-                                 Diagnostics& d) noexcept {
-    if (!s.fallen && p.ground.contact(in).penetration_m > S{}) d.in_contact = true;
-    if (d.cliff_state < 0) d.cliff_state = s.fallen ? 1 : 0;
+  /// `state` and `speed`; true while the HIP is in the supported ground.
+  static constexpr bool describe(const Params& p, const State& s, const TickInput<S>& in, double* values) noexcept {
+    values[0] = s.fallen ? 1.0 : 0.0;
+    values[1] = to_double(s.filtered_speed_m_per_s);
+    return !s.fallen && p.ground.contact(in).penetration_m > S{};
   }
 };
 

@@ -12,7 +12,12 @@ template <Scalar S>
 struct NoTangential {
   struct Params {};
   static constexpr Needs kNeeds = Needs::kNone;
-  static constexpr bool kActive = false;
+  static constexpr bool kPresent = false;
+  static constexpr bool kMayInject = false;
+  static constexpr auto schema() { return schema::fields(); }
+  static constexpr Needs needs(const Params&) noexcept { return Needs::kNone; }
+  static constexpr bool injects(const Params&) noexcept { return false; }
+  static constexpr bool present(const Params&) noexcept { return false; }
   static constexpr Vec3<S> force(const Params&, const Vec3<S>&, S) noexcept { return {}; }
 };
 
@@ -30,7 +35,22 @@ struct RealisticFriction {
     S regularization_speed_m_per_s{};      ///< v_reg [m/s], > 0 (default 0.02)
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr bool kActive = true;
+  static constexpr bool kPresent = true;
+  static constexpr bool kMayInject = false;  // it opposes motion: passive
+  static constexpr std::string_view kTableKey = "friction";
+
+  /// Scene-file table `friction`: `viscous` [N s/m, default 0, <= 0], `coulomb` [-, default 0,
+  /// >= 0], `regularization_speed` [m/s, default 0.02, > 0].
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(number("viscous", &Params::viscous_n_s_per_m, "N s/m", Range::kNonPositive, 0.0,
+                         "realistic viscous friction opposes motion; for mu > 0 use a [surface.slippery] table instead"),
+                  number("coulomb", &Params::coulomb, "", Range::kNonNegative, 0.0),
+                  number("regularization_speed", &Params::regularization_speed_m_per_s, "m/s", Range::kPositive, 0.02));
+  }
+  static constexpr Needs needs(const Params&) noexcept { return Needs::kVelocity; }
+  static constexpr bool injects(const Params&) noexcept { return false; }
+  static constexpr bool present(const Params&) noexcept { return true; }
 
   static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
                                  S normal_force_n) noexcept {
@@ -50,7 +70,20 @@ struct SuperSlippery {
     S max_tangential_force_n{};     ///< [N], > 0 (default 2)
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr bool kActive = true;
+  static constexpr bool kPresent = true;
+  static constexpr bool kMayInject = true;  // pushes along the motion: an active part
+  static constexpr std::string_view kTableKey = "slippery";
+
+  /// Scene-file table `slippery`: `mu` [N s/m, required, > 0], `max_tangential_force` [N,
+  /// default 2, > 0].
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(number("mu", &Params::mu_n_s_per_m, "N s/m", Range::kPositive),
+                  number("max_tangential_force", &Params::max_tangential_force_n, "N", Range::kPositive, 2.0));
+  }
+  static constexpr Needs needs(const Params&) noexcept { return Needs::kVelocity; }
+  static constexpr bool injects(const Params&) noexcept { return true; }
+  static constexpr bool present(const Params&) noexcept { return true; }
 
   static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
                                  S /*normal_force_n*/) noexcept {
@@ -58,17 +91,38 @@ struct SuperSlippery {
   }
 };
 
+/// Which tangential law a run-time surface has.
+enum class TangentialKind : std::uint8_t { kNone, kFriction, kSlippery };
+
 /// Either tangential law or none, chosen at run time (scenes loaded from files).
 template <Scalar S>
 struct AnyTangential {
-  enum class Kind : std::uint8_t { kNone, kFriction, kSlippery };
+  using Kind = TangentialKind;
   struct Params {
     Kind kind = Kind::kNone;
     typename RealisticFriction<S>::Params friction{};
     typename SuperSlippery<S>::Params slippery{};
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr bool kActive = true;
+  static constexpr bool kPresent = true;
+  static constexpr bool kMayInject = true;  // when it is the slippery one
+
+  /// Scene-file tables `friction` or `slippery`, at most one of them (spec interfaces.md).
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(one_of(&Params::kind,
+                         "they contradict each other (friction opposes motion, the slippery surface pushes along "
+                         "it); keep one",
+                         option(RealisticFriction<S>::kTableKey, Kind::kFriction, &Params::friction,
+                                RealisticFriction<S>::schema()),
+                         option(SuperSlippery<S>::kTableKey, Kind::kSlippery, &Params::slippery,
+                                SuperSlippery<S>::schema())));
+  }
+  static constexpr Needs needs(const Params& p) noexcept {
+    return p.kind == Kind::kNone ? Needs::kNone : Needs::kVelocity;
+  }
+  static constexpr bool injects(const Params& p) noexcept { return p.kind == Kind::kSlippery; }
+  static constexpr bool present(const Params& p) noexcept { return p.kind != Kind::kNone; }
 
   static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
                                  S normal_force_n) noexcept {

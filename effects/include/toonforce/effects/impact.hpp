@@ -10,11 +10,22 @@
 /// signed (for k_osc > k_r it pulls toward the wall for part of each cycle, as the paper's
 /// equations say), and it runs its whole duration whether or not the HIP stays in contact
 /// (paper figure 3). The penalty wall acts as usual alongside.
+///
+/// The transient injects energy by design: it is an active part (one passivity slot), whose
+/// episode is the running transient.
 
 #include "toonforce/effects/tick.hpp"
 #include "toonforce/math/sine.hpp"
 
 namespace toonforce {
+
+/// What the impact did on one tick.
+template <Scalar S>
+struct ImpactOutput {
+  S force_n{};             ///< along +n [N]
+  bool running = false;    ///< a transient runs after this tick
+  bool triggered = false;  ///< it was (re)started on this tick
+};
 
 /// No impact transient: a plain surface.
 template <Scalar S>
@@ -22,9 +33,11 @@ struct NoImpact {
   struct Params {};
   struct State {};
   static constexpr Needs kNeeds = Needs::kNone;
-  static constexpr bool kActive = false;
-  static constexpr S force(const Params&, State&, const Contact<S>&, const TickInput<S>&) noexcept {
-    return S{};
+  static constexpr bool kPresent = false;
+  static constexpr auto schema() { return schema::fields(); }
+  static constexpr Needs needs(const Params&) noexcept { return Needs::kNone; }
+  static constexpr ImpactOutput<S> force(const Params&, State&, const Contact<S>&, const TickInput<S>&) noexcept {
+    return {};
   }
 };
 
@@ -37,7 +50,7 @@ struct ImpactTransient {
     S frequency_hz{};                ///< f [Hz], > 0 (required)
     S min_impact_speed_m_per_s{};    ///< [m/s], >= 0 (default 0.05)
     S rearm_distance_m{};            ///< [m], >= 0 (default 0.001)
-    SineMethod sine = default_sine_method<S>();
+    SineMethod sine = SineMethod::kAuto;  ///< kAuto: the scalar type's own default
   };
   struct State {
     Instant trigger{};                 ///< tick of the running transient's trigger
@@ -48,36 +61,71 @@ struct ImpactTransient {
     bool running = false;
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr bool kActive = true;
+  static constexpr bool kPresent = true;
+  static constexpr std::string_view kTableKey = "impact";
 
-  /// The transient's force along +n [N]; updates the trigger state.
-  static constexpr S force(const Params& p, State& s, const Contact<S>& c,
-                           const TickInput<S>& in) noexcept {
+  /// Scene-file table `impact` (spec effects.md §4, interfaces.md).
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(number("recoil_gain", &Params::recoil_gain_n_per_m, "N/m", Range::kAny),
+                  number("oscillation_gain", &Params::oscillation_gain_n_per_m, "N/m", Range::kAny),
+                  number("duration", &Params::duration_s, "s", Range::kPositive),
+                  number("frequency", &Params::frequency_hz, "Hz", Range::kPositive),
+                  number("min_impact_speed", &Params::min_impact_speed_m_per_s, "m/s", Range::kNonNegative, 0.05),
+                  number("rearm_distance", &Params::rearm_distance_m, "m", Range::kNonNegative, 0.001),
+                  choice("sine", &Params::sine, kSineNames, SineMethod::kAuto));
+  }
+  static constexpr std::array<std::pair<std::string_view, SineMethod>, 3> kSineNames{
+      {{"library", SineMethod::kLibrary}, {"polynomial", SineMethod::kPolynomial}, {"table", SineMethod::kTable}}};
+
+  /// What the keys cannot say alone: a library sine needs floating point, and the phase
+  /// f * t must fit Q16.16 over the whole transient.
+  static void check(const Params& p, schema::Problems& problems, ScalarKind scalar) {
+    if (scalar != ScalarKind::kQ16_16) return;
+    if (p.sine == SineMethod::kLibrary) {
+      problems.add("sine", "'library' needs a floating-point scalar; use 'polynomial' or 'table' for q16.16");
+    }
+    const double turns = to_double(p.duration_s) * to_double(p.frequency_hz);
+    if (!representable<Q16_16>(turns)) {
+      problems.add("frequency", "frequency x duration (turns over the transient) is outside the Q16.16 range:", turns);
+    }
+  }
+
+  /// The transient on this tick; updates the trigger state.
+  static constexpr ImpactOutput<S> force(const Params& p, State& s, const Contact<S>& c,
+                                         const TickInput<S>& in) noexcept {
     const S delta = c.penetration_m;
     const S previous = s.started ? s.previous_penetration_m : delta;  // first tick: no entry
     s.started = true;
     s.previous_penetration_m = delta;
 
+    ImpactOutput<S> out;
     if (!s.armed && delta <= -p.rearm_distance_m) s.armed = true;
-    const S impact_speed = -c.normal_speed_m_per_s;
     const bool enters = !(previous > S{}) && delta > S{};
-    if (enters && s.armed && impact_speed >= p.min_impact_speed_m_per_s) {
-      s.armed = false;
-      s.running = true;
-      s.trigger = in.now;
-      s.impact_speed_m_per_s = impact_speed;
+    if (enters && s.armed) {
+      const S impact_speed = -c.normal_speed_m_per_s;
+      if (impact_speed >= p.min_impact_speed_m_per_s) {
+        s.armed = false;
+        s.running = true;
+        s.trigger = in.now;
+        s.impact_speed_m_per_s = impact_speed;
+        out.triggered = true;
+      }
     }
-    if (!s.running) return S{};
+    if (!s.running) return out;
 
     const double elapsed_s = in.seconds_since(s.trigger);
     if (!(elapsed_s <= to_double(p.duration_s))) {  // past d: the transient is over
       s.running = false;
-      return S{};
+      out.triggered = false;
+      return out;
     }
     const S t = scalar_cast<S>(elapsed_s);
     const S oscillation = sin_turns(p.frequency_hz * t, p.sine);
-    return s.impact_speed_m_per_s * (p.duration_s - t) *
-           (p.recoil_gain_n_per_m + p.oscillation_gain_n_per_m * oscillation);
+    out.running = true;
+    out.force_n = s.impact_speed_m_per_s * (p.duration_s - t) *
+                  (p.recoil_gain_n_per_m + p.oscillation_gain_n_per_m * oscillation);
+    return out;
   }
 
   /// Seconds since the trigger of the running transient, or NaN.
@@ -95,11 +143,23 @@ struct MaybeImpact {
   };
   using State = typename ImpactTransient<S>::State;
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr bool kActive = true;
+  static constexpr bool kPresent = true;
 
-  static constexpr S force(const Params& p, State& s, const Contact<S>& c,
-                           const TickInput<S>& in) noexcept {
-    return p.enabled ? ImpactTransient<S>::force(p.law, s, c, in) : S{};
+  /// An optional scene-file table `impact`.
+  static constexpr auto schema() {
+    using namespace schema;
+    return fields(table(ImpactTransient<S>::kTableKey, &Params::law, &Params::enabled, ImpactTransient<S>::schema()));
+  }
+  static void check(const Params& p, schema::Problems& problems, ScalarKind scalar) {
+    if (!p.enabled) return;
+    schema::SubTableProblems sub(problems, ImpactTransient<S>::kTableKey);
+    ImpactTransient<S>::check(p.law, sub, scalar);
+  }
+  static constexpr Needs needs(const Params& p) noexcept { return p.enabled ? Needs::kVelocity : Needs::kNone; }
+
+  static constexpr ImpactOutput<S> force(const Params& p, State& s, const Contact<S>& c,
+                                         const TickInput<S>& in) noexcept {
+    return p.enabled ? ImpactTransient<S>::force(p.law, s, c, in) : ImpactOutput<S>{};
   }
   static constexpr double time_since_trigger(const State& s, const TickInput<S>& in) noexcept {
     return ImpactTransient<S>::time_since_trigger(s, in);

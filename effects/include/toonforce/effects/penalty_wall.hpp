@@ -18,6 +18,22 @@ struct PenaltyWall {
   };
   static constexpr Needs kNeeds = kDamped ? Needs::kVelocity : Needs::kNone;
 
+  /// Scene-file keys `stiffness` [N/m, required, > 0] and `damping` [N s/m, default 0, >= 0]
+  /// (a spring-only wall has no damping key).
+  static constexpr auto schema() {
+    using namespace schema;
+    const auto stiffness = number("stiffness", &Params::stiffness_n_per_m, "N/m", Range::kPositive);
+    if constexpr (kDamped) {
+      return fields(stiffness, number("damping", &Params::damping_n_s_per_m, "N s/m", Range::kNonNegative, 0.0));
+    } else {
+      return fields(stiffness);
+    }
+  }
+  /// Whether this wall needs a velocity (a file's wall without damping needs none).
+  static constexpr Needs needs(const Params& p) noexcept {
+    return kDamped && p.damping_n_s_per_m != S{} ? Needs::kVelocity : Needs::kNone;
+  }
+
   /// The magnitude of the wall force along +n [N]; zero out of contact (delta <= 0).
   static constexpr S normal_force(const Params& p, const Contact<S>& c) noexcept {
     if (!(c.penetration_m > S{})) return S{};

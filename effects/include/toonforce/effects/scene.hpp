@@ -3,46 +3,76 @@
 ///
 /// `Scene<Effects...>` is composed at compile time and contains only its effects: its state is
 /// theirs, its `kNeeds` the union of theirs, so a stage no effect needs is compiled out.
-/// `RuntimeScene<S>` holds what a scene file describes, in fixed capacity sized at start-up.
+/// `RuntimeSceneOf<S, Kinds...>` holds what a scene file describes, any number of effects of the
+/// given kinds in file order, in fixed capacity sized at compile time; `RuntimeScene<S>` is the
+/// library's (surfaces and cliffs). A program adds a kind of its own by naming it there.
 ///
-/// A scene's `force(in, state)` updates `state` in place; the caller keeps the previous state
-/// when it must discard a tick (a non-finite force, spec §6.1), see control/controller.hpp.
-/// An effect is a type with `Params`, `State`, `kNeeds` and
-///   static Vec3<S> force(const Params&, State&, const TickInput<S>&) noexcept;
-///   static void describe(const Params&, const State&, const TickInput<S>&, Diagnostics&) noexcept;
+/// Both give the servo loop the same things (SceneType): the force, updating the state in place
+/// (the caller keeps the previous state when it must discard a tick, spec §6.1) and reporting
+/// the active parts into `active` (kActiveCapacity entries, `active_slots()` of them in use);
+/// the values the effects show (`describe`, `value_count()` of them); and which effect each
+/// slot and value belongs to (`effect_info`), for telemetry and the viewer.
 
 #include <array>
 #include <concepts>
 #include <cstddef>
+#include <cstdint>
+#include <span>
 #include <tuple>
 #include <utility>
 
 #include "toonforce/effects/cliff.hpp"
+#include "toonforce/effects/effect.hpp"
 #include "toonforce/effects/surface.hpp"
 
 namespace toonforce {
 
-template <class E>
-concept Effect = requires(const typename E::Params& p, typename E::State& s,
-                          const TickInput<typename E::Scalar>& in, Diagnostics& d) {
-  { E::force(p, s, in) } noexcept -> std::same_as<Vec3<typename E::Scalar>>;
-  { E::describe(p, s, in, d) } noexcept;
-  { E::kNeeds } -> std::convertible_to<Needs>;
+/// One effect of a scene, for naming its values: `key` and `number` (from 1 among effects of
+/// that key, in order) give "surface2.impact_t".
+struct EffectInfo {
+  std::string_view key;
+  std::size_t number = 0;
+  std::span<const ValueInfo> values;
+  std::size_t value_offset = 0;   ///< where its values start in describe()'s output
+  std::size_t active_offset = 0;  ///< where its active slots start
+  std::size_t active_slots = 0;
 };
 
-/// What the controller needs of a scene, compile-time or run-time.
+/// What the servo loop needs of a scene, compile-time or run-time.
 template <class T>
 concept SceneType = requires(const T& scene, typename T::State& s, const typename T::State& cs,
-                             const TickInput<typename T::Scalar>& in) {
-  { scene.force(in, s) } noexcept -> std::same_as<Vec3<typename T::Scalar>>;
-  { scene.needs() } noexcept -> std::same_as<Needs>;
-  { scene.diagnostics(cs, in) } noexcept -> std::same_as<Diagnostics>;
-  { scene.copy_state(cs, s) } noexcept;
+                             const TickInput<typename T::Scalar>& in, ActiveForce<typename T::Scalar>* active,
+                             double* values, std::size_t i) {
   { T::kNeeds } -> std::convertible_to<Needs>;
+  { T::kActiveCapacity } -> std::convertible_to<std::size_t>;
+  { T::kValueCapacity } -> std::convertible_to<std::size_t>;
+  { scene.force(in, s, active) } noexcept -> std::same_as<Vec3<typename T::Scalar>>;
+  { scene.force(in, cs, s, active) } noexcept -> std::same_as<Vec3<typename T::Scalar>>;
+  { scene.needs() } noexcept -> std::same_as<Needs>;
+  { scene.active_slots() } noexcept -> std::same_as<std::size_t>;
+  { scene.value_count() } noexcept -> std::same_as<std::size_t>;
+  { scene.describe(cs, in, values) } noexcept -> std::same_as<bool>;
+  { scene.effect_count() } noexcept -> std::same_as<std::size_t>;
+  { scene.effect_info(i) } noexcept -> std::same_as<EffectInfo>;
 };
 
 template <Effect First, Effect... Rest>
 class Scene {
+  using Effects = std::tuple<First, Rest...>;
+  template <std::size_t I>
+  using E = std::tuple_element_t<I, Effects>;
+  static constexpr std::size_t kCount = 1 + sizeof...(Rest);
+  static constexpr std::array<std::size_t, kCount> kSlots{effect::kActiveSlots<First>, effect::kActiveSlots<Rest>...};
+  static constexpr std::array<std::size_t, kCount> kValueCounts{effect::kValueCount<First>,
+                                                                effect::kValueCount<Rest>...};
+  static constexpr std::array<std::string_view, kCount> kKeys{First::kKey, Rest::kKey...};
+  template <std::size_t N>
+  static constexpr std::size_t offset(const std::array<std::size_t, kCount>& sizes) {
+    std::size_t sum = 0;
+    for (std::size_t i = 0; i < N; ++i) sum += sizes[i];
+    return sum;
+  }
+
  public:
   using Scalar = typename First::Scalar;
   static_assert((std::same_as<Scalar, typename Rest::Scalar> && ...), "one scalar per scene");
@@ -52,130 +82,236 @@ class Scene {
     std::tuple<typename First::State, typename Rest::State...> effects{};
   };
   static constexpr Needs kNeeds = (First::kNeeds | ... | Rest::kNeeds);
+  static constexpr std::size_t kActiveCapacity = offset<kCount>(kSlots);
+  static constexpr std::size_t kValueCapacity = offset<kCount>(kValueCounts);
 
   constexpr explicit Scene(typename First::Params first, typename Rest::Params... rest) noexcept
       : params_{first, rest...} {}
 
-  constexpr Vec3<S> force(const TickInput<S>& in, State& state) const noexcept {
-    return sum(in, state, kIndices);
+  constexpr Vec3<S> force(const TickInput<S>& in, State& state, ActiveForce<S>* active) const noexcept {
+    return sum(in, state, active, std::make_index_sequence<kCount>{});
+  }
+  /// The force from the state `from`, leaving the effects' new states in `to` (`from` kept).
+  constexpr Vec3<S> force(const TickInput<S>& in, const State& from, State& to, ActiveForce<S>* active) const noexcept {
+    to = from;
+    return force(in, to, active);
   }
   constexpr Needs needs() const noexcept { return kNeeds; }
-  constexpr Diagnostics diagnostics(const State& state, const TickInput<S>& in) const noexcept {
-    Diagnostics d;
-    describe_all(state, in, d, kIndices);
-    return d;
+  constexpr std::size_t active_slots() const noexcept { return kActiveCapacity; }
+  constexpr std::size_t value_count() const noexcept { return kValueCapacity; }
+  constexpr bool describe(const State& state, const TickInput<S>& in, double* values) const noexcept {
+    return describe_all(state, in, values, std::make_index_sequence<kCount>{});
   }
-  constexpr void copy_state(const State& from, State& to) const noexcept { to = from; }
+  constexpr std::size_t effect_count() const noexcept { return kCount; }
+  constexpr EffectInfo effect_info(std::size_t i) const noexcept {
+    EffectInfo info;
+    if (i >= kCount) return info;
+    info.key = kKeys[i];
+    for (std::size_t j = 0; j <= i; ++j) info.number += kKeys[j] == kKeys[i] ? std::size_t{1} : std::size_t{0};
+    info.values = values_of(i, std::make_index_sequence<kCount>{});
+    for (std::size_t j = 0; j < i; ++j) {
+      info.value_offset += kValueCounts[j];
+      info.active_offset += kSlots[j];
+    }
+    info.active_slots = kSlots[i];
+    return info;
+  }
   constexpr const Params& params() const noexcept { return params_; }
 
  private:
-  using Effects = std::tuple<First, Rest...>;
-  static constexpr auto kIndices = std::index_sequence_for<First, Rest...>{};
-
   template <std::size_t... I>
-  constexpr Vec3<S> sum(const TickInput<S>& in, State& state, std::index_sequence<I...>) const noexcept {
+  constexpr Vec3<S> sum(const TickInput<S>& in, State& state, ActiveForce<S>* active,
+                        std::index_sequence<I...>) const noexcept {
     Vec3<S> total{};
     // The comma fold runs left to right: effects add in declaration order.
-    ((total += std::tuple_element_t<I, Effects>::force(std::get<I>(params_), std::get<I>(state.effects), in)), ...);
+    ((total += effect::force<E<I>>(std::get<I>(params_), std::get<I>(state.effects), in,
+                                   active + offset<I>(kSlots))),
+     ...);
     return total;
   }
   template <std::size_t... I>
-  constexpr void describe_all(const State& state, const TickInput<S>& in, Diagnostics& d,
+  constexpr bool describe_all(const State& state, const TickInput<S>& in, double* values,
                               std::index_sequence<I...>) const noexcept {
-    (std::tuple_element_t<I, Effects>::describe(std::get<I>(params_), std::get<I>(state.effects), in, d), ...);
+    bool contact = false;
+    ((contact = effect::describe<E<I>>(std::get<I>(params_), std::get<I>(state.effects), in,
+                                       values + offset<I>(kValueCounts)) ||
+                contact),
+     ...);
+    return contact;
+  }
+  template <std::size_t... I>
+  static constexpr std::span<const ValueInfo> values_of(std::size_t i, std::index_sequence<I...>) noexcept {
+    std::span<const ValueInfo> out;
+    ((i == I ? void(out = std::span<const ValueInfo>(effect::kValues<E<I>>)) : void()), ...);
+    return out;
   }
 
   Params params_;
 };
 
-/// The scene a file describes: any number of surfaces and cliffs up to a fixed capacity, each
-/// surface with either tangential law and an optional impact, chosen at run time.
-template <Scalar S>
-class RuntimeScene {
+/// The scene a file describes: effects of the kinds `Kinds<S>` (each an Effect template over the
+/// scalar), any number of each up to its kMaxPerScene, forces added in the order they were added.
+template <Scalar S, template <class> class... Kinds>
+class RuntimeSceneOf {
+  using Effects = std::tuple<Kinds<S>...>;
+  static constexpr std::size_t kKinds = sizeof...(Kinds);
+  static_assert(kKinds > 0 && kKinds < 256);
+
  public:
+  template <std::size_t I>
+  using Kind = std::tuple_element_t<I, Effects>;
   using Scalar = S;
-  using SurfaceEffect = Surface<PenaltyWall<S>, AnyTangential<S>, MaybeImpact<S>>;
-  using CliffEffect = CartoonCliff<S>;
-  static constexpr std::size_t kMaxSurfaces = 16;
-  static constexpr std::size_t kMaxCliffs = 8;
-  static constexpr std::size_t kMaxEffects = kMaxSurfaces + kMaxCliffs;
   /// Upper bound of what a loaded scene may need; `needs()` says what this one needs.
-  static constexpr Needs kNeeds = Needs::kVelocity;
+  static constexpr Needs kNeeds = (Kinds<S>::kNeeds | ...);
+  static constexpr std::size_t kMaxEffects = (effect::kMaxPerScene<Kinds<S>> + ...);
+  static constexpr std::size_t kActiveCapacity =
+      ((effect::kMaxPerScene<Kinds<S>> * effect::kActiveSlots<Kinds<S>>) + ...);
+  static constexpr std::size_t kValueCapacity = ((effect::kMaxPerScene<Kinds<S>> * effect::kValueCount<Kinds<S>>) + ...);
 
   struct State {
-    std::array<typename SurfaceEffect::State, kMaxSurfaces> surfaces{};
-    std::array<typename CliffEffect::State, kMaxCliffs> cliffs{};
+    std::tuple<std::array<typename Kinds<S>::State, effect::kMaxPerScene<Kinds<S>>>...> effects{};
   };
 
-  /// Appends a surface after the effects already added; false when full.
-  constexpr bool add_surface(const typename SurfaceEffect::Params& p) noexcept {
-    if (surface_count_ == kMaxSurfaces) return false;
-    surfaces_[surface_count_] = p;
-    order_[effect_count_++] = Entry{Kind::kSurface, static_cast<std::uint8_t>(surface_count_++)};
-    const bool uses_velocity = p.wall.damping_n_s_per_m != S{} ||
-                               p.tangential.kind != AnyTangential<S>::Kind::kNone || p.impact.enabled;
-    if (uses_velocity) needs_ = needs_ | Needs::kVelocity;
+  /// Index of the kind whose key is `key`, or kKinds.
+  static constexpr std::size_t kind_index(std::string_view key) noexcept {
+    constexpr std::array<std::string_view, kKinds> keys{Kinds<S>::kKey...};
+    for (std::size_t i = 0; i < kKinds; ++i) {
+      if (keys[i] == key) return i;
+    }
+    return kKinds;
+  }
+  static constexpr std::size_t kind_count() noexcept { return kKinds; }
+
+  /// Appends an effect of kind I after those already added; false when that kind is full.
+  template <std::size_t I>
+  constexpr bool add(const typename Kind<I>::Params& p) noexcept {
+    using E = Kind<I>;
+    std::size_t& n = counts_[I];
+    if (n == effect::kMaxPerScene<E>) return false;
+    std::get<I>(params_)[n] = p;
+    order_[effect_count_++] = Entry{static_cast<std::uint8_t>(I), static_cast<std::uint8_t>(n),
+                                    static_cast<std::uint16_t>(active_slots_),
+                                    static_cast<std::uint16_t>(value_count_), effect::stateful<E>(p)};
+    ++n;
+    active_slots_ += effect::active_slots<E>(p);
+    value_count_ += effect::kValueCount<E>;
+    needs_ = needs_ | effect::needs<E>(p);
     return true;
   }
-  /// Appends a cliff after the effects already added; false when full.
-  constexpr bool add_cliff(const typename CliffEffect::Params& p) noexcept {
-    if (cliff_count_ == kMaxCliffs) return false;
-    cliffs_[cliff_count_] = p;
-    order_[effect_count_++] = Entry{Kind::kCliff, static_cast<std::uint8_t>(cliff_count_++)};
-    needs_ = needs_ | CliffEffect::kNeeds;
-    return true;
+  /// The same, by effect type.
+  template <class E>
+  constexpr bool add(const typename E::Params& p) noexcept {
+    return add<index_of<E>(std::make_index_sequence<kKinds>{})>(p);
   }
 
-  constexpr Vec3<S> force(const TickInput<S>& in, State& state) const noexcept {
+  constexpr Vec3<S> force(const TickInput<S>& in, State& state, ActiveForce<S>* active) const noexcept {
     Vec3<S> total{};
     for (std::size_t i = 0; i < effect_count_; ++i) {
-      const Entry e = order_[i];
-      if (e.kind == Kind::kSurface) {
-        total += SurfaceEffect::force(surfaces_[e.index], state.surfaces[e.index], in);
-      } else {
-        total += CliffEffect::force(cliffs_[e.index], state.cliffs[e.index], in);
-      }
+      dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+        total += effect::force<Kind<I>>(std::get<I>(params_)[e.index], std::get<I>(state.effects)[e.index], in,
+                                        active + e.active_offset);
+      });
+    }
+    return total;
+  }
+  /// The force from the state `from`, leaving the effects' new states in `to` (`from` kept):
+  /// each effect's state is copied just before it runs, only for the effects in use.
+  constexpr Vec3<S> force(const TickInput<S>& in, const State& from, State& to, ActiveForce<S>* active) const noexcept {
+    Vec3<S> total{};
+    for (std::size_t i = 0; i < effect_count_; ++i) {
+      dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+        auto& state = std::get<I>(to.effects)[e.index];
+        if (e.stateful) state = std::get<I>(from.effects)[e.index];  // else both copies stay as they were
+        total += effect::force<Kind<I>>(std::get<I>(params_)[e.index], state, in, active + e.active_offset);
+      });
     }
     return total;
   }
   constexpr Needs needs() const noexcept { return needs_; }
-  constexpr Diagnostics diagnostics(const State& state, const TickInput<S>& in) const noexcept {
-    Diagnostics d;
+  constexpr std::size_t active_slots() const noexcept { return active_slots_; }
+  constexpr std::size_t value_count() const noexcept { return value_count_; }
+  constexpr bool describe(const State& state, const TickInput<S>& in, double* values) const noexcept {
+    bool contact = false;
     for (std::size_t i = 0; i < effect_count_; ++i) {
-      const Entry e = order_[i];
-      if (e.kind == Kind::kSurface) {
-        SurfaceEffect::describe(surfaces_[e.index], state.surfaces[e.index], in, d);
-      } else {
-        CliffEffect::describe(cliffs_[e.index], state.cliffs[e.index], in, d);
-      }
+      dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+        contact = effect::describe<Kind<I>>(std::get<I>(params_)[e.index], std::get<I>(state.effects)[e.index], in,
+                                            values + e.value_offset) ||
+                  contact;
+      });
     }
-    return d;
+    return contact;
   }
-  /// Copies only the slots in use, so a one-surface scene copies one state, not sixteen.
-  constexpr void copy_state(const State& from, State& to) const noexcept {
-    for (std::size_t i = 0; i < surface_count_; ++i) to.surfaces[i] = from.surfaces[i];
-    for (std::size_t i = 0; i < cliff_count_; ++i) to.cliffs[i] = from.cliffs[i];
+  constexpr std::size_t effect_count() const noexcept { return effect_count_; }
+  constexpr EffectInfo effect_info(std::size_t i) const noexcept {
+    EffectInfo info;
+    if (i >= effect_count_) return info;
+    dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+      info.key = Kind<I>::kKey;
+      info.number = e.index + 1u;
+      info.values = std::span<const ValueInfo>(effect::kValues<Kind<I>>);
+      info.active_slots = effect::active_slots<Kind<I>>(std::get<I>(params_)[e.index]);
+    });
+    info.value_offset = order_[i].value_offset;
+    info.active_offset = order_[i].active_offset;
+    return info;
   }
 
-  constexpr std::size_t surface_count() const noexcept { return surface_count_; }
-  constexpr std::size_t cliff_count() const noexcept { return cliff_count_; }
-  constexpr const typename SurfaceEffect::Params& surface(std::size_t i) const noexcept { return surfaces_[i]; }
-  constexpr const typename CliffEffect::Params& cliff(std::size_t i) const noexcept { return cliffs_[i]; }
+  /// How many effects of kind I, and the n-th of them.
+  template <std::size_t I>
+  constexpr std::size_t count() const noexcept {
+    return counts_[I];
+  }
+  template <std::size_t I>
+  constexpr const typename Kind<I>::Params& params(std::size_t n) const noexcept {
+    return std::get<I>(params_)[n];
+  }
+  template <class E>
+  constexpr std::size_t count() const noexcept {
+    return counts_[index_of<E>(std::make_index_sequence<kKinds>{})];
+  }
+  template <class E>
+  constexpr const typename E::Params& params(std::size_t n) const noexcept {
+    return std::get<index_of<E>(std::make_index_sequence<kKinds>{})>(params_)[n];
+  }
 
  private:
-  enum class Kind : std::uint8_t { kSurface, kCliff };
   struct Entry {
-    Kind kind = Kind::kSurface;
+    std::uint8_t kind = 0;
     std::uint8_t index = 0;
+    std::uint16_t active_offset = 0;
+    std::uint16_t value_offset = 0;
+    bool stateful = true;  ///< its state can change: copied before it runs
   };
+  static_assert(kActiveCapacity < 65536 && kValueCapacity < 65536);
 
-  std::array<typename SurfaceEffect::Params, kMaxSurfaces> surfaces_{};
-  std::array<typename CliffEffect::Params, kMaxCliffs> cliffs_{};
+  template <class E, std::size_t... I>
+  static constexpr std::size_t index_of(std::index_sequence<I...>) noexcept {
+    std::size_t found = kKinds;
+    ((std::same_as<E, Kind<I>> ? void(found = I) : void()), ...);
+    static_assert(((std::same_as<E, Kind<I>> ? 1 : 0) + ...) == 1, "not one of this scene's kinds");
+    return found;
+  }
+  /// Calls `f.template operator()<I>(entry)` for the entry's kind.
+  template <class F>
+  static constexpr void dispatch(const Entry& e, F&& f) noexcept {
+    dispatch_kinds(e, f, std::make_index_sequence<kKinds>{});
+  }
+  template <class F, std::size_t... I>
+  static constexpr void dispatch_kinds(const Entry& e, F& f, std::index_sequence<I...>) noexcept {
+    static_cast<void>(((e.kind == I ? (f.template operator()<I>(e), true) : false) || ...));
+  }
+
+  std::tuple<std::array<typename Kinds<S>::Params, effect::kMaxPerScene<Kinds<S>>>...> params_{};
   std::array<Entry, kMaxEffects> order_{};
-  std::size_t surface_count_ = 0;
-  std::size_t cliff_count_ = 0;
+  std::array<std::size_t, kKinds> counts_{};
   std::size_t effect_count_ = 0;
+  std::size_t active_slots_ = 0;
+  std::size_t value_count_ = 0;
   Needs needs_ = Needs::kNone;
 };
+
+/// The library's run-time scene: surfaces and cliffs, as scene files describe them.
+template <Scalar S>
+using RuntimeScene = RuntimeSceneOf<S, RuntimeSurface, CartoonCliff>;
 
 }  // namespace toonforce

@@ -4,7 +4,9 @@
 
 #include <cstdint>
 #include <limits>
+#include <string_view>
 
+#include "toonforce/effects/schema.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
@@ -67,14 +69,30 @@ struct Plane {
   constexpr Contact<S> contact(const TickInput<S>& in) const noexcept {
     return {-dot(normal, in.position_m - point_m), dot(normal, in.velocity_m_per_s)};
   }
+
+  /// Scene-file keys `point` [m] and `normal` (normalised on load; zero is an error).
+  static constexpr auto schema() {
+    return schema::fields(schema::vector("point", &Plane::point_m, "m"), schema::unit_vector("normal", &Plane::normal));
+  }
 };
 
-/// What a scene reports about its effects after a tick, for traces and tests (not the loop).
-struct Diagnostics {
-  bool in_contact = false;  ///< the HIP penetrates some surface (or a supported cliff ground)
-  /// [s] time since the trigger of the first running impact transient; NaN if none runs.
-  double impact_time_s = std::numeric_limits<double>::quiet_NaN();
-  int cliff_state = -1;     ///< first cliff: -1 none, 0 supported, 1 fallen
+/// What an active part of an effect (one that injects energy by design: the super-slippery
+/// surface, the impact transient) added to the scene force on one tick, so the passivity
+/// controller can hold each of its episodes (a contact, a transient) to an energy budget
+/// (spec effects.md §6). An effect declares how many such parts it has (`kActiveSlots`) and
+/// reports each of them on every tick.
+template <Scalar S>
+struct ActiveForce {
+  Vec3<S> force_n;          ///< what the part added to the scene force this tick [N]
+  bool in_episode = false;  ///< it is acting: in contact (slippery) or a transient runs (impact)
+  bool triggered = false;   ///< a new episode started this tick even if one was running (impact)
+};
+
+/// One value an effect shows in traces, telemetry and the viewer (its diagnostic state).
+struct ValueInfo {
+  std::string_view name;  ///< column suffix: "impact_t" becomes "surface1.impact_t"
+  std::string_view unit;  ///< "s", "m/s", "" for flags and states
+  std::string_view doc;
 };
 
 }  // namespace toonforce

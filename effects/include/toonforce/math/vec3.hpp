@@ -102,6 +102,8 @@ constexpr Vec3<S> scale_by_ratio(const Vec3<S>& v, S numerator, S denominator) n
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
+  // Squares first: the norm (a square root) only when the limit may bite.
+  if (!(dot(v, v) > max_magnitude * max_magnitude)) return v;
   const S magnitude = norm(v);
   if (magnitude <= max_magnitude) return v;
   return scale_by_ratio(v, max_magnitude, magnitude);

@@ -4,6 +4,11 @@
 /// benchmarks; `DeviceDriver` is the one virtual interface for choosing a backend at run time,
 /// and `DriverRef` adapts it to the concept (one indirect call each way per tick).
 ///
+/// A device is clocked one of two ways (DeviceInfo::clocking): by the host's real-time timer,
+/// which calls the loop's tick on absolute deadlines (control/realtime_runner.hpp), or by its
+/// own servo thread (OpenHaptics' scheduler), which calls a tick function through
+/// `DeviceDriver::run_clocked`. control/ runs both through this seam, never by knowing the backend.
+///
 /// Everything crosses the seam in the scene frame of effects.md §0 (x right, y away from the
 /// user, z up, origin at the workspace centre) and SI units; each backend converts its own
 /// frame. read() and write() are the tick's only system calls: no allocation, no exceptions.
@@ -12,6 +17,7 @@
 #include <string>
 #include <string_view>
 
+#include "toonforce/common/result.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
@@ -46,6 +52,31 @@ struct DeviceReading {
   std::uint32_t buttons = 0;      ///< bit i = button i pressed
 };
 
+/// Who calls the servo loop's tick.
+enum class Clocking : std::uint8_t {
+  kHostTimer,     ///< the host's real-time timer (a thread of ours on absolute deadlines)
+  kDeviceThread,  ///< the device's own servo thread (DeviceDriver::run_clocked)
+};
+
+/// The clock of one tick as a self-clocked device's servo thread sees it.
+struct ClockedTick {
+  std::int64_t tick = 0;  ///< periods since the run started, skipped periods included (Instant::tick)
+  double dt_s = 0.0;      ///< [s] true time since the previous tick, as the device measures it
+  double period_s = 0.0;  ///< [s] nominal period
+};
+
+enum class TickVerdict : std::uint8_t { kContinue, kStop };
+
+/// The tick a self-clocked device calls in its servo thread: read() and write() of the device
+/// are valid only inside it. Must not allocate, block or throw. kStop ends the run after this
+/// tick (forces off).
+using ClockedTickFn = TickVerdict (*)(void* context, const ClockedTick& clock) noexcept;
+
+/// How a self-clocked run ended.
+struct ClockedEnd {
+  std::string device_stopped;  ///< why the device ended the run itself; empty when the tick did
+};
+
 /// What a device is and can do, known once it is open.
 struct DeviceInfo {
   std::string name;                        ///< for messages: "Novint Falcon (serial ...)"
@@ -54,7 +85,7 @@ struct DeviceInfo {
   Vec3<double> workspace_min_m;            ///< scene frame
   Vec3<double> workspace_max_m;
   double nominal_rate_hz = 1000.0;
-  bool self_clocked = false;  ///< the device's own scheduler calls the tick (OpenHaptics)
+  Clocking clocking = Clocking::kHostTimer;
 };
 
 template <class D>
@@ -81,6 +112,14 @@ class DeviceDriver {
   virtual const DeviceInfo& info() const noexcept = 0;
   /// A person-readable explanation of the last non-ok status: what happened, what to do.
   virtual std::string last_error() const { return {}; }
+  /// Clocking::kDeviceThread: runs `tick` in the device's own servo thread, every period,
+  /// until it returns kStop or the device stops the run; blocks until then. Start-up and
+  /// end-of-run code around the ticks may allocate; the ticks may not.
+  virtual Result<ClockedEnd> run_clocked(ClockedTickFn tick, void* context) {
+    static_cast<void>(tick);
+    static_cast<void>(context);
+    return Error{info().name + ": not a self-clocked device (its clocking is the host's timer)"};
+  }
 };
 
 /// Adapts a DeviceDriver to the ServoDevice concept.

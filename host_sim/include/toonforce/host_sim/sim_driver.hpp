@@ -13,6 +13,10 @@
 
 namespace toonforce::host_sim {
 
+/// What a simulated device says about itself (DeviceInfo), for a loop at `period_s`: the same
+/// for `run --device sim` and `sim`, so a scene previewed in one behaves as in the other.
+DeviceInfo device_info(const DeviceParams& device, double period_s);
+
 class SimDriver final : public DeviceDriver {
  public:
   /// A driver for `device` with a hand following `intent`, exchanging every

@@ -3,7 +3,7 @@
 // nothing. Live, it follows the newest frame; paused, or once the run is over (or for a
 // recorded trace), it plays back and can be scrubbed.
 import './style.css';
-import { FrameStore, CLIFF_LABELS } from './store.js';
+import { FrameStore, CLIFF_LABELS, effectGroups } from './store.js';
 import { Scene3D } from './scene3d.js';
 import { Plots, drawHistogram } from './plots.js';
 
@@ -27,6 +27,7 @@ const view = {
   fpsFrames: 0,
   fpsSince: performance.now(),
   rendered: 0,
+  effectGroups: [], // the effects' values, as the page lists them
 };
 
 function setBadge(el, state, text) {
@@ -50,6 +51,7 @@ function onHello(hello) {
   const pacing = hello.pacing ? `, ${hello.pacing}` : '';
   $('source').textContent = `${hello.source}${rate ? ', ' + rate : ''}${pacing}${hello.scene ? ', scene ' + hello.scene.name : ', no scene'}`;
   if (view.scene === null) view.scene = new Scene3D($('view3d'), hello);
+  buildEffectValues(hello);
   setConnection(hello.live ? 'live' : 'recording', hello.live ? 'live' : 'recording');
 }
 
@@ -96,9 +98,38 @@ function names(bits, table) {
   return table.filter(([bit]) => (bits & bit) !== 0).map(([, name]) => name);
 }
 
-function impactSurface() {
-  const scene = view.hello.scene;
-  return scene ? scene.surfaces.find((s) => s.impact) : null;
+/** One row per effect that shows values (the library's and a program's own alike). */
+function buildEffectValues(hello) {
+  const list = $('effect-values');
+  list.replaceChildren();
+  view.effectGroups = effectGroups(hello);
+  for (const group of view.effectGroups) {
+    const dt = document.createElement('dt');
+    dt.textContent = group.effect;
+    const dd = document.createElement('dd');
+    dd.dataset.effect = group.effect;
+    list.append(dt, dd);
+    group.element = dd;
+  }
+  $('effect-values-panel').hidden = view.effectGroups.length === 0;
+}
+
+/** A value with its unit, lengths in mm and times in ms as the rest of the page shows them. */
+function showValue(v, unit) {
+  if (!Number.isFinite(v)) return '–';
+  if (unit === 'm') return `${(v * 1000).toFixed(2)} mm`;
+  if (unit === 's') return `${(v * 1000).toFixed(1)} ms`;
+  const text = String(Number(v.toPrecision(3))); // 3 significant digits, no trailing zeros
+  return unit ? `${text} ${unit}` : text;
+}
+
+function updateEffectValues(i) {
+  const s = view.store;
+  for (const group of view.effectGroups) {
+    group.element.textContent = group.values
+      .map((v) => `${v.name} ${showValue(s.data[i * s.stride + v.column], v.unit)}`)
+      .join(' · ');
+  }
 }
 
 function updatePanels(i) {
@@ -107,9 +138,10 @@ function updatePanels(i) {
   $('time').textContent = `${fmt(g('t'), 3)} s (tick ${g('tick')})`;
   const contact = g('contact');
   setBadge($('contact'), contact > 0 ? 'yes' : 'no', contact > 0 ? 'in contact' : 'free');
-  const impactT = g('impact_t');
-  if (Number.isFinite(impactT)) {
-    const surface = impactSurface();
+  const impact = s.runningImpact(i);
+  if (impact) {
+    const impactT = impact.t;
+    const surface = impact.surface;
     const d = surface ? surface.impact.duration : NaN;
     const f = surface ? surface.impact.frequency : NaN;
     const cycle = Number.isFinite(f) ? ` cycle ${Math.floor(impactT * f) + 1}` : '';
@@ -138,7 +170,7 @@ function updatePanels(i) {
     const name = view.hello.states[state] ?? `state ${state}`;
     setBadge($('loop-state'), name, name);
   } else {
-    setBadge($('loop-state'), 'none', view.hello.source === 'sim' ? 'sim (no servo loop)' : 'n/a');
+    setBadge($('loop-state'), 'none', 'n/a');
   }
   const limits = names(g('limits'), view.hello.limits);
   $('limits').textContent = limits.join(', ');
@@ -152,6 +184,8 @@ function updatePanels(i) {
   $('faults-seen').textContent = s.faultTicks
     ? `${s.faultTicks} tick(s) with faults so far: ${names(s.faultUnion, view.hello.faults).join(', ')}`
     : 'no faults so far';
+
+  updateEffectValues(i);
 
   if (s.latencyCount > 0) {
     const missed = g('missed');
@@ -274,6 +308,7 @@ window.toonforceViewer = {
       impact: $('impact').dataset.state,
       cliff: $('cliff').dataset.state,
       faults: $('faults').dataset.state,
+      effects: Object.fromEntries((view.effectGroups ?? []).map((g) => [g.effect, g.element.textContent])),
       arrow: view.scene
         ? { visible: view.scene.arrow.visible, direction: view.scene.arrow.userData.direction, length: view.scene.arrow.userData.length }
         : null,

@@ -25,6 +25,7 @@ import {
   WebGLRenderer,
 } from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { sceneParts } from './store.js';
 
 const KIND_COLOURS = {
   wall: 0x8a99ad,
@@ -62,11 +63,9 @@ export class Scene3D {
     this.size = bounds.size;
     this.center = bounds.center;
     this.bridges = [];
-    const sceneDesc = hello.scene;
-    if (sceneDesc) {
-      for (const s of sceneDesc.surfaces) this.#addSurface(s);
-      for (const c of sceneDesc.cliffs) this.#addCliff(c);
-    }
+    const parts = sceneParts(hello);
+    for (const s of parts.surfaces) this.#addSurface(s);
+    for (const c of parts.cliffs) this.#addCliff(c);
     this.#addHip();
     this.#addTrail();
 
@@ -89,13 +88,12 @@ export class Scene3D {
       return { center, size: Math.max(0.06, Math.min(0.2, max.clone().sub(min).length() * 0.6)) };
     }
     const pts = [];
-    if (hello.scene) {
-      for (const s of hello.scene.surfaces) pts.push(new Vector3(...s.point));
-      for (const c of hello.scene.cliffs) {
-        const p = new Vector3(...c.point);
-        const a = new Vector3(...c.axis);
-        pts.push(p.clone().addScaledVector(a, (c.gap_min + c.gap_max) / 2));
-      }
+    const parts = sceneParts(hello);
+    for (const s of parts.surfaces) pts.push(new Vector3(...s.point));
+    for (const c of parts.cliffs) {
+      const p = new Vector3(...c.point);
+      const a = new Vector3(...c.axis);
+      pts.push(p.clone().addScaledVector(a, (c.gap_min + c.gap_max) / 2));
     }
     const center = new Vector3();
     for (const p of pts) center.add(p);
@@ -263,9 +261,10 @@ export class Scene3D {
     this.character.rotation.z = this.heading;
 
     // Cartoon reactions: squash and stretch with the impact transient, wide eyes when fallen.
-    const impactT = g('impact_t');
+    const impact = store.runningImpact(i);
+    const impactT = impact ? impact.t : NaN;
     let squash = 1;
-    if (Number.isFinite(impactT)) squash = 1 - 0.25 * Math.exp(-impactT * 12) * Math.cos(impactT * 2 * Math.PI * 25);
+    if (impact) squash = 1 - 0.25 * Math.exp(-impactT * 12) * Math.cos(impactT * 2 * Math.PI * 25);
     this.character.scale.set(1 / Math.sqrt(squash), 1 / Math.sqrt(squash), squash);
     const label = store.cliffLabel[i];
     const eyeScale = label === 3 ? 1.6 : 1;

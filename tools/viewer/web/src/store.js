@@ -1,6 +1,9 @@
 // The frames the page has received, in order, as one growing Float64Array (stride values per
 // frame, columns named by the server's hello), plus what the page derives from them frame by
 // frame (the cliff's label), and the wake-up latency histogram of every frame received.
+// The scene's effects come in the hello as a list (key, number, params, values), each the way
+// its schema describes it; the page draws the kinds it knows (surfaces, cliffs) and lists the
+// values of every effect, a program's own included, by their column names (KEY1.value).
 // Batches arrive as [kind, stride, first sequence number, count, frames...]; a gap in the
 // sequence numbers is frames the server dropped for this page (it fell behind).
 
@@ -8,12 +11,58 @@ export const CLIFF_LABELS = ['none', 'supported', 'bridged', 'fallen'];
 
 const HISTOGRAM_BINS = 2000; // 1 us bins up to 2 ms, then overflow
 
+/** What the page draws, from the hello's scene: surfaces (with a colour kind) and cliffs, each
+ *  with its number (surface2 is the second [[surface]] of the file). */
+export function sceneParts(hello) {
+  const effects = hello.scene && Array.isArray(hello.scene.effects) ? hello.scene.effects : [];
+  const of = (key) => effects.filter((e) => e.key === key).map((e) => ({ ...e.params, number: e.number }));
+  const surfaces = of('surface').map((s) => ({
+    ...s,
+    kind: s.slippery ? 'slippery' : s.friction ? 'friction' : s.impact ? 'impact' : 'wall',
+  }));
+  return { effects, surfaces, cliffs: of('cliff') };
+}
+
+/** The effects' values among the hello's columns, grouped by effect: [{effect, values:[{name,
+ *  column, unit}]}] in column order ("magnet1.distance" is value "distance" of "magnet1"). */
+export function effectGroups(hello) {
+  const units = {};
+  for (const e of sceneParts(hello).effects) {
+    (e.values ?? []).forEach((name, k) => {
+      units[name] = e.units ? e.units[k] : '';
+    });
+  }
+  const groups = [];
+  hello.columns.forEach((name, column) => {
+    const dot = name.indexOf('.');
+    if (dot <= 0) return;
+    const effect = name.slice(0, dot);
+    let group = groups.find((g) => g.effect === effect);
+    if (!group) {
+      group = { effect, values: [] };
+      groups.push(group);
+    }
+    group.values.push({ name: name.slice(dot + 1), column, unit: units[name] ?? '' });
+  });
+  return groups;
+}
+
 export class FrameStore {
   constructor(hello, maxFrames = 1 << 19) {
     this.columns = hello.columns;
     this.stride = hello.columns.length;
     this.col = Object.fromEntries(hello.columns.map((name, i) => [name, i]));
-    this.cliff = hello.scene && hello.scene.cliffs.length > 0 ? hello.scene.cliffs[0] : null;
+    const parts = sceneParts(hello);
+    this.cliff = parts.cliffs.length > 0 ? parts.cliffs[0] : null;
+    // The first cliff's state column: from the scene, or from a trace's columns without one.
+    this.cliffStateColumn = this.col[`cliff${this.cliff ? this.cliff.number : 1}.state`];
+    // The surfaces' impact times ("surface1.impact_t"), with their surface when the scene is known.
+    this.impacts = Object.keys(this.col)
+      .filter((name) => /^surface\d+\.impact_t$/.test(name))
+      .map((name) => ({
+        column: this.col[name],
+        surface: parts.surfaces.find((sf) => `surface${sf.number}.impact_t` === name) ?? null,
+      }));
     this.maxFrames = maxFrames;
     this.data = new Float64Array(this.stride * 4096);
     this.cliffLabel = new Uint8Array(4096);
@@ -93,7 +142,7 @@ export class FrameStore {
     const compute = d[row + c.compute_us];
     if (Number.isFinite(compute)) this.computeMax = Math.max(this.computeMax, compute);
 
-    const state = d[row + c.cliff_state];
+    const state = this.cliffStateColumn === undefined ? NaN : d[row + this.cliffStateColumn];
     let label = 0;
     if (state === 1) {
       label = 3;
@@ -118,6 +167,15 @@ export class FrameStore {
 
   get(i, name) {
     return this.data[i * this.stride + this.col[name]];
+  }
+
+  /** The impact transient running at frame i: {t (seconds since its trigger), surface} or null. */
+  runningImpact(i) {
+    for (const impact of this.impacts) {
+      const t = this.data[i * this.stride + impact.column];
+      if (Number.isFinite(t)) return { t, surface: impact.surface };
+    }
+    return null;
   }
 
   time(i) {

@@ -1,110 +1,125 @@
 #pragma once
-/// Scene files (spec interfaces.md "Scene files"): a TOML description of surfaces and cliffs,
-/// checked completely at load time, then turned into a RuntimeScene<S> and a ControllerConfig.
-/// Every error names the file, the line and the key, and nothing runs while there is one.
+/// Scene files (spec interfaces.md "Scene files"): a TOML description of effects, checked
+/// completely at load time, then turned into a run-time scene and a ServoConfig. Every error
+/// names the file, the line and the key, and nothing runs while there is one.
+///
+/// The reader knows no effect: it reads each `[[KEY]]` table of the effect kinds it is given by
+/// that effect's schema (effects/schema.hpp), runs the effect's own checks, and keeps the
+/// parameters as written (in double) until `make_runtime_scene<S>` converts them. The
+/// library's kinds are surfaces and cliffs (`SceneDescription`); a program reads its own effects
+/// beside them with `read_scene_file<RuntimeSurface, CartoonCliff, MyEffect>(path)`
+/// (scene_reader.hpp).
 
 #include <cstdint>
-#include <optional>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <vector>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/toml_reader.hpp"
-#include "toonforce/control/controller.hpp"
 #include "toonforce/control/servo_config.hpp"
 #include "toonforce/effects/scene.hpp"
 
 namespace toonforce {
 
-/// A scene as the file says, in double, validated; defaults filled in (effects.md).
-struct SceneDescription {
-  struct Plane {
-    Vec3<double> point_m;
-    Vec3<double> normal;  ///< normalised
-  };
-  struct Friction {
-    double viscous_n_s_per_m = 0.0;
-    double coulomb = 0.0;
-    double regularization_speed_m_per_s = 0.02;
-  };
-  struct Slippery {
-    double mu_n_s_per_m = 0.0;
-    double max_tangential_force_n = 2.0;
-  };
-  struct Impact {
-    double recoil_gain_n_per_m = 0.0;
-    double oscillation_gain_n_per_m = 0.0;
-    double duration_s = 0.0;
-    double frequency_hz = 0.0;
-    double min_impact_speed_m_per_s = 0.05;
-    double rearm_distance_m = 0.001;
-    std::optional<SineMethod> sine;  ///< unset: the scalar type's default
-  };
-  struct Surface {
-    Plane plane;
-    double stiffness_n_per_m = 0.0;
-    double damping_n_s_per_m = 0.0;
-    std::optional<Friction> friction;
-    std::optional<Slippery> slippery;
-    std::optional<Impact> impact;
-    std::uint32_t line = 0;
-  };
-  struct Cliff {
-    Plane ground;
-    Vec3<double> axis;  ///< normalised
-    double gap_min_m = 0.0;
-    double gap_max_m = 0.0;
-    double stiffness_n_per_m = 0.0;
-    double damping_n_s_per_m = 0.0;
-    double speed_threshold_m_per_s = 0.0;
-    double tau_s = 0.02;
-    double rearm_height_m = 0.001;
-    double fall_force_n = 0.0;
-    std::uint32_t line = 0;
-  };
-  enum class Kind : std::uint8_t { kSurface, kCliff };
-  struct Entry {
-    Kind kind;
-    std::size_t index;  ///< into surfaces or cliffs
-  };
+/// One effect of a scene file: which kind, which of that kind (from 0), where it was written.
+struct SceneEntry {
+  std::size_t kind = 0;
+  std::size_t index = 0;
+  std::uint32_t line = 0;
+};
 
+/// What a scene file says outside its effects: its name and the [device] table.
+struct SceneSettings {
   std::string name;    ///< `name`, or the file's stem
   std::string source;  ///< the file it came from
-  /// [device]
-  ForceLimits limits;
+  ForceLimits limits;  ///< [device] max_force, max_force_rate
   double velocity_cutoff_hz = VelocityEstimator<double>::kDefaultCutoffHz;
   /// [device] keys of the servo loop's safety layer (toonforce extensions, interfaces.md),
   /// defaults filled in; replay ignores them. Workspace and continuous force stay unset
   /// (has_workspace false, continuous_force_n 0) unless the file sets them: the device fills them.
   SafetyConfig safety;
-  std::vector<Surface> surfaces;
-  std::vector<Cliff> cliffs;
-  std::vector<Entry> order;  ///< all effects in file order (their forces add in this order)
 };
 
-/// Loads and checks a scene file for the given scalar type (a value must fit it).
+/// A scene file read against the effect kinds `Kinds<double>`, validated, defaults filled in.
+template <template <class> class... Kinds>
+struct SceneFileOf : SceneSettings {
+  using Effects = std::tuple<Kinds<double>...>;
+  template <std::size_t I>
+  using Kind = std::tuple_element_t<I, Effects>;
+  static constexpr std::size_t kKinds = sizeof...(Kinds);
+
+  /// Each kind's effects, as written, in file order within the kind.
+  std::tuple<std::vector<typename Kinds<double>::Params>...> params;
+  /// Every effect in file order: their forces add in this order (spec §0).
+  std::vector<SceneEntry> order;
+
+  template <std::size_t I>
+  const std::vector<typename Kind<I>::Params>& all() const noexcept {
+    return std::get<I>(params);
+  }
+  template <std::size_t I>
+  std::vector<typename Kind<I>::Params>& all() noexcept {
+    return std::get<I>(params);
+  }
+  /// The effects of kind K (one of Kinds), e.g. `scene.of<CartoonCliff>()`.
+  template <template <class> class K>
+  const std::vector<typename K<double>::Params>& of() const noexcept {
+    return std::get<std::vector<typename K<double>::Params>>(params);
+  }
+  template <template <class> class K>
+  std::vector<typename K<double>::Params>& of() noexcept {
+    return std::get<std::vector<typename K<double>::Params>>(params);
+  }
+  /// The line of the `n`-th effect of kind I.
+  template <std::size_t I>
+  std::uint32_t line_of(std::size_t n) const noexcept {
+    for (const SceneEntry& e : order) {
+      if (e.kind == I && e.index == n) return e.line;
+    }
+    return 0;
+  }
+};
+
+/// The library's scene files: surfaces and cliffs.
+using SceneDescription = SceneFileOf<RuntimeSurface, CartoonCliff>;
+
+/// Loads and checks a scene file of the library's kinds for the given scalar type (every value
+/// must fit it).
 Result<SceneDescription> load_scene_file(const std::string& path, ScalarKind scalar = ScalarKind::kDouble);
 /// The same from text; `source_name` stands for the file in messages.
 Result<SceneDescription> parse_scene(std::string_view text, std::string_view source_name,
                                      ScalarKind scalar = ScalarKind::kDouble);
 
-/// The controller settings a scene asks for ([device] table), for a run at `period_s` (0: stamped time).
-ControllerConfig controller_config(const SceneDescription& scene, double period_s);
-
 /// The servo loop's settings a scene asks for, at servo period `period_s` > 0 (before the
 /// device fills what the file leaves open: see with_device).
-ServoConfig servo_config(const SceneDescription& scene, double period_s);
+ServoConfig servo_config(const SceneSettings& scene, double period_s);
+/// What replay applies (effects.md §6 only: the clamp and rate limit of [device], the velocity
+/// estimator's cut-off), with time from the rows' stamps; `first_dt_s` is the first tick's dt.
+ServoConfig replay_config(const SceneSettings& scene, double first_dt_s);
 
-/// Builds the run-time scene; `sine` overrides every impact's sine method when set. The
-/// description must have been loaded for S (the loader checked its values fit S).
-template <Scalar S>
-RuntimeScene<S> make_runtime_scene(const SceneDescription& scene, std::optional<SineMethod> sine = std::nullopt);
+/// The run-time scene in scalar S. The file must have been read for S (the reader checked that
+/// every value fits S).
+template <Scalar S, template <class> class... Kinds>
+RuntimeSceneOf<S, Kinds...> make_runtime_scene(const SceneFileOf<Kinds...>& file) {
+  RuntimeSceneOf<S, Kinds...> scene;
+  for (const SceneEntry& e : file.order) {
+    [&]<std::size_t... I>(std::index_sequence<I...>) {
+      ((e.kind == I ? void(scene.template add<I>(schema::convert_params<Kinds<double>, Kinds<S>>(
+                          std::get<I>(file.params)[e.index])))
+                    : void()),
+       ...);
+    }(std::make_index_sequence<sizeof...(Kinds)>{});
+  }
+  return scene;
+}
 
-extern template RuntimeScene<double> make_runtime_scene<double>(const SceneDescription&, std::optional<SineMethod>);
-extern template RuntimeScene<float> make_runtime_scene<float>(const SceneDescription&, std::optional<SineMethod>);
-extern template RuntimeScene<Q16_16> make_runtime_scene<Q16_16>(const SceneDescription&, std::optional<SineMethod>);
+extern template RuntimeScene<double> make_runtime_scene<double>(const SceneDescription&);
+extern template RuntimeScene<float> make_runtime_scene<float>(const SceneDescription&);
+extern template RuntimeScene<Q16_16> make_runtime_scene<Q16_16>(const SceneDescription&);
 
-std::optional<SineMethod> parse_sine_method(std::string_view name);
+/// Sets the sine method of every impact transient of a library scene (`--sine`).
+void override_sine(SceneDescription& scene, SineMethod method);
 
 }  // namespace toonforce

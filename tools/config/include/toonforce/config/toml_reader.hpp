@@ -13,15 +13,14 @@
 
 #include <toml++/toml.h>
 
+#include "toonforce/effects/schema.hpp"
+#include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
 
-/// The scalar type a file's numbers must fit (spec effects.md §7: a value outside the Q16.16
-/// range is an error at load).
-enum class ScalarKind { kDouble, kFloat, kQ16_16 };
-std::optional<ScalarKind> parse_scalar_kind(std::string_view name);
-std::string_view scalar_kind_name(ScalarKind kind);
+// The scalar type a file's numbers must fit (spec effects.md §7: a value outside the Q16.16
+// range is an error at load) is a ScalarKind (toonforce/math/scalar_kind.hpp).
 
 /// Where errors go: "FILE:LINE: WHERE.KEY: PROBLEM".
 class ErrorList {
@@ -39,8 +38,8 @@ class ErrorList {
   std::vector<std::string> messages_;
 };
 
-/// What a number must satisfy.
-enum class Range { kAny, kPositive, kNonNegative, kNonPositive };
+/// What a number must satisfy (the effects' schemas use the same).
+using Range = schema::Range;
 
 /// Reads the keys of one table, each at most once; `finish()` reports every key never read.
 class TableReader {
@@ -48,10 +47,12 @@ class TableReader {
   /// `path` names the table in messages ("surface[2].impact"; empty for the root).
   TableReader(const toml::table& table, std::string path, ErrorList& errors, ScalarKind scalar);
 
-  /// A required number; nullopt (and an error) if missing or invalid.
-  std::optional<double> required_number(std::string_view key, Range range, std::string_view unit);
+  /// A required number; nullopt (and an error) if missing or invalid. `hint`, if any, follows a
+  /// range error ("must be <= 0 (got 2); HINT").
+  std::optional<double> required_number(std::string_view key, Range range, std::string_view unit,
+                                        std::string_view hint = {});
   /// An optional number with a default; the default on error (the error is recorded).
-  double number_or(std::string_view key, double fallback, Range range);
+  double number_or(std::string_view key, double fallback, Range range, std::string_view hint = {});
   /// An optional number without a default.
   std::optional<double> optional_number(std::string_view key, Range range);
   /// A required 3-vector of numbers.
@@ -74,7 +75,8 @@ class TableReader {
   /// An optional array of tables (`[[key]]`); its elements, or empty.
   std::vector<const toml::table*> array_of_tables(std::string_view key);
 
-  /// Records an error about `key` (or about the table itself when `key` is empty).
+  /// Records an error about `key` (or about the table itself when `key` is empty). A dotted key
+  /// ("impact.sine") names a key of a sub-table, reported at that key's line.
   void error(std::string_view key, std::string_view problem);
   /// Line of `key`, or of the table when absent.
   std::uint32_t line_of(std::string_view key) const;
@@ -84,10 +86,14 @@ class TableReader {
   ScalarKind scalar() const noexcept { return scalar_; }
   /// Reports keys that were never read, suggesting the nearest known one.
   void finish();
+  /// The same, saying of an unknown array of tables `[[key]]` "unknown <what> [[key]]" followed
+  /// by `note` (a scene: "unknown effect [[magnet]] (this program reads surface, cliff)").
+  void finish(std::string_view what, std::string_view note);
 
  private:
   const toml::node* take(std::string_view key);
-  std::optional<double> to_number(std::string_view key, const toml::node& node, Range range);
+  std::optional<double> to_number(std::string_view key, const toml::node& node, Range range,
+                                  std::string_view hint = {});
   std::string key_path(std::string_view key) const;
 
   const toml::table& table_;

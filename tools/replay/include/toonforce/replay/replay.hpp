@@ -1,7 +1,8 @@
 #pragma once
 /// `toonforce replay`: forces for a given motion, open loop (spec interfaces.md). Each input row
-/// is one servo tick through the same Controller the servo loop runs (velocity estimate unless
-/// given, scene forces, safety stage), in the chosen scalar type.
+/// is one tick of the servo loop (ServoLoop with the spec's stages, kSpecStages: velocity
+/// estimate unless given, scene forces, safety stage) on the recorded motion, in the chosen
+/// scalar type.
 
 #include <cstdio>
 #include <optional>

@@ -3,7 +3,7 @@
 /// shared/reference/realtime-safety-stability.md §7), for each paper scene, scalar type, servo
 /// rate and sine method.
 ///
-/// Reference: the Controller in double with the library sine at 40 kHz, on the same scripted
+/// Reference: the servo loop with the spec's stages (ServoLoop, kSpecStages) in double with the library sine at 40 kHz, on the same scripted
 /// scenario (report/scenario.hpp), velocity estimated from the positions as on a Falcon; the
 /// scenario runs twice and only the second pass is compared, so the filters and the effects'
 /// states are in their periodic regime. Every compared rate divides 40 kHz, so each of their
@@ -12,9 +12,9 @@
 ///     arithmetic, its velocity estimate and its event timing get wrong);
 ///   - held error: at every reference tick, the configuration's force held since its last
 ///     tick (zero-order hold, what the device renders) against the reference's.
-/// Cost: the mean and median ns of that configuration's Controller tick (TSC, each tick alone).
+/// Cost: the mean and median ns of that configuration's loop tick (TSC, each tick alone).
 ///
-/// Drift: the Controller at 1 kHz for `drift_hours` simulated hours on the repeating scenario,
+/// Drift: the same loop at 1 kHz for `drift_hours` simulated hours on the repeating scenario,
 /// each tick compared with the reference at the same phase; the maximum and RMS error per hour
 /// must stay flat (time is integer ticks, so nothing accumulates).
 

@@ -1,8 +1,8 @@
 #pragma once
 /// `toonforce report stability`: sweeps of virtual stiffness K, virtual damping B, slippery
 /// gain mu, servo period T, device damping b and impact speed on the host simulation (host_sim:
-/// the device's mass and physical damping, a hand or a press force, the Controller closing the
-/// loop every T), each point classified by its energy, and the Colgate-Brown passivity bound
+/// the device's mass and physical damping, a hand or a press force, the servo loop with the
+/// spec's stages closing the loop every T), each point classified by its energy, and the Colgate-Brown passivity bound
 /// b > K T / 2 + |B| (shared/reference/realtime-safety-stability.md §4) drawn over each map.
 ///
 /// Energy: V = 1/2 m |v|^2 + 1/2 k_h |x - r|^2 + 1/2 K max(0, delta)^2 - F_press . x, minus its

@@ -1,7 +1,8 @@
 #pragma once
 /// What the latency report and the benchmarks time and count: one servo tick of an effect, of
 /// the safety stage, of a paper scene (its effects plus the safety stage, ForceSafety), or of
-/// the whole Controller (velocity estimate, non-finite guard, scene, safety stage), each for
+/// the servo loop (ServoLoop on a scripted device: with the spec's stages, velocity estimate,
+/// non-finite guard, scene and safety stage; or with every safety stage on), each for
 /// double, float and Q16.16, with inputs that drive a chosen branch (effects) or every branch
 /// in turn (the scenes' scripted scenarios, report/scenario.hpp).
 ///
@@ -23,6 +24,7 @@
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/toml_reader.hpp"
+#include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/math/sine.hpp"
 
 namespace toonforce::report {
@@ -32,7 +34,8 @@ enum class Level : std::uint8_t {
   kEffect,      ///< one law, one branch, its state restored before every tick
   kSafety,      ///< the safety stage (ForceSafety::limit) alone
   kScene,       ///< a paper scene's tick: scene.force() then ForceSafety::limit(), scenario inputs
-  kController,  ///< Controller::tick() on the scene file's RuntimeScene, scenario positions
+  kSpecLoop,    ///< ServoLoop::tick() with effects.md §6's stages only (replay's loop), scenario positions
+  kLoop,        ///< ServoLoop::tick(): the whole loop tick, every safety stage on, scripted device
 };
 std::string_view level_name(Level level) noexcept;
 
@@ -100,16 +103,16 @@ class TickCase {
 };
 
 /// Every case, in a fixed order: the harness, then per effect and branch, the safety stage,
-/// the paper scenes (compile-time and runtime) and the Controller, each for double, float and
+/// the paper scenes (compile-time and runtime) and the servo loop, each for double, float and
 /// Q16.16. `root` holds scenes/ (the bundled paper scenes). Start-up code.
 Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root);
 
-/// The Controller (RuntimeScene of a paper scene's file, velocity estimated) on that scene's
-/// scenario at `rate_hz`, with the impacts' sine method overridden when `sine` is set: what
-/// the precision report times for each of its configurations.
-Result<std::unique_ptr<TickCase>> make_controller_case(const std::string& root, std::string_view scene,
-                                                       ScalarKind scalar, double rate_hz,
-                                                       std::optional<SineMethod> sine);
+/// Replay's servo loop (effects.md §6 stages, RuntimeScene of a paper scene's file, velocity
+/// estimated) on that scene's scenario at `rate_hz`, with the impacts' sine method overridden
+/// when `sine` is set: what the precision report times for each of its configurations.
+Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, std::string_view scene,
+                                                      ScalarKind scalar, double rate_hz,
+                                                      std::optional<SineMethod> sine);
 
 /// Whether `id` is selected by `filter`: empty selects all; otherwise any of its
 /// comma-separated parts is a substring of `id`.

@@ -1,8 +1,8 @@
 #pragma once
 /// `toonforce run`: the servo loop on a device in real time (spec interfaces.md), as a library
-/// so tests drive it without a process. Loads the scene, opens the device, merges the scene's
-/// and the device's limits, runs ServoLoop under the real-time runner with a telemetry ring to
-/// a writer thread (trace CSV, fault messages), and reports timing statistics.
+/// so tests drive it without a process. The command line's part only: which device and files,
+/// the scene's and the device's limits merged, the summary. The loop runs as a servo session
+/// (control/servo_session.hpp) on the device's own clock, whichever backend it is.
 
 #include <cstdio>
 #include <memory>
@@ -10,9 +10,10 @@
 #include <string_view>
 
 #include "toonforce/common/result.hpp"
-#include "toonforce/config/toml_reader.hpp"
 #include "toonforce/control/faults.hpp"
 #include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/control/servo_session.hpp"
+#include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/hal/device.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
@@ -68,18 +69,8 @@ struct RunSummary {
   double peak_force_n = 0.0;
 };
 
-/// The stop value of a 'q' typed on the terminal (signals use their own numbers).
-inline constexpr int kStopByUser = 1000;
-
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
 Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options);
-
-/// Runs `task` inside a self-clocked device's own servo thread (OpenHaptics' scheduler calls
-/// each tick), for `deadlines` ticks (0: until `stop`). The vendor owns that thread's priority
-/// and timing, so the report's "wake-up latency" is the jitter of its period (the time between
-/// ticks minus the nominal period) and "missed" the periods it skipped.
-Result<RunReport> run_device_clocked(PeriodicTask& task, OmniDevice& device, std::int64_t deadlines, bool lock_memory,
-                                     const std::atomic<int>& stop);
 
 /// Runs; errors (bad scene, no device, real time refused) come back before the first tick.
 Result<RunSummary> run_servo(const RunOptions& options);

@@ -38,8 +38,19 @@ std::string figures_root(const std::string& given = {});
 /// The options `toonforce sim` would need to produce a figure's trace.
 SimOptions figure_sim_options(const FigureSpec& spec, const std::string& root);
 
-/// Runs one figure's scenario and returns every tick's record (tests assert on them).
-Result<std::vector<SimRecord>> run_figure(const FigureSpec& spec, const std::string& root);
+/// One figure's scenario, tick by tick (tests assert on it).
+struct FigureRun {
+  std::vector<SimRecord> records;
+  std::vector<std::string> value_names;  ///< of SimRecord::frame.values
+  SceneDescription scene;
+  /// A record's value by name (value_of).
+  double value(std::size_t tick, std::string_view name) const noexcept {
+    return value_of(records[tick], value_names, name);
+  }
+};
+
+/// Runs one figure's scenario and returns every tick's record.
+Result<FigureRun> run_figure(const FigureSpec& spec, const std::string& root);
 
 struct FiguresOptions {
   std::string out_dir = "docs/figures";

@@ -8,6 +8,7 @@
 
 #include "toonforce/sim/closed_loop.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
 
 namespace toonforce {
 
@@ -26,7 +27,7 @@ struct SimOptions {
   std::uint64_t seed = 1;
   std::optional<double> sensor_noise_m;  ///< overrides the device preset's (0)
   ScalarKind scalar = ScalarKind::kDouble;
-  std::optional<SineMethod> sine;
+  std::optional<SineMethod> sine;  ///< overrides every impact's sine method
   /// Also sends every tick to this sink (the live viewer), from the simulation's thread.
   TelemetrySink* sink = nullptr;
   /// With a sink: simulated seconds per wall-clock second (1: real time, as a person would
@@ -52,17 +53,17 @@ struct SimSummary {
   std::uint32_t fault_bits = 0;
   Vec3<double> final_position_m;
   double device_work_j = 0.0;
-  int last_cliff_state = -1;  ///< to count SUPPORTED -> FALLEN transitions
+  std::vector<double> last_cliff_states;  ///< to count SUPPORTED -> FALLEN transitions
   std::int64_t ticks_outside_workspace = 0;  ///< the handle beyond the device's workspace
+  std::int64_t engaging_ticks = 0;  ///< the loop waited for the scene force to fall below engage_force
+  std::int64_t soft_start_ticks = 0;
+  std::int64_t passivity_ticks = 0;  ///< the passivity controller damped
+  std::uint32_t last_state = 0;      ///< LoopState at the end
+  bool stopped = false;              ///< a signal stopped the run before its end
 };
 
 /// Accumulates the summary from records (shared by the CLI, the figures and the benchmark).
-void add_to_summary(SimSummary& summary, const SimRecord& record);
-
-/// A tick as the servo loop's telemetry frame (what the viewer takes): the loop's own fields
-/// (state, gain, timing, thermal, energy) stay zero, since the simulation runs the controller
-/// without the servo loop.
-TelemetryFrame telemetry_frame(const SimRecord& record) noexcept;
+void add_to_summary(SimSummary& summary, const SimRecord& record, const SummaryColumns& columns);
 
 /// The configuration the options ask for (device preset, noise, integrator, rate).
 SimConfig sim_config(const SimOptions& options);

@@ -1,13 +1,14 @@
 #pragma once
-/// The first message a page gets (JSON): what it is looking at. The scene's geometry (surfaces,
-/// cliffs with their gaps, from the scene file the run loaded), the frame columns, the run's
-/// rate and source, and the names of the fault, limit and loop-state bits, so the page has no
-/// copy of them to go stale. Start-up code only.
+/// The first message a page gets (JSON): what it is looking at. The scene (scene_json.hpp: every
+/// effect of the file the run loaded, with its parameters), the frame columns (the effects'
+/// values among them), the run's rate and source, and the names of the fault, limit and
+/// loop-state bits, so the page has no copy of them to go stale. Start-up code only.
 
 #include <optional>
 #include <string>
 
-#include "toonforce/config/scene_file.hpp"
+#include <vector>
+
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce::viewer {
@@ -18,7 +19,8 @@ struct HelloInfo {
   double rate_hz = 0.0;      ///< servo rate (0: unknown)
   bool live = true;          ///< frames arrive as the run goes (false: a recording)
   std::string pacing;        ///< how sim time relates to wall time (sim only), for the page
-  const SceneDescription* scene = nullptr;  ///< none: the page shows the HIP only
+  std::string scene_json;    ///< scene_json(); empty: none, the page shows the HIP only
+  std::vector<std::string> effect_values;  ///< the names of the frames' effect value columns
   std::optional<Vec3<double>> workspace_min_m, workspace_max_m;  ///< the device's, if known
 };
 

@@ -2,7 +2,8 @@
 /// Reading a trace for `toonforce view`: the CSV that `toonforce run --trace` (telemetry
 /// columns) or `toonforce sim --trace` (sim columns) wrote. The ten core columns
 /// t,x,y,z,vx,vy,vz,fx,fy,fz are required; every other column the viewer knows by name
-/// (view_frame.hpp) is taken, the rest ignored, and a column or field missing is NaN.
+/// (view_frame.hpp) is taken, and so are the effects' values (columns named KEYN.VALUE, the
+/// first kViewEffectValues of them); the rest is ignored, and a column or field missing is NaN.
 /// Errors name the file, the line and the column.
 
 #include <cstddef>
@@ -22,6 +23,7 @@ struct TraceRecording {
   std::string source;      ///< "run" (telemetry columns), "sim" (sim columns) or "trace"
   double rate_hz = 0.0;    ///< from the median time step (0: fewer than two rows)
   bool has_loop = false;   ///< the trace has the servo loop's timing columns
+  std::vector<std::string> effect_values;  ///< the effects' value columns, in the frame's order
 };
 
 Result<TraceRecording> read_trace(const std::string& path, std::size_t max_rows = kMaxTraceRows);

@@ -11,12 +11,20 @@
 /// Read-only: the socket carries telemetry one way. A page that sends anything is closed with
 /// a policy-violation code; no message changes the run or the scene. The WebSocket upgrade is
 /// refused (403) unless the Origin header is this server's own origin, and every request is
-/// refused (421) unless its Host header names this server (the loopback names, or the address
-/// given), which also defeats DNS rebinding. Only GET and HEAD of the embedded files are served.
+/// refused (421) unless its Host header names this server: the loopback names, the address
+/// given (on 0.0.0.0 or ::, the addresses of this host's interfaces), or a name in
+/// ViewerOptions::hosts. That defeats DNS rebinding on every address: a page of another name
+/// resolved to this host asks with its own name. Only GET and HEAD of the embedded files.
 ///
 /// A page that reads slower than frames come gets at most `max_queued_batches` live batches
 /// queued; older ones are dropped and counted (the page sees the gap in the sequence numbers
 /// and the count in the status messages). Nothing the page does can make publish() wait.
+///
+/// Bounded as a server (issue 16): at most `max_pages` pages and `max_connections` other
+/// connections at once (a slot is taken when the upgrade is read, so a burst cannot overshoot);
+/// a page holds one history chunk at a time (kHistoryChunkFrames, made when the one before has
+/// been written), never a copy of the whole history; when the last page closes the allocator
+/// gives freed memory back. A failing accept (out of descriptors) waits before it tries again.
 
 #include <atomic>
 #include <cstdint>
@@ -33,13 +41,24 @@
 namespace toonforce::viewer {
 
 inline constexpr std::uint16_t kDefaultPort = 8765;
+/// Frames per history message. A page holds one at a time: 1024 frames are 221 kB.
+inline constexpr std::size_t kHistoryChunkFrames = 1024;
+/// After a failed accept (EMFILE, ENFILE, ENOBUFS, ENOMEM) the server waits this long before it
+/// accepts again, doubling up to kAcceptRetryMaxS while it keeps failing.
+inline constexpr double kAcceptRetryMinS = 0.05;
+inline constexpr double kAcceptRetryMaxS = 1.0;
 
 struct ViewerOptions {
   std::string address = "127.0.0.1";  ///< listen address; another one only when asked for
+  /// More names the Host header may give (`--view-host`): DNS names or IP addresses, no port;
+  /// e.g. the name other hosts know this one by when it listens on another address.
+  std::vector<std::string> hosts;
   std::uint16_t port = kDefaultPort;   ///< 0: a free port (see ViewerServer::port())
   std::size_t history_frames = 1U << 17;  ///< kept for pages that connect late (131 s at 1 kHz)
   double batch_interval_s = 0.02;      ///< frames go out in batches this often (50 Hz)
   std::size_t max_queued_batches = 16; ///< per page, beyond the one being written
+  std::size_t max_pages = 16;          ///< WebSocket pages open at once; more upgrades get 503
+  std::size_t max_connections = 32;    ///< HTTP connections (not yet pages) open at once; more are closed at once
   int send_buffer_bytes = 0;           ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
   bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
 };
@@ -53,8 +72,12 @@ struct ViewerStats {
   std::uint64_t pages_refused = 0;        ///< upgrades refused (origin or host)
   std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
   std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
+  std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
+  std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
   std::size_t max_queued = 0;             ///< the longest live queue any page had
   std::size_t pages_open = 0;             ///< WebSocket connections open now
+  std::size_t queued_bytes = 0;           ///< bytes held for pages now (a message shared by pages counts for each)
+  std::size_t max_queued_bytes = 0;       ///< the most queued_bytes has been
 };
 
 class ViewerServer final : public TelemetrySink {
@@ -82,6 +105,8 @@ class ViewerServer final : public TelemetrySink {
   std::uint16_t port() const noexcept;
   /// http://HOST:PORT/ to open (HOST 127.0.0.1 unless another address was given).
   std::string url() const;
+  /// Every Host header value a request may carry ("name:port", lower case, sorted).
+  std::vector<std::string> host_names() const;
   ViewerStats stats() const noexcept;
 
   struct Impl;

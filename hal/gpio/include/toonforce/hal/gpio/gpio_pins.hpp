@@ -19,7 +19,7 @@
 #include <array>
 #include <cstdint>
 
-#include "toonforce/control/pins.hpp"
+#include "toonforce/hal/pins.hpp"
 
 struct gpiod_line;  // libgpiod's opaque line (gpiod.h), owned by its chip in the session
 

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "toonforce/common/result.hpp"
-#include "toonforce/control/pins.hpp"
+#include "toonforce/hal/pins.hpp"
 #include "toonforce/hal/gpio/gpio_pins.hpp"
 #include "toonforce/hal/gpio/line_spec.hpp"
 

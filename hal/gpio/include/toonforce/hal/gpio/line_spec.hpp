@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "toonforce/common/result.hpp"
-#include "toonforce/control/pins.hpp"
+#include "toonforce/hal/pins.hpp"
 
 namespace toonforce::gpio {
 

@@ -112,19 +112,8 @@ struct OmniLimits {
   int calibration_style = 0;              ///< the one used: auto > inkwell > encoder reset
 };
 
-/// The scheduler's clock as one tick sees it.
-struct ClockedTick {
-  std::int64_t tick = 0;  ///< periods since start(), skipped periods included (Instant::tick)
-  double dt_s = 0.0;      ///< [s] true time since the previous tick (1/HD_INSTANTANEOUS_UPDATE_RATE)
-  double period_s = 0.0;  ///< [s] nominal period, 1/scheduler rate
-};
-
-enum class TickVerdict : std::uint8_t { kContinue, kStop };
-
-/// The tick the vendor scheduler calls in its servo thread, inside the frame: read() and write()
-/// of the device are valid only here. Must not allocate, block or throw. Returning kStop ends
-/// the run after this tick (forces off).
-using ClockedTickFn = TickVerdict (*)(void* context, const ClockedTick& clock) noexcept;
+// ClockedTick, TickVerdict and ClockedTickFn: the seam's (hal/device.hpp); the vendor's
+// scheduler is this device's clock (Clocking::kDeviceThread).
 
 enum class OmniPhase : std::uint8_t {
   kIdle,          ///< opened, not started
@@ -180,6 +169,9 @@ class OmniDevice final : public DeviceDriver {
   void emergency_zero() noexcept override;
   const DeviceInfo& info() const noexcept override { return info_; }
   std::string last_error() const override;
+  /// The device-clocked run through the seam: start(), wait until the tick's kStop or a fatal
+  /// error ends it, stop(); `device_stopped` names the error when the device ended it.
+  Result<ClockedEnd> run_clocked(ClockedTickFn tick, void* context) override;
 
   // ---- Device-clocked run (owner thread) ----
   /// Registers our frame with hdScheduleAsynchronous and starts the vendor scheduler; `tick`

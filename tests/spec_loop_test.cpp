@@ -1,5 +1,5 @@
-// The per-tick controller: velocity estimator, the safety stage of effects.md §6, the
-// non-finite guard, determinism, and no allocation in a tick.
+// The servo loop as replay runs it (effects.md §6 stages only): velocity estimator, the safety
+// stage of effects.md §6, the non-finite guard, determinism, and no allocation in a tick.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,10 +8,11 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
+#include "spec_loop.hpp"
 #include "toonforce/config/scene_file.hpp"
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 
-namespace toonforce {
+namespace toonforce::test {
 namespace {
 
 constexpr double kDt = 1e-3;
@@ -22,23 +23,15 @@ Floor floor_scene(double k = 1000.0, double b = 0.0) {
   return Floor(Surface<PenaltyWall<double>>::Params{{{0, 0, 0}, {0, 0, 1}}, {k, b}, {}, {}});
 }
 
-Sample sample(std::int64_t k, Vec3<double> x) {
-  Sample s;
-  s.position_m = x;
-  s.now = Instant{k, 0.0};
-  s.dt_s = kDt;
-  return s;
-}
-
-ControllerConfig config(ForceLimits limits = {}) {
-  ControllerConfig c;
+ServoConfig config(ForceLimits limits = {}) {
+  ServoConfig c;
   c.limits = limits;
   c.period_s = kDt;
   return c;
 }
 
 TEST(ForceSafety, ClampsTheMagnitudeKeepingDirection) {
-  Controller ctl(floor_scene(1000.0), config({8.0, 0.0, true, false}));
+  SpecLoop ctl(floor_scene(1000.0), config({8.0, 0.0, true, false}));
   const auto r = ctl.tick(sample(0, {0, 0, -0.02}));  // 20 N asked
   EXPECT_NEAR(r.force_n.z, 8.0, 1e-12);
   EXPECT_NEAR(r.scene_force_n.z, 20.0, 1e-12);
@@ -46,7 +39,7 @@ TEST(ForceSafety, ClampsTheMagnitudeKeepingDirection) {
 }
 
 TEST(ForceSafety, LimitsTheRateOfChangeFromThePreviousOutput) {
-  Controller ctl(floor_scene(1000.0), config({0.0, 2000.0, false, true}));  // 2 N per 1 ms tick
+  SpecLoop ctl(floor_scene(1000.0), config({0.0, 2000.0, false, true}));  // 2 N per 1 ms tick
   double previous = 0.0;
   for (int k = 0; k < 5; ++k) {
     const auto r = ctl.tick(sample(k, {0, 0, -0.007}));  // a 7 N step
@@ -59,7 +52,7 @@ TEST(ForceSafety, LimitsTheRateOfChangeFromThePreviousOutput) {
 TEST(ForceSafety, RateLimitScalesTheStepAlongItsDirection) {
   Surface<PenaltyWall<double>>::Params a{{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}, {}, {}};
   Surface<PenaltyWall<double>>::Params b{{{0, 0, 0}, {1, 0, 0}}, {1000.0, 0.0}, {}, {}};
-  Controller ctl(Scene<Surface<PenaltyWall<double>>, Surface<PenaltyWall<double>>>(a, b),
+  SpecLoop ctl(Scene<Surface<PenaltyWall<double>>, Surface<PenaltyWall<double>>>(a, b),
                  config({0.0, 1000.0, false, true}));
   const auto r = ctl.tick(sample(0, {-0.003, 0, -0.004}));  // (3, 0, 4) N asked, 1 N allowed
   EXPECT_NEAR(r.force_n.x, 0.6, 1e-12);
@@ -68,19 +61,19 @@ TEST(ForceSafety, RateLimitScalesTheStepAlongItsDirection) {
 
 TEST(ForceSafety, ClampsAfterTheRateLimit) {
   // Rate limit allows 5 N/tick from 0; the clamp at 3 N must still hold.
-  Controller ctl(floor_scene(1000.0), config({3.0, 5000.0, true, true}));
+  SpecLoop ctl(floor_scene(1000.0), config({3.0, 5000.0, true, true}));
   const auto r = ctl.tick(sample(0, {0, 0, -0.01}));
   EXPECT_NEAR(r.force_n.z, 3.0, 1e-12);
   EXPECT_EQ(r.limits, static_cast<std::uint8_t>(Limit::kRateLimited) | Limit::kClamped);
 }
 
 TEST(ForceSafety, AppliesNothingWithoutLimits) {
-  Controller ctl(floor_scene(1e6), config());
+  SpecLoop ctl(floor_scene(1e6), config());
   EXPECT_NEAR(ctl.tick(sample(0, {0, 0, -0.1})).force_n.z, 1e5, 1e-6);
 }
 
 TEST(NonFiniteGuard, NanPositionGivesExactlyZeroAndAFault) {
-  Controller ctl(floor_scene(1000.0), config({8.0, 2000.0, true, true}));
+  SpecLoop ctl(floor_scene(1000.0), config({8.0, 2000.0, true, true}));
   for (int k = 0; k < 10; ++k) ctl.tick(sample(k, {0, 0, -0.005}));
   const auto r = ctl.tick(sample(10, {0, kNan, -0.005}));
   EXPECT_EQ(r.force_n, (Vec3<double>{}));  // bypasses the rate limit
@@ -90,7 +83,7 @@ TEST(NonFiniteGuard, NanPositionGivesExactlyZeroAndAFault) {
 }
 
 TEST(NonFiniteGuard, InfiniteVelocityInputIsAFault) {
-  Controller ctl(floor_scene(1000.0), config());
+  SpecLoop ctl(floor_scene(1000.0), config());
   Sample s = sample(0, {0, 0, -0.001});
   s.has_velocity = true;
   s.velocity_m_per_s = {std::numeric_limits<double>::infinity(), 0, 0};
@@ -106,7 +99,7 @@ TEST(NonFiniteGuard, NonFiniteSceneForceGivesZeroAndKeepsEffectStates) {
   p.plane = {{0, 0, 0}, {0, 0, 1}};
   p.wall = {1000.0, 0.0};
   p.impact = {300.0, 600.0, 0.15, 30.0, 0.05, 0.001, SineMethod::kLibrary};
-  Controller ctl(Scene<Wall>(p), config());
+  SpecLoop ctl(Scene<Wall>(p), config());
   Sample s = sample(0, {0, 0, 0.001});
   s.has_velocity = true;
   s.velocity_m_per_s = {0, 0, -0.2};
@@ -129,7 +122,7 @@ TEST(NonFiniteGuard, NonFiniteSceneForceGivesZeroAndKeepsEffectStates) {
 TEST(VelocityEstimator, FollowsTheSpecsLowPassOfTheBackwardDifference) {
   // A damped wall makes the estimate visible in the force: F = k delta - b (n.v).
   const double b = 10.0;
-  Controller ctl(floor_scene(1000.0, b), config());
+  SpecLoop ctl(floor_scene(1000.0, b), config());
   const double a = kDt / (kDt + 1.0 / (2.0 * M_PI * 50.0));
   double v = 0.0;
   double z_previous = -0.001;
@@ -144,7 +137,7 @@ TEST(VelocityEstimator, FollowsTheSpecsLowPassOfTheBackwardDifference) {
 }
 
 TEST(VelocityEstimator, AfterADroppedSampleUsesTheTimeSinceTheLastGoodOne) {
-  Controller ctl(floor_scene(1000.0, 10.0), config());
+  SpecLoop ctl(floor_scene(1000.0, 10.0), config());
   const double a1 = kDt / (kDt + 1.0 / (2.0 * M_PI * 50.0));
   const double a2 = 2 * kDt / (2 * kDt + 1.0 / (2.0 * M_PI * 50.0));
   ctl.tick(sample(0, {0, 0, -0.001}));
@@ -156,20 +149,20 @@ TEST(VelocityEstimator, AfterADroppedSampleUsesTheTimeSinceTheLastGoodOne) {
   EXPECT_NEAR(r.force_n.z, 1.3 - 10.0 * v3, 1e-9);
 }
 
-TEST(Controller, GivenVelocityIsUsedAsItIs) {
-  Controller ctl(floor_scene(1000.0, 10.0), config());
+TEST(SpecLoop, GivenVelocityIsUsedAsItIs) {
+  SpecLoop ctl(floor_scene(1000.0, 10.0), config());
   Sample s = sample(0, {0, 0, -0.001});
   s.has_velocity = true;
   s.velocity_m_per_s = {0, 0, -0.3};
   EXPECT_NEAR(ctl.tick(s).force_n.z, 1.0 + 3.0, 1e-12);  // no estimator: first tick is not 0
 }
 
-TEST(Controller, SameInputsGiveBitIdenticalForces) {
+TEST(SpecLoop, SameInputsGiveBitIdenticalForces) {
   const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/cartoon_wall.toml");
   ASSERT_TRUE(scene) << scene.error();
   std::vector<Vec3<double>> first, second;
   for (auto* out : {&first, &second}) {
-    Controller ctl(make_runtime_scene<double>(scene.value()), controller_config(scene.value(), kDt));
+    SpecLoop ctl(make_runtime_scene<double>(scene.value()), servo_config(scene.value(), kDt));
     std::mt19937_64 rng(7);
     std::normal_distribution<double> noise(0.0, 2e-5);
     for (int k = 0; k < 5000; ++k) {
@@ -181,11 +174,11 @@ TEST(Controller, SameInputsGiveBitIdenticalForces) {
   for (std::size_t i = 0; i < first.size(); ++i) ASSERT_EQ(first[i], second[i]) << i;
 }
 
-TEST(Controller, Q16SaturationRaisesItsFault) {
+TEST(SpecLoop, Q16SaturationRaisesItsFault) {
   const auto scene = parse_scene("[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 20000\n",
                                  "stiff.toml", ScalarKind::kQ16_16);
   ASSERT_TRUE(scene) << scene.error();
-  Controller ctl(make_runtime_scene<Q16_16>(scene.value()), controller_config(scene.value(), kDt));
+  SpecLoop ctl(make_runtime_scene<Q16_16>(scene.value()), servo_config(scene.value(), kDt));
   EXPECT_FALSE(ctl.tick(sample(0, {0, 0, -0.001})).faults);     // 20 N fits
   const auto r = ctl.tick(sample(1, {0, 0, -2.0}));              // 40000 N does not
   EXPECT_TRUE(r.faults.has(Fault::kFixedSaturation));
@@ -200,16 +193,15 @@ TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
                                  "normal = [0, 0, 1]\nstiffness = 30000\n",
                                  "huge.toml", ScalarKind::kQ16_16);
   ASSERT_TRUE(scene) << scene.error();
-  Controller ctl(make_runtime_scene<Q16_16>(scene.value()), controller_config(scene.value(), 0.0));
+  // Stamped time, 6.6 ms apart: allows 13.2 N per tick.
+  SpecLoop ctl(make_runtime_scene<Q16_16>(scene.value()), replay_config(scene.value(), 0.0066));
   constexpr double kLsb = 1.0 / 65536.0;
   Sample s = sample(0, {0, 0, -0.999});  // asks for 29970 N
-  s.dt_s = 0.0066;                       // allows 13.2 N per tick
-  const auto first = ctl.tick(s);
+  const auto first = ctl.tick(s, 0.0);
   EXPECT_LE(first.force_n.z.to_double(), 2000.0 * 0.0066 + 2 * kLsb);
   EXPECT_GE(first.force_n.z.to_double(), 2000.0 * 0.0066 - 2 * kLsb);
   s = sample(1, {0, 0, -0.999});
-  s.dt_s = 0.0066;
-  const auto second = ctl.tick(s);
+  const auto second = ctl.tick(s, 0.0066);
   EXPECT_LE(second.force_n.z.to_double(), 20.0 + 2 * kLsb);  // then the clamp holds
   EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
 }
@@ -219,7 +211,7 @@ template <Scalar S>
 void expect_no_allocation(const std::string& name, ScalarKind kind) {
   const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/" + name + ".toml", kind);
   ASSERT_TRUE(scene) << scene.error();
-  Controller ctl(make_runtime_scene<S>(scene.value()), controller_config(scene.value(), kDt));
+  SpecLoop ctl(make_runtime_scene<S>(scene.value()), servo_config(scene.value(), kDt));
   test::AllocationScope scope;
   for (int k = 0; k < 10000; ++k) {
     // Sweeps across the gap, into and out of the floor, through the impact transient.
@@ -230,7 +222,7 @@ void expect_no_allocation(const std::string& name, ScalarKind kind) {
   EXPECT_EQ(scope.count(), 0U) << name << " " << scalar_kind_name(kind);
 }
 
-TEST(Controller, TicksOfEveryBundledSceneAllocateNothing) {
+TEST(SpecLoop, TicksOfEveryBundledSceneAllocateNothing) {
   for (const char* name : {"wall", "realistic_friction", "slippery", "cartoon_wall", "cliff"}) {
     expect_no_allocation<double>(name, ScalarKind::kDouble);
     expect_no_allocation<float>(name, ScalarKind::kFloat);
@@ -238,8 +230,8 @@ TEST(Controller, TicksOfEveryBundledSceneAllocateNothing) {
   }
 }
 
-TEST(Controller, TicksOfCompileTimeScenesAllocateNothing) {
-  Controller ctl(floor_scene(1000.0, 1.0), config({8.0, 2000.0, true, true}));
+TEST(SpecLoop, TicksOfCompileTimeScenesAllocateNothing) {
+  SpecLoop ctl(floor_scene(1000.0, 1.0), config({8.0, 2000.0, true, true}));
   test::AllocationScope scope;
   for (int k = 0; k < 10000; ++k) static_cast<void>(ctl.tick(sample(k, {0, 0, 0.003 * std::sin(k * 0.01)})));
   EXPECT_EQ(scope.count(), 0U);
@@ -253,4 +245,4 @@ TEST(AllocationCounter, SeesAnAllocation) {  // the counter itself can fail
 }
 
 }  // namespace
-}  // namespace toonforce
+}  // namespace toonforce::test

@@ -1,0 +1,84 @@
+#pragma once
+/// Engage and soft start, the first stage of the safety chain (spec effects.md §6 "The servo
+/// loop adds more"): after start, enable and re-arm, forces come on only once the scene force
+/// where the handle is falls below `engage_force` (CHAI3D's 0.2 N start-up rule: enabling inside
+/// a wall never throws the handle); then a linear ramp from 0 to full force over `soft_start`
+/// seconds. A fault that cut the force ramps it again; a loop still waiting keeps waiting.
+/// Time is integer ticks (spec §0): the gain at tick k is (k - k_start) T / soft_start.
+/// `NoEngage` is full force at once (replay: effects.md §6 only).
+
+#include <cstdint>
+
+#include "toonforce/control/supervisor.hpp"
+#include "toonforce/math/vec3.hpp"
+
+namespace toonforce {
+
+struct EngageConfig {
+  double engage_force_n = 0.2;  ///< [N] > 0
+  double soft_start_s = 1.0;    ///< [s] >= 0; 0: no ramp
+  double period_s = 1e-3;       ///< [s] the servo period
+};
+
+template <Scalar S>
+class Engage {
+ public:
+  explicit Engage(const EngageConfig& config) noexcept
+      : engage_force_n_(scalar_cast<S>(config.engage_force_n)),
+        soft_start_s_(config.soft_start_s),
+        period_s_(config.period_s) {}
+
+  /// The gate opened again: wait for the scene force to be small before any force flows.
+  void reset() noexcept { state_ = LoopState::kEngaging; }
+  /// The force was cut by a fault: if it was (coming) on, ramp again from tick `from`.
+  void restart(std::int64_t from) noexcept {
+    if (state_ == LoopState::kRamping || state_ == LoopState::kActive) start(from);
+  }
+
+  /// The gain for tick k given the scene force there: 0 while waiting to engage (engaging()
+  /// then says so), the ramp while ramping, 1 once active.
+  S gain(const Vec3<S>& scene_force_n, std::int64_t k) noexcept {
+    if (state_ == LoopState::kEngaging) {
+      if (!(norm(scene_force_n) < engage_force_n_)) return S{};
+      start(k);
+    }
+    constexpr S kOne = scalar_cast<S>(1.0);
+    if (state_ != LoopState::kRamping) return kOne;
+    // Time from integer ticks, in double, converted once (spec §0).
+    const double elapsed_s = static_cast<double>(k - ramp_start_) * period_s_;
+    if (!(elapsed_s < soft_start_s_)) {
+      state_ = LoopState::kActive;
+      return kOne;
+    }
+    return scalar_cast<S>(elapsed_s / soft_start_s_);
+  }
+
+  bool engaging() const noexcept { return state_ == LoopState::kEngaging; }
+  LoopState state() const noexcept { return state_; }
+
+ private:
+  void start(std::int64_t from) noexcept {
+    state_ = LoopState::kRamping;
+    ramp_start_ = from;
+  }
+
+  S engage_force_n_;
+  double soft_start_s_;
+  double period_s_;
+  LoopState state_ = LoopState::kEngaging;
+  std::int64_t ramp_start_ = 0;
+};
+
+/// Full force at once, always.
+template <Scalar S>
+class NoEngage {
+ public:
+  explicit NoEngage(const EngageConfig&) noexcept {}
+  void reset() noexcept {}
+  void restart(std::int64_t) noexcept {}
+  S gain(const Vec3<S>&, std::int64_t) noexcept { return scalar_cast<S>(1.0); }
+  bool engaging() const noexcept { return false; }
+  LoopState state() const noexcept { return LoopState::kActive; }
+};
+
+}  // namespace toonforce

@@ -1,0 +1,121 @@
+#pragma once
+/// A real-time run of a servo loop on a device (`toonforce run`, the examples): the loop ticks
+/// on the device's clock (the host's timer or the device's own thread, realtime_runner.hpp);
+/// after each tick one telemetry frame goes into a lock-free ring, and a writer thread hands the
+/// frames, in order, to a `FrameConsumer` (a trace, the live viewer, messages): the servo
+/// thread never waits on them, and a full ring drops frames and counts them. SIGINT and SIGTERM
+/// stop the run with zero force first; on a terminal, 'r' re-arms and 'q' stops.
+///
+///   auto report = run_loop(loop, driver, consumer, options);
+
+#include <atomic>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+
+#include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/control/telemetry.hpp"
+#include "toonforce/hal/device.hpp"
+
+namespace toonforce {
+
+/// Where the frames of a run go; called from the writer thread only, in tick order.
+class FrameConsumer {
+ public:
+  FrameConsumer() = default;
+  FrameConsumer(const FrameConsumer&) = delete;
+  FrameConsumer& operator=(const FrameConsumer&) = delete;
+  virtual void consume(const TelemetryFrame& frame) = 0;
+  /// No frame follows.
+  virtual void finish() {}
+
+ protected:
+  ~FrameConsumer() = default;
+};
+
+struct SessionOptions {
+  RealtimeOptions realtime;
+  bool handle_signals = true;   ///< SIGINT/SIGTERM stop the run; fatal signals zero the force
+  bool interactive = true;      ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
+  std::FILE* messages = stderr; ///< where "type q and Enter" goes
+};
+
+struct SessionReport {
+  RunReport report;
+  std::uint64_t frames_dropped = 0;  ///< the ring was full: frames the consumer never saw
+  bool interactive = false;          ///< stdin was a terminal and 'r'/'q' were read
+};
+
+/// The stop value of a 'q' typed on the terminal (signals use their own numbers).
+inline constexpr int kStopByUser = 1000;
+
+/// 16384 frames: 1.6 s of telemetry at 10 kHz, 16 s at 1 kHz, before the writer must catch up.
+using TelemetryRing = SpscRing<TelemetryFrame, 16384>;
+
+/// A servo loop as the runner's task: tick, one frame into the ring, zero force at the end.
+/// Everything here runs on the servo thread: no allocation, no lock, no blocking.
+template <class Loop>
+class LoopTask final : public PeriodicTask {
+ public:
+  LoopTask(Loop& loop, TelemetryRing& ring) noexcept : loop_(loop), ring_(ring) {}
+  void tick(std::int64_t k) noexcept override { static_cast<void>(loop_.tick(k)); }
+  void publish(std::int64_t, const TickTiming& timing) noexcept override {
+    loop_.fill_frame(frame_);
+    frame_.timing = timing;
+    missed_ = timing.missed_total;
+    static_cast<void>(ring_.push(frame_));  // a full ring drops and counts, never waits
+  }
+  void shutdown(std::int64_t k) noexcept override {
+    static_cast<void>(loop_.shutdown(k));  // zero force before anything else
+    loop_.fill_frame(frame_);
+    frame_.timing = TickTiming{};
+    frame_.timing.missed_total = missed_;
+    last_frame_ready_ = true;
+  }
+  /// The shutdown frame, for the session to deliver once the servo thread is done.
+  bool last_frame(TelemetryFrame& out) const noexcept {
+    if (!last_frame_ready_) return false;
+    out = frame_;
+    return true;
+  }
+
+ private:
+  Loop& loop_;
+  TelemetryRing& ring_;
+  TelemetryFrame frame_{};
+  std::int64_t missed_ = 0;
+  bool last_frame_ready_ = false;
+};
+
+/// How the session asks the loop to re-arm ('r' on the terminal).
+struct RearmRequest {
+  void (*request)(void* loop) noexcept = nullptr;
+  void* loop = nullptr;
+};
+
+/// The non-template part: signals, the writer and command threads, the runner.
+Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const TelemetryFrame* (*last_frame)(void*),
+                                  void* last_frame_context, DeviceDriver& device, FrameConsumer& consumer,
+                                  const SessionOptions& options, RearmRequest rearm);
+
+/// Runs `loop` (a ServoLoop on `device`, built and configured by the caller) until
+/// options.realtime.deadlines periods have passed or a signal or 'q' stops it.
+template <class Loop>
+Result<SessionReport> run_loop(Loop& loop, DeviceDriver& device, FrameConsumer& consumer,
+                               const SessionOptions& options) {
+  auto ring = std::make_unique<TelemetryRing>();  // allocated before the servo thread starts
+  auto task = std::make_unique<LoopTask<Loop>>(loop, *ring);
+  auto frame = std::make_unique<TelemetryFrame>();
+  struct Last {
+    LoopTask<Loop>* task;
+    TelemetryFrame* frame;
+  } last{task.get(), frame.get()};
+  const auto last_frame = [](void* context) -> const TelemetryFrame* {
+    auto* l = static_cast<Last*>(context);
+    return l->task->last_frame(*l->frame) ? l->frame : nullptr;
+  };
+  const RearmRequest rearm{[](void* l) noexcept { static_cast<Loop*>(l)->request_rearm(); }, &loop};
+  return run_session(*task, *ring, last_frame, &last, device, consumer, options, rearm);
+}
+
+}  // namespace toonforce

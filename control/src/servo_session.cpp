@@ -1,0 +1,90 @@
+// A real-time run of a servo loop (servo_session.hpp): signals, the telemetry writer thread,
+// the terminal's commands, and the runner on the device's clock.
+#include "toonforce/control/servo_session.hpp"
+
+#include <poll.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <thread>
+
+#include <fmt/format.h>
+
+namespace toonforce {
+namespace {
+
+void sleep_ms(int ms) noexcept {
+  timespec ts{0, static_cast<long>(ms) * 1'000'000L};
+  nanosleep(&ts, nullptr);
+}
+
+std::atomic<int> g_stop{0};
+
+/// Drains the ring into the consumer until the run is over and the ring is empty.
+void write_frames(TelemetryRing& ring, FrameConsumer& consumer, const std::atomic<bool>& finished) {
+  TelemetryFrame f;
+  for (;;) {
+    if (ring.pop(f)) {
+      consumer.consume(f);
+    } else if (finished.load(std::memory_order_acquire)) {
+      if (!ring.pop(f)) return;  // the servo thread is done: what is left is all there is
+      consumer.consume(f);
+    } else {
+      sleep_ms(2);
+    }
+  }
+}
+
+/// Reads 'r' (re-arm) and 'q' (stop) from a terminal while the run lasts.
+void read_commands(RearmRequest rearm, std::atomic<int>& stop, const std::atomic<bool>& finished) {
+  char buffer[64];
+  while (!finished.load(std::memory_order_acquire) && stop.load() == 0) {
+    pollfd in{STDIN_FILENO, POLLIN, 0};
+    if (poll(&in, 1, 100) <= 0 || (in.revents & POLLIN) == 0) continue;
+    const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
+    if (n <= 0) return;  // end of input
+    for (ssize_t i = 0; i < n; ++i) {
+      if (buffer[i] == 'r' && rearm.request != nullptr) rearm.request(rearm.loop);
+      if (buffer[i] == 'q') {
+        int expected = 0;
+        stop.compare_exchange_strong(expected, kStopByUser);
+      }
+    }
+  }
+}
+
+void zero_device(void* device) noexcept { static_cast<DeviceDriver*>(device)->emergency_zero(); }
+
+}  // namespace
+
+Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const TelemetryFrame* (*last_frame)(void*),
+                                  void* last_frame_context, DeviceDriver& device, FrameConsumer& consumer,
+                                  const SessionOptions& options, RearmRequest rearm) {
+  g_stop.store(0);
+  if (options.handle_signals) install_signal_handlers(g_stop, EmergencyZero{zero_device, &device});
+  SessionReport session;
+  session.interactive = options.interactive && isatty(STDIN_FILENO) != 0;
+  std::atomic<bool> finished{false};
+  std::thread writer([&] { write_frames(ring, consumer, finished); });
+  std::thread commands;
+  if (session.interactive) {
+    fmt::print(options.messages,
+               "running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n");
+    commands = std::thread([&] { read_commands(rearm, g_stop, finished); });
+  }
+
+  auto report = run_on_device(task, device, options.realtime, g_stop);
+
+  finished.store(true, std::memory_order_release);
+  writer.join();
+  if (commands.joinable()) commands.join();
+  if (const TelemetryFrame* last = last_frame(last_frame_context)) consumer.consume(*last);
+  consumer.finish();
+  if (options.handle_signals) restore_signals();
+  if (!report) return Error{report.error()};
+  session.report = std::move(report.value());
+  session.frames_dropped = ring.dropped();
+  return session;
+}
+
+}  // namespace toonforce
