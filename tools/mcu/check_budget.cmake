@@ -1,8 +1,9 @@
 # An instruction budget per tick on the target (as tests/budget_test.cpp's callgrind one on the
 # host): every tick of every motion of SCENE, as counted exactly by its image under QEMU
 # (firmware/main.cpp's "count" lines in OUTPUT), costs at most BUDGET instructions for WHAT:
-# "loop" (the whole loop tick: device read, tick, device write) or "effects" (the scene's
-# effects plus the safety stage). Variables: OUTPUT SCENE WHAT BUDGET.
+# "loop" (replay's whole loop tick, read to write: effects.md §6 stages, stamped time), "every"
+# (the whole loop tick with every stage at 1 kHz) or "effects" (the scene's effects plus the
+# safety stage). Variables: OUTPUT SCENE WHAT BUDGET.
 foreach(var OUTPUT SCENE WHAT BUDGET)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "check_budget.cmake: ${var} is not set")
@@ -17,8 +18,8 @@ if(NOT lines)
 endif()
 set(failed FALSE)
 foreach(line IN LISTS lines)
-  # count SCENE MOTION TICKS loop SUM MAX effects SUM MAX
-  if(NOT line MATCHES "^count [^ ]+ ([^ ]+) ([0-9]+) loop ([0-9]+) ([0-9]+) effects ([0-9]+) ([0-9]+)$")
+  # count SCENE MOTION TICKS loop SUM MAX every SUM MAX effects SUM MAX
+  if(NOT line MATCHES "^count [^ ]+ ([^ ]+) ([0-9]+) loop ([0-9]+) ([0-9]+) every ([0-9]+) ([0-9]+) effects ([0-9]+) ([0-9]+)$")
     message(FATAL_ERROR "${OUTPUT}: bad line '${line}'")
   endif()
   set(motion ${CMAKE_MATCH_1})
@@ -26,9 +27,14 @@ foreach(line IN LISTS lines)
   if(WHAT STREQUAL "loop")
     set(sum ${CMAKE_MATCH_3})
     set(worst ${CMAKE_MATCH_4})
-  else()
+  elseif(WHAT STREQUAL "every")
     set(sum ${CMAKE_MATCH_5})
     set(worst ${CMAKE_MATCH_6})
+  elseif(WHAT STREQUAL "effects")
+    set(sum ${CMAKE_MATCH_7})
+    set(worst ${CMAKE_MATCH_8})
+  else()
+    message(FATAL_ERROR "check_budget.cmake: WHAT is loop, every or effects, not '${WHAT}'")
   endif()
   math(EXPR mean "${sum} / ${ticks}")
   if(worst GREATER BUDGET)

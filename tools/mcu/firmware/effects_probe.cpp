@@ -1,5 +1,5 @@
 // The effects plus the safety stage of an image's scenes, alone, on Q16.16 inputs (no
-// Controller, no double Sample): the part of the tick that is already free of floating point
+// servo loop, no double DeviceReading): the part of the tick that is already free of floating point
 // on an FPU-less core, which the no-float test checks. The inputs are read through volatile
 // so the compiler cannot fold the scene away; the forces are printed so nothing is discarded.
 #include <cstdint>
@@ -22,7 +22,9 @@ std::int32_t probe() noexcept {
   using SceneT = typename SceneDef::Type;
   static constexpr SceneT kScene = SceneDef::make();
   typename SceneT::State state{};
-  ForceSafety<S> safety{SceneDef::kConfig.limits};  // constexpr: converted at compile time
+  static constexpr ForceSafety<S> kSafety{SceneDef::config(0.001, false).limits};  // converted at compile time
+  ForceSafety<S> safety = kSafety;
+  ActiveForce<S> active[SceneT::kActiveCapacity > 0 ? SceneT::kActiveCapacity : 1]{};
   std::int32_t checksum = 0;
   for (std::int64_t k = 0; k < 4; ++k) {
     TickInput<S> in{};
@@ -32,7 +34,7 @@ std::int32_t probe() noexcept {
                            S::from_raw(g_velocities[i][2])};
     in.rate_hz = S::from_raw(1000 << 16);
     in.now = Instant{k, 0.0};
-    const Vec3<S> f = safety.limit(kScene.force(in, state), in.rate_hz).force_n;
+    const Vec3<S> f = safety.limit(kScene.force(in, state, active), in.rate_hz).force_n;
     checksum ^= f.x.raw() ^ f.y.raw() ^ f.z.raw();
   }
   return checksum;

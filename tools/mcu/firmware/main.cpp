@@ -8,10 +8,12 @@
 //   end
 //   count SCENE MOTION TICKS loop SUM MAX effects SUM MAX     instructions per tick
 //   stack SCENE tick BYTES            deepest stack one loop tick used (below its caller)
-//   sizeof SCENE controller BYTES     the loop's state (Controller: scene, states, safety)
+//   sizeof SCENE controller BYTES     replay's loop's state (scene, states, safety, estimator)
+//   sizeof SCENE loop BYTES           the every-stage loop's state
 //   stack program BYTES               the whole program's high-water mark
 //   done
 #include <cstdint>
+#include <new>
 
 #include "board.hpp"
 #include "image.hpp"
@@ -120,136 +122,149 @@ struct Tally {
   }
 };
 
-// ---- the device: plays a motion, takes forces -------------------------------------------------
+// ---- the device: plays a motion ----------------------------------------------------------------
 
-/// Plays one motion file's rows as device samples, as replay turns rows into samples: the
-/// row's time stamp, and dt from the previous row (the first tick's dt is the recording's
-/// period, t of row 2 minus t of row 1).
-class MotionDevice {
- public:
-  explicit MotionDevice(const Motion& m) noexcept : motion_(m) {}
-
-  void read(std::size_t k, Sample& s) const noexcept {
-    const MotionRow& row = motion_.rows[k];
-    s.position_m = row.position_m;
-    s.has_velocity = motion_.velocity_m_per_s != nullptr;
-    if (s.has_velocity) s.velocity_m_per_s = motion_.velocity_m_per_s[k];
-    s.now = Instant{static_cast<std::int64_t>(k), row.t_s};
-    s.dt_s = k == 0 ? motion_.rows[1].t_s - row.t_s : row.t_s - motion_.rows[k - 1].t_s;
+/// Plays one motion file's rows as the device's readings, as replay's device does: row k is
+/// what the device reads at tick k (its position, and its velocity when the file gives one).
+/// What the loop writes is taken from the loop itself (its Q16.16 force, bit for bit), so the
+/// write does nothing here.
+struct MotionDevice {
+  const Motion* motion;
+  const std::size_t* row;
+  DeviceStatus read(DeviceReading& reading) const noexcept {
+    reading.position_m = motion->rows[*row].position_m;
+    reading.has_velocity = motion->velocity_m_per_s != nullptr;
+    if (reading.has_velocity) reading.velocity_m_per_s = motion->velocity_m_per_s[*row];
+    return DeviceStatus::kOk;
   }
-  template <class S>
-  void write(const TickResult<S>& r) noexcept {
-    force_[0] = raw_of(r.force_n.x);
-    force_[1] = raw_of(r.force_n.y);
-    force_[2] = raw_of(r.force_n.z);
-    faults_ = r.faults.bits();
-    limits_ = r.limits;
-  }
-  std::size_t rows() const noexcept { return motion_.count; }
-  void print_last() const noexcept {
-    out << "f " << force_[0] << ' ' << force_[1] << ' ' << force_[2] << ' ' << faults_ << ' '
-        << static_cast<std::uint32_t>(limits_) << '\n';
-  }
-
- private:
-  const Motion& motion_;
-  std::int64_t force_[3] = {};
-  std::uint32_t faults_ = 0;
-  std::uint8_t limits_ = 0;
+  DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
 };
 
+template <class S>
+void print_tick(const Vec3<S>& f, const TickStatus& status) noexcept {
+  out << "f " << raw_of(f.x) << ' ' << raw_of(f.y) << ' ' << raw_of(f.z) << ' ' << status.faults.bits() << ' '
+      << static_cast<std::uint32_t>(status.limits) << '\n';
+}
+
 // ---- one scene ------------------------------------------------------------------------------
+
+/// The servo period of the every-stage loop [s]: a product's fixed 1 kHz.
+constexpr double kPeriodS = 0.001;
 
 template <class SceneDef>
 struct Run {
   using SceneT = typename SceneDef::Type;
   using S = typename SceneT::Scalar;
-  using Loop = Controller<SceneT>;
+  /// The loop as `toonforce replay` runs it: effects.md §6 stages, time from the rows' stamps.
+  using SpecLoop = ServoLoop<MotionDevice, SceneT, NullPins, kSpecStages>;
+  /// The whole loop with every stage (supervisor, engage and soft start, passivity, thermal,
+  /// motion limits), on a fixed 1 kHz period: what a product runs.
+  using FullLoop = ServoLoop<MotionDevice, SceneT, NullPins, kEveryStage>;
 
-  // Built at compile time (constexpr constructors): no conversion from the double settings
-  // runs on the target, and each motion starts from a copy of this.
-  static constexpr Loop kFreshLoop{SceneDef::make(), SceneDef::kConfig};
   static constexpr SceneT kScene = SceneDef::make();
-  static constexpr ForceSafety<S> kFreshSafety{SceneDef::kConfig.limits};
+  static constexpr ForceSafety<S> kFreshSafety{SceneDef::config(kPeriodS, true).limits};  // converted at compile time
+  static inline ActiveForce<S> active[SceneT::kActiveCapacity > 0 ? SceneT::kActiveCapacity : 1]{};
+  static inline std::size_t row = 0;
+  static inline std::uint32_t tick_stack = 0;  // deepest stack of one loop tick [bytes]
 
-  // Static, not on the stack: the loop's state is the image's RAM (bss), as on a product.
-  static inline Loop loop = kFreshLoop;
-  // The same scene and safety stage run alone on the loop's own inputs, to count "effects plus
-  // safety" apart from the rest of the tick (estimator, conversions, fault handling).
-  static inline typename SceneT::State shadow_state{};
-  static inline ForceSafety<S> shadow_safety = kFreshSafety;
-  static inline TickInput<S> captured{};
+  // The loops' state in static storage (bss), as on a product, built in place per motion.
+  alignas(SpecLoop) static inline unsigned char spec_storage[sizeof(SpecLoop)];
+  alignas(FullLoop) static inline unsigned char full_storage[sizeof(FullLoop)];
 
-  /// One whole loop tick: read the device, tick, write the force.
-  [[gnu::noinline]] static void loop_tick(MotionDevice& device, std::size_t k) noexcept {
-    Sample sample;
-    device.read(k, sample);
-    device.write(loop.tick(sample));
+  static SpecLoop& make_spec(const Motion& motion) noexcept {
+    // The first tick's dt is the recording's period, as replay's (replay_config).
+    const ServoConfig c = SceneDef::config(motion.rows[1].t_s - motion.rows[0].t_s, true);
+    return *new (spec_storage) SpecLoop(MotionDevice{&motion, &row}, kScene, c);
+  }
+  static FullLoop& make_full(const Motion& motion) noexcept {
+    return *new (full_storage) FullLoop(MotionDevice{&motion, &row}, kScene, SceneDef::config(kPeriodS, false));
   }
 
-  /// The effects plus the safety stage on the inputs the loop built for this tick.
-  [[gnu::noinline]] static Vec3<S> effects_and_safety(const TickInput<S>& in) noexcept {
-    const Vec3<S> f = kScene.force(in, shadow_state);
-    return shadow_safety.limit(f, in.rate_hz).force_n;
+  /// One whole loop tick, read to write, in the replay's stamped time.
+  [[gnu::noinline]] static TickStatus spec_tick(SpecLoop& loop, const Motion& motion, std::size_t k) noexcept {
+    return loop.tick(Instant{static_cast<std::int64_t>(k), motion.rows[k].t_s});
+  }
+  /// One whole loop tick with every stage, at integer tick k.
+  [[gnu::noinline]] static TickStatus full_tick(FullLoop& loop, std::size_t k) noexcept {
+    return loop.tick(static_cast<std::int64_t>(k));
   }
 
-  /// The loop's stage hook, used only in the effects pass: it sees the tick's TickInput.
-  struct Capture {
-    constexpr Shaped<S> operator()(const Vec3<S>& force, const TickInput<S>& in,
-                                   const typename SceneT::State&) const noexcept {
-      captured = in;
-      return {force, false};
-    }
-  };
+  /// The effects plus the safety stage on one tick's inputs.
+  [[gnu::noinline]] static Vec3<S> effects_and_safety(const TickInput<S>& in, typename SceneT::State& state,
+                                                      ForceSafety<S>& safety) noexcept {
+    const Vec3<S> f = kScene.force(in, state, active);
+    return safety.limit(f, in.rate_hz).force_n;
+  }
 
   static bool play(const Motion& motion) noexcept {
-    MotionDevice device(motion);
-    const std::size_t rows = device.rows();
+    const std::size_t rows = motion.count;
 
-    // Pass 1: the whole loop tick, counted, its stack depth measured (a painted window below
-    // this frame, repainted before each tick); its forces are the image's output.
-    loop = kFreshLoop;
+    // Pass 1: replay's loop, counted, its stack depth measured (a painted window below this
+    // frame, repainted before each tick); its forces are the image's output.
+    SpecLoop& spec = make_spec(motion);
     Tally whole;
     out << "run " << SceneDef::kName << ' ' << motion.name << ' ' << rows << '\n';
     const std::uint32_t sp = board::stack_pointer();
-    for (std::size_t k = 0; k < rows; ++k) {
+    for (row = 0; row < rows; ++row) {
       paint_window(sp, kTickStackWindow);
-      whole.add(count([&] { loop_tick(device, k); }));
+      TickStatus status;
+      whole.add(count([&] { status = spec_tick(spec, motion, row); }));
       const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
       if (depth > tick_stack) tick_stack = depth;
-      device.print_last();
+      print_tick(spec.force(), status);
     }
     out << "end\n";
 
-    // Pass 2: the same ticks again; after each, effects plus safety alone on its inputs.
-    loop = kFreshLoop;
-    shadow_state = typename SceneT::State{};
-    shadow_safety = kFreshSafety;
+    // Pass 2: the whole loop with every stage, at 1 kHz.
+    FullLoop& full = make_full(motion);
+    Tally every;
+    for (row = 0; row < rows; ++row) {
+      paint_window(sp, kTickStackWindow);
+      every.add(count([&] { static_cast<void>(full_tick(full, row)); }));
+      const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
+      if (depth > tick_stack) tick_stack = depth;
+    }
+
+    // Pass 3: the effects plus the safety stage alone, on the Q16.16 inputs replay's loop gave
+    // its scene (position, velocity, rate, time), rebuilt here from the spec loop's tick by tick.
+    SpecLoop& again = make_spec(motion);
+    typename SceneT::State state{};
+    ForceSafety<S> safety = kFreshSafety;
     Tally effects;
     bool agree = true;
-    for (std::size_t k = 0; k < rows; ++k) {
-      Sample sample;
-      device.read(k, sample);
-      const TickResult<S> r = loop.tick(sample, Capture{});
-      if (r.faults.has(Fault::kNonFiniteInput) || r.faults.has(Fault::kNonFiniteForce)) continue;
+    for (row = 0; row < rows; ++row) {
+      const TickStatus status = spec_tick(again, motion, row);
+      if (status.faults.has(Fault::kNonFiniteInput) || status.faults.has(Fault::kNonFiniteForce)) continue;
+      TickInput<S> in{};
+      in.position_m = vec_cast<S>(motion.rows[row].position_m);
+      in.velocity_m_per_s = again.velocity();
+      in.rate_hz = rate_of(motion, row);
+      in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_s};
       Vec3<S> f{};
-      effects.add(count([&] { f = effects_and_safety(captured); }));
-      agree = agree && f == r.force_n;  // the shadow is the loop's own computation
+      effects.add(count([&] { f = effects_and_safety(in, state, safety); }));
+      agree = agree && f == again.force();  // the shadow is the loop's own computation
     }
-    out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop " << static_cast<std::int64_t>(whole.sum)
-        << ' ' << whole.max << " effects " << static_cast<std::int64_t>(effects.sum) << ' ' << effects.max << '\n';
+    out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
+        << static_cast<std::int64_t>(whole.sum) << ' ' << whole.max << " every "
+        << static_cast<std::int64_t>(every.sum) << ' ' << every.max << " effects "
+        << static_cast<std::int64_t>(effects.sum) << ' ' << effects.max << '\n';
     if (!agree) out << "error " << SceneDef::kName << ' ' << motion.name << ": effects pass differs from the loop\n";
     return agree;
   }
 
-  static inline std::uint32_t tick_stack = 0;  // deepest stack of one loop tick [bytes]
+  /// 1/dt as the loop computes it with stamps: the first tick's dt is the recording's period.
+  static S rate_of(const Motion& motion, std::size_t k) noexcept {
+    const double dt = k == 0 ? motion.rows[1].t_s - motion.rows[0].t_s : motion.rows[k].t_s - motion.rows[k - 1].t_s;
+    return scalar_cast<S>(1.0 / dt);
+  }
 
   static bool play_all() noexcept {
     bool ok = true;
     for (std::size_t m = 0; m < image::kMotionCount; ++m) ok = play(image::kMotions[m]) && ok;
     out << "stack " << SceneDef::kName << " tick " << tick_stack << '\n';
     if (tick_stack >= kTickStackWindow) out << "error: the tick's stack went past the painted window\n";
-    out << "sizeof " << SceneDef::kName << " controller " << sizeof(Loop) << '\n';
+    out << "sizeof " << SceneDef::kName << " controller " << sizeof(SpecLoop) << '\n';
+    out << "sizeof " << SceneDef::kName << " loop " << sizeof(FullLoop) << '\n';
     return ok && tick_stack < kTickStackWindow;
   }
 };
@@ -268,12 +283,12 @@ template <class SceneDef>
 void play_plain() noexcept {
   using R = Run<SceneDef>;
   for (std::size_t m = 0; m < image::kMotionCount; ++m) {
-    MotionDevice device(image::kMotions[m]);
-    R::loop = R::kFreshLoop;
-    out << "run " << SceneDef::kName << ' ' << image::kMotions[m].name << ' ' << device.rows() << '\n';
-    for (std::size_t k = 0; k < device.rows(); ++k) {
-      R::loop_tick(device, k);
-      device.print_last();
+    const Motion& motion = image::kMotions[m];
+    auto& loop = R::make_spec(motion);
+    out << "run " << SceneDef::kName << ' ' << motion.name << ' ' << motion.count << '\n';
+    for (R::row = 0; R::row < motion.count; ++R::row) {
+      const TickStatus status = R::spec_tick(loop, motion, R::row);
+      print_tick(loop.force(), status);
     }
     out << "end\n";
   }

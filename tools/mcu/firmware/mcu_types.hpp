@@ -4,7 +4,7 @@
 
 #include <cstddef>
 
-#include "toonforce/control/controller.hpp"
+#include "toonforce/control/servo_loop.hpp"
 
 namespace toonforce::mcu {
 

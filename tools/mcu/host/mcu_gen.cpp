@@ -29,6 +29,7 @@
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include <fmt/format.h>
@@ -79,7 +80,8 @@ std::string lit(Q16_16 v) { return fmt::format("S::from_raw({})", v.raw()); }
 
 template <class S>
 std::string lit(const Vec3<S>& v) {
-  return fmt::format("Vec3<S>{{{}, {}, {}}}", lit(v.x), lit(v.y), lit(v.z));
+  return fmt::format("Vec3<{}>{{{}, {}, {}}}", std::is_same_v<S, double> ? "double" : "S", lit(v.x), lit(v.y),
+                     lit(v.z));
 }
 template <class S>
 std::string lit(const Plane<S>& p) {
@@ -91,6 +93,7 @@ std::string_view sine_name(SineMethod m) {
     case SineMethod::kLibrary: return "SineMethod::kLibrary";
     case SineMethod::kPolynomial: return "SineMethod::kPolynomial";
     case SineMethod::kTable: return "SineMethod::kTable";
+    case SineMethod::kAuto: return "SineMethod::kAuto";
   }
   return "?";
 }
@@ -100,26 +103,25 @@ std::string_view sine_name(SineMethod m) {
 /// file gives it (a wall without damping is a SpringWall; no tangential law, no impact: none),
 /// which is what makes a scene's image carry only its effects.
 template <class S>
-std::string scene_struct(const std::string& name, const SceneDescription& d, const RuntimeScene<S>& rt,
-                         const ControllerConfig& config) {
+std::string scene_struct(const std::string& name, const SceneDescription& d, const ServoConfig& config) {
   std::vector<std::string> types;
   std::vector<std::string> args;
-  for (const auto& entry : d.order) {
-    if (entry.kind == SceneDescription::Kind::kSurface) {
-      const auto& p = rt.surface(entry.index);
+  for (const SceneEntry& entry : d.order) {
+    if (entry.kind == 0) {  // a surface
+      const auto p = schema::convert_params<RuntimeSurface<double>, RuntimeSurface<S>>(d.all<0>()[entry.index]);
       const bool damped = p.wall.damping_n_s_per_m != S{};
       const std::string wall = damped ? "PenaltyWall<S>" : "SpringWall<S>";
       std::string tangential = "NoTangential<S>";
       std::string tangential_arg = "{}";
       switch (p.tangential.kind) {
-        case AnyTangential<S>::Kind::kNone: break;
-        case AnyTangential<S>::Kind::kFriction:
+        case TangentialKind::kNone: break;
+        case TangentialKind::kFriction:
           tangential = "RealisticFriction<S>";
           tangential_arg = fmt::format("{{{}, {}, {}}}", lit(p.tangential.friction.viscous_n_s_per_m),
                                        lit(p.tangential.friction.coulomb),
                                        lit(p.tangential.friction.regularization_speed_m_per_s));
           break;
-        case AnyTangential<S>::Kind::kSlippery:
+        case TangentialKind::kSlippery:
           tangential = "SuperSlippery<S>";
           tangential_arg = fmt::format("{{{}, {}}}", lit(p.tangential.slippery.mu_n_s_per_m),
                                        lit(p.tangential.slippery.max_tangential_force_n));
@@ -137,8 +139,8 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
       types.push_back(fmt::format("Surface<{}, {}, {}>", wall, tangential, impact));
       args.push_back(fmt::format("{{{}, {{{}, {}}}, {}, {}}}", lit(p.plane), lit(p.wall.stiffness_n_per_m),
                                  lit(p.wall.damping_n_s_per_m), tangential_arg, impact_arg));
-    } else {
-      const auto& c = rt.cliff(entry.index);
+    } else {  // a cliff
+      const auto c = schema::convert_params<CartoonCliff<double>, CartoonCliff<S>>(d.all<1>()[entry.index]);
       types.push_back("CartoonCliff<S>");
       args.push_back(fmt::format("{{{}, {}, {}, {}, {{{}, {}}}, {}, {}, {}, {}}}", lit(c.ground), lit(c.axis),
                                  lit(c.gap_min_m), lit(c.gap_max_m), lit(c.wall.stiffness_n_per_m),
@@ -153,6 +155,30 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
     arg_list += (i ? ",\n        " : "") + args[i];
   }
   const auto& l = config.limits;
+  const auto& f = config.safety;
+  // The scene's servo settings (servo_config of the file, every [device] key), exactly; the
+  // image sets the period and the time base (stamps for the replay comparison).
+  const std::string settings = fmt::format(
+      "    ServoConfig c;\n"
+      "    c.limits = ForceLimits{{{}, {}, {}, {}}};\n"
+      "    c.velocity_cutoff_hz = {};\n"
+      "    c.safety.engage_force_n = {};\n"
+      "    c.safety.soft_start_s = {};\n"
+      "    c.safety.has_max_velocity = {};\n"
+      "    c.safety.max_velocity_m_per_s = {};\n"
+      "    c.safety.has_workspace = {};\n"
+      "    c.safety.workspace_min_m = {};\n"
+      "    c.safety.workspace_max_m = {};\n"
+      "    c.safety.watchdog_periods = {};\n"
+      "    c.safety.device_timeout_periods = {};\n"
+      "    c.safety.thermal = ThermalConfig{{{}, {}, {}}};\n"
+      "    c.safety.passivity = PassivityConfig{{{}, {}, {}}};\n",
+      lit(l.max_force_n), lit(l.max_force_rate_n_per_s), l.has_max_force, l.has_max_force_rate,
+      lit(config.velocity_cutoff_hz), lit(f.engage_force_n), lit(f.soft_start_s), f.has_max_velocity,
+      lit(f.max_velocity_m_per_s), f.has_workspace, lit(f.workspace_min_m), lit(f.workspace_max_m),
+      f.watchdog_periods, f.device_timeout_periods, lit(f.thermal.continuous_force_n),
+      lit(f.thermal.time_constant_s), lit(f.thermal.derate_start), f.passivity.controller,
+      lit(f.passivity.budget_j), lit(f.passivity.max_damping_n_s_per_m));
   return fmt::format(
       "/// {} ({})\n"
       "struct {}Scene {{\n"
@@ -162,10 +188,14 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
       "    return Type(\n"
       "        {});\n"
       "  }}\n"
-      "  static constexpr ControllerConfig kConfig{{ForceLimits{{{}, {}, {}, {}}}, {}, {}}};\n"
+      "  static constexpr ServoConfig config(double period_s, bool time_from_stamps) noexcept {{\n"
+      "{}"
+      "    c.period_s = period_s;\n"
+      "    c.time_from_stamps = time_from_stamps;\n"
+      "    return c;\n"
+      "  }}\n"
       "}};\n\n",
-      d.name, d.source, camel(name), name, type_list, arg_list, lit(l.max_force_n), lit(l.max_force_rate_n_per_s),
-      l.has_max_force, l.has_max_force_rate, lit(config.velocity_cutoff_hz), lit(config.period_s));
+      d.name, d.source, camel(name), name, type_list, arg_list, settings);
 }
 
 int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMethod> sine,
@@ -181,12 +211,12 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
       std::fprintf(stderr, "toonforce_mcu_gen: %s\n", d.error().c_str());
       return 1;
     }
-    // Stamped time (period 0), as `toonforce replay` runs a motion.
-    const ControllerConfig config = controller_config(d.value(), 0.0);
+    if (sine) override_sine(d.value(), *sine);  // as `toonforce replay --sine` does
+    const ServoConfig config = servo_config(d.value(), 1.0);  // the period is the image's
     if (scalar == ScalarKind::kQ16_16) {
-      header += scene_struct(s.name, d.value(), make_runtime_scene<Q16_16>(d.value(), sine), config);
+      header += scene_struct<Q16_16>(s.name, d.value(), config);
     } else {
-      header += scene_struct(s.name, d.value(), make_runtime_scene<float>(d.value(), sine), config);
+      header += scene_struct<float>(s.name, d.value(), config);
     }
     scene_names += (scene_names.empty() ? "" : ", ") + camel(s.name) + "Scene";
   }
@@ -423,8 +453,8 @@ bool read_sections(const std::string& path, std::map<std::string, std::uint64_t>
 }
 
 struct SceneFigures {
-  std::uint64_t ticks = 0, loop_sum = 0, loop_max = 0, effects_sum = 0, effects_max = 0;
-  std::uint64_t stack_tick = 0, controller_bytes = 0;
+  std::uint64_t ticks = 0, loop_sum = 0, loop_max = 0, every_sum = 0, every_max = 0, effects_sum = 0, effects_max = 0;
+  std::uint64_t stack_tick = 0, controller_bytes = 0, loop_bytes = 0;
 };
 
 /// The figure lines of an image's output (main.cpp): count, stack and sizeof, per scene.
@@ -441,10 +471,10 @@ bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& 
     std::string tag, scene, what;
     words >> tag >> scene;
     if (tag == "count") {
-      // "count SCENE MOTION TICKS loop SUM MAX effects SUM MAX"
-      std::string motion, loop, effects;
-      std::uint64_t ticks = 0, ls = 0, lm = 0, es = 0, em = 0;
-      if (!(words >> motion >> ticks >> loop >> ls >> lm >> effects >> es >> em)) {
+      // "count SCENE MOTION TICKS loop SUM MAX every SUM MAX effects SUM MAX"
+      std::string motion, loop, every, effects;
+      std::uint64_t ticks = 0, ls = 0, lm = 0, vs = 0, vm = 0, es = 0, em = 0;
+      if (!(words >> motion >> ticks >> loop >> ls >> lm >> every >> vs >> vm >> effects >> es >> em)) {
         error = path + ": bad line '" + line + "'";
         return false;
       }
@@ -452,6 +482,8 @@ bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& 
       f.ticks += ticks;
       f.loop_sum += ls;
       f.loop_max = std::max(f.loop_max, lm);
+      f.every_sum += vs;
+      f.every_max = std::max(f.every_max, vm);
       f.effects_sum += es;
       f.effects_max = std::max(f.effects_max, em);
     } else if (tag == "stack" && scene == "program") {
@@ -459,7 +491,9 @@ bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& 
     } else if (tag == "stack") {
       words >> what >> scenes[scene].stack_tick;
     } else if (tag == "sizeof") {
-      words >> what >> scenes[scene].controller_bytes;
+      std::uint64_t bytes = 0;
+      words >> what >> bytes;
+      (what == "loop" ? scenes[scene].loop_bytes : scenes[scene].controller_bytes) = bytes;
     }
   }
   return true;
@@ -485,9 +519,9 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
                 static_cast<unsigned long long>(bss), static_cast<unsigned long long>(text + data),
                 static_cast<unsigned long long>(data + bss), static_cast<unsigned long long>(sec[".motion"]));
   }
-  std::printf("\n| scene | ticks | whole loop tick, mean | whole loop tick, worst | effects + safety, mean | "
-              "effects + safety, worst | stack per tick [B] | loop state [B] |\n");
-  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  std::printf("\n| scene | ticks | replay's loop tick, mean | worst | every-stage loop tick, mean | worst | "
+              "effects + safety, mean | worst | stack per tick [B] | loop state, replay's / every stage [B] |\n");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const auto& r : runs) {
     std::map<std::string, SceneFigures> scenes;
     std::uint64_t program_stack = 0;
@@ -502,10 +536,11 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
     }
     const SceneFigures& f = it->second;
     const auto mean = [&](std::uint64_t sum) { return static_cast<double>(sum) / static_cast<double>(f.ticks); };
-    std::printf("| %s | %llu | %.0f | %llu | %.0f | %llu | %llu | %llu |\n", r.name.c_str(),
+    std::printf("| %s | %llu | %.0f | %llu | %.0f | %llu | %.0f | %llu | %llu | %llu / %llu |\n", r.name.c_str(),
                 static_cast<unsigned long long>(f.ticks), mean(f.loop_sum), static_cast<unsigned long long>(f.loop_max),
-                mean(f.effects_sum), static_cast<unsigned long long>(f.effects_max),
-                static_cast<unsigned long long>(f.stack_tick), static_cast<unsigned long long>(f.controller_bytes));
+                mean(f.every_sum), static_cast<unsigned long long>(f.every_max), mean(f.effects_sum),
+                static_cast<unsigned long long>(f.effects_max), static_cast<unsigned long long>(f.stack_tick),
+                static_cast<unsigned long long>(f.controller_bytes), static_cast<unsigned long long>(f.loop_bytes));
   }
   return 0;
 }
