@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <vector>
 
 extern "C" {
 #include <libfixmath/fix16.h>
@@ -82,6 +83,36 @@ TEST(Fixed, SquareRootIsWithinHalfAnLsbAndAgreesWithLibfixmath) {
   }
   EXPECT_EQ(sqrt(Q::from_double(-1.0)), Q{});
   EXPECT_TRUE(take_fixed_saturated());
+}
+
+/// True when r = floor(sqrt(v) + 1/2), i.e. (r - 1/2)^2 <= v < (r + 1/2)^2; in integers
+/// r^2 - r < v <= r^2 + r (a tie cannot occur: (r + 1/2)^2 is never an integer).
+__extension__ typedef unsigned __int128 Uint128;  // r^2 + r can exceed 64 bits (g++ extension)
+bool rounds_to_nearest_root(std::uint64_t v, std::uint64_t r) {
+  const Uint128 r2 = static_cast<Uint128>(r) * r;
+  return (r == 0 || r2 - r < v) && v <= r2 + r;
+}
+
+TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
+  // norm() takes the root of a sum of three raw squares: any 64-bit value. Around the 32-bit
+  // boundary (where the root changes method), at powers of four (where it starts), at the
+  // rounding boundaries r^2 + r and r^2 + r + 1, at the top, and at random.
+  std::vector<std::uint64_t> values = {0, 1, 2, 3, 4, 5, 0xFFFF'FFFFULL, 0x1'0000'0000ULL, 0x1'0000'0001ULL,
+                                       0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFF'0000'0000ULL, 0xFFFF'FFFE'0000'0001ULL};
+  for (int shift = 0; shift < 64; ++shift) {
+    const std::uint64_t p = std::uint64_t{1} << shift;
+    values.insert(values.end(), {p - 1, p, p + 1});
+  }
+  for (const std::uint64_t r : {1ULL, 2ULL, 65535ULL, 65536ULL, 65537ULL, 0xFFFF'FFFEULL, 3037000499ULL}) {
+    values.insert(values.end(), {r * r - 1, r * r, r * r + r, r * r + r + 1});
+  }
+  std::mt19937_64 random(18);
+  for (int i = 0; i < 200000; ++i) values.push_back(random() >> (random() % 64));
+  for (const std::uint64_t v : values) {
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round(v))) << v << " gave " << detail::isqrt_round(v);
+  }
+  static_assert(detail::isqrt_round(0) == 0 && detail::isqrt_round(2) == 1 && detail::isqrt_round(3) == 2);
+  static_assert(detail::isqrt_round(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL);
 }
 
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {

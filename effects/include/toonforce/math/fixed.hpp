@@ -16,6 +16,7 @@
 /// Scaling and overflow: a product or quotient is formed in 64 bits, rounded to nearest
 /// (half away from zero) and saturated to [lowest(), max()]. Sums saturate the same way.
 
+#include <bit>
 #include <compare>
 #include <cstdint>
 #include <limits>
@@ -23,9 +24,20 @@
 
 namespace toonforce {
 
+/// Where the sticky flag lives. On a host it is per thread (one servo loop per thread, and
+/// tests tick loops on several threads at once). A bare-metal target defines
+/// TOONFORCE_SINGLE_THREADED: it runs one loop and has no thread-local storage (arm-none-eabi
+/// compiles `thread_local` into calls of __aeabi_read_tp, which only an operating system
+/// provides), so there the flag is a plain global (tools/mcu builds this way).
+#if defined(TOONFORCE_SINGLE_THREADED)
+#define TOONFORCE_FIXED_FLAG_STORAGE inline
+#else
+#define TOONFORCE_FIXED_FLAG_STORAGE inline thread_local
+#endif
+
 namespace detail {
-/// The sticky saturation flag of the calling thread (one servo loop per thread).
-inline thread_local bool fixed_saturated_flag = false;
+/// The sticky saturation flag of the calling thread (of the program when single-threaded).
+TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
@@ -167,11 +179,15 @@ constexpr bool is_finite(Fixed<I, F>) noexcept {
 }
 
 namespace detail {
-/// floor(sqrt(v) + 0.5) for a 64-bit unsigned value, by the bitwise method (at most 32 rounds).
-constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
-  std::uint64_t result = 0;
-  std::uint64_t bit = std::uint64_t{1} << 62;
-  while (bit > v) bit >>= 2;
+/// floor(sqrt(v) + 0.5) by the bitwise method, one round per two bits of v, in the unsigned
+/// type U of v (32 or 64 bits).
+template <class U>
+constexpr U isqrt_round_bitwise(U v) noexcept {
+  if (v == 0) return 0;
+  U result = 0;
+  // Start at the largest power of four <= v: found from the leading zeros, not by shifting
+  // down from the top (up to 31 extra rounds of 64-bit shifts on a 32-bit core).
+  U bit = U{1} << ((std::numeric_limits<U>::digits - 1 - std::countl_zero(v)) & ~1);
   while (bit != 0) {
     if (v >= result + bit) {
       v -= result + bit;
@@ -183,6 +199,55 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
   }
   // v now holds the remainder r = n - result^2; round up when r > result (n > (result+1/2)^2).
   return v > result ? result + 1 : result;
+}
+
+/// floor(sqrt(v) + 0.5) for a 64-bit value of 2^32 or more, by the digit-by-digit method
+/// (one root bit per two bits of v, from the top): after each step q is the root of the bits
+/// taken so far and r = those bits - q^2 <= 2q. The high word's steps leave q < 2^16, and
+/// while q < 2^29 r fits 32 bits, so all but the last three steps run in 32-bit arithmetic
+/// (and no step shifts a 64-bit value by a variable amount, a library call on a 32-bit core).
+/// The same result as isqrt_round_bitwise.
+constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
+  std::uint32_t q = 0;
+  std::uint32_t r = 0;
+  const auto step = [&q, &r](std::uint32_t two_bits) {
+    r = (r << 2) | two_bits;
+    const std::uint32_t t = (q << 2) | 1U;
+    q <<= 1;
+    if (r >= t) {
+      r -= t;
+      q |= 1U;
+    }
+  };
+  const auto high = static_cast<std::uint32_t>(v >> 32);  // nonzero here
+  const int leading = std::countl_zero(high) & ~1;        // whole pairs of leading zeros
+  std::uint32_t word = high << leading;
+  for (int pairs = 16 - leading / 2; pairs > 0; --pairs, word <<= 2) step(word >> 30);
+  word = static_cast<std::uint32_t>(v);
+  for (int pairs = 13; pairs > 0; --pairs, word <<= 2) step(word >> 30);
+  std::uint64_t q_wide = q;
+  std::uint64_t r_wide = r;
+  for (int pairs = 3; pairs > 0; --pairs, word <<= 2) {
+    r_wide = (r_wide << 2) | (word >> 30);
+    const std::uint64_t t = (q_wide << 2) | 1U;
+    q_wide <<= 1;
+    if (r_wide >= t) {
+      r_wide -= t;
+      q_wide |= 1U;
+    }
+  }
+  // r = v - q^2; round up when r > q (v > (q + 1/2)^2).
+  return r_wide > q_wide ? q_wide + 1 : q_wide;
+}
+
+/// floor(sqrt(v) + 0.5) for a 64-bit unsigned value. On a 32-bit core 64-bit steps cost two
+/// to four instructions each, so a value that fits 32 bits (the norm of a velocity in m/s, or
+/// of a force under 1 N, in Q16.16) takes the bitwise method in 32-bit arithmetic, and a
+/// larger one the digit-by-digit method, mostly in 32 bits: the same result, for a fraction of
+/// the instructions on a Cortex-M3 (tools/mcu; docs/PERFORMANCE.md "Microcontroller").
+constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+  if (v <= std::numeric_limits<std::uint32_t>::max()) return isqrt_round_bitwise(static_cast<std::uint32_t>(v));
+  return isqrt_round_wide(v);
 }
 }  // namespace detail
 

@@ -1,0 +1,329 @@
+// The image: each of its compile-time scenes runs each of its motions through the servo tick,
+// the way `toonforce replay` does on the host (one row = one tick, stamped time), and writes
+// the forces out for the host to compare bit for bit. Around the ticks it counts instructions
+// (SysTick under QEMU -icount) and measures the stack (painted). Output, one line each:
+//   calibration EMPTY NOPS            instructions the counter sees around nothing and 100 nops
+//   run SCENE MOTION ROWS             then ROWS lines "f FX FY FZ FAULTS LIMITS" (raw Q16.16,
+//                                     or a float's bits)
+//   end
+//   count SCENE MOTION TICKS loop SUM MAX effects SUM MAX     instructions per tick
+//   stack SCENE tick BYTES            deepest stack one loop tick used (below its caller)
+//   sizeof SCENE controller BYTES     replay's loop's state (scene, states, safety, estimator)
+//   sizeof SCENE loop BYTES           the every-stage loop's state
+//   stack program BYTES               the whole program's high-water mark
+//   done
+#include <cstdint>
+#include <new>
+
+#include "board.hpp"
+#include "image.hpp"
+#include "stack_paint.hpp"
+
+#ifndef TOONFORCE_MCU_ICOUNT_SHIFT
+#error "TOONFORCE_MCU_ICOUNT_SHIFT: the -icount shift QEMU runs the image with"
+#endif
+
+namespace toonforce::mcu {
+namespace {
+
+// ---- output -----------------------------------------------------------------------------------
+
+/// Line-buffered text through semihosting: one trap per line, not per character.
+class Out {
+ public:
+  Out& operator<<(const char* text) noexcept {
+    while (*text != '\0') put(*text++);
+    return *this;
+  }
+  Out& operator<<(std::int64_t value) noexcept {
+    std::uint64_t magnitude = value < 0 ? 0 - static_cast<std::uint64_t>(value) : static_cast<std::uint64_t>(value);
+    if (value < 0) put('-');
+    char digits[20];
+    int n = 0;
+    do {
+      digits[n++] = static_cast<char>('0' + magnitude % 10);
+      magnitude /= 10;
+    } while (magnitude != 0);
+    while (n > 0) put(digits[--n]);
+    return *this;
+  }
+  Out& operator<<(std::uint32_t value) noexcept { return *this << static_cast<std::int64_t>(value); }
+  Out& operator<<(std::int32_t value) noexcept { return *this << static_cast<std::int64_t>(value); }
+  Out& operator<<(std::size_t value) noexcept { return *this << static_cast<std::int64_t>(value); }
+  Out& operator<<(char c) noexcept {
+    put(c);
+    return *this;
+  }
+  void flush() noexcept {
+    buffer_[used_] = '\0';
+    if (used_ != 0) board::write0(buffer_);
+    used_ = 0;
+  }
+
+ private:
+  void put(char c) noexcept {
+    if (used_ + 1 >= sizeof buffer_) flush();
+    buffer_[used_++] = c;
+    if (c == '\n') flush();
+  }
+  char buffer_[128] = {};
+  std::size_t used_ = 0;
+};
+
+Out out;
+
+template <class S>
+std::int64_t raw_of(S value) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return value.raw();
+  } else {
+    std::uint32_t bits = 0;  // a float's bits, so the host can compare exactly
+    static_assert(sizeof bits == sizeof value);
+    __builtin_memcpy(&bits, &value, sizeof bits);
+    return bits;
+  }
+}
+
+// ---- instruction counting -------------------------------------------------------------------
+
+/// Instructions from counter counts: each instruction advances QEMU's virtual clock by
+/// 2^shift ns and the SysTick counts every 1/25 MHz = 40 ns, so one instruction is
+/// 2^shift / 40 counts (3.2 at shift 7). Rounding recovers the exact number as long as one
+/// instruction is more than 2 counts (shift >= 7): the two readings' flooring is less than
+/// one count. The calibration in main() checks it on the image itself.
+constexpr std::uint64_t kNsPerCount = 1'000'000'000ULL / board::kCoreClockHz;
+static_assert(kNsPerCount * board::kCoreClockHz == 1'000'000'000ULL);
+static_assert((1ULL << TOONFORCE_MCU_ICOUNT_SHIFT) > 2 * kNsPerCount, "shift too small to count exactly");
+constexpr std::uint32_t instructions_of(std::uint32_t counts) noexcept {
+  constexpr std::uint64_t kNsPerInstruction = 1ULL << TOONFORCE_MCU_ICOUNT_SHIFT;
+  return static_cast<std::uint32_t>((counts * kNsPerCount + kNsPerInstruction / 2) / kNsPerInstruction);
+}
+
+std::uint32_t g_empty_window = 0;  // what two back-to-back readings count
+
+/// Instructions run by f(), the counter's own reading excluded.
+template <class F>
+[[gnu::always_inline]] inline std::uint32_t count(F&& f) noexcept {
+  const std::uint32_t before = board::systick_now();
+  f();
+  const std::uint32_t after = board::systick_now();
+  return instructions_of(board::systick_elapsed(before, after)) - g_empty_window;
+}
+
+/// The stack below the caller painted before each counted tick [bytes]: more than a tick uses.
+constexpr std::uint32_t kTickStackWindow = 1024;
+
+struct Tally {
+  std::uint64_t sum = 0;
+  std::uint32_t max = 0;
+  void add(std::uint32_t n) noexcept {
+    sum += n;
+    if (n > max) max = n;
+  }
+};
+
+// ---- the device: plays a motion ----------------------------------------------------------------
+
+/// Plays one motion file's rows as the device's readings, as replay's device does: row k is
+/// what the device reads at tick k (its position, and its velocity when the file gives one).
+/// What the loop writes is taken from the loop itself (its Q16.16 force, bit for bit), so the
+/// write does nothing here.
+struct MotionDevice {
+  const Motion* motion;
+  const std::size_t* row;
+  DeviceStatus read(DeviceReading& reading) const noexcept {
+    reading.position_m = motion->rows[*row].position_m;
+    reading.has_velocity = motion->velocity_m_per_s != nullptr;
+    if (reading.has_velocity) reading.velocity_m_per_s = motion->velocity_m_per_s[*row];
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+};
+
+template <class S>
+void print_tick(const Vec3<S>& f, const TickStatus& status) noexcept {
+  out << "f " << raw_of(f.x) << ' ' << raw_of(f.y) << ' ' << raw_of(f.z) << ' ' << status.faults.bits() << ' '
+      << static_cast<std::uint32_t>(status.limits) << '\n';
+}
+
+// ---- one scene ------------------------------------------------------------------------------
+
+/// The servo period of the every-stage loop [s]: a product's fixed 1 kHz.
+constexpr double kPeriodS = 0.001;
+
+template <class SceneDef>
+struct Run {
+  using SceneT = typename SceneDef::Type;
+  using S = typename SceneT::Scalar;
+  /// The loop as `toonforce replay` runs it: effects.md §6 stages, time from the rows' stamps.
+  using SpecLoop = ServoLoop<MotionDevice, SceneT, NullPins, kSpecStages>;
+  /// The whole loop with every stage (supervisor, engage and soft start, passivity, thermal,
+  /// motion limits), on a fixed 1 kHz period: what a product runs.
+  using FullLoop = ServoLoop<MotionDevice, SceneT, NullPins, kEveryStage>;
+
+  static constexpr SceneT kScene = SceneDef::make();
+  static constexpr ForceSafety<S> kFreshSafety{SceneDef::config(kPeriodS, true).limits};  // converted at compile time
+  static inline ActiveForce<S> active[SceneT::kActiveCapacity > 0 ? SceneT::kActiveCapacity : 1]{};
+  static inline std::size_t row = 0;
+  static inline std::uint32_t tick_stack = 0;  // deepest stack of one loop tick [bytes]
+
+  // The loops' state in static storage (bss), as on a product, built in place per motion.
+  alignas(SpecLoop) static inline unsigned char spec_storage[sizeof(SpecLoop)];
+  alignas(FullLoop) static inline unsigned char full_storage[sizeof(FullLoop)];
+
+  static SpecLoop& make_spec(const Motion& motion) noexcept {
+    // The first tick's dt is the recording's period, as replay's (replay_config).
+    const ServoConfig c = SceneDef::config(motion.rows[1].t_s - motion.rows[0].t_s, true);
+    return *new (spec_storage) SpecLoop(MotionDevice{&motion, &row}, kScene, c);
+  }
+  static FullLoop& make_full(const Motion& motion) noexcept {
+    return *new (full_storage) FullLoop(MotionDevice{&motion, &row}, kScene, SceneDef::config(kPeriodS, false));
+  }
+
+  /// One whole loop tick, read to write, in the replay's stamped time.
+  [[gnu::noinline]] static TickStatus spec_tick(SpecLoop& loop, const Motion& motion, std::size_t k) noexcept {
+    return loop.tick(Instant{static_cast<std::int64_t>(k), motion.rows[k].t_s});
+  }
+  /// One whole loop tick with every stage, at integer tick k.
+  [[gnu::noinline]] static TickStatus full_tick(FullLoop& loop, std::size_t k) noexcept {
+    return loop.tick(static_cast<std::int64_t>(k));
+  }
+
+  /// The effects plus the safety stage on one tick's inputs.
+  [[gnu::noinline]] static Vec3<S> effects_and_safety(const TickInput<S>& in, typename SceneT::State& state,
+                                                      ForceSafety<S>& safety) noexcept {
+    const Vec3<S> f = kScene.force(in, state, active);
+    return safety.limit(f, in.rate_hz).force_n;
+  }
+
+  static bool play(const Motion& motion) noexcept {
+    const std::size_t rows = motion.count;
+
+    // Pass 1: replay's loop, counted, its stack depth measured (a painted window below this
+    // frame, repainted before each tick); its forces are the image's output.
+    SpecLoop& spec = make_spec(motion);
+    Tally whole;
+    out << "run " << SceneDef::kName << ' ' << motion.name << ' ' << rows << '\n';
+    const std::uint32_t sp = board::stack_pointer();
+    for (row = 0; row < rows; ++row) {
+      paint_window(sp, kTickStackWindow);
+      TickStatus status;
+      whole.add(count([&] { status = spec_tick(spec, motion, row); }));
+      const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
+      if (depth > tick_stack) tick_stack = depth;
+      print_tick(spec.force(), status);
+    }
+    out << "end\n";
+
+    // Pass 2: the whole loop with every stage, at 1 kHz.
+    FullLoop& full = make_full(motion);
+    Tally every;
+    for (row = 0; row < rows; ++row) {
+      paint_window(sp, kTickStackWindow);
+      every.add(count([&] { static_cast<void>(full_tick(full, row)); }));
+      const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
+      if (depth > tick_stack) tick_stack = depth;
+    }
+
+    // Pass 3: the effects plus the safety stage alone, on the Q16.16 inputs replay's loop gave
+    // its scene (position, velocity, rate, time), rebuilt here from the spec loop's tick by tick.
+    SpecLoop& again = make_spec(motion);
+    typename SceneT::State state{};
+    ForceSafety<S> safety = kFreshSafety;
+    Tally effects;
+    bool agree = true;
+    for (row = 0; row < rows; ++row) {
+      const TickStatus status = spec_tick(again, motion, row);
+      if (status.faults.has(Fault::kNonFiniteInput) || status.faults.has(Fault::kNonFiniteForce)) continue;
+      TickInput<S> in{};
+      in.position_m = vec_cast<S>(motion.rows[row].position_m);
+      in.velocity_m_per_s = again.velocity();
+      in.rate_hz = rate_of(motion, row);
+      in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_s};
+      Vec3<S> f{};
+      effects.add(count([&] { f = effects_and_safety(in, state, safety); }));
+      agree = agree && f == again.force();  // the shadow is the loop's own computation
+    }
+    out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
+        << static_cast<std::int64_t>(whole.sum) << ' ' << whole.max << " every "
+        << static_cast<std::int64_t>(every.sum) << ' ' << every.max << " effects "
+        << static_cast<std::int64_t>(effects.sum) << ' ' << effects.max << '\n';
+    if (!agree) out << "error " << SceneDef::kName << ' ' << motion.name << ": effects pass differs from the loop\n";
+    return agree;
+  }
+
+  /// 1/dt as the loop computes it with stamps: the first tick's dt is the recording's period.
+  static S rate_of(const Motion& motion, std::size_t k) noexcept {
+    const double dt = k == 0 ? motion.rows[1].t_s - motion.rows[0].t_s : motion.rows[k].t_s - motion.rows[k - 1].t_s;
+    return scalar_cast<S>(1.0 / dt);
+  }
+
+  static bool play_all() noexcept {
+    bool ok = true;
+    for (std::size_t m = 0; m < image::kMotionCount; ++m) ok = play(image::kMotions[m]) && ok;
+    out << "stack " << SceneDef::kName << " tick " << tick_stack << '\n';
+    if (tick_stack >= kTickStackWindow) out << "error: the tick's stack went past the painted window\n";
+    out << "sizeof " << SceneDef::kName << " controller " << sizeof(SpecLoop) << '\n';
+    out << "sizeof " << SceneDef::kName << " loop " << sizeof(FullLoop) << '\n';
+    return ok && tick_stack < kTickStackWindow;
+  }
+};
+
+template <class... Scenes>
+bool play_scenes(SceneList<Scenes...>) noexcept {
+  bool ok = true;
+  ((ok = Run<Scenes>::play_all() && ok), ...);
+  return ok;
+}
+
+/// The size images (TOONFORCE_MCU_SIZE_ONLY): each motion through the loop and its forces out,
+/// nothing else (no counting, no second pass, no stack probes), so that what the size figures
+/// show is the loop, its scene, the device and the start-up code.
+template <class SceneDef>
+void play_plain() noexcept {
+  using R = Run<SceneDef>;
+  for (std::size_t m = 0; m < image::kMotionCount; ++m) {
+    const Motion& motion = image::kMotions[m];
+    auto& loop = R::make_spec(motion);
+    out << "run " << SceneDef::kName << ' ' << motion.name << ' ' << motion.count << '\n';
+    for (R::row = 0; R::row < motion.count; ++R::row) {
+      const TickStatus status = R::spec_tick(loop, motion, R::row);
+      print_tick(loop.force(), status);
+    }
+    out << "end\n";
+  }
+}
+template <class... Scenes>
+void play_scenes_plain(SceneList<Scenes...>) noexcept {
+  (play_plain<Scenes>(), ...);
+}
+
+/// Checks the counter on blocks of known length: nothing, and 100 NOPs.
+bool calibrate() noexcept {
+  board::start_systick();
+  g_empty_window = 0;
+  const std::uint32_t empty = count([] {});
+  g_empty_window = empty;
+  const std::uint32_t nops = count([] { asm volatile(".rept 100\n nop\n .endr" ::: "memory"); });
+  out << "calibration " << empty << ' ' << nops << '\n';
+  if (nops != 100) out << "error: the instruction counter saw " << nops << " for 100 NOPs (is QEMU in -icount shift="
+                       << static_cast<std::int32_t>(TOONFORCE_MCU_ICOUNT_SHIFT) << " mode?)\n";
+  return nops == 100;
+}
+
+}  // namespace
+}  // namespace toonforce::mcu
+
+int run_image() {
+  using namespace toonforce::mcu;
+#if defined(TOONFORCE_MCU_SIZE_ONLY)
+  play_scenes_plain(image::Scenes{});
+  out << "done\n";
+  return 0;
+#endif
+  bool ok = calibrate();
+  ok = play_scenes(image::Scenes{}) && ok;
+  out << "stack program " << stack_high_water() << '\n';
+  out << (ok ? "done\n" : "failed\n");
+  return ok ? 0 : 1;
+}

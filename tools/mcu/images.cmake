@@ -1,0 +1,9 @@
+# What the microcontroller images are, in one place for the host build (CMakeLists.txt), its
+# tests (tests.cmake) and the cross build (firmware/CMakeLists.txt).
+# One image per paper scene and one with all five; each plays every motion (more ticks
+# compared with the host than the scene-motion pairs the scene files name).
+set(TOONFORCE_MCU_SCENES wall realistic_friction slippery cartoon_wall cliff)
+set(TOONFORCE_MCU_MOTIONS strike stroke crossing_fast crossing_slow)
+# QEMU's -icount shift: each instruction advances the virtual clock 2^7 ns, 3.2 SysTick counts
+# at 25 MHz, enough for the image to recover exact instruction counts (firmware/main.cpp).
+set(TOONFORCE_MCU_ICOUNT_SHIFT 7)
