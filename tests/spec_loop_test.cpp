@@ -127,6 +127,13 @@ TEST(NonFiniteGuard, AFiniteForceWhoseSquareOverflowsIsAFaultNotASilentZero) {
   const auto bad = ctl.tick(sample(0, {0, 0, -0.001}));
   EXPECT_EQ(bad.force_n, (Vec3<double>{}));
   EXPECT_TRUE(bad.faults.has(Fault::kNonFiniteForce));
+  // With the rate limit too (it would hold the last force), and with the rate limit alone.
+  for (const ForceLimits limits : {ForceLimits{8.0, 1000.0, true, true}, ForceLimits{8.0, 1000.0, false, true}}) {
+    SpecLoop limited(floor_scene(1e308), config(limits));
+    const auto r = limited.tick(sample(0, {0, 0, -0.001}));
+    EXPECT_EQ(r.force_n, (Vec3<double>{}));
+    EXPECT_TRUE(r.faults.has(Fault::kNonFiniteForce));
+  }
   // The same wall at a sane stiffness is clamped, not faulted.
   SpecLoop sane(floor_scene(1e12), config({8.0, 0.0, true, false}));
   const auto ok = sane.tick(sample(0, {0, 0, -0.001}));

@@ -76,7 +76,15 @@ constexpr S norm(const Vec3<S>& v) noexcept {
 
 template <Scalar S>
 constexpr bool is_finite(const Vec3<S>& v) noexcept {
-  return is_finite(v.x) && is_finite(v.y) && is_finite(v.z);
+  if constexpr (kIsFixed<S>) {
+    return is_finite(v.x) && is_finite(v.y) && is_finite(v.z);
+  } else {
+    // x - x is +0 for a finite x and NaN for an infinite or NaN one, so the sum below is 0 or
+    // NaN: one test with no branch per component (the build has no fast-math, so the compiler
+    // keeps x - x). Every servo tick checks the handle's position this way.
+    const S zero = (v.x - v.x) + (v.y - v.y) + (v.z - v.z);
+    return zero == zero;
+  }
 }
 
 /// v * (numerator / denominator), denominator > 0. For Q types each component is formed as
