@@ -88,14 +88,7 @@ TEST(InstructionBudget, TheWholeLoopTickOfEveryPaperSceneAveragesAtMost600Instru
       for (std::size_t k = 0; k < c.per_tick_counts.size(); ++k) {
         ASSERT_GT(static_cast<double>(c.per_tick_counts[k]) - harness, 200.0) << id << " tick " << k;
       }
-      // Issue 16 made a finite scene force whose square overflows a fault (zero force and a flag,
-      // never the clamp's silent 0): the squared magnitude is now tested instead of the sum,
-      // about 6 instructions a tick (cartoon_wall/double/runtime 596 -> 602). Allowed here
-      // explicitly until the team decides between raising kTargetLoopInstructionsPerTick (which
-      // docs/PERFORMANCE.md reports against) and finding the instructions elsewhere.
-      constexpr double kOverflowGuardInstructions = 8.0;
-      EXPECT_LE(c.mean() - harness, kTargetLoopInstructionsPerTick + kOverflowGuardInstructions)
-          << id << " (worst tick " << static_cast<double>(c.max()) - harness << ")";
+      EXPECT_LE(c.mean() - harness, kTargetLoopInstructionsPerTick) << id << " (worst tick " << static_cast<double>(c.max()) - harness << ")";
     }
   }
 #endif
