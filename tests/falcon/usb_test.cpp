@@ -3,8 +3,6 @@
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -13,7 +11,6 @@
 #include <numbers>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <unistd.h>
 
 #include "alloc_counter.hpp"
@@ -441,35 +438,15 @@ TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) 
 /// The person's hands for a bring-up run in another process: once the command stream has
 /// started, pulls the emulated grip out to its stop and pushes it back in (homing, falcon.md
 /// §4), watching where the grip is (it may be held by a hand spring that takes time).
-class Homer {
- public:
-  Homer(UsbfsEmulator& bed, std::size_t falcon) : thread_([this, &bed, falcon] {
-    int phase = 0;
-    while (!stop_.load() && phase < 3) {
-      bed.with(falcon, [&](FalconEmulator& e) {
-        if (phase == 0 && e.commands_received() >= 30) {
-          e.set_grip_position({0, 0, 0.178});
-          phase = 1;
-        } else if (phase == 1 && e.grip_position().z > 0.172) {
-          e.set_grip_position({0, 0, 0.09});
-          phase = 2;
-        } else if (phase == 2 && e.grip_position().z < 0.098) {
-          e.set_grip_position(kCentre);
-          phase = 3;
-        }
-      });
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-  }) {}
-  ~Homer() {
-    stop_.store(true);
-    thread_.join();
-  }
-
- private:
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
-};
+// A person homing the Falcon (pull the grip out past the homing sensor, push it back in, let it
+// rest at the centre), scripted in the emulator's own command count: the host runs in a child
+// process at its own pace, and a thread here polling in wall time loses that race on a loaded
+// machine (CI saw "no axis reported homed after 2 s"). `gap` commands between the moves leave
+// a spring-held grip time to get there.
+EmulatorOptions homing_hand(EmulatorOptions o, std::size_t gap) {
+  o.hand_script = {{30, {0, 0, 0.178}}, {30 + gap, {0, 0, 0.09}}, {30 + 2 * gap, kCentre}};
+  return o;
+}
 
 std::string read_text(const std::filesystem::path& p) {
   std::ifstream in(p);
@@ -479,10 +456,9 @@ std::string read_text(const std::filesystem::path& p) {
 }
 
 TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
-  bed_->add_falcon(with_firmware(), "FTEMU0001");
+  bed_->add_falcon(homing_hand(with_firmware(), 10), "FTEMU0001");
   std::filesystem::create_directories(config_home_);
   const auto base = config_home_ / "report";
-  Homer homer(*bed_, 0);
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 300 --homing-timeout 30 "
       "--report " + base.string());
@@ -504,10 +480,9 @@ TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
 TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAnAxisThatNeverHomes) {
   EmulatorOptions o = with_firmware();
   o.axis_never_homes = {false, false, true};
-  bed_->add_falcon(o, "FTEMU0001");
+  bed_->add_falcon(homing_hand(o, 10), "FTEMU0001");
   std::filesystem::create_directories(config_home_);
   const auto base = config_home_ / "report";
-  Homer homer(*bed_, 0);
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 100 --homing-timeout 2 "
       "--report " + base.string());
@@ -525,9 +500,8 @@ TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAMotorWiredBackwards) {
   o.motor_reversed = {true, false, false};
   o.hand_stiffness_n_per_m = 60.0;  // a hand holds the grip lightly all along
   o.hand_damping_n_s_per_m = 3.0;
-  bed_->add_falcon(o, "FTEMU0001");
+  bed_->add_falcon(homing_hand(o, 500), "FTEMU0001");  // the spring-held grip takes ~0.2 s to follow
   std::filesystem::create_directories(config_home_);
-  Homer homer(*bed_, 0);
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,motors --answer falcon.motors.hold=done "
       "--homing-timeout 30 --report " + (config_home_ / "report").string());

@@ -171,7 +171,13 @@ TEST(OmniBringupCommand, RunsUnattendedAgainstTheFakeLibHdThroughTheCommandLine)
   EXPECT_EQ(WEXITSTATUS(status), 0) << output;
   EXPECT_THAT(output, HasSubstr("[pass] Driver and limits: Touch (toonforce fake libHD)"));
   EXPECT_THAT(output, HasSubstr("[pass] Calibration"));
-  EXPECT_THAT(output, HasSubstr("[pass] Scheduler rate: 200 ticks"));
+  // The scheduler runs in real time here: whether more than 1 % of its periods overran (a warning)
+  // depends on this machine's load, which a test must not judge (timings belong in tools/). That
+  // every tick ran, and that the step did not fail, does not.
+  const bool timing_passed = output.find("[pass] Scheduler rate: 200 ticks;") != std::string::npos;
+  const bool timing_warned = output.find("[warn] Scheduler rate: ") != std::string::npos &&
+                             output.find(" of 200 ticks overran their period") != std::string::npos;
+  EXPECT_TRUE(timing_passed || timing_warned) << output;
   std::FILE* json = std::fopen((base + ".json").c_str(), "r");
   ASSERT_NE(json, nullptr);
   std::string text;

@@ -42,6 +42,7 @@ struct Probe {
   // Periods for the timing step.
   std::array<double, kMaxPeriods> periods_s{};
   std::atomic<std::size_t> recorded{0};
+  std::atomic<std::size_t> record_limit{kMaxPeriods};  // the step's tick count: not one more
   std::atomic<bool> recording{false};
   std::atomic<std::uint64_t> ticks{0};
 
@@ -52,7 +53,7 @@ struct Probe {
     p.ticks.fetch_add(1, std::memory_order_relaxed);
     if (p.recording.load(std::memory_order_acquire)) {
       const std::size_t n = p.recorded.load(std::memory_order_relaxed);
-      if (n < p.periods_s.size()) {
+      if (n < p.record_limit.load(std::memory_order_relaxed)) {
         p.periods_s[n] = clock.dt_s;
         p.recorded.store(n + 1, std::memory_order_release);
       }
@@ -277,6 +278,9 @@ StepReport timing(Session& io, const OmniBringupOptions& o) {
   const std::size_t wanted = std::min<std::size_t>(static_cast<std::size_t>(std::max(o.timing_ticks, 1)), kMaxPeriods);
   const std::uint32_t overruns_before = io.device().status().overruns;
   p.recorded.store(0);
+  // The scheduler may tick again between the wait seeing `wanted` and recording stopping: the
+  // probe stops itself at `wanted`, so the step reports the ticks it asked for.
+  p.record_limit.store(wanted, std::memory_order_relaxed);
   p.recording.store(true, std::memory_order_release);
   io.wait({"omni.timing", "(measuring the scheduler's period)"}, static_cast<double>(wanted) * io.period_s() * 4 + 1.0,
           [&] { return p.recorded.load(std::memory_order_acquire) >= wanted; });

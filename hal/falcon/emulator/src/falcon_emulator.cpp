@@ -206,6 +206,10 @@ void FalconEmulator::running_bytes(std::span<const std::uint8_t> bytes) {
 
 void FalconEmulator::handle_command(const Command& c) {
   ++commands_;
+  while (hand_script_next_ < options_.hand_script.size() &&
+         options_.hand_script[hand_script_next_].at_command <= commands_) {
+    set_grip_position(options_.hand_script[hand_script_next_++].target_m);
+  }
   last_command_ = c;
   command_log_.push_back(c);
   if (c.flags & kHomingRequest) {

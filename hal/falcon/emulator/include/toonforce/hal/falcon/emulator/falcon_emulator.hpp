@@ -59,6 +59,15 @@ struct EmulatorOptions {
   /// grip pulled beyond `homing_out_z_m` then pushed back inside `homing_in_z_m`.
   double homing_out_z_m = 0.170;
   double homing_in_z_m = 0.100;
+  /// A scripted hand in the device's own time: once `at_command` commands have arrived, the
+  /// hand's target becomes `target_m` (as set_grip_position would). A test that drives the
+  /// host in another process homes the device this way rather than from a thread polling in
+  /// wall time, which loses the race against the host's ticks on a loaded machine.
+  struct HandMove {
+    std::size_t at_command = 0;
+    Vec3<double> target_m{};
+  };
+  std::vector<HandMove> hand_script;  ///< in order of at_command
 
   // ---- faults of the hardware itself: what `toonforce bringup falcon` must catch ----
   /// Motor i (arm i+1) wired backwards: its torque has the opposite sign of what its word asks.
@@ -188,6 +197,7 @@ class FalconEmulator {
   std::uint8_t buttons_ = 0;
   bool homed_ = false;
   bool pulled_out_ = false;
+  std::size_t hand_script_next_ = 0;  ///< the next move of options_.hand_script
   std::size_t homing_bit_dropped_ = 0;
 
   int drop_ = 0;
