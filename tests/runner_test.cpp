@@ -666,7 +666,9 @@ TEST(RunCommand, DurationsUnderOneTickOrOverTheMaximumCannotStart) {
         run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
                     "--allow-non-rt", "--no-mlock", "--duration", duration});
     EXPECT_EQ(status, 2) << duration << ": " << text;  // 0.0004 ran forever, 1e16 "0 ticks" and exit 0
-    EXPECT_NE(text.find(std::string("--duration ") + (duration[1] == 'e' ? "1e+16" : "0.0004")), std::string::npos)
+    // 1e16 s of ticks does not fit an integer: it was called "less than one tick".
+    EXPECT_NE(text.find(duration[1] == 'e' ? "--duration 1e+16: over the maximum" : "--duration 0.0004: less than one tick"),
+              std::string::npos)
         << text;
   }
 }
@@ -796,6 +798,114 @@ TEST(RunCommand, TheBinaryRejectsARateOutsideItsRange) {
   EXPECT_NE(wait_exit(child), 0);
   EXPECT_NE(slurp(output).find("--rate"), std::string::npos) << slurp(output);
   std::filesystem::remove(output);
+}
+
+
+/// The rows of a CSV file, split at new lines; `whole` is false if it does not end with one.
+std::vector<std::string> csv_rows(const std::filesystem::path& path, bool& whole) {
+  const std::string text = slurp(path);
+  whole = !text.empty() && text.back() == '\n';
+  std::vector<std::string> rows;
+  std::istringstream in(text);
+  for (std::string row; std::getline(in, row);) rows.push_back(row);
+  return rows;
+}
+
+std::size_t commas(const std::string& row) { return static_cast<std::size_t>(std::count(row.begin(), row.end(), ',')); }
+
+TEST(Cli, ARangeErrorIsOneShortLineNotTheLargestDoubleInFull) {
+  const std::string scene = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                    "--duration", "1e400"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--duration: 1e400 is not a finite number"), std::string::npos) << text;
+  EXPECT_LT(text.size(), 200U) << text;  // CLI11 printed the largest double in 309 digits
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                       "--rate", "1e300"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--rate: 1e300 is outside 10 .. 100000"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                       "--duration", "inf"});
+  EXPECT_EQ(status, 2) << "an infinite duration is not a positive number: " << text;
+}
+
+TEST(EmptyScene, IsRefusedByRunSimAndReplayUnlessAllowed) {
+  const auto empty = temp_path("empty.toml");
+  const auto trace = temp_path("trace.csv");
+  std::ofstream(empty) << "# a scene whose effects were all commented out\nname = \"nothing\"\n";
+  const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
+  const std::vector<std::vector<std::string>> commands{
+      {TOONFORCE_BINARY, "sim", "--scene", empty.string(), "--script", script, "--trace", trace.string(), "--duration", "0.05"},
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", empty.string(), "--allow-non-rt", "--no-mlock", "--duration",
+       "0.05"},
+      {TOONFORCE_BINARY, "replay", "--scene", empty.string(), "--input", TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv",
+       "--output", trace.string()}};
+  for (std::vector<std::string> args : commands) {
+    auto [status, text] = run_binary(args);
+    EXPECT_NE(status, 0) << args[1] << ": " << text;  // ran with zero force and no word
+    EXPECT_NE(text.find("the scene has no [[surface]] or [[cliff]]"), std::string::npos) << args[1] << ": " << text;
+    args.push_back("--allow-empty");
+    std::tie(status, text) = run_binary(args);
+    EXPECT_EQ(status, 0) << args[1] << " --allow-empty: " << text;
+  }
+  for (const auto& p : {empty, trace}) std::filesystem::remove(p);
+}
+
+TEST(SimCommand, ATraceStopsWholeAtItsSizeLimitWithAWarningAndTheSimulationGoesOn) {
+  const auto trace = temp_path("limited.csv");
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+                  TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--max-output", "20K"});
+  EXPECT_EQ(status, 1) << "an incomplete trace is said in the exit status: " << text;
+  EXPECT_NE(text.find("over --max-output 20 KiB"), std::string::npos) << "warned before the run: " << text;
+  EXPECT_NE(text.find("it reached --max-output 20 KiB"), std::string::npos) << text;
+  EXPECT_NE(text.find("impacts triggered"), std::string::npos) << "the summary still comes: " << text;
+  EXPECT_LE(std::filesystem::file_size(trace), 20U * 1024U);
+  bool whole = false;
+  const auto rows = csv_rows(trace, whole);
+  ASSERT_GT(rows.size(), 10U);
+  EXPECT_TRUE(whole) << "the last row is whole";
+  EXPECT_EQ(commas(rows.back()), commas(rows.front()));
+  std::filesystem::remove(trace);
+}
+
+TEST(RunCommand, ATraceStopsWholeAtItsSizeLimitAndTheRunGoesOnToItsEnd) {
+  const auto trace = temp_path("limited.csv");
+  const auto stats = temp_path("stats.json");
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--allow-non-rt", "--no-mlock", "--duration", "0.5", "--trace", trace.string(), "--max-output", "30K",
+                  "--stats-json", stats.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("warning: " + trace.string() + ": this trace would be about"), std::string::npos) << text;
+  EXPECT_NE(text.find("the trace reached --max-output 30 KiB: nothing more is written, the run goes on"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos) << "the run went to its end: " << slurp(stats);
+  EXPECT_NE(text.find("ticks at 1000 Hz"), std::string::npos) << "with its summary: " << text;
+  EXPECT_LE(std::filesystem::file_size(trace), 30U * 1024U);
+  bool whole = false;
+  const auto rows = csv_rows(trace, whole);
+  ASSERT_GT(rows.size(), 10U);
+  EXPECT_TRUE(whole);
+  EXPECT_EQ(commas(rows.back()), commas(rows.front()));
+  for (const auto& p : {trace, stats}) std::filesystem::remove(p);
+}
+
+TEST(RunSummary, NamesTheHeartbeatWatchdogApartFromTheLoopsOwnMissedTickFault) {
+  // At 10 kHz the loop's gap check latched while the heartbeat outside the loop never tripped,
+  // and the summary said "watchdog trips 0" beside "latched: watchdog".
+  RunSummary s;
+  s.fault_bits = static_cast<std::uint32_t>(Fault::kWatchdog);
+  s.latched_at_end = s.fault_bits;
+  s.fault_ticks = 3;
+  RunOptions o;
+  o.device = "sim";
+  const std::string text = format_run_summary(s, o);
+  EXPECT_EQ(text.find("watchdog trips"), std::string::npos) << text;
+  EXPECT_NE(text.find("heartbeat watchdog (outside the loop) tripped 0 time(s)"), std::string::npos) << text;
+  EXPECT_NE(text.find("latched at the end: missed ticks (the loop's own watchdog)"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -2,9 +2,14 @@
 // malformed files are rejected with the file, the line and the key in the message.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdint>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/config/toml_reader.hpp"
 
 namespace toonforce {
 namespace {
@@ -198,6 +203,69 @@ TEST(SceneFile, ReportsEveryErrorOfAFileAtOnce) {
   EXPECT_NE(scene.error().find("bad.toml:5: surface[1]: unknown key 'colour'"), std::string::npos) << scene.error();
   EXPECT_NE(scene.error().find("bad.toml:6: surface[2]: missing required key 'normal'"), std::string::npos)
       << scene.error();
+}
+
+TEST(SceneFile, ErrorsAreListedByLineWhateverOrderTheyAreFoundIn) {
+  // A table's unknown keys are found in the table's key order (alphabetical: 'foo', line 6,
+  // before 'stifness', line 5), and the second surface's missing keys before its unknown
+  // one: listed by line all the same.
+  const std::string text = std::string(kSurface) + "stifness = 3\nfoo = 1\n[[surface]]\nbar = 1\n";
+  const auto scene = parse_scene(text, "order.toml");
+  ASSERT_FALSE(scene);
+  std::vector<std::uint32_t> lines;
+  std::istringstream in(scene.error());
+  for (std::string row; std::getline(in, row);) {
+    ASSERT_EQ(row.rfind("order.toml:", 0), 0U) << row;
+    lines.push_back(static_cast<std::uint32_t>(std::stoul(row.substr(std::string("order.toml:").size()))));
+  }
+  ASSERT_GE(lines.size(), 4U) << scene.error();
+  EXPECT_TRUE(std::is_sorted(lines.begin(), lines.end())) << scene.error();
+}
+
+TEST(SceneFile, ThousandsOfErrorsAreCappedAndCounted) {
+  std::string text(kSurface);
+  for (int i = 0; i < 5000; ++i) text += "bad" + std::to_string(i) + " = 1\n";
+  const auto scene = parse_scene(text, "many.toml");
+  ASSERT_FALSE(scene);
+  const std::string& e = scene.error();
+  EXPECT_EQ(static_cast<std::size_t>(std::count(e.begin(), e.end(), '\n')), ErrorList::kShown + 1) << e.substr(0, 2000);
+  EXPECT_NE(e.find("many.toml: 4980 more error(s) not shown"), std::string::npos) << e.substr(e.size() - 300);
+  EXPECT_NE(e.find("unknown key 'bad0'"), std::string::npos) << "the first by line come first";
+}
+
+TEST(SceneFile, AHugeUnknownKeyIsShortenedAndNotComparedInFull) {
+  // A 2 MB key: the did-you-mean search skips keys whose length alone rules them out (a 20 MB
+  // key took 8 s), and the message shows its start and its length.
+  const std::string key(2'000'000, 'k');
+  const auto scene = parse_scene(std::string(kSurface) + key + " = 1\n", "huge.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_LT(scene.error().size(), 300U);
+  EXPECT_NE(scene.error().find("unknown key '" + std::string(64, 'k') + "... (2000000 bytes)'"), std::string::npos)
+      << scene.error();
+}
+
+TEST(SceneFile, ControlCharactersInAKeyAreShownNotSentAndRefusedInAName) {
+  // A NUL cut the message short where it was printed as a C string; an escape sequence would
+  // drive the terminal.
+  const auto scene = parse_scene(std::string(kSurface) + "\"ab\\u0000cd\\u001b[31m\" = 1\n", "nul.toml");
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find("unknown key 'ab\\x00cd\\x1B[31m'"), std::string::npos) << scene.error();
+  EXPECT_EQ(scene.error().find('\0'), std::string::npos);
+  EXPECT_EQ(scene.error().find('\x1b'), std::string::npos);
+  const auto named = parse_scene("name = \"wall\\u0007\"\n" + std::string(kSurface), "bell.toml");
+  ASSERT_FALSE(named);
+  EXPECT_NE(named.error().find("bell.toml:1: name: 'wall\\x07' has a control character"), std::string::npos)
+      << named.error();
+}
+
+TEST(SceneFile, AnEmptySceneIsAProblemToSayAndASceneWithAnEffectIsNot) {
+  const auto empty = parse_scene("# only a comment\nname = \"nothing\"\n", "empty.toml");
+  ASSERT_TRUE(empty) << empty.error();
+  EXPECT_NE(empty_scene_problem(empty.value(), "empty.toml").find("empty.toml: the scene has no [[surface]] or [[cliff]]"),
+            std::string::npos);
+  const auto wall = parse_scene(kSurface, "wall.toml");
+  ASSERT_TRUE(wall) << wall.error();
+  EXPECT_EQ(empty_scene_problem(wall.value(), "wall.toml"), "");
 }
 
 TEST(SceneFile, RejectsValuesOutsideTheQ16Range) {

@@ -772,7 +772,7 @@ TEST(ViewerHello, CarriesTheSceneGeometryAndTheColumns) {
   EXPECT_NE(hello.find(R"(a \"cliff\" \u003c/script>)"), std::string::npos) << hello;
   EXPECT_NE(hello.find(R"("columns":["t","tick","x")"), std::string::npos);
   EXPECT_NE(hello.find(R"("missed","cliff1.state","cliff1.speed","")"), std::string::npos) << hello;
-  EXPECT_NE(hello.find(R"~([16,"watchdog (missed ticks)"])~"), std::string::npos);
+  EXPECT_NE(hello.find(R"~([16,"missed ticks (the loop's own watchdog)"])~"), std::string::npos);
 }
 
 TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {

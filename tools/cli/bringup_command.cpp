@@ -136,7 +136,7 @@ void add_bringup(CLI::App& app) {
                 "Where the force step writes the calibration (default: ~/.config/toonforce/falcon-SERIAL.toml, "
                 "which `toonforce run` reads)");
   f->add_option("--homing-timeout", falcon->homing_timeout_s, "Seconds to wait for homing")->capture_default_str();
-  f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")->check(CLI::Range(10, 100000))
+  f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")->check(number_in(10, 100000))
       ->capture_default_str();
   f->callback([falcon, falcon_common, falcon_steps] {
     if (!steps_known(*falcon_common, falcon_steps)) return set_exit_code(2);
@@ -159,8 +159,8 @@ void add_bringup(CLI::App& app) {
   o->add_option("--omni-device", omni->omni.device_name, "OpenHaptics device name as set in Touch_Setup");
   o->add_option("--omni-library", omni->omni.library_path, "The OpenHaptics HD library to load");
   o->add_option("--omni-max-force", omni->omni.max_force_n, "Force cap [N] (default: the continuous force)")
-      ->check(CLI::NonNegativeNumber);
-  o->add_option("--timing-ticks", omni->timing_ticks, "Scheduler ticks timed")->check(CLI::Range(10, 20000))
+      ->check(non_negative_number());
+  o->add_option("--timing-ticks", omni->timing_ticks, "Scheduler ticks timed")->check(number_in(10, 20000))
       ->capture_default_str();
   o->callback([omni, omni_common, omni_steps] {
     if (!steps_known(*omni_common, omni_steps)) return set_exit_code(2);
@@ -180,7 +180,7 @@ void add_bringup(CLI::App& app) {
                                                 "enable switch cut the force in their tick");
   add_common(g, *gpio_common, joined(gpio_steps));
   add_gpio_options(*g, gpio->pins);
-  g->add_option("--rate", gpio->rate_hz, "Servo rate [Hz]")->check(CLI::Range(100.0, 10000.0))->capture_default_str();
+  g->add_option("--rate", gpio->rate_hz, "Servo rate [Hz]")->check(number_in(100.0, 10000.0))->capture_default_str();
   g->callback([gpio, gpio_common, gpio_steps] {
     if (!steps_known(*gpio_common, gpio_steps)) return set_exit_code(2);
     auto person = person_for(*gpio_common);

@@ -16,7 +16,7 @@ void add_doctor(CLI::App& app) {
   cmd->add_option("--root", options->root, "Read /sys, /proc and /dev under this directory (for testing)")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--priority", options->priority, "SCHED_FIFO priority the loop will ask for")
-      ->check(CLI::Range(1, 99));
+      ->check(number_in(1, 99));
   cmd->callback([options] {
     if (const char* g = std::getenv("GTDD_HOME"); g != nullptr) options->gtdd_home = std::string(g);
     const auto findings = run_doctor(*options);

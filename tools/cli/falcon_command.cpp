@@ -154,7 +154,7 @@ void add_falcon(CLI::App& app) {
       ->required();
   firmware->add_option("--serial", args->serial, "The Falcon with this serial number (see `toonforce devices`)");
   firmware->add_option("--index", args->index, "The N-th Falcon (0 = first) when --serial is not given");
-  firmware->add_option("--attempts", args->attempts, "Whole-load retries")->check(CLI::Range(1, 50));
+  firmware->add_option("--attempts", args->attempts, "Whole-load retries")->check(number_in(1, 50));
   firmware->add_flag("--reload", args->reload, "Load even if firmware already runs");
   firmware->callback([args] {
     FalconOptions options;
@@ -190,7 +190,7 @@ void add_falcon(CLI::App& app) {
       ->check(CLI::ExistingFile);
   env->add_option("--csv", envelope->csv, "Write the grid: scene x,y,z [m], then the force [N] along x, y, z and "
                                           "in every direction (empty where the kinematics do not reach)");
-  env->add_option("--step", envelope->step_mm, "Grid step [mm]")->check(CLI::Range(1.0, 20.0))->capture_default_str();
+  env->add_option("--step", envelope->step_mm, "Grid step [mm]")->check(number_in(1.0, 20.0))->capture_default_str();
   env->callback([envelope] { set_exit_code(run_envelope(*envelope)); });
 
   CLI::App* udev = falcon->add_subcommand(

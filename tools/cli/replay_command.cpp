@@ -22,6 +22,7 @@ void add_replay(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   CLI::App* cmd = app.add_subcommand("replay", "Forces for a given motion, open loop (one row = one servo tick)");
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_option("--input", options->input_path, "Motion CSV: t,x,y,z[,vx,vy,vz]")->required();
   cmd->add_option("--output", options->output_path, "Forces CSV to write ('-' for standard output)")->required();
   // Words in, parsed in the callback: CLI11's CheckedTransformer on these uint8_t enumerations

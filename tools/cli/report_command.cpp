@@ -33,7 +33,7 @@ void add_latency(CLI::App& report) {
   CLI::App* cmd = report.add_subcommand(
       "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
   cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
-  cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(CLI::PositiveNumber);
+  cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(positive_number());
   cmd->add_option("--filter", options->filter, "Only rows whose id contains one of these comma-separated texts");
   cmd->add_option("--cpu", options->cpu, "Pin the timing thread to this CPU");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions (no valgrind run)");
@@ -56,9 +56,9 @@ void add_precision(CLI::App& report) {
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
   cmd->add_option("--rates", options->rates_hz, "Servo rates to compare [Hz] (default 500 1000 4000 10000)");
   cmd->add_option("--ticks", options->timing_ticks, "Timed ticks per configuration (default 10^6)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--drift-hours", options->drift_hours, "Simulated hours of the drift run (default 24; 0: none)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
   cmd->callback([options] {
     options->root = report::source_root(options->root);
@@ -73,9 +73,9 @@ void add_stability(CLI::App& report) {
   auto options = std::make_shared<report::StabilityOptions>();
   CLI::App* cmd = report.add_subcommand(
       "stability", "Sweeps of stiffness, damping, slippery gain, period and impact speed, classified by energy");
-  cmd->add_option("--resolution", options->resolution, "Points per axis (default 24)")->check(CLI::Range(2, 200));
+  cmd->add_option("--resolution", options->resolution, "Points per axis (default 24)")->check(number_in(2, 200));
   cmd->add_option("--duration", options->duration_s, "Simulated seconds per point (default 4)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
   cmd->callback([options] {
     const auto result = report::run_stability(*options, progress);
@@ -95,11 +95,11 @@ void add_all(CLI::App& report) {
   cmd->add_option("--out", options->out_dir, "Directory of the documents (default docs)");
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
   cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row (default 10^7)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--drift-hours", options->precision.drift_hours, "Simulated hours of the drift run (default 24)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
-      ->check(CLI::Range(2, 200));
+      ->check(number_in(2, 200));
   cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
   cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks, 0.1 simulated hours, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");

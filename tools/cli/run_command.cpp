@@ -31,6 +31,7 @@ void add_run(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"sim", "falcon", "omni"}));
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   CLI::Option_group* sim = cmd->add_option_group("Simulated device (--device sim)");
   sim->add_option("--script", options->hand_script_path,
                   "Hand script the simulated hand follows (docs/HAND_SCRIPTS.md); default: it holds still 1 cm "
@@ -58,7 +59,7 @@ void add_run(CLI::App& app) {
   omni->add_option("--omni-max-force", options->omni.max_force_n,
                    "Force cap [N]; default (0): the device's nominal continuous force. Raise it for short "
                    "bursts, up to the nominal peak (the library's thermal model then guards the motors)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   auto disable_on_close = std::make_shared<std::string>("auto");
   omni->add_option("--omni-disable-on-close", *disable_on_close,
                    "Call hdDisableDevice when closing: auto (yes, except on OpenHaptics' FireWire stack, "
@@ -66,16 +67,20 @@ void add_run(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "yes", "no"}))
       ->capture_default_str();
   add_gpio_options(*cmd, options->gpio);
-  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(CLI::Range(500.0, 10000.0))
+  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(number_in(500.0, 10000.0))
       ->capture_default_str();
   cmd->add_option("--duration", options->duration_s, "Seconds to run; 0 runs until Ctrl-C (SIGINT) or SIGTERM")
-      ->check(CLI::NonNegativeNumber)
+      ->check(non_negative_number())
       ->capture_default_str();
   cmd->add_option("--trace", options->trace_path, "Trace CSV to write (t,x,y,z,vx,vy,vz,fx,fy,fz, then the rest)");
+  cmd->add_option("--max-output", options->max_output_bytes,
+                  "Largest trace to write, e.g. 500M or 4G (0: no limit; default 1G); past it the trace stops "
+                  "with a warning, the run goes on")
+      ->transform(CLI::AsSizeValue(false));
   cmd->add_option("--stats-json", options->stats_json_path, "Timing statistics and counts as JSON");
-  cmd->add_option("--cpu", options->cpu, "Pin the servo thread to this CPU")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--cpu", options->cpu, "Pin the servo thread to this CPU")->check(non_negative_number());
   cmd->add_option("--priority", options->priority, "SCHED_FIFO priority of the servo thread (1..98)")
-      ->check(CLI::Range(1, 98))
+      ->check(number_in(1, 98))
       ->capture_default_str();
   cmd->add_flag("--allow-non-rt", options->allow_non_realtime,
                 "Run at normal priority if SCHED_FIFO is refused (timing will be poor)");

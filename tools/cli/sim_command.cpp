@@ -26,11 +26,16 @@ void add_sim(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "sim", "Closed loop on the simulated device and hand, in simulated time (deterministic: same inputs, same bytes)");
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
+  cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_option("--script", options->script_path, "Hand script (TOML, docs/HAND_SCRIPTS.md)")->required();
   CLI::Option* duration_option =
       cmd->add_option("--duration", *duration, "Simulated seconds (default: the hand script's length)")
-          ->check(CLI::PositiveNumber);
+          ->check(positive_number());
   cmd->add_option("--trace", options->trace_path, "Trace CSV to write ('-' for standard output)")->required();
+  cmd->add_option("--max-output", options->max_output_bytes,
+                  "Largest trace to write, e.g. 500M or 4G (0: no limit; default 1G); past it the trace stops "
+                  "with a warning, the run goes on")
+      ->transform(CLI::AsSizeValue(false));
   cmd->add_option("--plot", options->plot_path, "Also plot the trace (.png or .svg; python3-matplotlib)");
   cmd->add_option("--plot-kind", options->plot_kind, "Plot layout: auto, stroke, wall, cliff or overview")
       ->check(CLI::IsMember({"auto", "stroke", "wall", "cliff", "overview"}));
@@ -44,12 +49,12 @@ void add_sim(CLI::App& app) {
   cmd->add_option("--integrator", *integrator, "Integrator of the device and hand (default rk4)")
       ->check(CLI::IsMember({"semi-implicit-euler", "velocity-verlet", "rk4", "exact"}, CLI::ignore_case));
   cmd->add_option("--substeps", options->substeps, "Integrator sub-steps per servo tick (default 4)")
-      ->check(CLI::Range(1, 1000));
-  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz] (default 1000)")->check(CLI::Range(10.0, 100000.0));
+      ->check(number_in(1, 1000));
+  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz] (default 1000)")->check(number_in(10.0, 100000.0));
   cmd->add_option("--seed", options->seed, "Seed of the sensor noise generator (default 1)");
   CLI::Option* noise_option =
       cmd->add_option("--sensor-noise", *noise, "Standard deviation of position noise [m] (default 0)")
-          ->check(CLI::NonNegativeNumber);
+          ->check(non_negative_number());
   cmd->add_option("--scalar", *scalar, "Scalar type of the controller (default double)")
       ->check(CLI::IsMember({"double", "float", "q16.16"}, CLI::ignore_case));
   cmd->add_option("--sine", *sine, "Sine method of impact transients (overrides the scene)")
@@ -61,7 +66,7 @@ void add_sim(CLI::App& app) {
   cmd->add_option("--view-pace", options->pace,
                   "With --view: simulated seconds per wall-clock second (default 1, real time; 0.25 slow motion; "
                   "0 as fast as possible). The trace is the same at any pace")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(number_in(0.0, 1000.0))
       ->needs(view->view);
 #endif
   cmd->callback([=] {

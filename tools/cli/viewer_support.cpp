@@ -1,5 +1,7 @@
 #include "viewer_support.hpp"
 
+#include "commands.hpp"
+
 #include <signal.h>
 
 #include <chrono>
@@ -26,7 +28,7 @@ void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
                                            viewer::kDefaultPort))
                    ->expected(0, 1)
                    ->default_str(std::to_string(viewer::kDefaultPort))
-                   ->check(CLI::Range(0, 65535));
+                   ->check(number_in(0, 65535));
   cmd->add_option("--view-address", flags.address,
                   "Listen on this address instead of 127.0.0.1 (e.g. 0.0.0.0: other hosts can watch; read-only)")
       ->needs(flags.view);

@@ -72,7 +72,7 @@ void read_hand(const toml::table& table, ErrorList& errors, HandScript& script, 
 
 /// Reads one [[segment]]; false if it has an error (already recorded).
 bool read_segment(const toml::table& table, std::size_t number, ErrorList& errors, HandSegment& s) {
-  const std::size_t before = errors.messages().size();
+  const std::size_t before = errors.count();
   TableReader r(table, fmt::format("segment[{}]", number), errors, ScalarKind::kDouble);
   s.line = r.line();
   const auto type = r.optional_string("type");
@@ -87,7 +87,7 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
   if (!kind) {
     static const std::vector<std::string> kKinds{"move", "stroke", "strike", "cross", "hold", "release"};
     const auto near = nearest_key(*type, kKinds);
-    r.error("type", fmt::format("unknown segment type '{}'{} (move, stroke, strike, cross, hold or release)", *type,
+    r.error("type", fmt::format("unknown segment type '{}'{} (move, stroke, strike, cross, hold or release)", printable(*type),
                                 near ? fmt::format(", did you mean '{}'?", *near) : std::string()));
     r.finish();
     return false;
@@ -158,7 +158,7 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
       break;
   }
   r.finish();
-  return errors.messages().size() == before;
+  return errors.count() == before;
 }
 
 Result<HandScriptFile> describe(const toml::table& root, ErrorList& errors, std::string_view source_name) {

@@ -121,4 +121,11 @@ void override_sine(SceneDescription& scene, SineMethod method) {
   for (auto& surface : scene.of<RuntimeSurface>()) surface.impact.law.sine = method;
 }
 
+std::string empty_scene_problem(const SceneDescription& scene, std::string_view path) {
+  if (!scene.order.empty()) return {};
+  return fmt::format("{}: the scene has no [[surface]] or [[cliff]]: it renders zero force everywhere "
+                     "(--allow-empty if that is what you want)",
+                     path);
+}
+
 }  // namespace toonforce

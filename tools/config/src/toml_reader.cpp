@@ -16,19 +16,52 @@ void ErrorList::add(const toml::source_region& where, std::string_view path, std
 }
 
 void ErrorList::add(std::uint32_t line, std::string_view path, std::string_view problem) {
+  ++count_;
+  if (entries_.size() >= kKept) return;
   if (path.empty()) {
-    messages_.push_back(fmt::format("{}:{}: {}", file_, line, problem));
+    entries_.push_back({line, fmt::format("{}:{}: {}", file_, line, problem)});
   } else {
-    messages_.push_back(fmt::format("{}:{}: {}: {}", file_, line, path, problem));
+    entries_.push_back({line, fmt::format("{}:{}: {}: {}", file_, line, path, problem)});
   }
 }
 
+std::vector<std::string> ErrorList::messages() const {
+  std::vector<const Entry*> sorted;
+  sorted.reserve(entries_.size());
+  for (const auto& e : entries_) sorted.push_back(&e);
+  std::stable_sort(sorted.begin(), sorted.end(), [](const Entry* a, const Entry* b) { return a->line < b->line; });
+  std::vector<std::string> out;
+  out.reserve(sorted.size());
+  for (const Entry* e : sorted) out.push_back(e->message);
+  return out;
+}
+
 std::string ErrorList::text() const {
+  const std::vector<std::string> sorted = messages();
   std::string out;
-  for (const auto& m : messages_) {
-    out += m;
+  for (std::size_t i = 0; i < sorted.size() && i < kShown; ++i) {
+    out += sorted[i];
     out += '\n';
   }
+  if (count_ > kShown) {
+    out += fmt::format("{}: {} more error(s) not shown; fix the {} above (by line) first\n", file_, count_ - kShown,
+                       kShown);
+  }
+  return out;
+}
+
+std::string printable(std::string_view text, std::size_t max_chars) {
+  std::string out;
+  const std::size_t shown = std::min(text.size(), max_chars);
+  for (std::size_t i = 0; i < shown; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x20 || c == 0x7F) {
+      out += fmt::format("\\x{:02X}", c);
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  if (text.size() > max_chars) out += fmt::format("... ({} bytes)", text.size());
   return out;
 }
 
@@ -90,15 +123,19 @@ bool in_range(double v, Range range) {
 std::optional<std::string> nearest_key(std::string_view key, std::span<const std::string> known) {
   std::optional<std::string> best;
   std::size_t best_distance = 0;
+  // A typo changes a few characters; beyond that a suggestion is noise.
+  const std::size_t allowed = std::max<std::size_t>(2, key.size() / 3);
   for (const auto& candidate : known) {
+    // The distance is at least the difference in length: a 20 MB key is never compared in full.
+    const std::size_t length_gap = key.size() > candidate.size() ? key.size() - candidate.size() : candidate.size() - key.size();
+    if (length_gap > allowed) continue;
     const std::size_t d = edit_distance(key, candidate);
     if (!best || d < best_distance) {
       best = candidate;
       best_distance = d;
     }
   }
-  // A typo changes a few characters; beyond that a suggestion is noise.
-  if (best && best_distance <= std::max<std::size_t>(2, key.size() / 3)) return best;
+  if (best && best_distance <= allowed) return best;
   return std::nullopt;
 }
 
@@ -262,7 +299,16 @@ std::optional<std::int64_t> TableReader::optional_integer(std::string_view key, 
 std::optional<std::string> TableReader::optional_string(std::string_view key) {
   const toml::node* node = take(key);
   if (node == nullptr) return std::nullopt;
-  if (const auto* s = node->as_string()) return s->get();
+  if (const auto* s = node->as_string()) {
+    // Names and labels end up in summaries, traces and the viewer: no control characters.
+    const std::string& text = s->get();
+    const bool control = std::any_of(text.begin(), text.end(), [](char c) {
+      return static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7F;
+    });
+    if (!control) return text;
+    error(key, fmt::format("'{}' has a control character: write it without", printable(text)));
+    return std::nullopt;
+  }
   error(key, fmt::format("must be a string, not {}", type_name(*node)));
   return std::nullopt;
 }
@@ -312,7 +358,8 @@ void TableReader::finish(std::string_view what, std::string_view note) {
     const std::string name(key.str());
     if (std::find(read_.begin(), read_.end(), name) != read_.end()) continue;
     const bool tables = node.is_array_of_tables();
-    std::string problem = tables ? fmt::format("unknown {} [[{}]]", what, name) : fmt::format("unknown key '{}'", name);
+    std::string problem = tables ? fmt::format("unknown {} [[{}]]", what, printable(name))
+                                 : fmt::format("unknown key '{}'", printable(name));
     if (auto near = nearest_key(name, known_)) {
       problem += fmt::format(" (did you mean '{}'?)", *near);
     } else if (tables && !note.empty()) {

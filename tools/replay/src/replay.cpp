@@ -155,6 +155,9 @@ bool same_file(const std::string& a, const std::string& b) {
 Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
+  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
+    return Error{std::move(empty)};
+  }
   if (options.sine == SineMethod::kLibrary && options.scalar == ScalarKind::kQ16_16) {
     return Error{"--sine library needs a floating-point scalar; use polynomial or table with q16.16"};
   }

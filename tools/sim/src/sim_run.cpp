@@ -96,6 +96,9 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
+  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
+    return Error{std::move(empty)};
+  }
   if (options.sine) override_sine(scene.value(), *options.sine);
   auto hand = load_hand_script(options.script_path);
   if (!hand) return Error{hand.error()};
@@ -115,7 +118,14 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
   auto trace = TraceWriter::open(options.trace_path, sim_trace_columns(session->value_names()));
   if (!trace) return Error{trace.error()};
+  trace.value()->limit_size(options.max_output_bytes);
   const std::size_t values = session->value_names().size();
+  {
+    // About 8 bytes a value (shortest round-trip text, many columns repeat a short value).
+    const std::uint64_t expected = static_cast<std::uint64_t>(ticks) * trace.value()->columns().size() * 8U;
+    const std::string room = trace_room_warning(options.trace_path, expected, options.max_output_bytes);
+    if (!room.empty()) std::fputs(fmt::format("toonforce: warning: {}", room).c_str(), stderr);
+  }
   const SummaryColumns columns = SummaryColumns::of(session->value_names());
 
   SimSummary summary;
@@ -136,8 +146,11 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   std::int64_t k = 0;
   const auto write = [&](const SimRecord& record) {
     if (!summary.trace_error.empty() || write_sim_record(*trace.value(), record, values)) return;
-    summary.trace_error = fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s,
-                                      std::strerror(errno != 0 ? errno : EIO));
+    summary.trace_error =
+        trace.value()->size_limit_reached()
+            ? fmt::format("stopped at t = {:.6g} s: it reached --max-output {} (give a larger one, or 0 for no limit)",
+                          record.frame.t_s, describe_bytes(options.max_output_bytes))
+            : fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s, std::strerror(errno != 0 ? errno : EIO));
     std::fputs(fmt::format("toonforce: {}: {}; nothing more is written, the simulation goes on\n", options.trace_path,
                            summary.trace_error)
                    .c_str(),

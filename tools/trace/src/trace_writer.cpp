@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
+#include <system_error>
 
 #include <fmt/compile.h>
 #include <fmt/format.h>
@@ -59,6 +61,7 @@ TraceWriter::TraceWriter(std::FILE* file, std::string path, std::vector<std::str
 TraceWriter::~TraceWriter() { static_cast<void>(close()); }
 
 void TraceWriter::append(std::string_view text) {
+  size_bytes_ += text.size();
   if (kCapacity - used_ < text.size()) flush();
   if (text.size() > kCapacity) {  // a header longer than the buffer: straight through
     if (to_memory_) {
@@ -73,7 +76,7 @@ void TraceWriter::append(std::string_view text) {
 }
 
 bool TraceWriter::write(const TraceCore& c, std::span<const double> extras) {
-  if (failed_ || (file_ == nullptr && !to_memory_)) return false;
+  if (failed_ || limit_reached_ || (file_ == nullptr && !to_memory_)) return false;
   if (extras.size() != extras_) {
     failed_ = true;  // a programming error: the row would not match the header
     return false;
@@ -97,7 +100,14 @@ bool TraceWriter::write(const TraceCore& c, std::span<const double> extras) {
     out = put(out, column++, x);
   }
   *out++ = '\n';
-  used_ = static_cast<std::size_t>(out - buffer_.get());
+  const std::size_t end = static_cast<std::size_t>(out - buffer_.get());
+  const std::uint64_t row_bytes = end - used_;
+  if (limit_bytes_ != 0 && size_bytes_ + row_bytes > limit_bytes_) {
+    limit_reached_ = true;  // the row stays unwritten (used_ not advanced): the file ends whole
+    return false;
+  }
+  size_bytes_ += row_bytes;
+  used_ = end;
   ++rows_;
   return true;
 }
@@ -138,6 +148,37 @@ bool TraceWriter::close() {
   if (file_ != stdout && std::fclose(file_) != 0) failed_ = true;
   file_ = nullptr;
   return !failed_;
+}
+
+std::string describe_bytes(std::uint64_t bytes) {
+  const double b = static_cast<double>(bytes);
+  if (bytes >= (std::uint64_t{1} << 30)) return fmt::format("{:.3g} GiB", b / 1073741824.0);
+  if (bytes >= (std::uint64_t{1} << 20)) return fmt::format("{:.3g} MiB", b / 1048576.0);
+  if (bytes >= (std::uint64_t{1} << 10)) return fmt::format("{:.3g} KiB", b / 1024.0);
+  return fmt::format("{} bytes", bytes);
+}
+
+std::string trace_room_warning(const std::string& path, std::uint64_t expected_bytes, std::uint64_t limit_bytes) {
+  if (path.empty() || path == "-") return {};
+  std::string out;
+  if (limit_bytes != 0 && expected_bytes > limit_bytes) {
+    out += fmt::format("{}: this trace would be about {}, over --max-output {}: it stops there (the run goes on); "
+                       "--max-output 0 lifts the limit\n",
+                       path, describe_bytes(expected_bytes), describe_bytes(limit_bytes));
+  }
+  // Room on the file system the trace goes to: what the trace may take is the smaller of its
+  // expected size and the limit (both may be unknown: then the limit alone).
+  std::uint64_t may_take = limit_bytes;
+  if (expected_bytes != 0 && (may_take == 0 || expected_bytes < may_take)) may_take = expected_bytes;
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::absolute(path, ec).parent_path();
+  const std::filesystem::space_info room = std::filesystem::space(dir, ec);
+  if (!ec && may_take != 0 && room.available < may_take) {
+    out += fmt::format("{}: its file system has {} free, and the trace may take {}: it would stop when the disk is "
+                       "full (the run goes on)\n",
+                       path, describe_bytes(room.available), describe_bytes(may_take));
+  }
+  return out;
 }
 
 }  // namespace toonforce

@@ -43,7 +43,7 @@ constexpr std::string_view fault_name(Fault f) noexcept {
     case Fault::kNonFiniteForce: return "non-finite scene force";
     case Fault::kFixedSaturation: return "fixed-point saturation";
     case Fault::kEstop: return "emergency stop";
-    case Fault::kWatchdog: return "watchdog (missed ticks)";
+    case Fault::kWatchdog: return "missed ticks (the loop's own watchdog)";
     case Fault::kDeviceSilent: return "device silent";
     case Fault::kDeviceError: return "device error";
     case Fault::kOverspeed: return "over speed";

@@ -92,6 +92,11 @@ Result<SceneDescription> load_scene_file(const std::string& path, ScalarKind sca
 Result<SceneDescription> parse_scene(std::string_view text, std::string_view source_name,
                                      ScalarKind scalar = ScalarKind::kDouble);
 
+/// A scene without one effect renders zero force everywhere: far more often a wrong or
+/// truncated file than a wish, so `run`, `sim`, `replay` and `check` refuse it unless asked
+/// (--allow-empty; issue 16). The message for `path`, or empty when the scene has an effect.
+std::string empty_scene_problem(const SceneDescription& scene, std::string_view path);
+
 /// The servo loop's settings a scene asks for, at servo period `period_s` > 0 (before the
 /// device fills what the file leaves open: see with_device).
 ServoConfig servo_config(const SceneSettings& scene, double period_s);

@@ -87,7 +87,7 @@ void read_field(TableReader& r, P& p, const schema::Choice<P, E, N>& d) {
     }
     names += fmt::format("{}{}", names.empty() ? "" : ", ", text);
   }
-  r.error(d.key, fmt::format("unknown {} '{}' (one of {})", d.key, *name, names));
+  r.error(d.key, fmt::format("unknown {} '{}' (one of {})", d.key, printable(*name), names));
 }
 
 template <class P, class M, class F>
@@ -147,10 +147,10 @@ template <class E>
 typename E::Params read_effect(const toml::table& table, std::size_t number, ErrorList& errors, ScalarKind scalar) {
   TableReader r(table, fmt::format("{}[{}]", E::kKey, number), errors, scalar);
   typename E::Params p{};
-  const std::size_t before = errors.messages().size();
+  const std::size_t before = errors.count();
   read_fields(r, p, E::schema());
   // The effect's checks across keys need every key it reads: only when those were all fine.
-  if (errors.messages().size() == before) {
+  if (errors.count() == before) {
     TableProblems problems(r);
     effect::check<E>(p, problems, scalar);
   }

@@ -25,21 +25,40 @@ inline constexpr double kMaxMagnitude = 1e12;
 // The scalar type a file's numbers must fit (spec effects.md §7: a value outside the Q16.16
 // range is an error at load) is a ScalarKind (toonforce/math/scalar_kind.hpp).
 
-/// Where errors go: "FILE:LINE: WHERE.KEY: PROBLEM".
+/// Where errors go: "FILE:LINE: WHERE.KEY: PROBLEM". Shown sorted by line (the order a person
+/// fixes them in, whatever order the reader found them), and at most kShown of them: a file
+/// with thousands of errors is not one a person reads to the end, and printing them all took
+/// seconds (issue 16). Every error is counted.
 class ErrorList {
  public:
+  static constexpr std::size_t kShown = 20;     ///< errors text() shows
+  static constexpr std::size_t kKept = 1000;    ///< errors kept for sorting; the rest only counted
+
   explicit ErrorList(std::string file) : file_(std::move(file)) {}
   void add(const toml::source_region& where, std::string_view path, std::string_view problem);
   void add(std::uint32_t line, std::string_view path, std::string_view problem);
-  bool empty() const noexcept { return messages_.empty(); }
-  const std::vector<std::string>& messages() const noexcept { return messages_; }
-  std::string text() const;  ///< one error per line
+  bool empty() const noexcept { return count_ == 0; }
+  std::size_t count() const noexcept { return count_; }  ///< every error added
+  /// The errors kept, sorted by line (stable: one line's errors in the order found).
+  std::vector<std::string> messages() const;
+  /// One error per line, sorted by line; past kShown, one last line says how many more.
+  std::string text() const;
   const std::string& file() const noexcept { return file_; }
 
  private:
+  struct Entry {
+    std::uint32_t line;
+    std::string message;
+  };
   std::string file_;
-  std::vector<std::string> messages_;
+  std::vector<Entry> entries_;
+  std::size_t count_ = 0;
 };
+
+/// `text` made safe to print inside an error message: control characters (a NUL would cut the
+/// message short, an escape sequence would drive the terminal) written as \xNN, and anything
+/// past `max_chars` left out with its length said ("kkkk... (20000000 bytes)").
+std::string printable(std::string_view text, std::size_t max_chars = 64);
 
 /// What a number must satisfy (the effects' schemas use the same).
 using Range = schema::Range;

@@ -15,6 +15,7 @@ namespace toonforce {
 
 struct ReplayOptions {
   std::string scene_path;
+  bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
   std::string input_path;
   std::string output_path;  ///< "-" writes to standard output
   ScalarKind scalar = ScalarKind::kDouble;

@@ -4,6 +4,7 @@
 /// the scene's and the device's limits merged, the summary. The loop runs as a servo session
 /// (control/servo_session.hpp) on the device's own clock, whichever backend it is.
 
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -16,6 +17,7 @@
 #include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/hal/device.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
+#include "toonforce/trace/trace_writer.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
 #include "toonforce/hal/gpio/line_spec.hpp"
 #include "toonforce/hal/omni/omni_device.hpp"
@@ -27,6 +29,8 @@ inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
 
 struct RunOptions {
   std::string device;               ///< sim | falcon | omni
+  bool allow_empty = false;         ///< a scene without effects is not an error (--allow-empty)
+  std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   /// --device sim: the simulated hand follows this script (docs/HAND_SCRIPTS.md) and then holds
   /// its last point; empty: it holds still 1 cm above the workspace centre.
   std::string hand_script_path;

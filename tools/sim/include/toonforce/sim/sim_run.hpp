@@ -18,6 +18,8 @@ inline constexpr double kMaxSimDurationS = 86400.0;
 
 struct SimOptions {
   std::string scene_path;
+  bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
+  std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   std::string script_path;
   std::optional<double> duration_s;  ///< default: the hand script's length
   std::string trace_path;            ///< "-" writes to standard output

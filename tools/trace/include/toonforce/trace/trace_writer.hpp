@@ -29,6 +29,18 @@ namespace toonforce {
 inline constexpr std::array<std::string_view, 10> kTraceCoreColumns{"t", "x", "y", "z", "vx", "vy", "vz",
                                                                     "fx", "fy", "fz"};
 
+/// The largest trace `run` and `sim` write unless told otherwise (--max-output): 1 GiB, about
+/// 50 minutes of a 1 kHz `run` trace. Reaching it warns and stops the trace, never the run.
+inline constexpr std::uint64_t kDefaultTraceLimitBytes = std::uint64_t{1} << 30;
+
+/// What to tell the user before a trace of about `expected_bytes` (0: unknown, e.g. a run until
+/// stopped) is written to `path` under `limit_bytes` (0: none): that it will pass the limit, or
+/// that its file system has less room than it may take. Empty when there is nothing to say.
+std::string trace_room_warning(const std::string& path, std::uint64_t expected_bytes, std::uint64_t limit_bytes);
+
+/// "1.5 GiB", "300 MiB", "12 KiB", "512 bytes".
+std::string describe_bytes(std::uint64_t bytes);
+
 /// The ten core values of one row.
 struct TraceCore {
   double t_s = 0.0;
@@ -47,8 +59,15 @@ class TraceWriter {
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;
 
-  /// One row; `extras` must have one value per extra column. False once a write failed.
+  /// One row; `extras` must have one value per extra column. False once a write failed or the
+  /// size limit was reached (size_limit_reached() tells which).
   bool write(const TraceCore& core, std::span<const double> extras);
+  /// At most `max_bytes` (header included; 0: no limit): a row that would go past it is not
+  /// written, nor any after it, so the file ends on a whole row (issue 16: a long hand-script
+  /// hold filled a disk at 50 MB/s without a word).
+  void limit_size(std::uint64_t max_bytes) noexcept { limit_bytes_ = max_bytes; }
+  bool size_limit_reached() const noexcept { return limit_reached_; }
+  std::uint64_t size_bytes() const noexcept { return size_bytes_; }  ///< header and rows written
   /// Hands the buffered rows to the operating system; false if any write failed.
   bool flush();
   /// Flushes and closes; false if any write failed. Called by the destructor if not before.
@@ -80,6 +99,9 @@ class TraceWriter {
   std::vector<std::string> columns_;  ///< every column, the core ten first
   std::size_t rows_ = 0;
   bool failed_ = false;
+  std::uint64_t limit_bytes_ = 0;  ///< 0: none
+  std::uint64_t size_bytes_ = 0;
+  bool limit_reached_ = false;
   bool to_memory_ = false;
   std::unique_ptr<char[]> buffer_;  ///< whole rows only, flushed before a row might not fit
   std::size_t used_ = 0;

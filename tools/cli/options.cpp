@@ -1,0 +1,53 @@
+// Numeric option checks shared by every subcommand (commands.hpp says why they replace CLI11's).
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+
+namespace toonforce::cli {
+
+namespace {
+
+/// "" when `text` is a finite number in [lo, hi], else what is wrong with it, in one line.
+std::string check_number(const std::string& text, double lo, double hi, const char* wanted) {
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end == nullptr || *end != '\0') return fmt::format("'{}' is not a number", text);
+  if (!std::isfinite(v) || errno == ERANGE) return fmt::format("{} is not a finite number ({})", text, wanted);
+  if (v < lo || v > hi) return fmt::format("{} is outside {}", text, wanted);
+  return {};
+}
+
+}  // namespace
+
+CLI::Validator number_in(double lo, double hi) {
+  const std::string wanted = fmt::format("{:g} .. {:g}", lo, hi);
+  return CLI::Validator([lo, hi, wanted](std::string& text) { return check_number(text, lo, hi, wanted.c_str()); },
+                        fmt::format("NUMBER in {}", wanted));
+}
+
+CLI::Validator positive_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        std::string bad = check_number(text, 0.0, std::numeric_limits<double>::max(), "a positive number");
+        if (bad.empty() && std::strtod(text.c_str(), nullptr) <= 0.0) bad = fmt::format("{} is not positive", text);
+        return bad;
+      },
+      "POSITIVE");
+}
+
+CLI::Validator non_negative_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        return check_number(text, 0.0, std::numeric_limits<double>::max(), "a number >= 0");
+      },
+      "NON-NEGATIVE");
+}
+
+}  // namespace toonforce::cli
