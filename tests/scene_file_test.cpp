@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -303,6 +304,17 @@ TEST(SceneFile, SaysWhenTheFileIsMissing) {
   const auto scene = load_scene_file("/nonexistent/scene.toml");
   ASSERT_FALSE(scene);
   EXPECT_NE(scene.error().find("/nonexistent/scene.toml: no such scene file"), std::string::npos) << scene.error();
+}
+
+TEST(SceneFile, AFileThatCannotBeReadSaysWhyWithoutALineZero) {
+  // It said "DIR:0: cannot open the file for reading".
+  const std::string dir = ::testing::TempDir() + "scene_dir.toml";
+  std::filesystem::create_directories(dir);
+  const auto scene = load_scene_file(dir);
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find(dir + ": is a directory, not a TOML file"), std::string::npos) << scene.error();
+  EXPECT_EQ(scene.error().find(":0:"), std::string::npos) << scene.error();
+  std::filesystem::remove(dir);
 }
 
 TEST(SceneFile, RefusesMoreSurfacesThanASceneHolds) {

@@ -209,9 +209,11 @@ Result<HandScriptFile> describe(const toml::table& root, ErrorList& errors, std:
 Result<HandScriptFile> load_hand_script(const std::string& path) {
   ErrorList errors(path);
   std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Error{fmt::format("{}: no such hand script\n", path)};
+  // Named as what it is; a device or a pipe is never read (scene_reader.hpp does the same).
+  if (std::filesystem::is_directory(path, ec)) return Error{fmt::format("{}: is a directory, not a TOML file\n", path)};
   if (!std::filesystem::is_regular_file(path, ec)) {
-    return Error{fmt::format("{}: no such hand script{}\n", path,
-                             std::filesystem::exists(path, ec) ? " (it is not a regular file)" : "")};
+    return Error{fmt::format("{}: is not a regular file (a device, a pipe or a socket), not a TOML file\n", path)};
   }
   const auto root = parse_toml_file(path, errors);
   if (!root) return Error{errors.text()};

@@ -3,7 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <system_error>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -18,7 +22,10 @@ void ErrorList::add(const toml::source_region& where, std::string_view path, std
 void ErrorList::add(std::uint32_t line, std::string_view path, std::string_view problem) {
   ++count_;
   if (entries_.size() >= kKept) return;
-  if (path.empty()) {
+  if (line == 0) {  // about the whole file (it cannot be read): no line to name
+    entries_.push_back({line, path.empty() ? fmt::format("{}: {}", file_, problem)
+                                           : fmt::format("{}: {}: {}", file_, path, problem)});
+  } else if (path.empty()) {
     entries_.push_back({line, fmt::format("{}:{}: {}", file_, line, problem)});
   } else {
     entries_.push_back({line, fmt::format("{}:{}: {}: {}", file_, line, path, problem)});
@@ -480,9 +487,15 @@ bool check_text(std::string_view text, ErrorList& errors) {
 }  // namespace
 
 std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors) {
+  // The reason, not a line: it was "FILE:0: cannot open the file for reading" (issue 16).
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    errors.add(0, "", "is a directory, not a TOML file");
+    return std::nullopt;
+  }
   std::ifstream file(path, std::ios::binary);
   if (!file) {
-    errors.add(0, "", "cannot open the file for reading");
+    errors.add(0, "", fmt::format("cannot be read: {}", std::strerror(errno != 0 ? errno : EIO)));
     return std::nullopt;
   }
   std::stringstream text;

@@ -215,9 +215,12 @@ template <template <class> class... Kinds>
 Result<SceneFileOf<Kinds...>> read_scene_file(const std::string& path, ScalarKind scalar = ScalarKind::kDouble) {
   ErrorList errors(path);
   std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Error{fmt::format("{}: no such scene file\n", path)};
+  // Named as what it is, not "no such file"; a device or a pipe is never read (/dev/zero
+  // would never end).
+  if (std::filesystem::is_directory(path, ec)) return Error{fmt::format("{}: is a directory, not a TOML file\n", path)};
   if (!std::filesystem::is_regular_file(path, ec)) {
-    return Error{fmt::format("{}: no such scene file{}\n", path,
-                             std::filesystem::exists(path, ec) ? " (it is not a regular file)" : "")};
+    return Error{fmt::format("{}: is not a regular file (a device, a pipe or a socket), not a TOML file\n", path)};
   }
   const auto root = parse_toml_file(path, errors);
   if (!root) return Error{errors.text()};
