@@ -1,0 +1,626 @@
+// Fault injection on the real binary (issue 16): `run`, `sim`, `replay` and `check` as child
+// processes under every terminating signal, a reader that leaves, outputs that cannot be
+// written or would overwrite an input, a trace size limit, and hostile command lines and
+// files. Each test asserts what the user is left with (the last trace row whole and at zero
+// force, the summary, the exit status), never a time. `ctest -L fault_injection` runs them.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "toonforce/run/run.hpp"
+
+extern char** environ;
+
+namespace toonforce {
+namespace {
+
+std::filesystem::path temp_path(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string file = std::string("toonforce_") + info->test_suite_name() + "_" + info->name() + "_" +
+                     std::to_string(getpid()) + "_" + name;
+  std::replace(file.begin(), file.end(), '/', '_');  // parameterised names contain '/'
+  return std::filesystem::temp_directory_path() / file;
+}
+
+std::vector<std::string> lines_of(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::vector<double> fields(const std::string& line) {
+  std::vector<double> out;
+  std::stringstream ss(line);
+  for (std::string cell; std::getline(ss, cell, ',');) {
+    char* end = nullptr;
+    const double v = std::strtod(cell.c_str(), &end);
+    out.push_back(end != cell.c_str() && *end == '\0' ? v : std::nan("bad"));
+  }
+  return out;
+}
+
+// ---- the real binary as a child process ---------------------------------------------------------
+
+struct Child {
+  pid_t pid = -1;
+  int status = 0;
+};
+
+Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  Child child;
+  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  EXPECT_EQ(rc, 0) << std::strerror(rc);
+  if (rc != 0) child.pid = -1;
+  return child;
+}
+
+/// Never signals or waits for anything but a child this test started: kill(-1) or kill(0)
+/// would hit every process of the user or the whole group.
+bool started(const Child& c) { return c.pid > 0; }
+
+int wait_exit(Child& c) {
+  if (!started(c)) return -1;
+  EXPECT_EQ(waitpid(c.pid, &c.status, 0), c.pid);
+  return WIFEXITED(c.status) ? WEXITSTATUS(c.status) : 128 + WTERMSIG(c.status);
+}
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// The binary with its standard output on a pipe the test reads (returned in `read_fd`), its
+/// standard error to `errors`.
+Child spawn_piped(const std::vector<std::string>& args, const std::filesystem::path& errors, int& read_fd) {
+  int pipe_fds[2];
+  Child child;
+  read_fd = -1;
+  EXPECT_EQ(pipe(pipe_fds), 0);
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, pipe_fds[1], STDOUT_FILENO);
+  posix_spawn_file_actions_addclose(&actions, pipe_fds[0]);
+  posix_spawn_file_actions_addclose(&actions, pipe_fds[1]);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, errors.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  close(pipe_fds[1]);
+  EXPECT_EQ(rc, 0) << std::strerror(rc);
+  if (rc != 0) {
+    child.pid = -1;
+    close(pipe_fds[0]);
+  } else {
+    read_fd = pipe_fds[0];
+  }
+  return child;
+}
+
+class StopSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(StopSignal, LeavesTheForceZeroAndATraceValidToItsLastRow) {
+  const auto trace = temp_path("trace.csv");
+  const auto stats = temp_path("stats.json");
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                       "--trace", trace.string(), "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"},
+                      output);
+  ASSERT_TRUE(started(child));
+  // Wait (without a time assertion) until the run is well under way: 300 trace rows.
+  for (int i = 0; i < 6000; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(trace, ec);  // (uintmax_t)-1 while it does not exist
+    if (!ec && size > 300 * 150) break;
+    int status = 0;
+    ASSERT_EQ(waitpid(child.pid, &status, WNOHANG), 0) << "exited early:\n" << slurp(output);
+  }
+  ASSERT_TRUE(started(child));
+  ASSERT_EQ(kill(child.pid, GetParam()), 0);
+  EXPECT_EQ(wait_exit(child), 0) << slurp(output);
+
+  const auto lines = lines_of(trace);
+  ASSERT_GT(lines.size(), 300U);
+  const auto header = fields(lines[0]);
+  EXPECT_EQ(lines[0].rfind("t,x,y,z,vx,vy,vz,fx,fy,fz,", 0), 0U);
+  double previous_t = -1.0;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto row = fields(lines[i]);
+    ASSERT_EQ(row.size(), header.size()) << "row " << i << ": " << lines[i];
+    for (std::size_t c = 0; c < 10; ++c) ASSERT_TRUE(std::isfinite(row[c])) << "row " << i << " column " << c;
+    ASSERT_GT(row[0], previous_t) << "row " << i;
+    previous_t = row[0];
+  }
+  const auto last = fields(lines.back());
+  EXPECT_EQ(last[7], 0.0);
+  EXPECT_EQ(last[8], 0.0);
+  EXPECT_EQ(last[9], 0.0);
+  EXPECT_EQ(last[19], 0.0) << "the last row is the shut-down loop: idle";
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"stop_signal\": " + std::to_string(GetParam())), std::string::npos) << json;
+  EXPECT_NE(json.find("\"frames_written\": " + std::to_string(lines.size() - 1)), std::string::npos) << json;
+  EXPECT_NE(slurp(output).find("stopped by " + signal_name(GetParam())), std::string::npos) << slurp(output);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
+/// Every catchable signal whose default action ends a process (issue 16: SIGHUP is what a
+/// dropped SSH session sends; SIGXFSZ what a file-size limit sends).
+const auto kTerminatingSignals =
+    ::testing::Values(SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ);
+const auto kSignalTestName = [](const auto& p) { return signal_name(p.param); };
+INSTANTIATE_TEST_SUITE_P(RunCommand, StopSignal, kTerminatingSignals, kSignalTestName);
+
+TEST(RunCommand, SigpipeNeverKillsTheRun) {
+  const auto trace = temp_path("trace.csv");
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                       "--trace", trace.string(), "--allow-non-rt", "--no-mlock"},
+                      output);
+  ASSERT_TRUE(started(child));
+  for (int i = 0; i < 6000; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(trace, ec);
+    if (!ec && size > 100 * 150) break;
+    int status = 0;
+    ASSERT_EQ(waitpid(child.pid, &status, WNOHANG), 0) << "exited early:\n" << slurp(output);
+  }
+  ASSERT_EQ(kill(child.pid, SIGPIPE), 0);
+  // Still running after the SIGPIPE: the trace keeps growing.
+  std::error_code ec;
+  const auto before = std::filesystem::file_size(trace, ec);
+  bool grew = false;
+  for (int i = 0; i < 6000 && !grew; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    int status = 0;
+    ASSERT_EQ(waitpid(child.pid, &status, WNOHANG), 0) << "SIGPIPE ended the run:\n" << slurp(output);
+    grew = std::filesystem::file_size(trace, ec) > before + 50 * 150;
+  }
+  EXPECT_TRUE(grew);
+  ASSERT_EQ(kill(child.pid, SIGTERM), 0);
+  EXPECT_EQ(wait_exit(child), 0) << slurp(output);
+  EXPECT_NE(slurp(output).find("stopped by SIGTERM"), std::string::npos) << slurp(output);
+  EXPECT_EQ(fields(lines_of(trace).back())[9], 0.0);
+  for (const auto& p : {trace, output}) std::filesystem::remove(p);
+}
+
+// `sim` with its trace on a pipe this test reads: the simulation cannot run ahead of the reader
+// (it waits on the pipe), so the signal comes mid-run on any machine.
+class SimStopSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(SimStopSignal, EndsWithTheSummaryAndTheShutDownTickAsAWholeLastRow) {
+  const auto output = temp_path("sim-output.txt");
+  int read_fd = -1;
+  Child child = spawn_piped({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+                             TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "1000", "--trace", "-"},
+                            output, read_fd);
+  ASSERT_TRUE(started(child));
+  std::FILE* in = fdopen(read_fd, "r");
+  ASSERT_NE(in, nullptr);
+  std::vector<std::string> lines;
+  char* line = nullptr;
+  std::size_t capacity = 0;
+  bool signalled = false;
+  for (ssize_t n; (n = getline(&line, &capacity, in)) > 0;) {
+    lines.emplace_back(line, static_cast<std::size_t>(n));
+    if (!signalled && lines.size() == 300) {
+      ASSERT_EQ(kill(child.pid, GetParam()), 0);
+      signalled = true;
+    }
+  }
+  std::free(line);
+  std::fclose(in);
+  EXPECT_EQ(wait_exit(child), 0) << slurp(output);
+  ASSERT_TRUE(signalled);
+  ASSERT_GT(lines.size(), 300U);
+  ASSERT_LT(lines.size(), 1000000U) << "the run went on to its end";
+  const auto header = fields(lines[0]);
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    ASSERT_EQ(lines[i].back(), '\n') << "row " << i << " is cut";
+    ASSERT_EQ(fields(lines[i]).size(), header.size()) << "row " << i << ": " << lines[i];
+  }
+  const auto last = fields(lines.back());
+  EXPECT_EQ(last[7], 0.0);
+  EXPECT_EQ(last[8], 0.0);
+  EXPECT_EQ(last[9], 0.0);
+  EXPECT_EQ(last[19], 0.0) << "the last row is the shut-down loop: idle";
+  const std::string text = slurp(output);
+  EXPECT_NE(text.find("stopped by " + signal_name(GetParam())), std::string::npos) << text;
+  EXPECT_NE(text.find("ran     "), std::string::npos) << "the summary: " << text;
+  std::filesystem::remove(output);
+}
+INSTANTIATE_TEST_SUITE_P(SimCommand, SimStopSignal, kTerminatingSignals, kSignalTestName);
+
+// ---- outputs that cannot be written, outputs that are inputs (issue 16) -------------------------
+
+/// Runs the binary to its end; its exit status and everything it printed.
+std::pair<int, std::string> run_binary(const std::vector<std::string>& args) {
+  const auto output = temp_path("binary-output.txt");
+  Child child = spawn(args, output);
+  const int status = wait_exit(child);
+  std::string text = slurp(output);
+  std::filesystem::remove(output);
+  return {status, std::move(text)};
+}
+
+TEST(ReplayCommand, AnOutputThatCannotBeWrittenIsReportedWithTheSummaryNotAnAbort) {
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                          "--input", TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", "--output",
+                                          "/dev/full"});
+  EXPECT_EQ(status, 1) << text;  // was 134: an uncaught std::system_error
+  EXPECT_NE(text.find("/dev/full: writing failed: No space left on device"), std::string::npos) << text;
+  EXPECT_NE(text.find("peak"), std::string::npos) << "the summary: " << text;
+}
+
+TEST(ReplayCommand, AnOutputThatIsAnInputIsRefusedBeforeItIsTouched) {
+  const auto motion = temp_path("motion.csv");
+  std::filesystem::copy_file(TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", motion);
+  const std::string before = slurp(motion);
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                          "--input", motion.string(), "--output", motion.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("is the motion"), std::string::npos) << text;
+  EXPECT_EQ(slurp(motion), before);
+  std::filesystem::remove(motion);
+}
+
+TEST(SimCommand, ATraceThatIsTheSceneIsRefusedAndTheSceneKept) {
+  const auto scene = temp_path("w.toml");
+  std::filesystem::copy_file(TOONFORCE_SOURCE_DIR "/scenes/wall.toml", scene);
+  const std::string before = slurp(scene);
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script",
+                                          TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", scene.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("--trace " + scene.string() + " is the scene"), std::string::npos) << text;
+  EXPECT_EQ(slurp(scene), before);
+  std::filesystem::remove(scene);
+}
+
+TEST(SimCommand, APlotInAFormatThePlotterDoesNotWriteIsRefusedBeforeTheRun) {
+  const auto trace = temp_path("trace.csv");
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                          "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace",
+                                          trace.string(), "--plot", temp_path("x.jpg").string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find(".png or .svg"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(trace)) << "the run went ahead";
+  std::filesystem::remove(trace);
+}
+
+/// `COMMAND --trace - | head -1`: the reader goes away after the header; the run goes on to its
+/// end (SIGPIPE does not kill it), says at once that the trace cannot be written, and ends with
+/// its summary and exit status 1.
+std::pair<int, std::string> run_with_a_reader_that_leaves(const std::vector<std::string>& args) {
+  const auto errors = temp_path("errors.txt");
+  int read_fd = -1;
+  Child child = spawn_piped(args, errors, read_fd);
+  if (!started(child)) return {-1, ""};
+  char c = 0;
+  while (read(read_fd, &c, 1) == 1 && c != '\n') {
+  }
+  close(read_fd);
+  const int status = wait_exit(child);
+  std::string text = slurp(errors);
+  std::filesystem::remove(errors);
+  return {status, std::move(text)};
+}
+
+TEST(SimCommand, AReaderThatLeavesIsAWriteErrorSaidAtOnceAndTheSummaryStillComes) {
+  const auto [status, text] = run_with_a_reader_that_leaves({TOONFORCE_BINARY, "sim", "--scene",
+                                                             TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+                                                             TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", "-"});
+  EXPECT_EQ(status, 1) << text;  // not 141 (SIGPIPE)
+  EXPECT_NE(text.find("Broken pipe; nothing more is written, the simulation goes on"), std::string::npos) << text;
+  EXPECT_NE(text.find("ran     "), std::string::npos) << "the summary: " << text;
+  EXPECT_NE(text.find("INCOMPLETE"), std::string::npos) << text;
+}
+
+TEST(SimCommand, DurationsUnderOneTickOrOverTheMaximumAreRefused) {
+  for (const char* duration : {"0.0004", "1e16"}) {
+    const auto trace = temp_path("trace.csv");
+    const auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                            "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace",
+                                            trace.string(), "--duration", duration});
+    EXPECT_EQ(status, 1) << duration << ": " << text;
+    EXPECT_NE(text.find("--duration"), std::string::npos) << text;
+    std::filesystem::remove(trace);
+  }
+}
+
+TEST(SimCommand, AHandScriptLongerThanTheMaximumIsRefusedNotWrittenToDisk) {
+  const auto script = temp_path("long.toml");
+  {
+    std::ofstream out(script);
+    out << "name = \"long\"\n[hand]\nstart = [0.0, 0.0, 0.03]\n[[segment]]\ntype = \"hold\"\nduration = 1e6\n";
+  }
+  const auto trace = temp_path("trace.csv");
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                          "--script", script.string(), "--trace", trace.string()});
+  EXPECT_EQ(status, 1) << text;  // filled the disk at about 50 MB/s
+  EXPECT_NE(text.find("lasts 1e+06 s, over the maximum of 86400 s"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(trace));
+  for (const auto& p : {script, trace}) std::filesystem::remove(p);
+}
+
+TEST(RunCommand, DurationsUnderOneTickOrOverTheMaximumCannotStart) {
+  for (const char* duration : {"0.0004", "1e16"}) {
+    const auto [status, text] =
+        run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                    "--allow-non-rt", "--no-mlock", "--duration", duration});
+    EXPECT_EQ(status, 2) << duration << ": " << text;  // 0.0004 ran forever, 1e16 "0 ticks" and exit 0
+    // 1e16 s of ticks does not fit an integer: it was called "less than one tick".
+    EXPECT_NE(text.find(duration[1] == 'e' ? "--duration 1e+16: over the maximum" : "--duration 0.0004: less than one tick"),
+              std::string::npos)
+        << text;
+  }
+}
+
+TEST(RunCommand, AStatisticsFileThatCannotBeCreatedStopsTheStartNotTheEnd) {
+  const auto trace = temp_path("trace.csv");
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--allow-non-rt", "--no-mlock", "--duration", "0.2", "--trace", trace.string(), "--stats-json",
+                  "/nonexistent/s.json"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--stats-json /nonexistent/s.json: cannot be created"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(trace)) << "the run went ahead";
+  std::filesystem::remove(trace);
+}
+
+TEST(RunCommand, AReaderThatLeavesIsAWriteErrorSaidAtOnceAndTheRunEndsWithItsSummary) {
+  const auto stats = temp_path("stats.json");
+  const auto [status, text] = run_with_a_reader_that_leaves(
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--allow-non-rt",
+       "--no-mlock", "--duration", "0.5", "--trace", "-", "--stats-json", stats.string()});
+  EXPECT_EQ(status, 1) << text;  // not 141 (SIGPIPE)
+  // Said when the writer first fails (mid-run, or at its last flush for a short run like this).
+  EXPECT_NE(text.find("INCOMPLETE"), std::string::npos) << text;
+  EXPECT_NE(text.find("Broken pipe"), std::string::npos) << text;
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos) << "the run went on to its end: " << slurp(stats);
+  std::filesystem::remove(stats);
+}
+
+TEST(RunCommand, ATraceThatCannotBeWrittenAtAllCannotStart) {
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--allow-non-rt", "--no-mlock", "--duration", "0.2", "--trace", "/dev/full"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("/dev/full: cannot write the trace header"), std::string::npos) << text;
+}
+
+TEST(RunCommand, ATraceThatIsTheSceneIsRefused) {
+  const auto scene = temp_path("w.toml");
+  std::filesystem::copy_file(TOONFORCE_SOURCE_DIR "/scenes/wall.toml", scene);
+  const std::string before = slurp(scene);
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(),
+                                          "--allow-non-rt", "--no-mlock", "--duration", "0.2", "--trace",
+                                          scene.string()});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("is the scene"), std::string::npos) << text;
+  EXPECT_EQ(slurp(scene), before);
+  std::filesystem::remove(scene);
+}
+
+TEST(Cli, ABadCommandLineIsCannotStartExitStatus2) {
+  const std::string scene = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene, "--rate", "0"},  // was 105
+           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene, "--no-such-flag"},  // was 109
+           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene"},  // was 114
+           {TOONFORCE_BINARY, "run", "--device", "sim"},  // was 106
+           {TOONFORCE_BINARY, "sim", "--scene", scene, "--trace"}}) {
+    const auto [status, text] = run_binary(args);
+    EXPECT_EQ(status, 2) << args.back() << ": " << text;
+    EXPECT_FALSE(text.empty());
+  }
+  EXPECT_EQ(run_binary({TOONFORCE_BINARY, "run", "--help"}).first, 0);
+}
+
+TEST(ReplayCommand, HelpHasNoRawBytesAndTheSineMethodIsAWord) {
+  const auto [status, help] = run_binary({TOONFORCE_BINARY, "replay", "--help"});
+  EXPECT_EQ(status, 0);
+  EXPECT_EQ(help.find('\0'), std::string::npos) << "a NUL byte in --help";
+  EXPECT_NE(help.find("polynomial"), std::string::npos) << help;
+  // `--sine 1` was taken silently as "polynomial" (the enumeration's value).
+  EXPECT_EQ(run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--input",
+                        TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", "--output", "-", "--sine", "1"})
+                .first,
+            2);
+}
+
+TEST(Cli, OutputThatCannotBeWrittenIsAFailedExitStatus) {
+  Child child = spawn({TOONFORCE_BINARY, "falcon", "udev-rule"}, "/dev/full");
+  ASSERT_TRUE(started(child));
+  EXPECT_EQ(wait_exit(child), 1);  // was 0
+}
+
+TEST(CheckCommand, ACleanSceneAndHandScriptAreOkWithThePlausibilityReport) {
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "check", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                          TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml"});
+  EXPECT_EQ(status, 0) << text;
+  EXPECT_NE(text.find("ok      "), std::string::npos) << text;
+  EXPECT_NE(text.find("peak force"), std::string::npos) << text;
+}
+
+TEST(CheckCommand, ErrorsAndAnEmptySceneAreReportedWithoutRunningAndExit1) {
+  const auto scene = temp_path("huge.toml");
+  const auto empty = temp_path("empty.toml");
+  {
+    std::ofstream(scene) << "name = \"w\"\n[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n"
+                            "stiffness = 1e308\n";
+    std::ofstream(empty) << "# nothing but a comment\n";
+  }
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "check", scene.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find(scene.string() + ":5"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", empty.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("no [[surface]] or [[cliff]]"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", empty.string(), "--allow-empty"});
+  EXPECT_EQ(status, 0) << text;
+  for (const auto& p : {scene, empty}) std::filesystem::remove(p);
+}
+
+TEST(RunCommand, TheBinaryReportsAMissingDeviceAndExitsWithoutRunning) {
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "falcon", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml"},
+                      output);
+  ASSERT_TRUE(started(child));
+  EXPECT_EQ(wait_exit(child), 2);
+  EXPECT_NE(slurp(output).find("no Novint Falcon found on USB"), std::string::npos) << slurp(output);
+  std::filesystem::remove(output);
+}
+
+TEST(RunCommand, TheBinaryRejectsARateOutsideItsRange) {
+  const auto output = temp_path("output.txt");
+  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                       "--rate", "20000"},
+                      output);
+  ASSERT_TRUE(started(child));
+  EXPECT_NE(wait_exit(child), 0);
+  EXPECT_NE(slurp(output).find("--rate"), std::string::npos) << slurp(output);
+  std::filesystem::remove(output);
+}
+
+
+/// The rows of a CSV file, split at new lines; `whole` is false if it does not end with one.
+std::vector<std::string> csv_rows(const std::filesystem::path& path, bool& whole) {
+  const std::string text = slurp(path);
+  whole = !text.empty() && text.back() == '\n';
+  std::vector<std::string> rows;
+  std::istringstream in(text);
+  for (std::string row; std::getline(in, row);) rows.push_back(row);
+  return rows;
+}
+
+std::size_t commas(const std::string& row) { return static_cast<std::size_t>(std::count(row.begin(), row.end(), ',')); }
+
+TEST(Cli, ARangeErrorIsOneShortLineNotTheLargestDoubleInFull) {
+  const std::string scene = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                    "--duration", "1e400"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--duration: 1e400 is not a finite number"), std::string::npos) << text;
+  EXPECT_LT(text.size(), 200U) << text;  // CLI11 printed the largest double in 309 digits
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                       "--rate", "1e300"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--rate: 1e300 is outside 10 .. 100000"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
+                                       "--duration", "inf"});
+  EXPECT_EQ(status, 2) << "an infinite duration is not a positive number: " << text;
+}
+
+TEST(EmptyScene, IsRefusedByRunSimAndReplayUnlessAllowed) {
+  const auto empty = temp_path("empty.toml");
+  const auto trace = temp_path("trace.csv");
+  std::ofstream(empty) << "# a scene whose effects were all commented out\nname = \"nothing\"\n";
+  const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
+  const std::vector<std::vector<std::string>> commands{
+      {TOONFORCE_BINARY, "sim", "--scene", empty.string(), "--script", script, "--trace", trace.string(), "--duration", "0.05"},
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", empty.string(), "--allow-non-rt", "--no-mlock", "--duration",
+       "0.05"},
+      {TOONFORCE_BINARY, "replay", "--scene", empty.string(), "--input", TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv",
+       "--output", trace.string()}};
+  for (std::vector<std::string> args : commands) {
+    auto [status, text] = run_binary(args);
+    EXPECT_NE(status, 0) << args[1] << ": " << text;  // ran with zero force and no word
+    EXPECT_NE(text.find("the scene has no [[surface]] or [[cliff]]"), std::string::npos) << args[1] << ": " << text;
+    args.push_back("--allow-empty");
+    std::tie(status, text) = run_binary(args);
+    EXPECT_EQ(status, 0) << args[1] << " --allow-empty: " << text;
+  }
+  for (const auto& p : {empty, trace}) std::filesystem::remove(p);
+}
+
+TEST(SimCommand, ATraceStopsWholeAtItsSizeLimitWithAWarningAndTheSimulationGoesOn) {
+  const auto trace = temp_path("limited.csv");
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+                  TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--max-output", "20K"});
+  EXPECT_EQ(status, 1) << "an incomplete trace is said in the exit status: " << text;
+  EXPECT_NE(text.find("over --max-output 20 KiB"), std::string::npos) << "warned before the run: " << text;
+  EXPECT_NE(text.find("it reached --max-output 20 KiB"), std::string::npos) << text;
+  EXPECT_NE(text.find("impacts triggered"), std::string::npos) << "the summary still comes: " << text;
+  EXPECT_LE(std::filesystem::file_size(trace), 20U * 1024U);
+  bool whole = false;
+  const auto rows = csv_rows(trace, whole);
+  ASSERT_GT(rows.size(), 10U);
+  EXPECT_TRUE(whole) << "the last row is whole";
+  EXPECT_EQ(commas(rows.back()), commas(rows.front()));
+  std::filesystem::remove(trace);
+}
+
+TEST(RunCommand, ATraceStopsWholeAtItsSizeLimitAndTheRunGoesOnToItsEnd) {
+  const auto trace = temp_path("limited.csv");
+  const auto stats = temp_path("stats.json");
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--allow-non-rt", "--no-mlock", "--duration", "0.5", "--trace", trace.string(), "--max-output", "30K",
+                  "--stats-json", stats.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("warning: " + trace.string() + ": this trace would be about"), std::string::npos) << text;
+  EXPECT_NE(text.find("the trace reached --max-output 30 KiB: nothing more is written, the run goes on"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos) << "the run went to its end: " << slurp(stats);
+  EXPECT_NE(text.find("ticks at 1000 Hz"), std::string::npos) << "with its summary: " << text;
+  EXPECT_LE(std::filesystem::file_size(trace), 30U * 1024U);
+  bool whole = false;
+  const auto rows = csv_rows(trace, whole);
+  ASSERT_GT(rows.size(), 10U);
+  EXPECT_TRUE(whole);
+  EXPECT_EQ(commas(rows.back()), commas(rows.front()));
+  for (const auto& p : {trace, stats}) std::filesystem::remove(p);
+}
+
+TEST(RunSummary, NamesTheHeartbeatWatchdogApartFromTheLoopsOwnMissedTickFault) {
+  // At 10 kHz the loop's gap check latched while the heartbeat outside the loop never tripped,
+  // and the summary said "watchdog trips 0" beside "latched: watchdog".
+  RunSummary s;
+  s.fault_bits = static_cast<std::uint32_t>(Fault::kWatchdog);
+  s.latched_at_end = s.fault_bits;
+  s.fault_ticks = 3;
+  RunOptions o;
+  o.device = "sim";
+  const std::string text = format_run_summary(s, o);
+  EXPECT_EQ(text.find("watchdog trips"), std::string::npos) << text;
+  EXPECT_NE(text.find("heartbeat watchdog (outside the loop) tripped 0 time(s)"), std::string::npos) << text;
+  EXPECT_NE(text.find("latched at the end: missed ticks (the loop's own watchdog)"), std::string::npos) << text;
+}
+
+}  // namespace
+}  // namespace toonforce
