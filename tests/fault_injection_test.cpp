@@ -622,5 +622,34 @@ TEST(RunSummary, NamesTheHeartbeatWatchdogApartFromTheLoopsOwnMissedTickFault) {
   EXPECT_NE(text.find("latched at the end: missed ticks (the loop's own watchdog)"), std::string::npos) << text;
 }
 
+
+TEST(Plausibility, AWarningIsSaidBeforeTheRunAndStrictRefusesToStart) {
+  // 10 000 N/m at 1 kHz: over the bound even when held (5400 N/m on the simulated Falcon).
+  const auto scene = temp_path("stiff.toml");
+  const auto trace = temp_path("trace.csv");
+  std::ofstream(scene) << "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 10000\n";
+  const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "check", scene.string()});
+  EXPECT_EQ(status, 0) << text;
+  EXPECT_NE(text.find("warning " + scene.string() + ":1: surface[1]: K = 10000 N/m is over the passive bound"),
+            std::string::npos)
+      << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", scene.string(), "--strict"});
+  EXPECT_EQ(status, 1) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script, "--trace",
+                                       trace.string(), "--duration", "0.05"});
+  EXPECT_EQ(status, 0) << text;
+  EXPECT_NE(text.find("warning: " + scene.string() + ":1: surface[1]"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script, "--trace",
+                                       trace.string(), "--duration", "0.05", "--strict"});
+  EXPECT_NE(status, 0) << text;
+  EXPECT_NE(text.find("--strict: the simulation does not start"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(),
+                                       "--allow-non-rt", "--no-mlock", "--duration", "0.05", "--strict"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--strict: the run does not start"), std::string::npos) << text;
+  for (const auto& p : {scene, trace}) std::filesystem::remove(p);
+}
+
 }  // namespace
 }  // namespace toonforce

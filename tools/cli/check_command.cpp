@@ -1,8 +1,9 @@
 // toonforce check SCENE [HAND_SCRIPT] [--device falcon|omni] [--rate HZ] [--scalar ...] [--allow-empty]
 // Everything `run` and `sim` check at load, without running: the scene's and the hand script's
 // errors (file:line:key and the allowed range), the servo configuration for the device class,
-// and a short plausibility report (the device's force and workspace limits, the passivity bound
-// on a wall's stiffness at this rate). Exit status 0 when clean, 1 when not.
+// and the plausibility report (sim/plausibility.hpp: each effect against the device's stability
+// bound, force and workspace). Exit status 0 when clean (warnings allowed, unless --strict), 1
+// when not.
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -16,6 +17,7 @@
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_config.hpp"
+#include "toonforce/sim/plausibility.hpp"
 #include "toonforce/sim/sim_run.hpp"
 
 namespace toonforce::cli {
@@ -28,6 +30,7 @@ void add_check(CLI::App& app) {
     std::string scalar = "double";
     double rate_hz = 1000.0;
     bool allow_empty = false;
+    bool strict = false;
   };
   auto o = std::make_shared<Options>();
   CLI::App* cmd = app.add_subcommand(
@@ -40,6 +43,7 @@ void add_check(CLI::App& app) {
   cmd->add_option("--scalar", o->scalar, "Scalar type of the controller (default double)")
       ->check(CLI::IsMember({"double", "float", "q16.16"}, CLI::ignore_case));
   cmd->add_flag("--allow-empty", o->allow_empty, "A scene without surfaces or cliffs is not an error");
+  cmd->add_flag("--strict", o->strict, "A plausibility warning (outside the device's limits) is an error");
   cmd->callback([o] {
     const auto lower = [](std::string text) {
       for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -94,23 +98,21 @@ void add_check(CLI::App& app) {
       }
     }
 
-    // The plausibility report: what the device can do, for comparing the scene's numbers with.
-    const auto& d = config.device;
-    const double period_s = 1.0 / o->rate_hz;
-    fmt::print("device  {} at {:g} Hz: peak force {:g} N; workspace [{:g}, {:g}] x [{:g}, {:g}] x [{:g}, {:g}] m\n",
-               d.name, o->rate_hz, d.max_force_n, d.workspace_min_m.x,
-               d.workspace_max_m.x, d.workspace_min_m.y, d.workspace_max_m.y, d.workspace_min_m.z,
-               d.workspace_max_m.z);
-    if (d.damping_n_s_per_m > 0.0) {
-      fmt::print("passive a wall is passive on this device alone up to K = 2 b / T = {:g} N/m (Colgate-Brown, "
-                 "b = {:g} N s/m); stiffer walls rely on the passivity controller\n",
-                 2.0 * d.damping_n_s_per_m / period_s, d.damping_n_s_per_m);
+    // The plausibility report (issue 15 item 8): the scene's numbers against the device's.
+    bool warned = false;
+    if (scene) {
+      const PlausibilityReport plausible = check_plausibility(scene.value(), o->scene_path, config.device, o->rate_hz);
+      for (const std::string& note : plausible.notes) fmt::print("note    {}\n", note);
+      for (const std::string& warning : plausible.warnings) fmt::print("warning {}\n", warning);
+      warned = !plausible.warnings.empty();
+      if (warned && o->strict) problems = true;
     }
     // No count here: one file's errors are many lines, capped (ErrorList::kShown), and a count
     // of reports would say "1 problem" above twenty of them.
     if (!problems) {
-      fmt::print("ok      {}{}{}: loads as run and sim would load it\n", o->scene_path, o->script_path.empty() ? "" : " + ",
-                 o->script_path);
+      fmt::print("ok      {}{}{}: loads as run and sim would load it{}\n", o->scene_path,
+                 o->script_path.empty() ? "" : " + ", o->script_path,
+                 warned ? ", with the warnings above (--strict makes them errors)" : "");
     } else {
       fmt::print("not ok  {}{}{}: does not load as run and sim would load it (the errors above)\n", o->scene_path,
                  o->script_path.empty() ? "" : " + ", o->script_path);

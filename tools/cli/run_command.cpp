@@ -32,6 +32,8 @@ void add_run(CLI::App& app) {
       ->check(CLI::IsMember({"sim", "falcon", "omni"}));
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
   cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
+  cmd->add_flag("--strict", options->strict,
+                "Do not start on a plausibility warning (the scene outside the device's limits: `toonforce check`)");
   CLI::Option_group* sim = cmd->add_option_group("Simulated device (--device sim)");
   sim->add_option("--script", options->hand_script_path,
                   "Hand script the simulated hand follows (docs/HAND_SCRIPTS.md); default: it holds still 1 cm "

@@ -27,6 +27,8 @@ void add_sim(CLI::App& app) {
       "sim", "Closed loop on the simulated device and hand, in simulated time (deterministic: same inputs, same bytes)");
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
   cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
+  cmd->add_flag("--strict", options->strict,
+                "Do not start on a plausibility warning (the scene outside the device's limits: `toonforce check`)");
   cmd->add_option("--script", options->script_path, "Hand script (TOML, docs/HAND_SCRIPTS.md)")->required();
   CLI::Option* duration_option =
       cmd->add_option("--duration", *duration, "Simulated seconds (default: the hand script's length)")

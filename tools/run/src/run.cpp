@@ -18,6 +18,7 @@
 #include "toonforce/control/servo_session.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
+#include "toonforce/sim/plausibility.hpp"
 #include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
@@ -241,6 +242,20 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   if (!scene) return Error{scene.error()};
   if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
+  }
+  {
+    // The plausibility report's warnings, before the device is opened (issue 15 item 8), for
+    // the device class's model: the simulated one, or the Falcon's or the Omni's.
+    const auto preset = options.device == "sim" ? host_sim::parse_device_preset(options.sim_device)
+                                                : host_sim::parse_device_preset(options.device);
+    if (preset) {
+      const PlausibilityReport plausible =
+          check_plausibility(scene.value(), options.scene_path, host_sim::device_params(*preset), options.rate_hz);
+      std::string text;
+      for (const std::string& w : plausible.warnings) text += fmt::format("warning: {}\n", w);
+      if (!text.empty() && options.strict) return Error{text + "--strict: the run does not start with a warning"};
+      if (!text.empty()) fmt::print(options.messages, "{}", text);
+    }
   }
   auto device = open_device(options);
   if (!device) return Error{device.error()};

@@ -1,5 +1,7 @@
 #include "toonforce/sim/sim_run.hpp"
 
+#include "toonforce/sim/plausibility.hpp"
+
 #include <signal.h>
 #include <string.h>
 
@@ -98,6 +100,17 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   if (!scene) return Error{scene.error()};
   if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
+  }
+  {
+    // The plausibility report's warnings, before anything runs (issue 15 item 8).
+    const PlausibilityReport plausible =
+        check_plausibility(scene.value(), options.scene_path, sim_config(options).device, options.rate_hz);
+    if (!plausible.warnings.empty()) {
+      std::string text;
+      for (const std::string& w : plausible.warnings) text += fmt::format("toonforce: warning: {}\n", w);
+      if (options.strict) return Error{text + "--strict: the simulation does not start with a warning"};
+      std::fputs(text.c_str(), stderr);
+    }
   }
   if (options.sine) override_sine(scene.value(), *options.sine);
   auto hand = load_hand_script(options.script_path);

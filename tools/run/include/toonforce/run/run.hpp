@@ -30,6 +30,7 @@ inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
 struct RunOptions {
   std::string device;               ///< sim | falcon | omni
   bool allow_empty = false;         ///< a scene without effects is not an error (--allow-empty)
+  bool strict = false;              ///< a plausibility warning refuses the start (--strict)
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   /// --device sim: the simulated hand follows this script (docs/HAND_SCRIPTS.md) and then holds
   /// its last point; empty: it holds still 1 cm above the workspace centre.

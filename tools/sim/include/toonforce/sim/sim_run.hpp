@@ -19,6 +19,7 @@ inline constexpr double kMaxSimDurationS = 86400.0;
 struct SimOptions {
   std::string scene_path;
   bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
+  bool strict = false;       ///< a plausibility warning refuses the start (--strict)
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   std::string script_path;
   std::optional<double> duration_s;  ///< default: the hand script's length
