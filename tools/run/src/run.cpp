@@ -218,6 +218,10 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
+  // Before the device opens: a rate whose 1/dt-based quantities Q16.16 cannot hold.
+  if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
+    return Error{fmt::format("--rate {}", bad)};
+  }
   auto device = open_device(options);
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();

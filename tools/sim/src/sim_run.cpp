@@ -96,6 +96,9 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
   auto scene = load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
+  if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
+    return Error{fmt::format("--rate {}", bad)};  // `toonforce sim` refuses it earlier, exit 2
+  }
   if (options.sine) override_sine(scene.value(), *options.sine);
   auto hand = load_hand_script(options.script_path);
   if (!hand) return Error{hand.error()};
