@@ -2,6 +2,7 @@
 // malformed files are rejected with the file, the line and the key in the message.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 #include <fmt/format.h>
@@ -323,6 +324,16 @@ TEST(SceneFile, Q16RateRuleIsOneOverDtAndTheCliffsFilter) {
   const std::string slow = fixed_point::check_rate(16384.0, ScalarKind::kQ16_16, cliff.value());
   EXPECT_NE(slow.find("cliff[1]"), std::string::npos) << slow;
   EXPECT_NE(slow.find("up to 16383 Hz"), std::string::npos) << slow;
+  // The velocity estimator's a = 1 / (1 + rate / (2 pi f_c)) (effects.md §0): a 0.1 Hz cut-off
+  // allows (32767 - 1) x 2 pi x 0.1 Hz.
+  const auto sluggish = parse_scene("[device]\nvelocity_cutoff = 0.1\n" + floor_with("stiffness = 1500\n"), "v.toml",
+                                    ScalarKind::kQ16_16);
+  ASSERT_TRUE(sluggish) << sluggish.error();
+  const double allowed_hz = 32766.0 * 2.0 * 3.14159265358979323846 * 0.1;
+  EXPECT_EQ(fixed_point::check_rate(std::floor(allowed_hz), ScalarKind::kQ16_16, sluggish.value()), "");
+  const std::string estimator = fixed_point::check_rate(std::ceil(allowed_hz), ScalarKind::kQ16_16, sluggish.value());
+  EXPECT_NE(estimator.find("velocity_cutoff"), std::string::npos) << estimator;
+  EXPECT_NE(estimator.find(fmt::format("up to {:.6g} Hz", allowed_hz)), std::string::npos) << estimator;
 }
 
 TEST(SceneFile, SaysWhenTheFileIsMissing) {
