@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -23,6 +24,8 @@
 #include <tuple>
 #include <utility>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "toonforce/run/run.hpp"
 
@@ -649,6 +652,99 @@ TEST(Plausibility, AWarningIsSaidBeforeTheRunAndStrictRefusesToStart) {
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("--strict: the run does not start"), std::string::npos) << text;
   for (const auto& p : {scene, trace}) std::filesystem::remove(p);
+}
+
+// ---- Q16.16 guards (issue 15 item 6; scene_file.hpp fixed_point) ------------------------------
+// 1/dt must fit Q16.16, whose largest value is (2^31 - 1) / 2^16 = 32767.99998: whole rates up
+// to 32767 Hz. A rate refused is a bad command-line value (exit 2), before anything runs.
+
+/// The `faults` column of a trace: no tick may have the fixed-point saturation bit.
+bool any_fixed_saturation(const std::filesystem::path& trace) {
+  const auto lines = lines_of(trace);
+  EXPECT_GT(lines.size(), 1U) << trace << ": no trace to look at";
+  if (lines.empty()) return false;
+  std::vector<std::string> names;
+  std::stringstream header(lines[0]);
+  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
+  const auto column = static_cast<std::size_t>(std::find(names.begin(), names.end(), "faults") - names.begin());
+  EXPECT_LT(column, names.size()) << lines[0];
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto row = fields(lines[i]);
+    if (column < row.size() && (static_cast<std::uint32_t>(row[column]) & static_cast<std::uint32_t>(Fault::kFixedSaturation)) != 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+TEST(SimCommand, Q16RefusesARateWhoseOneOverDtDoesNotFitAndRunsJustBelowItWithoutSaturating) {
+  const auto trace = temp_path("q16-rate.csv");
+  const auto sim = [&](const std::string& rate, const std::string& scalar) {
+    return run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml", "--script",
+                       TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--duration",
+                       "0.3", "--quiet", "--rate", rate, "--scalar", scalar});
+  };
+  auto [status, text] = sim("32768", "q16.16");
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("up to 32767 Hz"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(trace)) << "the run went ahead";
+  std::tie(status, text) = sim("32767", "q16.16");
+  EXPECT_EQ(status, 0) << text;
+  EXPECT_FALSE(any_fixed_saturation(trace)) << "1/dt, the estimator's and the passivity controller's rate terms fit";
+  std::filesystem::remove(trace);
+  std::tie(status, text) = sim("40000", "double");
+  EXPECT_EQ(status, 0) << "only q16.16 has the rule: " << text;
+  std::filesystem::remove(trace);
+}
+
+TEST(CheckCommand, Q16RefusesASaturatingSceneWithFileLineKeyAndATooFastRateWithExit2) {
+  // A 30000 N/m floor: 0.06 m deep in the largest device workspace, N = 1800 N, and Coulomb
+  // 0.5 below v_reg = 0.02 m/s is a 45000 N s/m damper (effects.md §2): over Q16.16.
+  const auto scene = temp_path("q16-friction.toml");
+  std::ofstream(scene) << "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 30000\n"
+                          "[surface.friction]\ncoulomb = 0.5\n";
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "check", scene.string(), "--scalar", "q16.16"});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find(scene.string() + ":6: surface[1].friction.coulomb: "), std::string::npos) << text;
+  EXPECT_NE(text.find(fmt::format("coulomb up to {:.6g}", 32767.0 * 0.02 / 1800.0)), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", scene.string()});
+  EXPECT_EQ(status, 0) << "double holds it: " << text;
+  std::filesystem::remove(scene);
+  const std::string wall = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", wall, "--scalar", "q16.16", "--rate", "32768"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("up to 32767 Hz"), std::string::npos) << text;
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", wall, "--scalar", "q16.16", "--rate", "32767"});
+  EXPECT_EQ(status, 0) << text;
+}
+
+TEST(RunCommand, Q16RefusesARateTheCliffsFilterCannotHoldBeforeTheDeviceOpens) {
+  // cliff.hpp: s_f += (s - s_f) / (1 + tau rate); with tau = 5 s, 1 + tau rate <= 32767 allows
+  // up to 32766 / 5 = 6553.2 Hz, inside run's own 500..10000.
+  const auto scene = temp_path("q16-cliff.toml");
+  std::ofstream(scene) << "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = -0.01\n"
+                          "gap_max = 0.01\nstiffness = 1500\nspeed_threshold = 0.08\ntau = 5\n";
+  auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(), "--rate",
+                                    "6554", "--scalar", "q16.16", "--duration", "0.05", "--allow-non-rt", "--no-mlock"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("cliff[1]"), std::string::npos) << text;
+  EXPECT_NE(text.find("up to 6553.2 Hz"), std::string::npos) << text;
+  RunOptions o;
+  o.device = "sim";
+  o.scene_path = scene.string();
+  o.rate_hz = 6553.0;
+  o.scalar = ScalarKind::kQ16_16;
+  o.duration_s = 0.05;
+  o.trace_path = temp_path("q16-cliff.csv").string();
+  o.allow_non_realtime = true;
+  o.lock_memory = false;
+  o.handle_signals = false;
+  o.interactive = false;
+  const auto summary = run_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_FALSE(any_fixed_saturation(o.trace_path));
+  std::filesystem::remove(o.trace_path);
+  std::filesystem::remove(scene);
 }
 
 }  // namespace

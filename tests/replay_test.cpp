@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <fmt/format.h>
@@ -299,6 +300,30 @@ TEST(ReplayCommand, RejectsABadSceneNamingFileLineAndKey) {
   EXPECT_NE(status, 0);
   EXPECT_NE(err.find("typo.toml:4: surface[1]: unknown key 'stiffnes' (did you mean 'stiffness'?)"), std::string::npos) << err;
   EXPECT_NE(err.find("typo.toml:1: surface[1]: missing required key 'stiffness'"), std::string::npos) << err;
+}
+
+TEST(ReplayCommand, Q16RefusesRowsWhoseOneOverDtDoesNotFitNamingTheLine) {
+  // Replay's rate is each row's 1/dt (spec §0); Q16.16 holds it below 32768 Hz (whole: 32767).
+  const fs::path dir = temp_dir();
+  const auto motion = [&](const std::string& name, double rate_hz) {
+    std::string text = "t,x,y,z\n";
+    for (int k = 0; k < 4; ++k) text += fmt::format("{},0,0,0.01\n", k / rate_hz);
+    write_file(dir / name, text);
+    return (dir / name).string();
+  };
+  const auto replay = [&](const std::string& input, const std::string& scalar) {
+    return run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}' --scalar {}",
+                                  TOONFORCE_SOURCE_DIR, input, (dir / "o.csv").string(), scalar));
+  };
+  const std::string fast = motion("fast.csv", 40000.0);
+  auto [status, err] = replay(fast, "q16.16");
+  EXPECT_NE(status, 0);
+  EXPECT_NE(err.find("fast.csv:3: t: "), std::string::npos) << err;
+  EXPECT_NE(err.find("up to 32767 Hz"), std::string::npos) << err;
+  std::tie(status, err) = replay(fast, "double");
+  EXPECT_EQ(status, 0) << err;
+  std::tie(status, err) = replay(motion("below.csv", 32000.0), "q16.16");
+  EXPECT_EQ(status, 0) << err;
 }
 
 TEST(ReplayCommand, RejectsAnUnknownScalarType) {

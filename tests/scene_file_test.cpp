@@ -3,11 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/config/toml_reader.hpp"
@@ -298,6 +301,108 @@ TEST(SceneFile, RejectsTheLibrarySineForQ16) {
   EXPECT_NE(q.error().find("sine.toml:10: surface[1].impact.sine: 'library' needs a floating-point scalar"),
             std::string::npos)
       << q.error();
+}
+
+// ---- Q16.16: products that saturate in normal use, rates whose 1/dt does not fit -------------
+// Normal use (scene_file.hpp fixed_point): the HIP anywhere in the workspace (the scene's, else
+// the largest device's: z from -0.06 m) at up to [device] max_velocity (default 1.2 m/s).
+
+/// A floor at z = 0 (normal +z): the deepest the default workspace lets the HIP in is 0.06 m.
+std::string floor_with(const std::string& keys) {
+  return "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\n" + keys;
+}
+constexpr double kDeepestM = 0.06;    // -kDefaultWorkspaceMinM.z
+constexpr double kMaxForceN = 32767;  // fixed_point::kMaxProduct, one unit under Q16.16's largest
+
+TEST(SceneFile, Q16RefusesAStiffnessWhoseWallForceSaturatesWithFileLineKeyAndTheRange) {
+  // A stiffness fits Q16.16 on its own only below 32768 N/m, so k delta saturates only where the
+  // workspace lets the HIP more than 1 m into the wall: a large device, here 2 m below the floor.
+  const std::string big = "[device]\nworkspace_min = [-1, -1, -2]\nworkspace_max = [1, 1, 1]\n";
+  const double deepest_m = 2.0;
+  const double allowed = kMaxForceN / deepest_m;  // k delta <= 32767 N (effects.md §1)
+  const std::string text = big + floor_with("stiffness = 20000\n");
+  EXPECT_TRUE(parse_scene(text, "stiff.toml", ScalarKind::kDouble)) << "double holds it";
+  EXPECT_TRUE(parse_scene(text, "stiff.toml", ScalarKind::kFloat)) << "float holds it";
+  const auto q = parse_scene(text, "stiff.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("stiff.toml:7: surface[1].stiffness: "), std::string::npos) << q.error();
+  EXPECT_NE(q.error().find(fmt::format("stiffness up to {:.6g} N/m", allowed)), std::string::npos) << q.error();
+  // Just under the bound it loads; in the devices' own workspaces (0.06 m deep) it is far under.
+  const auto under = parse_scene(big + floor_with(fmt::format("stiffness = {}\n", allowed * 0.99)), "ok.toml",
+                                 ScalarKind::kQ16_16);
+  EXPECT_TRUE(under) << under.error();
+  const auto small = parse_scene(floor_with("stiffness = 20000\n"), "small.toml", ScalarKind::kQ16_16);
+  EXPECT_TRUE(small) << small.error();
+}
+
+TEST(SceneFile, Q16RefusesCoulombFrictionWhoseGainSaturatesOnAStiffWall) {
+  // effects.md §2: below v_reg the Coulomb part is a damper mu_c N / v_reg, N the wall's force:
+  // 30000 N/m x 0.06 m = 1800 N, so mu_c = 0.5 over 0.02 m/s is 45000 N s/m.
+  const std::string text = floor_with("stiffness = 30000\n[surface.friction]\ncoulomb = 0.5\n");
+  EXPECT_TRUE(parse_scene(text, "f.toml", ScalarKind::kDouble));
+  const auto q = parse_scene(text, "f.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("f.toml:6: surface[1].friction.coulomb: "), std::string::npos) << q.error();
+  EXPECT_NE(q.error().find(fmt::format("coulomb up to {:.6g}", kMaxForceN * 0.02 / (30000 * kDeepestM))),
+            std::string::npos)
+      << q.error();
+}
+
+TEST(SceneFile, Q16RefusesDampingSlipperyGainAndImpactGainsThatSaturateAtTheTopSpeed) {
+  const double v = 1.2;  // [device] max_velocity's default
+  // b v (effects.md §1) with the spring's 1500 N/m x 0.06 m beside it.
+  auto q = parse_scene(floor_with("stiffness = 1500\ndamping = 27250\n"), "b.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("b.toml:5: surface[1].damping: "), std::string::npos) << q.error();
+  EXPECT_NE(q.error().find(fmt::format("damping up to {:.6g} N s/m", (kMaxForceN - 1500 * kDeepestM) / v)),
+            std::string::npos)
+      << q.error();
+  // mu v_t before the cap (effects.md §3).
+  q = parse_scene(floor_with("stiffness = 1500\n[surface.slippery]\nmu = 28000\n"), "mu.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("mu.toml:6: surface[1].slippery.mu: "), std::string::npos) << q.error();
+  EXPECT_NE(q.error().find(fmt::format("mu up to {:.6g} N s/m", kMaxForceN / v)), std::string::npos) << q.error();
+  // v_i d (k_r + k_osc) at t = 0 (effects.md §4): 1.2 m/s x 1 s x 30000 N/m = 36000 N.
+  const std::string impact = floor_with(
+      "stiffness = 1500\n[surface.impact]\nrecoil_gain = 10000\noscillation_gain = 20000\nduration = 1\nfrequency = 5\n");
+  q = parse_scene(impact, "imp.toml", ScalarKind::kQ16_16);
+  ASSERT_FALSE(q);
+  EXPECT_NE(q.error().find("imp.toml:7: surface[1].impact.oscillation_gain: "), std::string::npos) << q.error();
+  EXPECT_NE(q.error().find(fmt::format("up to {:.6g} N/m", kMaxForceN / v)), std::string::npos) << q.error();
+  EXPECT_TRUE(parse_scene(impact, "imp.toml", ScalarKind::kDouble));
+  // A lower max_velocity is a smaller top speed: the same transient fits.
+  const auto slow = parse_scene("[device]\nmax_velocity = 1.0\n" + impact, "slow.toml", ScalarKind::kQ16_16);
+  EXPECT_TRUE(slow) << "1.0 m/s x 1 s x 30000 N/m = 30000 N fits: " << slow.error();
+}
+
+TEST(SceneFile, Q16RateRuleIsOneOverDtAndTheCliffsFilter) {
+  const auto wall = parse_scene(floor_with("stiffness = 1500\n"), "w.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(wall) << wall.error();
+  // 1/dt must fit Q16.16 (largest value 32767.99998): whole rates up to 32767 Hz.
+  EXPECT_EQ(fixed_point::check_rate(32767.0, ScalarKind::kQ16_16, wall.value()), "");
+  const std::string refused = fixed_point::check_rate(32768.0, ScalarKind::kQ16_16, wall.value());
+  EXPECT_NE(refused.find("up to 32767 Hz"), std::string::npos) << refused;
+  EXPECT_EQ(fixed_point::check_rate(100000.0, ScalarKind::kDouble, wall.value()), "") << "only q16.16 has the rule";
+  // The cliff's filter 1 + tau rate (effects.md §5): tau = 2 s allows (32767 - 1) / 2 Hz.
+  const auto cliff = parse_scene(
+      "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = -0.01\ngap_max = 0.01\n"
+      "stiffness = 1500\nspeed_threshold = 0.08\ntau = 2\n",
+      "c.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(cliff) << cliff.error();
+  EXPECT_EQ(fixed_point::check_rate(16383.0, ScalarKind::kQ16_16, cliff.value()), "");
+  const std::string slow = fixed_point::check_rate(16384.0, ScalarKind::kQ16_16, cliff.value());
+  EXPECT_NE(slow.find("cliff[1]"), std::string::npos) << slow;
+  EXPECT_NE(slow.find("up to 16383 Hz"), std::string::npos) << slow;
+  // The velocity estimator's a = 1 / (1 + rate / (2 pi f_c)) (effects.md §0): a 0.1 Hz cut-off
+  // allows (32767 - 1) x 2 pi x 0.1 Hz.
+  const auto sluggish = parse_scene("[device]\nvelocity_cutoff = 0.1\n" + floor_with("stiffness = 1500\n"), "v.toml",
+                                    ScalarKind::kQ16_16);
+  ASSERT_TRUE(sluggish) << sluggish.error();
+  const double allowed_hz = 32766.0 * 2.0 * 3.14159265358979323846 * 0.1;
+  EXPECT_EQ(fixed_point::check_rate(std::floor(allowed_hz), ScalarKind::kQ16_16, sluggish.value()), "");
+  const std::string estimator = fixed_point::check_rate(std::ceil(allowed_hz), ScalarKind::kQ16_16, sluggish.value());
+  EXPECT_NE(estimator.find("velocity_cutoff"), std::string::npos) << estimator;
+  EXPECT_NE(estimator.find(fmt::format("up to {:.6g} Hz", allowed_hz)), std::string::npos) << estimator;
 }
 
 TEST(SceneFile, SaysWhenTheFileIsMissing) {

@@ -65,6 +65,12 @@ void add_check(CLI::App& app) {
 
     auto scene = load_scene_file(o->scene_path, sim.scalar);
     if (!scene) report(scene.error());
+    // As run and sim refuse it: a rate Q16.16 cannot hold is a bad command-line value (exit 2).
+    if (const std::string bad = scene ? fixed_point::check_rate(o->rate_hz, sim.scalar, scene.value()) : ""; !bad.empty()) {
+      fmt::print(stderr, "--rate {}\n", bad);
+      set_exit_code(2);
+      return;
+    }
     std::optional<HandScriptFile> hand;
     if (!o->script_path.empty()) {
       auto loaded = load_hand_script(o->script_path);

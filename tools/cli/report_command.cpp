@@ -1,4 +1,4 @@
-// toonforce report latency|precision|stability|all: the project measuring itself (issue 8).
+// toonforce report latency|precision|fixed-point|stability|all: the project measuring itself (issue 8).
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
 // plots (tools/report/include/toonforce/report/documents.hpp).
 #include <cstdio>
@@ -10,6 +10,7 @@
 #include "toonforce/report/documents.hpp"
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/paths.hpp"
+#include "toonforce/report/fixed_point_map.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/stability.hpp"
 
@@ -65,6 +66,16 @@ void add_precision(CLI::App& report) {
     const auto result = report::run_precision(*options, progress);
     if (report_error(result)) return;
     std::fputs(report::precision_markdown(result.value()).c_str(), stdout);
+    set_exit_code(0);
+  });
+}
+
+/// Where Q16.16 saturates: what the load-time guards accept (arithmetic only, nothing timed).
+void add_fixed_point(CLI::App& report) {
+  CLI::App* cmd = report.add_subcommand(
+      "fixed-point", "Where Q16.16 saturates: the largest rate and scene values the q16.16 guards accept (no timing)");
+  cmd->callback([] {
+    std::fputs(report::fixed_point_map_markdown().c_str(), stdout);
     set_exit_code(0);
   });
 }
@@ -129,6 +140,7 @@ void add_report(CLI::App& app) {
   report->require_subcommand(1);
   add_latency(*report);
   add_precision(*report);
+  add_fixed_point(*report);
   add_stability(*report);
   add_all(*report);
 }

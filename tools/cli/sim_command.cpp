@@ -83,6 +83,15 @@ void add_sim(CLI::App& app) {
     options->integrator = host_sim::parse_integrator(lower(*integrator)).value_or(host_sim::Integrator::kRk4);
     options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);
     if (!sine->empty()) options->sine = parse_sine_method(lower(*sine));
+    // A servo rate Q16.16 cannot hold is a bad command-line value: exit 2 before anything runs
+    // (run_sim checks it too, for other callers). An unloadable scene is run_sim's to report.
+    if (auto scene = load_scene_file(options->scene_path, options->scalar)) {
+      if (const std::string bad = fixed_point::check_rate(options->rate_hz, options->scalar, scene.value()); !bad.empty()) {
+        fmt::print(stderr, "--rate {}\n", bad);
+        set_exit_code(2);
+        return;
+      }
+    }
 #if TOONFORCE_VIEWER
     // Live, for a simulation, means paced to the wall clock (--view-pace) from the moment a
     // page connects: simulated time costs nothing, so nothing is lost by waiting for the page.

@@ -170,6 +170,15 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   }
   auto motion = read_motion_csv(options.input_path);
   if (!motion) return Error{motion.error()};
+  // The rows' stamps are replay's rate: each 1/dt must pass the Q16.16 rate rule (a gap after a
+  // skipped row only lowers the rate the loop sees, hip_sensor.hpp).
+  for (std::size_t i = 1; i < motion->rows.size(); ++i) {
+    const double dt_s = motion->rows[i].t_s - motion->rows[i - 1].t_s;
+    if (const std::string bad = fixed_point::check_rate(1.0 / dt_s, options.scalar, scene.value()); !bad.empty()) {
+      return Error{fmt::format("{}:{}: t: {:g} s after the previous row, a servo rate of {}\n", options.input_path,
+                               motion->rows[i].line, dt_s, bad)};
+    }
+  }
 
   File out(options.output_path == "-" ? stdout : std::fopen(options.output_path.c_str(), "wb"));
   if (!out) return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};

@@ -257,6 +257,10 @@ Result<RunSummary> run_servo(const RunOptions& options) {
       if (!text.empty()) fmt::print(options.messages, "{}", text);
     }
   }
+  // Before the device opens: a rate whose 1/dt-based quantities Q16.16 cannot hold.
+  if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
+    return Error{fmt::format("--rate {}", bad)};
+  }
   auto device = open_device(options);
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();

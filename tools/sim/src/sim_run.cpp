@@ -112,6 +112,9 @@ Result<SimSummary> run_sim(const SimOptions& options) {
       std::fputs(text.c_str(), stderr);
     }
   }
+  if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
+    return Error{fmt::format("--rate {}", bad)};  // `toonforce sim` refuses it earlier, exit 2
+  }
   if (options.sine) override_sine(scene.value(), *options.sine);
   auto hand = load_hand_script(options.script_path);
   if (!hand) return Error{hand.error()};

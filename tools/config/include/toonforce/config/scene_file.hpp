@@ -124,6 +124,38 @@ extern template RuntimeScene<double> make_runtime_scene<double>(const SceneDescr
 extern template RuntimeScene<float> make_runtime_scene<float>(const SceneDescription&);
 extern template RuntimeScene<Q16_16> make_runtime_scene<Q16_16>(const SceneDescription&);
 
+/// Q16.16 guards (spec effects.md §7; docs/PERFORMANCE.md "Fixed point (Q16.16)"). A Q16.16
+/// value saturates at (2^31 - 1) / 2^16 = 32767.99998; every sum, product and quotient of the
+/// loop saturates there and the loop faults (Fault::kFixedSaturation). The guards refuse, before
+/// anything runs, rates and scenes whose quantities reach that in normal use: the HIP inside the
+/// workspace and no faster than the safety layer's max_velocity.
+namespace fixed_point {
+/// The largest Q16.16 value.
+inline constexpr double kMaxValue = 2147483647.0 / 65536.0;
+/// What a product of the loop may reach: one unit below kMaxValue, because its operands are
+/// themselves rounded (by up to 2^-17 each) and a product computed near the maximum could round
+/// over it.
+inline constexpr double kMaxProduct = 32767.0;
+/// The workspace the scene rule assumes when the scene sets none: it holds every device this
+/// program drives (Falcon HDAL box in the scene frame x, z +-0.06, y -0.065..0.035 m; Omni x
+/// +-0.08, y +-0.035, z +-0.06 m; host_sim's presets lie inside both), so a device fills
+/// nothing larger in with_device.
+inline constexpr Vec3<double> kDefaultWorkspaceMinM{-0.08, -0.065, -0.06};
+inline constexpr Vec3<double> kDefaultWorkspaceMaxM{0.08, 0.065, 0.06};
+
+/// The highest servo rate [Hz] at which every quantity a Q16.16 loop computes from the rate
+/// fits, for this scene, and what sets it.
+struct RateLimit {
+  double max_rate_hz = 0.0;
+  std::string reason;
+};
+RateLimit max_rate(const SceneSettings& settings, const std::vector<CartoonCliff<double>::Params>& cliffs);
+/// Empty if a Q16.16 loop may run `scene` at `rate_hz` (any rate for another scalar), else why
+/// not, with the allowed range. `run`, `sim`, `check` (their --rate) and `replay` (each row's
+/// 1/dt) call this.
+std::string check_rate(double rate_hz, ScalarKind scalar, const SceneDescription& scene);
+}  // namespace fixed_point
+
 /// Sets the sine method of every impact transient of a library scene (`--sine`).
 void override_sine(SceneDescription& scene, SineMethod method);
 

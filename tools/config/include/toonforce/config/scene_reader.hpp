@@ -28,6 +28,17 @@ void read_settings(TableReader& root, SceneSettings& settings);
 /// Errors about the scene as a whole once its effects are read (empty scene, too many values).
 void check_scene(const std::vector<SceneEntry>& order, std::size_t values, const std::string& file, ErrorList& errors);
 
+/// The Q16.16 scene rule (fixed_point in scene_file.hpp): the force laws' products must fit
+/// Q16.16 with the HIP anywhere in the workspace at up to max_velocity. Run by `describe` on a
+/// scene read for q16.16 that is otherwise clean; `r` reads the effect's table (for lines).
+void check_fixed_point(TableReader& r, const SceneSettings& settings, const RuntimeSurface<double>::Params& p);
+void check_fixed_point(TableReader& r, const SceneSettings& settings, const CartoonCliff<double>::Params& p);
+/// A program's own effect kinds have no Q16.16 rule here (their laws are theirs).
+template <class P>
+void check_fixed_point(TableReader&, const SceneSettings&, const P&) {}
+/// The [device] keys the loop multiplies by a speed (the passivity controller's damping).
+void check_fixed_point_device(TableReader& root, const SceneSettings& settings);
+
 /// An effect's check() reports through this: the TOML reader names line and key.
 class TableProblems final : public schema::Problems {
  public:
@@ -190,6 +201,26 @@ Result<SceneFileOf<Kinds...>> describe(const toml::table& root, ErrorList& error
   ((kinds += fmt::format("{}[[{}]]", kinds.empty() ? "" : ", ", Kinds<double>::kKey)), ...);
   r.finish("effect", fmt::format("the effects this program reads: {}", kinds));
   check_scene(scene.order, values, scene.source, errors);
+  // Q16.16: values that fit one by one (checked as read) may still saturate the laws' products
+  // in normal use (spec effects.md §7); checked once every value is known and fine.
+  if (scalar == ScalarKind::kQ16_16 && errors.empty()) {
+    check_fixed_point_device(r, scene);
+    [&]<std::size_t... I>(std::index_sequence<I...>) {
+      (
+          [&] {
+            using E = typename File::template Kind<I>;
+            const toml::array* tables = root[E::kKey].as_array();
+            const auto& all = scene.template all<I>();
+            for (std::size_t n = 0; tables != nullptr && n < all.size() && n < tables->size(); ++n) {
+              if (const toml::table* table = (*tables)[n].as_table()) {
+                TableReader effect(*table, fmt::format("{}[{}]", E::kKey, n + 1), errors, scalar);
+                check_fixed_point(effect, scene, all[n]);
+              }
+            }
+          }(),
+          ...);
+    }(std::make_index_sequence<File::kKinds>{});
+  }
   if (!errors.empty()) return Error{errors.text()};
   // File order across kinds: their forces add in this order (spec §0).
   std::stable_sort(scene.order.begin(), scene.order.end(),
