@@ -519,8 +519,8 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
                 static_cast<unsigned long long>(bss), static_cast<unsigned long long>(text + data),
                 static_cast<unsigned long long>(data + bss), static_cast<unsigned long long>(sec[".motion"]));
   }
-  std::printf("\n| scene | ticks | replay's loop tick, mean | worst | every-stage loop tick, mean | worst | "
-              "effects + safety, mean | worst | stack per tick [B] | loop state, replay's / every stage [B] |\n");
+  std::printf("\n| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | "
+              "effects + safety, mean | max | stack per tick [B] | loop state, replay's / every stage [B] |\n");
   std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const auto& r : runs) {
     std::map<std::string, SceneFigures> scenes;

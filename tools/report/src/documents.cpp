@@ -145,8 +145,10 @@ std::string performance_section(const LatencyReport& latency, const PrecisionRep
       latency.ticks == 10'000'000 ? "" : fmt::format(" --ticks {}", latency.ticks));
   md += latency_markdown(latency);
   md += fmt::format("\n{}\n\n", kProxyComparison);
-  md += "Reading the figures: instruction counts are exact and the same on every run; they are the worst-case "
-        "measure here. Times are medians of 10^7 single ticks on a shared VM whose counter steps by 10 ns, so a "
+  md += "Reading the figures: instruction counts are exact and the same on every run. The most expensive tick "
+        "of a scripted pass is the largest over the inputs of that pass, which drive every branch of the scene: "
+        "it is not a bound over every input (a sine's cost depends on its argument, a Q16.16 square root's on the "
+        "size of its argument), so these pages do not call it the worst case. Times are medians of 10^7 single ticks on a shared VM whose counter steps by 10 ns, so a "
         "median is a multiple of 10 ns and the mean (ticks under 50 us) is the finer figure. The maxima are the "
         "VM's: an interrupt or a preemption (tens of us to ms) landing inside one of 10^7 ticks, not work done by "
         "the tick (the most expensive tick, by instructions, is a few hundred instructions, about 100 ns).\n\n";

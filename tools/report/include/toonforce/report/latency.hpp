@@ -36,6 +36,9 @@ struct LatencyOptions {
   std::string valgrind = "valgrind";
   std::string tick_count;              ///< empty: beside this executable
   int cpu = -1;                        ///< pin the timing thread to this CPU (-1: no)
+  /// Scene and loop rows: ticks timed with the data caches cold (0: none). Before each, a
+  /// buffer larger than the last-level cache is written, outside the timed region.
+  std::uint64_t cold_ticks = 1000;
 };
 
 struct LatencyRow {
@@ -46,7 +49,9 @@ struct LatencyRow {
   double p999_ns = 0.0;
   double max_ns = 0.0;
   std::optional<double> instructions_mean;  ///< harness subtracted
-  std::optional<double> instructions_max;   ///< scenarios: the most expensive tick
+  std::optional<double> instructions_max;   ///< scenarios: the most expensive tick of the pass
+  std::optional<double> cold_median_ns;     ///< data caches cold (LatencyOptions::cold_ticks)
+  std::optional<double> cold_p99_ns;
 };
 
 struct LatencyReport {
@@ -55,6 +60,7 @@ struct LatencyReport {
   std::string load_after;
   TscCalibration clock;
   std::uint64_t ticks = 0;
+  std::uint64_t cold_ticks = 0;
   std::string command;            ///< how to reproduce
   std::string callgrind_command;  ///< empty if not counted
   double harness_instructions = 0.0;
