@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/report/scenario.hpp"
@@ -171,6 +172,25 @@ TEST(Scenario, CartoonWallTriggersRetriggersWhileRunningAndIgnoresASlowEntry) {
   EXPECT_EQ(retriggers, 1);
   EXPECT_GT(running, 150);
   EXPECT_EQ(slow_entries, 1);
+}
+
+TEST(Scenario, CartoonWallEvaluatesItsTransientAtEveryTickOfItsDurationInContact) {
+  // At a fixed rate the transient's sine is taken only at t = k T, k < d / T (effects.md §4):
+  // 150 arguments at 1 kHz for the bundled d = 0.15 s. A pass that has all of them in contact
+  // counts every argument class of the sine, so its most expensive tick is the worst over the
+  // sine's arguments by enumeration (docs/PERFORMANCE.md, "What is worst by construction").
+  const auto desc = load_scene_file(paper_scene_path(TOONFORCE_SOURCE_DIR, "cartoon_wall"));
+  ASSERT_TRUE(desc) << desc.error();
+  const double duration_s = desc->of<RuntimeSurface>().at(0).impact.law.duration_s;
+  const auto transient_ticks = static_cast<std::size_t>(std::llround(duration_s * kRateHz));
+  std::vector<bool> seen(transient_ticks, false);
+  run_scenario("cartoon_wall", [&](const TickView& v) {
+    if (!v.after.in_contact || !(v.after.impact_time_s >= 0.0)) return;
+    const auto k = static_cast<std::size_t>(std::llround(v.after.impact_time_s * kRateHz));
+    if (k < seen.size()) seen[k] = true;
+  });
+  ASSERT_EQ(transient_ticks, 150U);
+  for (std::size_t k = 0; k < seen.size(); ++k) EXPECT_TRUE(seen[k]) << "transient tick " << k << " never in contact";
 }
 
 TEST(Scenario, CliffVisitsEveryStateAndBothLedgeFaces) {
