@@ -28,7 +28,8 @@
 ///     (V_ref: the largest V up to the settling time, which is 0 except where the scene adds
 ///     energy by design, the cartoon wall's transient; there V_ref includes what it added), or
 ///     the peak of V over the last quarter of the run (after settling) above 1.1 times its peak
-///     over the first quarter (still growing);
+///     over the first quarter (still growing; not counted below 1e-3 V_ref, the dither of
+///     quantisation and friction);
 ///   - decaying: V never above V0 (1 + 1e-3). This is not passivity (a property of the port,
 ///     under every input); an autonomous run cannot test it;
 ///   - bounded: neither: V rose above V0 but did not grow (a decaying or steady oscillation).
