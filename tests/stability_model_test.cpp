@@ -219,6 +219,39 @@ TEST(StabilityModel, TheSimulationGrowsAtTheRateTheEigenvaluePredicts) {
   EXPECT_EQ(outcome->stability, Stability::kUnstable);
 }
 
+TEST(StabilityModel, ColgateSchenkelsRequiredDampingIsTheBoundForASpringADamperAndTheSlipperyGain) {
+  // Closed forms of b_req (Colgate and Schenkel 1997) for the laws the bound was derived for:
+  // a spring K behind d ticks, (T/2) max (cos d theta - cos (d+1) theta) / (1 - cos theta), which
+  // is (1 + 2 d) K T / 2 at theta -> 0 (d = 0: constant; d = 1: 1 + 2 cos theta); a backward-
+  // difference damper B, max -B cos theta... = B at theta = pi; a negative one (the slippery
+  // gain mu), mu cos theta, mu at theta -> 0 (evaluated at 1e-7 rad: met to 1e-14).
+  for (const int d : {0, 1}) {
+    SampledLoop spring;
+    spring.delay_ticks = d;
+    spring.stiffness_n_per_m = 5000.0;
+    EXPECT_NEAR(required_damping_n_s_per_m(spring), damping_needed_n_s_per_m(5000.0, 1e-3, d), 1e-12);
+  }
+  SampledLoop damper;
+  damper.velocity_feedback_n_s_per_m = -3.0;
+  EXPECT_NEAR(required_damping_n_s_per_m(damper), 3.0, 1e-12);
+  SampledLoop slippery;
+  slippery.velocity_feedback_n_s_per_m = 3.0;
+  EXPECT_NEAR(required_damping_n_s_per_m(slippery), 3.0, 1e-12);
+  // And the delay-aware bound is sufficient for every combination: b_req never exceeds it.
+  for (const int d : {0, 1, 2, 3}) {
+    for (const double k : {0.0, 100.0, 1e4}) {
+      for (const double c : {-5.0, 0.0, 5.0}) {
+        SampledLoop l;
+        l.delay_ticks = d;
+        l.stiffness_n_per_m = k;
+        l.velocity_feedback_n_s_per_m = c;
+        EXPECT_LE(required_damping_n_s_per_m(l), damping_needed_n_s_per_m(k, 1e-3, d, c) * (1.0 + 1e-12))
+            << "d " << d << ", K " << k << ", c " << c;
+      }
+    }
+  }
+}
+
 TEST(StabilityModel, AClampedWallStoresItsForceIntegral) {
   // U(d) = integral of min(K s, F_max) ds.
   EXPECT_DOUBLE_EQ(wall_energy_j(1000.0, 0.004, 8.0), 0.5 * 1000.0 * 0.004 * 0.004);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <complex>
 #include <functional>
 #include <limits>
 #include <vector>
@@ -511,6 +512,28 @@ Matrix transition_matrix(const SampledLoop& l) {
 
 Result<double> loop_spectral_radius(const SampledLoop& loop) { return spectral_radius(transition_matrix(loop)); }
 
+double required_damping_n_s_per_m(const SampledLoop& l) noexcept {
+  using Complex = std::complex<double>;
+  constexpr int kFrequencies = 4096;
+  constexpr double kPi = 3.14159265358979323846;
+  double required = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= kFrequencies; ++i) {
+    // i = 0 stands for the limit theta -> 0 (where the spring's and the slippery gain's b_req
+    // lie): 1e-7 rad meets it to 1e-14 relative, and the expression is evaluated without
+    // cancellation.
+    const double theta = i == 0 ? 1e-7 : kPi * static_cast<double>(i) / kFrequencies;
+    const Complex z_inverse = std::polar(1.0, -theta);
+    const double half_sin = std::sin(theta / 2.0);
+    const double one_minus_cos = 2.0 * half_sin * half_sin;  // 1 - cos theta without cancellation
+    const Complex difference(one_minus_cos, std::sin(theta));  // 1 - z^-1, likewise
+    const Complex estimator =
+        l.velocity_gain * difference / (l.period_s * (1.0 - (1.0 - l.velocity_gain) * z_inverse));
+    const Complex h = std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
+    required = std::max(required, l.period_s / 2.0 * std::real(difference * h) / one_minus_cos);
+  }
+  return required;
+}
+
 Result<StabilityReport> run_stability(const StabilityOptions& options, const Progress& progress) {
   StabilityReport report;
   report.options = options;
@@ -527,10 +550,15 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
         p.y = y;
         if (s.linear) {
           p.has_spectrum = true;
+          p.passivity_margin_n_s_per_m = -std::numeric_limits<double>::infinity();
           for (const SampledLoop& l : s.linear(x, y)) {
             const auto rho = loop_spectral_radius(l);
             if (!rho) return Error{fmt::format("{} at ({}, {}): {}", s.map.name, x, y, rho.error())};
             p.spectral_radius = std::max(p.spectral_radius, rho.value());
+            // The damping b_req is compared with: the loop's, which on the impact maps includes
+            // the hand's (as the bound drawn there does).
+            p.passivity_margin_n_s_per_m =
+                std::max(p.passivity_margin_n_s_per_m, required_damping_n_s_per_m(l) - l.damping_n_s_per_m);
           }
           if (p.spectral_radius > 1.0) {
             p.efold_s = experiment.period_s / std::log(p.spectral_radius);
@@ -555,15 +583,17 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
 }
 
 std::string stability_csv(const StabilityMap& map) {
-  std::string csv = "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s\n";
+  std::string csv =
+      "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s,passivity_margin_n_s_per_m\n";
   for (const auto& p : map.points) {
-    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g}\n", p.x, p.y,
+    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{}\n", p.x, p.y,
                        stability_name(p.outcome.stability), p.inside_bound ? 1 : 0, p.outcome.peak_ratio,
                        p.outcome.growth, p.outcome.max_force_n,
                        p.has_spectrum ? fmt::format("{:.9f}", p.spectral_radius) : std::string(),
-                       p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s);
+                       p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s,
+                       p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string());
   }
-  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,\n", x, y);
+  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,,\n", x, y);
   return csv;
 }
 
@@ -591,6 +621,24 @@ std::string spectral_markdown(const StabilityMap& map) {
   md += "| points | decaying | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
   md += fmt::format("| rho < 1 (linear loop stable) | {} | {} | {} |\n", table[0][0], table[0][1], table[0][2]);
   md += fmt::format("| rho > 1 (linear loop unstable) | {} | {} | {} |\n", table[1][0], table[1][1], table[1][2]);
+  // A point within round-off of b_req (a grid point exactly on the bound, b = mu) is neither.
+  constexpr double kOnTheBoundNsPerM = 1e-9;
+  int passive[2][2] = {};  // [inside the bound][passive by b_req]
+  int on_the_bound = 0;
+  for (const auto& p : map.points) {
+    if (std::abs(p.passivity_margin_n_s_per_m) <= kOnTheBoundNsPerM) {
+      ++on_the_bound;
+      continue;
+    }
+    passive[p.inside_bound ? 1 : 0][p.passivity_margin_n_s_per_m < 0.0 ? 1 : 0]++;
+  }
+  md += fmt::format(
+      "\nPassivity by Colgate and Schenkel's b_req of the discrete law (necessary and sufficient for the linear "
+      "port): inside the bound {} passive, {} not; outside it {} passive, {} not{}.\n",
+      passive[1][1], passive[1][0], passive[0][1], passive[0][0],
+      on_the_bound == 0 ? std::string()
+                        : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
+                                      kOnTheBoundNsPerM));
   md += fmt::format("\nInside the bound: {} points, {} of them with rho > 1{}.\n", inside, inside_unstable,
                     inside_unstable == 0 ? " (the bound is sufficient for stability, as it must be)"
                                          : " (the bound should imply rho < 1: a model or bound error)");

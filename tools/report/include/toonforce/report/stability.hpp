@@ -115,6 +115,18 @@ Matrix transition_matrix(const SampledLoop& loop);
 /// The spectral radius of transition_matrix(loop).
 Result<double> loop_spectral_radius(const SampledLoop& loop);
 
+/// Passivity, not stability: Colgate and Schenkel ("Passivity of a class of sampled-data
+/// systems: application to haptic interfaces", J. Robotic Systems 14(1), 1997) show that the
+/// device of physical damping b with the discrete force law F = -H(z) x behind a zero-order
+/// hold is passive if and only if
+///   b > b_req = max over 0 < theta <= pi of (T / 2) Re{(1 - e^(-j theta)) H(e^(j theta))} / (1 - cos theta).
+/// Here H(z) = z^-d (K - c V(z)), V(z) = a (1 - z^-1) / (T (1 - (1 - a) z^-1)) the velocity
+/// estimator. Evaluated on 4096 frequencies and at 1e-7 rad for the limit theta -> 0 (the
+/// expression is smooth). For K alone it is (1 + 2 d) K T / 2, for a backward-
+/// difference damper B alone |B| (the bound of control/passivity_bound.hpp). The loop's mass,
+/// physical damping and spring do not enter: they are the device and the user.
+double required_damping_n_s_per_m(const SampledLoop& loop) noexcept;
+
 struct SweepPoint {
   double x = 0.0;
   double y = 0.0;
@@ -124,6 +136,9 @@ struct SweepPoint {
   double spectral_radius = 0.0;
   double efold_s = 0.0;       ///< T / ln rho when rho > 1 (the amplitude's e-folding time), else 0
   double run_s = 0.0;         ///< simulated seconds of this point's run
+  /// The largest Colgate-Schenkel b_req minus the damping it is compared with, over the map's
+  /// loops: < 0 passive (the port, under any input), > 0 not. Meaningful when has_spectrum.
+  double passivity_margin_n_s_per_m = 0.0;
 };
 
 struct StabilityMap {
