@@ -639,6 +639,17 @@ std::string spectral_markdown(const StabilityMap& map) {
       on_the_bound == 0 ? std::string()
                         : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
                                       kOnTheBoundNsPerM));
+  // |rho - 1| within the eigenvalue routine's accuracy (about 1e-15; a margin of 1e-9): marginal,
+  // on the stability boundary (the slippery map's b = mu exactly), whichever row it fell in.
+  constexpr double kMarginalRho = 1e-9;
+  const auto marginal = std::count_if(map.points.begin(), map.points.end(), [](const SweepPoint& p) {
+    return std::abs(p.spectral_radius - 1.0) <= kMarginalRho;
+  });
+  if (marginal > 0) {
+    md += fmt::format("\n{} of these points are marginal, |rho - 1| <= {:g}: on the stability boundary, their row is "
+                      "round-off.\n",
+                      marginal, kMarginalRho);
+  }
   md += fmt::format("\nInside the bound: {} points, {} of them with rho > 1{}.\n", inside, inside_unstable,
                     inside_unstable == 0 ? " (the bound is sufficient for stability, as it must be)"
                                          : " (the bound should imply rho < 1: a model or bound error)");
