@@ -18,9 +18,11 @@
 #include <vector>
 
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/passivity_bound.hpp"
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/host_sim/sim_device.hpp"
 #include "toonforce/report/scenario.hpp"
+#include "toonforce/report/stability.hpp"
 
 namespace toonforce {
 namespace {
@@ -228,29 +230,86 @@ bool running_normally(LoopState s) { return s == LoopState::kActive || s == Loop
 
 // ---- 1. stiffness through and beyond 2b/T ------------------------------------------------
 
-TEST(ExtremeCases, StiffWallsBeyondTheBoundStayBoundedAtEveryPeriodEvenWithoutDamping) {
+/// Peak-to-peak of the commanded force and of the handle's true position along z over the
+/// last `window_s` of a run (after `settle_s`), and the largest energy in that window.
+struct Swing {
+  double force_n = 0.0;
+  double position_m = 0.0;
+  double energy_j = 0.0;
+};
+
+Swing swing_after(Rig<>& rig, double settle_s, double window_s) {
+  rig.run_for(settle_s);
+  double f_lo = kInf;
+  double f_hi = -kInf;
+  double x_lo = kInf;
+  double x_hi = -kInf;
+  Swing out;
+  const auto n = static_cast<int>(std::llround(window_s / rig.config().period_s));
+  for (int i = 0; i < n; ++i) {
+    rig.tick();
+    f_lo = std::min(f_lo, rig.force().z);
+    f_hi = std::max(f_hi, rig.force().z);
+    x_lo = std::min(x_lo, rig.plant().position_m().z);
+    x_hi = std::max(x_hi, rig.plant().position_m().z);
+    out.energy_j = std::max(out.energy_j, rig.energy());
+  }
+  out.force_n = f_hi - f_lo;
+  out.position_m = x_hi - x_lo;
+  return out;
+}
+
+TEST(ExtremeCases, StiffWallsSettleInsideTheDelayAwareBoundAndTheSafetyLayerHoldsTheLimitCycleBeyondIt) {
+  // The Falcon-class device (20 um encoder, DAC steps, one tick of I/O delay, 8 N) without
+  // Coulomb friction (which would hide a limit cycle), held by the relaxed hand aiming 2 mm
+  // into a penalty wall. The hand's damping adds to the device's, and the delay enters the
+  // bound (control/passivity_bound.hpp, Diolaiti et al. 2006): K_p = 2 (b + b_hand) / (3 T).
+  const DeviceParams base = falcon_with_damping(0.0);
+  const double q = base.encoder_step_m;
   for (const double period : {1e-3, 0.5e-3, 0.25e-3}) {
     for (const double device_damping : {0.0, 0.1}) {
-      // The relaxed hand's damping adds to the device's: K_c = 2 (b + b_hand) / T.
-      const double critical = 2.0 * (device_damping + kRelaxedHand.damping_n_s_per_m) / period;
-      for (const double factor : {0.5, 1.0, 2.0, 8.0}) {
-        const double k = factor * critical;
-        SCOPED_TRACE(testing::Message() << "T " << period << " s, b " << device_damping << ", K " << k << " N/m");
+      const double k_bound = stiffest_passive_wall_n_per_m(device_damping + kRelaxedHand.damping_n_s_per_m, period,
+                                                           base.io_delay_ticks);
+      for (const double factor : {0.25, 0.5, 2.0, 8.0}) {
+        const double k = factor * k_bound;
+        SCOPED_TRACE(testing::Message() << "T " << period << " s, b " << device_damping << ", K " << k << " N/m ("
+                                        << factor << " K_p)");
         Rig<> rig(floor_toml(k), falcon_with_damping(device_damping), hand({0, 0, -0.002}, kRelaxedHand), period);
         rig.sim().set_state({0, 0, 0.002}, {0, 0, 0});
-        rig.run_for(3.0);
+        const Swing last = swing_after(rig, 3.0, 1.0);
+        // The loop's linear model in contact (report::SampledLoop: device and hand, the delay;
+        // no quantisation or clamp) agrees with the bound on which side each K is.
+        report::SampledLoop linear;
+        linear.mass_kg = base.mass_kg + kRelaxedHand.mass_kg;
+        linear.damping_n_s_per_m = device_damping + kRelaxedHand.damping_n_s_per_m;
+        linear.spring_n_per_m = kRelaxedHand.stiffness_n_per_m;
+        linear.period_s = period;
+        linear.delay_ticks = base.io_delay_ticks;
+        linear.stiffness_n_per_m = k;
+        const auto rho = report::loop_spectral_radius(linear);
+        ASSERT_TRUE(rho) << rho.error();
+        EXPECT_EQ(rho.value() < 1.0, factor < 1.0) << "rho " << rho.value();
         EXPECT_EQ(rig.non_finite(), 0);
         EXPECT_LE(rig.max_force(), 8.0 + 1e-9);
-        // The clamp, the velocity limit and the hand bound the energy: the handle cannot
-        // outrun the limit by more than one tick of full force, nor be pushed past where the
-        // hand's spring holds 8 N.
-        const double m = host_sim::falcon_params().mass_kg + kRelaxedHand.mass_kg;
-        const double top_speed = rig.config().safety.max_velocity_m_per_s + 2.0 * 8.0 / m * period;
-        EXPECT_LE(rig.max_speed(), top_speed);
-        EXPECT_LE(rig.energy(), 0.5 * m * top_speed * top_speed + 0.5 * 8.0 * 8.0 / kRelaxedHand.stiffness_n_per_m);
-        // Nothing latched: the loop is still rendering (a cut for over-speed ramps back in).
         EXPECT_FALSE(rig.loop().latched());
         EXPECT_TRUE(running_normally(rig.loop().state())) << to_string(rig.loop().state());
+        if (factor < 1.0) {
+          // Half the bound or less: the loop settles, and what is left over the last second is
+          // the quantisation's dither, one encoder count either way (2 q of position, 2 K q of
+          // force, plus two DAC steps), not a limit cycle. (Closer to the bound, at 0.9 K_p,
+          // the lightly damped loop is kept ringing by the quantisation error at 5-9 counts:
+          // stable, but not settled, so it is not asserted here.)
+          EXPECT_LE(last.position_m, 2.0 * q + 1e-9);
+          EXPECT_LE(last.force_n, 2.0 * k * q + 2.0 * base.force_step_n + 1e-9);
+        } else {
+          // Beyond it the linear loop is unstable (rho > 1 above) and what grows is held by the
+          // clamp at 8 N (not by the force-rate limit: without it the runs at T = 1 and 0.5 ms
+          // are the same, and at 0.25 ms the cycle is smaller). Stated requirement: a buzz the hand feels, not a
+          // throw: under 1 cm peak to peak and 10 mJ (handle and hand, 0.25 kg, at 0.28 m/s).
+          // Without the clamp the wall at 8 K_p and T = 0.25 ms swings 75 mm with 0.4 J.
+          EXPECT_LE(last.position_m, 0.01);
+          EXPECT_LE(last.energy_j, 0.010);
+        }
       }
     }
   }
@@ -641,24 +700,49 @@ TEST(ExtremeCases, FixedPointRangeEndsSaturateWithAFaultAndStayBounded) {
 }
 
 TEST(ExtremeCases, TheObserverAccumulatesAnHourOfWorkExactlyInQ16) {
-  // Q32.32 (control/wide.hpp): the work of each tick is exact, and so is its sum over an hour
-  // at 1 kHz; double stays within its rounding.
+  // Q32.32 (math/wide.hpp): the work F.dx of each tick is exact, and so is its sum over an
+  // hour at 1 kHz. The reference is independent of the observer: the same samples' raw Q16.16
+  // integers multiplied and summed in int64 (2^-32 J units; the sum stays below 2^53, so its
+  // conversion to double is exact too). The samples vary every tick (a fixed increment would
+  // let N x (one increment) agree with a wrong accumulator), forces up to 8 N and
+  // displacements up to 1 mm per tick, of both signs.
   PassivityObserver<Q16_16> fixed;
   PassivityObserver<double> floating;
-  const Vec3<Q16_16> f = vec_cast<Q16_16>({1.0, -0.5, 2.0});
-  const Vec3<Q16_16> dx = vec_cast<Q16_16>({-1e-3, 2e-4, -3e-4});
-  const Vec3<double> fd = to_double(f);
-  const Vec3<double> dxd = to_double(dx);
+  std::int64_t exact_raw = 0;    // 2^-32 J
+  double magnitude_j = 0.0;      // sum of |F.dx|, for double's rounding bound
+  std::uint64_t state = 0x9E3779B97F4A7C15u;
+  const auto next = [&state](std::int32_t half_range) {  // uniform in [-half_range, half_range]
+    state = state * 6364136223846793005u + 1442695040888963407u;  // Knuth's MMIX LCG
+    const auto span = static_cast<std::uint64_t>(2 * half_range + 1);
+    return static_cast<std::int32_t>(static_cast<std::int64_t>((state >> 33) % span) - half_range);
+  };
+  constexpr std::int32_t kForceRaw = 8 * 65536;  // 8 N
+  constexpr std::int32_t kStepRaw = 66;          // 1 mm = 65.5 counts of 2^-16 m
   constexpr std::int64_t kTicks = 3'600'000;
   for (std::int64_t i = 0; i < kTicks; ++i) {
+    Vec3<Q16_16> f;
+    Vec3<Q16_16> dx;
+    f.x = Q16_16::from_raw(next(kForceRaw));
+    f.y = Q16_16::from_raw(next(kForceRaw));
+    f.z = Q16_16::from_raw(next(kForceRaw));
+    dx.x = Q16_16::from_raw(next(kStepRaw));
+    dx.y = Q16_16::from_raw(next(kStepRaw));
+    dx.z = Q16_16::from_raw(next(kStepRaw));
     fixed.observe(f, dx);
-    floating.observe(fd, dxd);
+    floating.observe(to_double(f), to_double(dx));
+    const std::int64_t work = std::int64_t{f.x.raw()} * dx.x.raw() + std::int64_t{f.y.raw()} * dx.y.raw() +
+                              std::int64_t{f.z.raw()} * dx.z.raw();
+    exact_raw -= work;  // the observer counts the energy absorbed: -F.dx
+    magnitude_j += std::abs(static_cast<double>(work)) / 4294967296.0;
   }
-  PassivityObserver<Q16_16> once;
-  once.observe(f, dx);
-  const double exact = once.energy().to_double() * static_cast<double>(kTicks);
+  ASSERT_LT(std::abs(exact_raw), std::int64_t{1} << 53);
+  const double exact = static_cast<double>(exact_raw) / 4294967296.0;
+  EXPECT_NE(exact, 0.0);
   EXPECT_EQ(fixed.energy().to_double(), exact);
-  EXPECT_NEAR(floating.energy().to_double(), exact, std::abs(exact) * 1e-9);
+  // Double: each addition rounds by at most eps/2 of the running sum (<= the sum of
+  // magnitudes), so the error is at most N eps/2 times that sum.
+  EXPECT_NEAR(floating.energy().to_double(), exact,
+              static_cast<double>(kTicks) * std::numeric_limits<double>::epsilon() * magnitude_j);
 }
 
 /// A device that reports the latency report's scripted cartoon-wall path (no physics), for

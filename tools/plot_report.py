@@ -15,7 +15,7 @@ the servo rates of one scalar type and sine method (labelled with the rate in kH
           share), y = ns per tick.
   A zero error is drawn at the bottom edge (1e-9 N) and said so in the legend.
 drift: one panel per scene, max error per simulated hour against hours, one line per scalar.
-stability: the sweep's points coloured by class (passive, bounded, unstable) and the bound
+stability: the sweep's points coloured by class (decaying, bounded, unstable), the points whose eigenvalue predicts growth (rho > 1), and the bound
   drawn over them.
 
 Needs matplotlib (Debian: python3-matplotlib; tools/setup-deps installs it). Deterministic
@@ -38,7 +38,7 @@ except ImportError:
 SCENES = ["wall", "realistic_friction", "slippery", "cartoon_wall", "cliff"]
 SCALAR_COLOURS = {"double": "tab:blue", "float": "tab:green", "q16.16": "tab:red"}
 SINE_MARKERS = {"-": "o", "library": "o", "polynomial": "s", "table": "^"}
-CLASS_COLOURS = {"passive": "tab:green", "bounded": "tab:orange", "unstable": "tab:red"}
+CLASS_COLOURS = {"decaying": "tab:green", "bounded": "tab:orange", "unstable": "tab:red"}
 FLOOR = 1e-9
 
 
@@ -133,10 +133,15 @@ def stability(rows, out, title, xlabel, ylabel, log_x, log_y):
         points = [r for r in rows if r["kind"] == "point" and r["class"] == cls]
         ax.scatter([float(r["x"]) for r in points], [float(r["y"]) for r in points], s=22, color=colour,
                    label=f"{cls} ({len(points)})", marker="s", edgecolors="none")
+    # The eigenvalue classification, where the map has a linear model: rho > 1 marked over the run's class.
+    growing = [r for r in rows if r["kind"] == "point" and r.get("spectral_radius") and float(r["spectral_radius"]) > 1.0]
+    if growing:
+        ax.scatter([float(r["x"]) for r in growing], [float(r["y"]) for r in growing], s=10, color="black",
+                   marker="x", linewidths=0.7, label=f"rho > 1 ({len(growing)})")
     bound = [r for r in rows if r["kind"] == "bound"]
     if bound:
         ax.plot([float(r["x"]) for r in bound], [float(r["y"]) for r in bound], color="black", linewidth=1.5,
-                label="Colgate-Brown bound")
+                label="passivity bound (with the delay)")
     if log_x:
         ax.set_xscale("log")
     if log_y:

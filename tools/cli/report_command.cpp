@@ -82,13 +82,38 @@ void add_fixed_point(CLI::App& report) {
 
 void add_stability(CLI::App& report) {
   auto options = std::make_shared<report::StabilityOptions>();
+  auto out = std::make_shared<std::string>();
+  auto no_plot = std::make_shared<bool>(false);
   CLI::App* cmd = report.add_subcommand(
-      "stability", "Sweeps of stiffness, damping, slippery gain, period and impact speed, classified by energy");
+      "stability",
+      "Sweeps of stiffness, damping, slippery gain, period and impact speed, classified by the loop's eigenvalues "
+      "and by energy");
   cmd->add_option("--resolution", options->resolution, "Points per axis (default 24)")->check(number_in(2, 200));
   cmd->add_option("--duration", options->duration_s, "Simulated seconds per point (default 4)")
       ->check(positive_number());
+  cmd->add_option("--longest-run", options->longest_run_s,
+                  "Longest run [s] of a linear-map point whose eigenvalue predicts growth (default 300)")
+      ->check(positive_number());
   cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
-  cmd->callback([options] {
+  cmd->add_option("--out", *out, "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not PERFORMANCE.md)");
+  cmd->add_flag("--no-plot", *no_plot, "With --out: the CSVs and STABILITY.md without plots");
+  cmd->callback([options, out, no_plot] {
+    if (!out->empty()) {
+      report::DocumentsOptions documents;
+      documents.out_dir = *out;
+      documents.stability = *options;
+      documents.plot = !*no_plot;
+      documents.command_line = fmt::format(
+          "toonforce report stability --out {}{}{}{}", *out,
+          options->resolution == 24 ? "" : fmt::format(" --resolution {}", options->resolution),
+          options->duration_s == 4.0 ? "" : fmt::format(" --duration {:g}", options->duration_s),
+          options->longest_run_s == 300.0 ? "" : fmt::format(" --longest-run {:g}", options->longest_run_s));
+      const auto written = report::write_stability_documents(documents, progress);
+      if (report_error(written)) return;
+      for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());
+      set_exit_code(0);
+      return;
+    }
     const auto result = report::run_stability(*options, progress);
     if (report_error(result)) return;
     std::fputs(report::stability_markdown(result.value()).c_str(), stdout);

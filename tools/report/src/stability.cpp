@@ -3,22 +3,27 @@
 #include <time.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <complex>
 #include <functional>
 #include <limits>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/passivity_bound.hpp"
 #include "toonforce/control/servo_loop.hpp"
+#include "toonforce/control/velocity_estimator.hpp"
 #include "toonforce/host_sim/sim_device.hpp"
 
 namespace toonforce::report {
 
 std::string_view stability_name(Stability s) noexcept {
   switch (s) {
-    case Stability::kPassive: return "passive";
+    case Stability::kDecaying: return "decaying";
     case Stability::kBounded: return "bounded";
     case Stability::kUnstable: return "unstable";
   }
@@ -31,6 +36,10 @@ namespace {
 constexpr double kRunawayRatio = 10.0;
 constexpr double kPassiveTolerance = 1e-3;
 constexpr double kGrowthRatio = 1.1;
+/// Growth counts only above this share of V_ref: below it the energy is the dither of
+/// quantisation and friction (a settled cartoon-wall run's last quarter can hold twice its
+/// first quarter's 1e-7 V_ref).
+constexpr double kGrowthFloor = 1e-3;
 
 double cpu_seconds() {
   timespec ts{};
@@ -38,36 +47,46 @@ double cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
-/// The run-away test only where the scene's laws are passive: an active effect (the impact
-/// transient) adds energy by design, so there only growth counts.
-Outcome classify_with(const std::vector<double>& energy, double runaway_ratio) {
+/// V_ref is the largest V up to `settle` samples (V0 with none): where the scene adds energy by
+/// design (the cartoon wall's transient) the run-away and growth tests start after it, measured
+/// against what it added, so they can still see a loop that grows on its own.
+Outcome classify_with(const std::vector<double>& energy, double runaway_ratio, std::size_t settle = 0) {
   Outcome o;
   if (energy.empty()) return o;
   const double v0 = energy.front();
   o.initial_energy_j = v0;
-  const std::size_t n = energy.size();
-  const std::size_t quarter = std::max<std::size_t>(n / 4, 1);
-  double peak = 0.0;
-  double first = 0.0;
-  double last = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double e = energy[i];
+  for (const double e : energy) {
     if (!std::isfinite(e)) {
       o.finite = false;
       o.stability = Stability::kUnstable;
       o.peak_ratio = std::numeric_limits<double>::infinity();
       return o;
     }
+  }
+  const std::size_t n = energy.size();
+  settle = std::min(settle, n - 1);
+  double reference = v0;
+  for (std::size_t i = 0; i <= settle; ++i) reference = std::max(reference, energy[i]);
+  const std::size_t after = n - settle;
+  const std::size_t quarter = std::max<std::size_t>(after / 4, 1);
+  double peak = 0.0;
+  double peak_after = 0.0;
+  double first = 0.0;
+  double last = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double e = energy[i];
     peak = std::max(peak, e);
-    if (i < quarter) first = std::max(first, e);
+    if (i < settle) continue;
+    peak_after = std::max(peak_after, e);
+    if (i < settle + quarter) first = std::max(first, e);
     if (i >= n - quarter) last = std::max(last, e);
   }
-  o.peak_ratio = v0 > 0.0 ? peak / v0 : 0.0;
+  o.peak_ratio = reference > 0.0 ? peak_after / reference : 0.0;
   o.growth = first > 0.0 ? last / first : 0.0;
-  if (o.peak_ratio > runaway_ratio || o.growth > kGrowthRatio) {
+  if (o.peak_ratio > runaway_ratio || (o.growth > kGrowthRatio && last > kGrowthFloor * reference)) {
     o.stability = Stability::kUnstable;
   } else if (peak <= v0 * (1.0 + kPassiveTolerance)) {
-    o.stability = Stability::kPassive;
+    o.stability = Stability::kDecaying;
   } else {
     o.stability = Stability::kBounded;
   }
@@ -116,7 +135,7 @@ Result<Outcome> run_with(const Experiment& e, double runaway_ratio) {
     const Vec3<double> stretch = x - e.hand_aim_m;
     const double depth = std::max(0.0, -x.z);
     return 0.5 * mass * dot(v, v) + 0.5 * e.hand.stiffness_n_per_m * dot(stretch, stretch) +
-           0.5 * e.wall_stiffness_n_per_m * depth * depth - dot(e.press_n, x);
+           wall_energy_j(e.wall_stiffness_n_per_m, depth, e.wall_max_force_n) - dot(e.press_n, x);
   };
   const double rest = energy(e.equilibrium_m, Vec3<double>{});
 
@@ -132,7 +151,8 @@ Result<Outcome> run_with(const Experiment& e, double runaway_ratio) {
     v.push_back(now);
     if (!std::isfinite(now) || now > 1e6) break;  // gone: no need to run on
   }
-  Outcome o = classify_with(v, runaway_ratio);
+  const auto settle = static_cast<std::size_t>(std::llround(e.settle_s / e.period_s));
+  Outcome o = classify_with(v, runaway_ratio, settle);
   o.max_force_n = max_force;
   return o;
 }
@@ -196,12 +216,38 @@ struct Sweep {
   std::function<Experiment(double, double)> make;
   std::function<bool(double, double)> inside_bound;
   double runaway_ratio = kRunawayRatio;
+  /// The loop's linear model(s) at a point (the slippery map: normal and tangential axes; rho
+  /// is the largest); empty: none.
+  std::function<std::vector<SampledLoop>(double, double)> linear;
+  /// Lengthen a point's run when its rho > 1 (the linear maps; the impact maps' clamp and
+  /// friction hold what grows, and their model is only the in-contact linearisation).
+  bool lengthen = false;
 };
+
+/// The estimator's gain a at the period, from the estimator itself (what the loop computes).
+double velocity_gain(double cutoff_hz, double period_s) {
+  return VelocityEstimator<double>(cutoff_hz).gain(1.0 / period_s);
+}
+
+/// The normal axis of `pressed_wall`: the ideal device on the wall, no hand spring.
+SampledLoop pressed_wall_loop(double k, double virtual_damping, double device_damping, double period_s) {
+  SampledLoop l;
+  const host_sim::DeviceParams d = ideal_device(device_damping);
+  l.mass_kg = d.mass_kg;
+  l.damping_n_s_per_m = device_damping;
+  l.period_s = period_s;
+  l.delay_ticks = d.io_delay_ticks;
+  l.velocity_gain = velocity_gain(kVelocityCutoffHz, period_s);
+  l.stiffness_n_per_m = k;
+  l.velocity_feedback_n_s_per_m = -virtual_damping;
+  return l;
+}
 
 std::vector<Sweep> sweeps(const StabilityOptions& o) {
   const int n = o.resolution;
   const double b_falcon = host_sim::falcon_params().damping_n_s_per_m;
   const double mass = host_sim::falcon_params().mass_kg;
+  const int d = ideal_device(b_falcon).io_delay_ticks;  // the linear maps' device: no delay
   std::vector<Sweep> all;
   const auto bound_curve = [](const std::vector<double>& xs, const std::function<double(double)>& f) {
     std::vector<std::pair<double, double>> c;
@@ -221,12 +267,16 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
         "equilibrium depth 1 N / K moving in at half the speed that would reach the surface; no safety limits; "
         "velocity by plain backward difference; {} s per point.",
         mass, b_falcon, o.duration_s);
-    s.map.bound = "K T / 2 < b, i.e. T < 2 b / K";
+    s.map.bound = "(1 + 2 d) K T / 2 < b with the device's delay d = 0, i.e. T < 2 b / K";
     s.xs = logspace(10.0, 1e5, n);
     s.ys = logspace(1e-4, 2e-3, n);
     s.make = [o, b_falcon](double k, double t) { return pressed_wall(k, 0.0, b_falcon, t, o.duration_s); };
-    s.inside_bound = [b_falcon](double k, double t) { return k * t / 2.0 < b_falcon; };
-    s.map.bound_curve = bound_curve(s.xs, [b_falcon](double k) { return 2.0 * b_falcon / k; });
+    s.inside_bound = [b_falcon, d](double k, double t) { return damping_needed_n_s_per_m(k, t, d) < b_falcon; };
+    // The stiffest passive wall is inversely proportional to T: at T it is (its value at 1 s) / T.
+    s.map.bound_curve =
+        bound_curve(s.xs, [b_falcon, d](double k) { return stiffest_passive_wall_n_per_m(b_falcon, 1.0, d) / k; });
+    s.linear = [b_falcon](double k, double t) { return std::vector{pressed_wall_loop(k, 0.0, b_falcon, t)}; };
+    s.lengthen = true;
     all.push_back(std::move(s));
   }
   {  // K x b
@@ -238,12 +288,14 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.setup = fmt::format("As above at T = 1 ms, sweeping the device's viscous damping b (a hand holding the "
                               "grip adds its own: 8-15 N s/m in docs/HAND_SCRIPTS.md); {} s per point.",
                               o.duration_s);
-    s.map.bound = "b > K T / 2";
+    s.map.bound = "b > (1 + 2 d) K T / 2 with d = 0";
     s.xs = logspace(10.0, 1e5, n);
     s.ys = logspace(0.01, 30.0, n);
     s.make = [o](double k, double b) { return pressed_wall(k, 0.0, b, 1e-3, o.duration_s); };
-    s.inside_bound = [](double k, double b) { return b > k * 1e-3 / 2.0; };
-    s.map.bound_curve = bound_curve(s.xs, [](double k) { return k * 1e-3 / 2.0; });
+    s.inside_bound = [d](double k, double b) { return b > damping_needed_n_s_per_m(k, 1e-3, d); };
+    s.map.bound_curve = bound_curve(s.xs, [d](double k) { return damping_needed_n_s_per_m(k, 1e-3, d); });
+    s.linear = [](double k, double b) { return std::vector{pressed_wall_loop(k, 0.0, b, 1e-3)}; };
+    s.lengthen = true;
     all.push_back(std::move(s));
   }
   {  // K x B
@@ -256,15 +308,17 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
                               "velocity; the wall's damping acts only inside and never pulls: max(0, K delta - B "
                               "n.v)); {} s per point.",
                               o.duration_s);
-    s.map.bound = "b > K T / 2 + |B|, i.e. B < b - K T / 2 (only for K < 2 b / T)";
+    s.map.bound = "b > (1 + 2 d) K T / 2 + |B| with d = 0, i.e. B < b - K T / 2 (only for K < 2 b / T)";
     s.xs = logspace(10.0, 1e5, n);
     s.ys = logspace(1e-3, 300.0, n);
     s.make = [o, b_falcon](double k, double b) { return pressed_wall(k, b, b_falcon, 1e-3, o.duration_s); };
-    s.inside_bound = [b_falcon](double k, double b) { return b_falcon > k * 1e-3 / 2.0 + b; };
-    for (const double k : logspace(s.xs.front(), 2.0 * b_falcon / 1e-3, 100)) {
-      const double b = b_falcon - k * 1e-3 / 2.0;
+    s.inside_bound = [b_falcon, d](double k, double b) { return b_falcon > damping_needed_n_s_per_m(k, 1e-3, d, b); };
+    for (const double k : logspace(s.xs.front(), stiffest_passive_wall_n_per_m(b_falcon, 1e-3, d), 100)) {
+      const double b = b_falcon - damping_needed_n_s_per_m(k, 1e-3, d);
       if (b > s.ys.front()) s.map.bound_curve.emplace_back(k, b);
     }
+    s.linear = [b_falcon](double k, double b) { return std::vector{pressed_wall_loop(k, b, b_falcon, 1e-3)}; };
+    s.lengthen = true;
     all.push_back(std::move(s));
   }
   {  // mu x b
@@ -281,7 +335,7 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
         "velocity by plain backward difference; {} s per point. The slippery force is a negative damping -mu along "
         "the surface, where the wall's K is 0.",
         kPress, kWall, o.duration_s);
-    s.map.bound = "b > |B| = mu";
+    s.map.bound = "b > (1 + 2 d) K T / 2 + |B| along the surface, where K = 0 and B = -mu: b > mu";
     s.xs = logspace(0.01, 30.0, n);
     s.ys = logspace(0.03, 30.0, n);
     s.make = [o](double mu, double b) {
@@ -298,8 +352,15 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
       e.start_velocity_m_per_s = {0.05, 0.0, 0.0};
       return e;
     };
-    s.inside_bound = [](double mu, double b) { return b > mu; };
-    s.map.bound_curve = bound_curve(s.xs, [](double mu) { return mu; });
+    s.inside_bound = [d](double mu, double b) { return b > damping_needed_n_s_per_m(0.0, 1e-3, d, mu); };
+    s.map.bound_curve = bound_curve(s.xs, [d](double mu) { return damping_needed_n_s_per_m(0.0, 1e-3, d, mu); });
+    s.linear = [](double mu, double b) {
+      // Normal axis: the wall; tangential: no spring, the slippery force +mu v along the motion.
+      SampledLoop tangential = pressed_wall_loop(0.0, 0.0, b, 1e-3);
+      tangential.velocity_feedback_n_s_per_m = mu;
+      return std::vector{pressed_wall_loop(kWall, 0.0, b, 1e-3), tangential};
+    };
+    s.lengthen = true;
     all.push_back(std::move(s));
   }
   for (const bool cartoon : {false, true}) {  // impact speed x K, realistic
@@ -322,13 +383,21 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
         cartoon ? "the cartoon wall (scenes/cartoon_wall.toml's transient: k_r 200, k_osc 400 N/m, 0.15 s, 30 Hz)"
                 : "a penalty wall",
         kImpactDuration,
-        cartoon ? " The transient adds energy by design, so only growth (not the 10 V0 run-away test) makes a point "
-                  "unstable here."
+        cartoon ? " The transient adds energy by design for 0.15 s after each entry, so the run-away and growth tests "
+                  "start at 0.2 s and measure against the largest energy until then (which includes what it added)."
                 : "");
-    s.map.bound = "b + b_hand > K T / 2, i.e. K < 2 (0.1 + 15) / 0.001 = 30 200 N/m (no delay, no friction)";
+    const double b_total = falcon.damping_n_s_per_m + hand.damping_n_s_per_m;
+    const double k_bound = stiffest_passive_wall_n_per_m(b_total, 1e-3, falcon.io_delay_ticks);
+    s.map.bound = fmt::format(
+        "b + b_hand > (1 + 2 d) K T / 2 with the device's delay d = {}, i.e. K < 2 (0.1 + 15) / (3 x 0.001) = {:.0f} N/m "
+        "(Coulomb friction, quantisation and the clamp left out)",
+        falcon.io_delay_ticks, k_bound);
+    s.map.linear_model = fmt::format(
+        "the loop in contact without Coulomb friction, quantisation, the clamp{}: device and hand mass {} kg, "
+        "damping {} N s/m, the hand's spring {} N/m, one tick of I/O delay",
+        cartoon ? " or the transient" : "", falcon.mass_kg + hand.mass_kg, b_total, hand.stiffness_n_per_m);
     s.xs = logspace(0.02, 1.5, n);
     s.ys = logspace(300.0, 1e5, n);
-    s.runaway_ratio = cartoon ? std::numeric_limits<double>::infinity() : kRunawayRatio;
     s.make = [hand, cartoon](double speed, double k) {
       Experiment e;
       e.device = host_sim::falcon_params();
@@ -342,15 +411,27 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
             "  frequency = 30.0\n";
       }
       e.wall_stiffness_n_per_m = k;
+      e.wall_max_force_n = 8.0;  // the scene's clamp (and the device's saturation)
+      if (cartoon) e.settle_s = 0.2;
       e.equilibrium_m = {0.0, 0.0, hand.stiffness_n_per_m * kAim / (hand.stiffness_n_per_m + k)};
       e.start_m = {0.0, 0.0, 0.001};
       e.start_velocity_m_per_s = {0.0, 0.0, -speed};
       e.substeps = 4;
       return e;
     };
-    const double b_total = falcon.damping_n_s_per_m + hand.damping_n_s_per_m;
-    s.inside_bound = [b_total](double, double k) { return k * 1e-3 / 2.0 < b_total; };
-    for (const double x : logspace(s.xs.front(), s.xs.back(), 2)) s.map.bound_curve.emplace_back(x, 2.0 * b_total / 1e-3);
+    s.inside_bound = [k_bound](double, double k) { return k < k_bound; };
+    for (const double x : logspace(s.xs.front(), s.xs.back(), 2)) s.map.bound_curve.emplace_back(x, k_bound);
+    s.linear = [falcon, hand, b_total](double, double k) {
+      SampledLoop l;
+      l.mass_kg = falcon.mass_kg + hand.mass_kg;
+      l.damping_n_s_per_m = b_total;
+      l.spring_n_per_m = hand.stiffness_n_per_m;
+      l.period_s = 1e-3;
+      l.delay_ticks = falcon.io_delay_ticks;
+      l.velocity_gain = velocity_gain(VelocityEstimator<double>::kDefaultCutoffHz, 1e-3);
+      l.stiffness_n_per_m = k;
+      return std::vector{l};
+    };
     all.push_back(std::move(s));
   }
   return all;
@@ -362,6 +443,97 @@ Outcome classify(const std::vector<double>& energy_j) { return classify_with(ene
 
 Result<Outcome> run_experiment(const Experiment& e) { return run_with(e, kRunawayRatio); }
 
+double wall_energy_j(double stiffness_n_per_m, double depth_m, double max_force_n) noexcept {
+  if (depth_m <= 0.0) return 0.0;
+  if (max_force_n > 0.0 && stiffness_n_per_m * depth_m > max_force_n) {
+    const double clamp_depth_m = max_force_n / stiffness_n_per_m;
+    return max_force_n * (depth_m - clamp_depth_m) + 0.5 * stiffness_n_per_m * clamp_depth_m * clamp_depth_m;
+  }
+  return 0.5 * stiffness_n_per_m * depth_m * depth_m;
+}
+
+Matrix transition_matrix(const SampledLoop& l) {
+  const int d = std::max(0, l.delay_ticks);
+  const std::size_t n = static_cast<std::size_t>(d) + 4;
+  // Indices: 0 x_k, 1 v_k, 1 + j x_(k-j) for j = 1 .. d + 1, n - 1 the estimate v_(k-1).
+  const auto pos = [](int j) { return j == 0 ? std::size_t{0} : static_cast<std::size_t>(j) + 1; };
+  const std::size_t est = n - 1;
+  // The exact step of m a = -b v - k x + F over T with F held: exp of [[0, 1, 0], [-k/m, -b/m,
+  // 1/m], [0, 0, 0]] T (the simulation's kExact integrator uses the same exponential).
+  std::array<std::array<double, 4>, 4> a{};
+  a[0][1] = l.period_s;
+  a[1][0] = -l.spring_n_per_m / l.mass_kg * l.period_s;
+  a[1][1] = -l.damping_n_s_per_m / l.mass_kg * l.period_s;
+  a[1][2] = l.period_s / l.mass_kg;
+  const auto e = host_sim::matrix_exponential(a);
+  // The estimate at k and the force at k, as rows over the state.
+  std::vector<double> estimate(n, 0.0);
+  estimate[est] = 1.0 - l.velocity_gain;
+  estimate[pos(d)] += l.velocity_gain / l.period_s;
+  estimate[pos(d + 1)] -= l.velocity_gain / l.period_s;
+  std::vector<double> force(n, 0.0);
+  for (std::size_t j = 0; j < n; ++j) force[j] = l.velocity_feedback_n_s_per_m * estimate[j];
+  force[pos(d)] -= l.stiffness_n_per_m;
+  Matrix m(n, std::vector<double>(n, 0.0));
+  for (std::size_t r = 0; r < 2; ++r) {
+    for (std::size_t j = 0; j < n; ++j) m[r][j] = e[r][2] * force[j];
+    m[r][0] += e[r][0];
+    m[r][1] += e[r][1];
+  }
+  for (int j = 1; j <= d + 1; ++j) m[pos(j)][pos(j - 1)] = 1.0;  // the delay line shifts
+  m[est] = estimate;
+  if (l.stiffness_n_per_m != 0.0 || l.spring_n_per_m != 0.0) return m;
+  // No spring: nothing depends on x_k itself, only on differences of positions. In the
+  // coordinates x_k, v_k, x_(k-j) - x_k, v_(k-1) (P m P^-1), x_k's column is (1, 0, ..., 0):
+  // its eigenvalue 1 is the free position; drop it.
+  Matrix p(n, std::vector<double>(n, 0.0));
+  Matrix p_inverse(n, std::vector<double>(n, 0.0));
+  for (std::size_t i = 0; i < n; ++i) p[i][i] = p_inverse[i][i] = 1.0;
+  for (int j = 1; j <= d + 1; ++j) {
+    p[pos(j)][0] = -1.0;
+    p_inverse[pos(j)][0] = 1.0;
+  }
+  const auto multiply = [n](const Matrix& x, const Matrix& y) {
+    Matrix z(n, std::vector<double>(n, 0.0));
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t k = 0; k < n; ++k) {
+        for (std::size_t j = 0; j < n; ++j) z[i][j] += x[i][k] * y[k][j];
+      }
+    }
+    return z;
+  };
+  const Matrix relative = multiply(multiply(p, m), p_inverse);
+  Matrix reduced(n - 1, std::vector<double>(n - 1, 0.0));
+  for (std::size_t i = 1; i < n; ++i) {
+    for (std::size_t j = 1; j < n; ++j) reduced[i - 1][j - 1] = relative[i][j];
+  }
+  return reduced;
+}
+
+Result<double> loop_spectral_radius(const SampledLoop& loop) { return spectral_radius(transition_matrix(loop)); }
+
+double required_damping_n_s_per_m(const SampledLoop& l) noexcept {
+  using Complex = std::complex<double>;
+  constexpr int kFrequencies = 4096;
+  constexpr double kPi = 3.14159265358979323846;
+  double required = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i <= kFrequencies; ++i) {
+    // i = 0 stands for the limit theta -> 0 (where the spring's and the slippery gain's b_req
+    // lie): 1e-7 rad meets it to 1e-14 relative, and the expression is evaluated without
+    // cancellation.
+    const double theta = i == 0 ? 1e-7 : kPi * static_cast<double>(i) / kFrequencies;
+    const Complex z_inverse = std::polar(1.0, -theta);
+    const double half_sin = std::sin(theta / 2.0);
+    const double one_minus_cos = 2.0 * half_sin * half_sin;  // 1 - cos theta without cancellation
+    const Complex difference(one_minus_cos, std::sin(theta));  // 1 - z^-1, likewise
+    const Complex estimator =
+        l.velocity_gain * difference / (l.period_s * (1.0 - (1.0 - l.velocity_gain) * z_inverse));
+    const Complex h = std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
+    required = std::max(required, l.period_s / 2.0 * std::real(difference * h) / one_minus_cos);
+  }
+  return required;
+}
+
 Result<StabilityReport> run_stability(const StabilityOptions& options, const Progress& progress) {
   StabilityReport report;
   report.options = options;
@@ -372,11 +544,33 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
     if (progress) progress(fmt::format("sweeping {} ({} points)", s.map.name, s.xs.size() * s.ys.size()));
     for (const double y : s.ys) {
       for (const double x : s.xs) {
-        auto outcome = run_with(s.make(x, y), s.runaway_ratio);
-        if (!outcome) return Error{fmt::format("{} at ({}, {}): {}", s.map.name, x, y, outcome.error())};
+        Experiment experiment = s.make(x, y);
         SweepPoint p;
         p.x = x;
         p.y = y;
+        if (s.linear) {
+          p.has_spectrum = true;
+          p.passivity_margin_n_s_per_m = -std::numeric_limits<double>::infinity();
+          for (const SampledLoop& l : s.linear(x, y)) {
+            const auto rho = loop_spectral_radius(l);
+            if (!rho) return Error{fmt::format("{} at ({}, {}): {}", s.map.name, x, y, rho.error())};
+            p.spectral_radius = std::max(p.spectral_radius, rho.value());
+            // The damping b_req is compared with: the loop's, which on the impact maps includes
+            // the hand's (as the bound drawn there does).
+            p.passivity_margin_n_s_per_m =
+                std::max(p.passivity_margin_n_s_per_m, required_damping_n_s_per_m(l) - l.damping_n_s_per_m);
+          }
+          if (p.spectral_radius > 1.0) {
+            p.efold_s = experiment.period_s / std::log(p.spectral_radius);
+            if (s.lengthen) {
+              experiment.duration_s =
+                  std::max(experiment.duration_s, std::min(options.longest_run_s, 3.0 * p.efold_s));
+            }
+          }
+        }
+        p.run_s = experiment.duration_s;
+        auto outcome = run_with(experiment, s.runaway_ratio);
+        if (!outcome) return Error{fmt::format("{} at ({}, {}): {}", s.map.name, x, y, outcome.error())};
         p.outcome = outcome.value();
         p.inside_bound = s.inside_bound(x, y);
         s.map.points.push_back(p);
@@ -389,31 +583,116 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
 }
 
 std::string stability_csv(const StabilityMap& map) {
-  std::string csv = "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n\n";
+  std::string csv =
+      "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s,passivity_margin_n_s_per_m\n";
   for (const auto& p : map.points) {
-    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g}\n", p.x, p.y, stability_name(p.outcome.stability),
-                       p.inside_bound ? 1 : 0, p.outcome.peak_ratio, p.outcome.growth, p.outcome.max_force_n);
+    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{}\n", p.x, p.y,
+                       stability_name(p.outcome.stability), p.inside_bound ? 1 : 0, p.outcome.peak_ratio,
+                       p.outcome.growth, p.outcome.max_force_n,
+                       p.has_spectrum ? fmt::format("{:.9f}", p.spectral_radius) : std::string(),
+                       p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s,
+                       p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string());
   }
-  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,\n", x, y);
+  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,,\n", x, y);
   return csv;
 }
+
+namespace {
+
+/// A run shows growth that e-folds in tau if it lasts a few tau: 3 (the energy grows e^6).
+constexpr double kEfoldsToSee = 3.0;
+
+std::string spectral_markdown(const StabilityMap& map) {
+  std::string md;
+  int table[2][3] = {};
+  int inside_unstable = 0;
+  int inside = 0;
+  std::vector<const SweepPoint*> unseen;  // rho > 1, the run showed no growth
+  for (const auto& p : map.points) {
+    const bool grows = p.spectral_radius > 1.0;
+    table[grows ? 1 : 0][static_cast<int>(p.outcome.stability)]++;
+    if (p.inside_bound) {
+      ++inside;
+      if (grows) ++inside_unstable;
+    }
+    if (grows && p.outcome.stability != Stability::kUnstable) unseen.push_back(&p);
+  }
+  md += "By the spectral radius rho of the loop's transition matrix (the reference) and by the run (columns):\n\n";
+  md += "| points | decaying | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
+  md += fmt::format("| rho < 1 (linear loop stable) | {} | {} | {} |\n", table[0][0], table[0][1], table[0][2]);
+  md += fmt::format("| rho > 1 (linear loop unstable) | {} | {} | {} |\n", table[1][0], table[1][1], table[1][2]);
+  // A point within round-off of b_req (a grid point exactly on the bound, b = mu) is neither.
+  constexpr double kOnTheBoundNsPerM = 1e-9;
+  int passive[2][2] = {};  // [inside the bound][passive by b_req]
+  int on_the_bound = 0;
+  for (const auto& p : map.points) {
+    if (std::abs(p.passivity_margin_n_s_per_m) <= kOnTheBoundNsPerM) {
+      ++on_the_bound;
+      continue;
+    }
+    passive[p.inside_bound ? 1 : 0][p.passivity_margin_n_s_per_m < 0.0 ? 1 : 0]++;
+  }
+  md += fmt::format(
+      "\nPassivity by Colgate and Schenkel's b_req of the discrete law (necessary and sufficient for the linear "
+      "port): inside the bound {} passive, {} not; outside it {} passive, {} not{}.\n",
+      passive[1][1], passive[1][0], passive[0][1], passive[0][0],
+      on_the_bound == 0 ? std::string()
+                        : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
+                                      kOnTheBoundNsPerM));
+  // |rho - 1| within the eigenvalue routine's accuracy (about 1e-15; a margin of 1e-9): marginal,
+  // on the stability boundary (the slippery map's b = mu exactly), whichever row it fell in.
+  constexpr double kMarginalRho = 1e-9;
+  const auto marginal = std::count_if(map.points.begin(), map.points.end(), [](const SweepPoint& p) {
+    return std::abs(p.spectral_radius - 1.0) <= kMarginalRho;
+  });
+  if (marginal > 0) {
+    md += fmt::format("\n{} of these points are marginal, |rho - 1| <= {:g}: on the stability boundary, their row is "
+                      "round-off.\n",
+                      marginal, kMarginalRho);
+  }
+  md += fmt::format("\nInside the bound: {} points, {} of them with rho > 1{}.\n", inside, inside_unstable,
+                    inside_unstable == 0 ? " (the bound is sufficient for stability, as it must be)"
+                                         : " (the bound should imply rho < 1: a model or bound error)");
+  if (!unseen.empty()) {
+    std::sort(unseen.begin(), unseen.end(),
+              [](const SweepPoint* a, const SweepPoint* b) { return a->efold_s > b->efold_s; });
+    int too_short = 0;
+    for (const auto* p : unseen) {
+      if (p->run_s < kEfoldsToSee * p->efold_s) ++too_short;
+    }
+    md += fmt::format(
+        "\n{} points have rho > 1 but their run did not class them unstable: {} because the run was shorter than "
+        "{:g} e-folding times (the eigenvalue predicts growth the run was too short to see), {} whose run was long "
+        "enough, so the growth stopped outside the linear model's range (the one-sided wall: the handle leaves "
+        "contact and bounces; on the impact maps also the 8 N clamp, Coulomb friction and quantisation). The "
+        "slowest-growing of them:\n\n",
+        unseen.size(), too_short, kEfoldsToSee, static_cast<int>(unseen.size()) - too_short);
+    md += fmt::format("| {} | {} | rho | e-folding [s] | run [s] | run's class |\n| ---: | ---: | ---: | ---: | ---: | --- |\n",
+                      map.x_label, map.y_label);
+    for (std::size_t i = 0; i < std::min<std::size_t>(unseen.size(), 8); ++i) {
+      const auto* p = unseen[i];
+      md += fmt::format("| {:.4g} | {:.4g} | {:.7f} | {:.3g} | {:.3g} | {} |\n", p->x, p->y, p->spectral_radius,
+                        p->efold_s, p->run_s, stability_name(p->outcome.stability));
+    }
+  }
+  return md;
+}
+
+}  // namespace
 
 std::string stability_markdown(const StabilityReport& r, const std::string& plot_dir) {
   std::string md;
   for (const auto& map : r.maps) {
     md += fmt::format("\n### {}\n\n{}\n\nBound drawn: {}.\n\n", map.title, map.setup, map.bound);
+    if (!map.linear_model.empty()) md += fmt::format("Linear model: {}.\n\n", map.linear_model);
     if (!plot_dir.empty()) md += fmt::format("![{}]({}/{}.png)\n\n", map.title, plot_dir, map.name);
     int counts[2][3] = {};
     for (const auto& p : map.points) counts[p.inside_bound ? 0 : 1][static_cast<int>(p.outcome.stability)]++;
-    md += "| points | passive | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
+    md += "By the bound (rows) and by the run (columns):\n\n";
+    md += "| points | decaying | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
     md += fmt::format("| inside the bound | {} | {} | {} |\n", counts[0][0], counts[0][1], counts[0][2]);
-    md += fmt::format("| outside the bound | {} | {} | {} |\n", counts[1][0], counts[1][1], counts[1][2]);
-    const int total = counts[0][0] + counts[0][1] + counts[0][2] + counts[1][0] + counts[1][1] + counts[1][2];
-    if (total > 0) {
-      md += fmt::format("\nThe bound predicts the class of {:.0f} % of the points (passive inside it, bounded or unstable "
-                        "outside).\n",
-                        100.0 * (counts[0][0] + counts[1][1] + counts[1][2]) / total);
-    }
+    md += fmt::format("| outside the bound | {} | {} | {} |\n\n", counts[1][0], counts[1][1], counts[1][2]);
+    if (!map.points.empty() && map.points.front().has_spectrum) md += spectral_markdown(map);
   }
   md += fmt::format("\n{} points, {:.1f} s of CPU.\n", [&r] {
     std::size_t n = 0;

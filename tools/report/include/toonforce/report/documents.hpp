@@ -30,6 +30,10 @@ struct DocumentsOptions {
 /// Returns the lines it wrote (files).
 Result<std::vector<std::string>> write_documents(const DocumentsOptions& options, const Progress& progress = {});
 
+/// The stability report alone (`toonforce report stability --out DIR`): OUT/STABILITY.md and
+/// its CSVs and plots in OUT/report/, leaving PERFORMANCE.md alone. Returns the files written.
+Result<std::vector<std::string>> write_stability_documents(const DocumentsOptions& options,
+                                                           const Progress& progress = {});
 /// `existing` with the text between the markers replaced by `generated` (markers kept); if it
 /// has no markers, `existing` followed by the markers around `generated`.
 std::string merge_generated(const std::string& existing, const std::string& generated);

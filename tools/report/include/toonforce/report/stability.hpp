@@ -2,18 +2,36 @@
 /// `toonforce report stability`: sweeps of virtual stiffness K, virtual damping B, slippery
 /// gain mu, servo period T, device damping b and impact speed on the host simulation (host_sim:
 /// the device's mass and physical damping, a hand or a press force, the servo loop with the
-/// spec's stages closing the loop every T), each point classified by its energy, and the Colgate-Brown passivity bound
-/// b > K T / 2 + |B| (shared/reference/realtime-safety-stability.md §4) drawn over each map.
+/// spec's stages closing the loop every T), each point classified twice:
 ///
-/// Energy: V = 1/2 m |v|^2 + 1/2 k_h |x - r|^2 + 1/2 K max(0, delta)^2 - F_press . x, minus its
-/// value at the static equilibrium (so V >= 0, and V = 0 at rest there); sampled at every tick
-/// from the simulation's true state. m is the moving mass (device, plus the hand's when it
-/// grasps), k_h and r the hand's stiffness and aim, K the wall's. V0 is its initial value.
+/// 1. by the spectral radius rho of the sampled loop's transition matrix (`SampledLoop`): the
+///    loop linearised in contact, built exactly as simulated (mass and damping integrated
+///    exactly over T under the zero-order-held force, the device's I/O delay, the velocity
+///    estimator, the wall law). rho < 1: every disturbance decays; rho > 1: one grows as
+///    rho^k, e-folding in T / ln rho. This is the reference for the linear maps.
+/// 2. by the energy of one autonomous run on the simulation (the nonlinear truth: one-sided
+///    contact, clamps, friction, quantisation where the map has them).
+///
+/// The passivity bound of control/passivity_bound.hpp (Colgate-Brown with the delay term of
+/// Diolaiti et al. 2006: b > (1 + 2 d) K T / 2 + |B|) is drawn over each map with the delay d of
+/// the map's device. It is a sufficient condition for passivity (stability with any passive
+/// user), so inside it rho < 1; outside it a given loop may still be stable.
+///
+/// Energy: V = 1/2 m |v|^2 + 1/2 k_h |x - r|^2 + U_wall(depth) - F_press . x, minus its value
+/// at the static equilibrium (so V >= 0, and V = 0 at rest there); sampled at every tick from
+/// the simulation's true state. m is the moving mass (device, plus the hand's when it grasps),
+/// k_h and r the hand's stiffness and aim. U_wall is the potential of the wall's force: K d^2/2
+/// for a linear wall, and for one clamped at F_max (the safety layer's clamp) K d^2/2 up to the
+/// clamp depth d_c = F_max / K, then F_max (d - d_c) + K d_c^2 / 2. V0 is its initial value.
 /// Classification of a run:
-///   - unstable: a non-finite state, or V above 10 V0 at any time, or the peak of V over the
-///     last quarter of the run above 1.1 times its peak over the first quarter (still growing);
-///   - passive: V never above V0 (1 + 1e-3): the loop, with the device's own damping, never
-///     gave back more energy than it started with;
+///   - unstable: a non-finite state, or V above 10 V_ref at any time after the settling time
+///     (V_ref: the largest V up to the settling time, which is 0 except where the scene adds
+///     energy by design, the cartoon wall's transient; there V_ref includes what it added), or
+///     the peak of V over the last quarter of the run (after settling) above 1.1 times its peak
+///     over the first quarter (still growing; not counted below 1e-3 V_ref, the dither of
+///     quantisation and friction);
+///   - decaying: V never above V0 (1 + 1e-3). This is not passivity (a property of the port,
+///     under every input); an autonomous run cannot test it;
 ///   - bounded: neither: V rose above V0 but did not grow (a decaying or steady oscillation).
 
 #include <cstdint>
@@ -27,10 +45,11 @@
 #include "toonforce/host_sim/integrator.hpp"
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/machine.hpp"
+#include "toonforce/report/spectral.hpp"
 
 namespace toonforce::report {
 
-enum class Stability : std::uint8_t { kPassive, kBounded, kUnstable };
+enum class Stability : std::uint8_t { kDecaying, kBounded, kUnstable };
 std::string_view stability_name(Stability s) noexcept;
 
 /// One closed-loop run on the host simulation. The surface is the plane z = 0, normal +z.
@@ -46,13 +65,15 @@ struct Experiment {
   std::string scene_toml;                 ///< the scene, as a scene file
   double velocity_cutoff_hz = 0.0;        ///< > 0 overrides the scene's
   double wall_stiffness_n_per_m = 0.0;    ///< K of the plane z = 0 (energy)
+  double wall_max_force_n = 0.0;          ///< the clamp on the wall's force (energy); 0: none
+  double settle_s = 0.0;                  ///< energy the scene adds by design ends by then
   Vec3<double> equilibrium_m;             ///< where V is 0
   host_sim::Integrator integrator = host_sim::Integrator::kExact;
   int substeps = 1;
 };
 
 struct Outcome {
-  Stability stability = Stability::kPassive;
+  Stability stability = Stability::kDecaying;
   double initial_energy_j = 0.0;
   double peak_ratio = 0.0;      ///< max V / V0
   double growth = 0.0;          ///< peak over the last quarter / peak over the first quarter
@@ -61,14 +82,63 @@ struct Outcome {
 };
 
 Result<Outcome> run_experiment(const Experiment& e);
-/// The classification of an energy series (V0 = energy.front()).
+/// The classification of an energy series (V0 = energy.front(); no settling time).
 Outcome classify(const std::vector<double>& energy_j);
+
+/// The potential of a wall's force at `depth_m` (0 outside): K d^2 / 2, or for a force clamped
+/// at `max_force_n` > 0, K d^2 / 2 up to d_c = F_max / K and F_max (d - d_c) + K d_c^2 / 2 beyond.
+double wall_energy_j(double stiffness_n_per_m, double depth_m, double max_force_n) noexcept;
+
+/// One axis of a sampled loop in contact, as the simulation runs it: a mass m with viscous
+/// damping b and a spring k (the hand's, 0 without one) to its equilibrium, advanced exactly
+/// over each period T under the force held from the tick (zero-order hold); the force computed
+/// at tick k from the reading y_k = x_(k-d) (the device's I/O delay d) and the velocity estimate
+/// v_k = v_(k-1) + a ((y_k - y_(k-1)) / T - v_(k-1)) (control/velocity_estimator.hpp; a = 1 is
+/// the plain backward difference):  F_k = -K y_k + c v_k  (c = -B for a wall's damping, +mu for
+/// the slippery surface's negative damping). State: x_k, v_k, x_(k-1) .. x_(k-d-1), v_(k-1).
+struct SampledLoop {
+  double mass_kg = 0.15;
+  double damping_n_s_per_m = 0.0;
+  double spring_n_per_m = 0.0;
+  double period_s = 1e-3;
+  int delay_ticks = 0;
+  double velocity_gain = 1.0;
+  double stiffness_n_per_m = 0.0;
+  double velocity_feedback_n_s_per_m = 0.0;
+};
+
+/// The loop's transition matrix s_(k+1) = A s_k (size d + 4). Without any spring (K = 0 and
+/// k = 0) the position itself is a free integrator (eigenvalue exactly 1: the handle can rest
+/// anywhere); the matrix is then given in positions relative to x_k with that state removed
+/// (size d + 3), so its spectral radius speaks of the motion only.
+Matrix transition_matrix(const SampledLoop& loop);
+/// The spectral radius of transition_matrix(loop).
+Result<double> loop_spectral_radius(const SampledLoop& loop);
+
+/// Passivity, not stability: Colgate and Schenkel ("Passivity of a class of sampled-data
+/// systems: application to haptic interfaces", J. Robotic Systems 14(1), 1997) show that the
+/// device of physical damping b with the discrete force law F = -H(z) x behind a zero-order
+/// hold is passive if and only if
+///   b > b_req = max over 0 < theta <= pi of (T / 2) Re{(1 - e^(-j theta)) H(e^(j theta))} / (1 - cos theta).
+/// Here H(z) = z^-d (K - c V(z)), V(z) = a (1 - z^-1) / (T (1 - (1 - a) z^-1)) the velocity
+/// estimator. Evaluated on 4096 frequencies and at 1e-7 rad for the limit theta -> 0 (the
+/// expression is smooth). For K alone it is (1 + 2 d) K T / 2, for a backward-
+/// difference damper B alone |B| (the bound of control/passivity_bound.hpp). The loop's mass,
+/// physical damping and spring do not enter: they are the device and the user.
+double required_damping_n_s_per_m(const SampledLoop& loop) noexcept;
 
 struct SweepPoint {
   double x = 0.0;
   double y = 0.0;
   Outcome outcome;
   bool inside_bound = false;  ///< the bound predicts passivity here
+  bool has_spectrum = false;  ///< the map has a linear model of the loop
+  double spectral_radius = 0.0;
+  double efold_s = 0.0;       ///< T / ln rho when rho > 1 (the amplitude's e-folding time), else 0
+  double run_s = 0.0;         ///< simulated seconds of this point's run
+  /// The largest Colgate-Schenkel b_req minus the damping it is compared with, over the map's
+  /// loops: < 0 passive (the port, under any input), > 0 not. Meaningful when has_spectrum.
+  double passivity_margin_n_s_per_m = 0.0;
 };
 
 struct StabilityMap {
@@ -80,6 +150,7 @@ struct StabilityMap {
   bool log_y = true;
   std::string setup;     ///< what was simulated, for the document
   std::string bound;     ///< the bound drawn, in words
+  std::string linear_model;  ///< what the spectral radius is of, in words (empty: none)
   std::vector<std::pair<double, double>> bound_curve;
   std::vector<SweepPoint> points;
 };
@@ -87,6 +158,9 @@ struct StabilityMap {
 struct StabilityOptions {
   int resolution = 24;       ///< points per axis
   double duration_s = 4.0;   ///< simulated time per point (the impact maps: 1 s)
+  /// A linear-map point whose rho > 1 runs for max(duration_s, min(this, 3 e-folding times)),
+  /// so the growth the eigenvalue predicts shows in the run (or the point says it could not).
+  double longest_run_s = 300.0;
   std::string filter;        ///< only maps whose name contains one of these
 };
 
