@@ -35,6 +35,8 @@ void add_latency(CLI::App& report) {
       "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
   cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
   cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(positive_number());
+  cmd->add_option("--cold-ticks", options->cold_ticks,
+                  "Ticks per scene and loop row timed with the data caches cold (default 1000; 0: none)");
   cmd->add_option("--filter", options->filter, "Only rows whose id contains one of these comma-separated texts");
   cmd->add_option("--cpu", options->cpu, "Pin the timing thread to this CPU");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions (no valgrind run)");
@@ -137,7 +139,7 @@ void add_all(CLI::App& report) {
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
       ->check(number_in(2, 200));
   cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
-  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks, 0.1 simulated hours, 8 points per axis");
+  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks (100 cold), 0.1 simulated hours, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
@@ -146,6 +148,7 @@ void add_all(CLI::App& report) {
     options->plot = !*no_plot;
     if (*quick) {
       options->latency.ticks = 100'000;
+      options->latency.cold_ticks = 100;
       options->precision.timing_ticks = 100'000;
       options->precision.drift_hours = 0.1;
       options->stability.resolution = 8;
