@@ -4,6 +4,7 @@
 Usage:
   plot_report.py work-precision PRECISION.csv OUT.png
   plot_report.py drift DRIFT.csv OUT.png
+  plot_report.py closed-loop CLOSED_LOOP.csv OUT.png
   plot_report.py stability MAP.csv OUT.png --title T --xlabel X --ylabel Y [--linear-x] [--linear-y]
 
 work-precision: one column per paper scene; log-log, one marker per configuration, lines join
@@ -18,6 +19,10 @@ the servo rates of one scalar type and sine method (labelled with the rate in kH
 drift: one panel per scene, the largest |difference| per bucket of simulated time against
   hours, one line per scalar and quantity (observer - port work, observer vs double, force vs
   double), with each line's fitted slope per hour in the legend.
+closed-loop: to pick a scalar type and a rate for a force accuracy: one panel per scene, x = RMS
+  force error of the closed loop against the converged double reference, y = CPU time per
+  simulated second (loop tick x rate), each point labelled scalar and rate; a dotted line marks
+  the reference's own error.
 stability: the sweep's points coloured by class (passive, bounded, unstable) and the bound
   drawn over them.
 
@@ -141,6 +146,39 @@ def drift(rows, out):
     save(fig, out)
 
 
+def closed_loop(rows, out):
+    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 5), squeeze=False)
+    for column, scene in enumerate(SCENES):
+        ax = axes[0][column]
+        scene_rows = [r for r in rows if r["scene"] == scene and not r["refused"]]
+        for scalar in ("double", "float", "q16.16"):
+            points = sorted((r for r in scene_rows if r["scalar"] == scalar), key=lambda r: float(r["rate_hz"]))
+            if not points:
+                continue
+            xs = [max(float(r["force_rms_error_n"]), FLOOR) for r in points]
+            ys = [float(r["cpu_us_per_s"]) for r in points]
+            ax.plot(xs, ys, marker="o", color=SCALAR_COLOURS[scalar], linewidth=0.8, label=scalar)
+            for x, y, r in zip(xs, ys, points):
+                ax.annotate(f"{scalar} {float(r['rate_hz']) / 1000:g}k", (x, y), fontsize=6,
+                            xytext=(3, 2), textcoords="offset points", color=SCALAR_COLOURS[scalar])
+        if scene_rows:
+            reference_error = float(scene_rows[0]["reference_force_rms_error_n"])
+            if reference_error > 0.0:
+                ax.axvline(reference_error, color="k", linestyle=":", linewidth=0.8, label="reference's own error")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", linewidth=0.3)
+        ax.set_title(scene)
+        ax.set_xlabel("RMS rendered-force error vs converged reference [N]", fontsize=8)
+        if column == 0:
+            ax.set_ylabel("CPU per simulated second [us] (x86 loop tick x rate)", fontsize=8)
+        ax.legend(fontsize=6)
+    fig.suptitle("Closed loop (servo loop, simulated device and seeded hand): pick the cheapest point left of "
+                 "the force accuracy you need")
+    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    save(fig, out)
+
+
 def stability(rows, out, title, xlabel, ylabel, log_x, log_y):
     fig, ax = plt.subplots(figsize=(7.5, 6))
     for cls, colour in CLASS_COLOURS.items():
@@ -173,7 +211,7 @@ def stability(rows, out, title, xlabel, ylabel, log_x, log_y):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("kind", choices=["work-precision", "drift", "stability"])
+    parser.add_argument("kind", choices=["work-precision", "drift", "closed-loop", "stability"])
     parser.add_argument("csv")
     parser.add_argument("out")
     parser.add_argument("--title", default="")
@@ -189,6 +227,8 @@ def main():
         work_precision(rows, args.out)
     elif args.kind == "drift":
         drift(rows, args.out)
+    elif args.kind == "closed-loop":
+        closed_loop(rows, args.out)
     else:
         stability(rows, args.out, args.title, args.xlabel, args.ylabel, not args.linear_x, not args.linear_y)
 

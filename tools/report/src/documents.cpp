@@ -164,7 +164,7 @@ std::string precision_section(const PrecisionReport& precision, const std::strin
       "Command (release build; it regenerates this section, its CSVs and plots):\n\n```sh\n"
       "build/release/bin/toonforce report precision --docs docs{}\n```\n\n"
       "Its CSVs: docs/report/precision.csv (every configuration), docs/report/convergence.csv (the reference ladder), "
-      "docs/report/drift.csv (the drift runs).\n\n",
+      "docs/report/drift.csv (the drift runs), docs/report/closed_loop.csv (the closed loop).\n\n",
       precision.options.drift_hours == PrecisionOptions{}.drift_hours
           ? ""
           : fmt::format(" --drift-hours {:g}", precision.options.drift_hours));
@@ -243,9 +243,11 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   const fs::path precision_csv_path = figures / "precision.csv";
   const fs::path drift_csv_path = figures / "drift.csv";
   const fs::path convergence_csv_path = figures / "convergence.csv";
+  const fs::path closed_loop_csv_path = figures / "closed_loop.csv";
   for (const auto& [path, text] : {std::pair{precision_csv_path, precision_csv(precision)},
                                    std::pair{drift_csv_path, drift_csv(precision)},
-                                   std::pair{convergence_csv_path, convergence_csv(precision)}}) {
+                                   std::pair{convergence_csv_path, convergence_csv(precision)},
+                                   std::pair{closed_loop_csv_path, closed_loop_csv(precision)}}) {
     if (auto w = write_file(path, text); !w) return Error{w.error()};
     written.push_back(path.string());
   }
@@ -257,6 +259,12 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
     if (!precision.drift.empty()) {
       if (auto p = plot({"drift", drift_csv_path.string(), (figures / "drift.png").string()}); !p) return Error{p.error()};
       written.push_back((figures / "drift.png").string());
+    }
+    if (!precision.closed_loop.empty()) {
+      if (auto p = plot({"closed-loop", closed_loop_csv_path.string(), (figures / "closed_loop.png").string()}); !p) {
+        return Error{p.error()};
+      }
+      written.push_back((figures / "closed_loop.png").string());
     }
   }
   const fs::path performance = out / "PERFORMANCE.md";

@@ -52,6 +52,10 @@ struct PrecisionOptions {
   double drift_hours = 1.0;                ///< closed-loop simulated hours per scene; 0: no drift run
   double drift_rate_hz = 1000.0;
   std::uint64_t drift_seed = 15;           ///< the hand's motion
+  /// The closed-loop comparison: seconds of the seeded hand (0: none), and its double ladder
+  /// (each twice the last; the last is the reference; each rate above divides it).
+  double closed_loop_s = 3.0;
+  std::vector<double> closed_loop_reference_rates_hz{40000.0, 80000.0, 160000.0};
   std::string filter;                      ///< only scenes whose name contains one of these
 };
 
@@ -97,6 +101,7 @@ struct ConvergenceStep {
   double away_rms_diff_n = 0.0;
   double away_rms_order = 0.0;  ///< observed order against the previous step (NaN for the first)
   double away_max_order = 0.0;
+  double rms_order = 0.0;       ///< every tick
 };
 
 struct SceneConvergence {
@@ -107,6 +112,9 @@ struct SceneConvergence {
   double reference_away_rms_error_n = 0.0;
   double reference_away_max_error_n = 0.0;
   double reference_max_diff_n = 0.0;
+  /// Every tick, RMS, Richardson: for scenes whose force away from events is exact at the ticks
+  /// (position-only laws: the away difference is 0), this is the reference's error that remains.
+  double reference_rms_error_n = 0.0;
   std::vector<std::pair<EventKind, std::size_t>> event_counts;  ///< in the reference's compared pass
   double settle_s = 0.0;  ///< the part of the window after an event (force-rate ramp of the clamp)
 };
@@ -138,6 +146,36 @@ struct DriftSeries {
   double cpu_s = 0.0;               ///< CPU time of the whole scene's run (all scalars)
 };
 
+/// The closed loop (issue 15 item 2): one scalar type and rate against the converged double
+/// closed loop, the same seeded hand, the same simulated device.
+struct ClosedLoopRow {
+  std::string scene;
+  ScalarKind scalar = ScalarKind::kDouble;
+  double rate_hz = 0.0;
+  std::string refused;              ///< why the loop refused this configuration (else empty)
+  double force_rms_error_n = 0.0;   ///< rendered force, held, at every reference tick
+  double force_max_error_n = 0.0;
+  double position_rms_error_m = 0.0;  ///< the handle's true position, at the configuration's ticks
+  double position_max_error_m = 0.0;
+  double loop_mean_ns = 0.0;        ///< the servo loop tick with every stage (timed alone)
+};
+
+/// The closed loop's double ladder, one step: rate against 2 x rate.
+struct ClosedLoopStep {
+  double rate_hz = 0.0;
+  double force_rms_diff_n = 0.0;
+  double position_rms_diff_m = 0.0;
+  double force_order = 0.0;     ///< observed, against the previous step (NaN for the first)
+  double position_order = 0.0;
+};
+
+struct ClosedLoopConvergence {
+  std::string scene;
+  std::vector<ClosedLoopStep> steps;
+  double reference_force_rms_error_n = 0.0;     ///< Richardson, from the last step
+  double reference_position_rms_error_m = 0.0;
+};
+
 struct PrecisionReport {
   MachineInfo machine;
   std::string load_before;
@@ -149,6 +187,8 @@ struct PrecisionReport {
   std::vector<AnalyticRow> analytic;
   AnalyticWall analytic_wall;
   std::vector<DriftSeries> drift;
+  std::vector<ClosedLoopRow> closed_loop;
+  std::vector<ClosedLoopConvergence> closed_loop_convergence;
   double drift_segments_per_h = 0.0;  ///< hand-script segments per simulated hour
 };
 
@@ -159,8 +199,10 @@ std::string precision_markdown(const PrecisionReport& report, const std::string&
 std::string precision_csv(const PrecisionReport& report);
 /// One row per scene, scalar, quantity and bucket.
 std::string drift_csv(const PrecisionReport& report);
-/// The reference ladder per scene, and event lateness per configuration.
+/// The reference ladder per scene.
 std::string convergence_csv(const PrecisionReport& report);
+/// One row per closed-loop configuration (the closed-loop plot's input).
+std::string closed_loop_csv(const PrecisionReport& report);
 
 /// A seeded, varied hand for the drift run: `duration_s` of minimum-jerk moves between random
 /// points above, on and under the scenes' ground (z = 0) across the cliff's gap, with holds
