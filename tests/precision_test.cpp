@@ -8,7 +8,9 @@
 #include <cmath>
 #include <string>
 
+#include "toonforce/config/scene_file.hpp"
 #include "toonforce/host_sim/hand_intent.hpp"
+#include "toonforce/sim/closed_loop.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/precision_reference.hpp"
 
@@ -136,6 +138,9 @@ TEST(Precision, OrderAndRichardsonOnKnownNumbers) {
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, 2.0), 1e-3);
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, 1.0), 3e-3);
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, std::nan("")), 3e-3);  // no order: the difference itself
+  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.9, 2.0), 1e-3);             // orders agree: Richardson
+  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.0, 4.0), 3e-3);             // they jump: the difference
+  EXPECT_DOUBLE_EQ(ladder_error(3e-3, std::nan(""), 2.0), 3e-3);
 }
 
 TEST(Precision, EventsAreFoundAndWindowedWhereTheyHappen) {
@@ -186,6 +191,46 @@ TEST(Precision, TheDriftFitRecoversAKnownSlope) {
   EXPECT_GT(line.r_squared(), 0.99);
   EXPECT_NEAR(flat.slope(), 0.0, 1e-3);
   EXPECT_LT(flat.r_squared(), 1e-3);
+}
+
+/// E_obs - (-sum F . dx of the true motion) after `seconds` of the wall with the drift hand.
+double observer_minus_port_work(int io_delay_ticks, bool quantised, double seconds) {
+  const auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/wall.toml");
+  HandScriptFile hand;
+  hand.script = random_hand_script(15, seconds + 1.0);
+  host_sim::PlanError error;
+  hand.intent = *host_sim::HandIntent::plan(hand.script, error);
+  SimConfig config;
+  config.device.io_delay_ticks = io_delay_ticks;
+  if (!quantised) {
+    config.device.encoder_step_m = 0.0;
+    config.device.force_step_n = 0.0;
+  }
+  auto session = SimSession::create(scene.value(), hand, config);
+  EXPECT_TRUE(session) << (session ? "" : session.error());
+  if (!session) return 0.0;
+  double absorbed = 0.0, observed = 0.0;
+  SimRecord last = session->step();
+  for (std::int64_t k = 1; k < session->ticks_for(seconds); ++k) {
+    const SimRecord r = session->step();
+    absorbed -= dot(last.device_force_n, r.true_position_m - last.true_position_m);
+    observed = r.frame.observed_energy_j;
+    last = r;
+  }
+  return observed - absorbed;
+}
+
+TEST(Precision, TheDriftRunsPortWorkIsWhatTheObserverSeesWithoutDelayOrQuantisation) {
+  // The drift run's reference for the passivity observer: -sum F_k . (x_(k+1) - x_k) with the
+  // force the device applied and the handle's true motion. With no I/O delay and no encoder or
+  // DAC steps the observer reads exactly that motion, so the two agree to rounding; the
+  // Falcon's one-tick delay pairs each force with the wrong tick's motion, and the observer
+  // reports more absorbed energy than the plant absorbed, growing with the motion.
+  EXPECT_NEAR(observer_minus_port_work(0, false, 20.0), 0.0, 1e-9);
+  const double one_tick = observer_minus_port_work(1, false, 20.0);
+  const double two_ticks = observer_minus_port_work(2, false, 20.0);
+  EXPECT_GT(one_tick, 1e-3);
+  EXPECT_GT(two_ticks, 1.5 * one_tick);
 }
 
 TEST(Precision, TheDriftHandIsSeededVariedAndPlannable) {

@@ -18,6 +18,11 @@ double richardson_error(double difference, double order) noexcept {
   return difference / (std::exp2(order) - 1.0);
 }
 
+double ladder_error(double difference, double previous_order, double order) noexcept {
+  if (!(std::abs(order - previous_order) <= 0.5)) return difference;  // NaN too
+  return richardson_error(difference, order);
+}
+
 std::string_view event_kind_name(EventKind kind) noexcept {
   switch (kind) {
     case EventKind::kContactOnset: return "contact onset";

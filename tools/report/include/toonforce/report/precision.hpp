@@ -142,6 +142,8 @@ struct DriftSeries {
   double intercept = 0.0;
   double r_squared = 0.0;
   double final_abs = 0.0;           ///< |difference| at the last tick
+  double final_signed = 0.0;        ///< the difference itself at the last tick (its sign)
+  double exchanged_j = 0.0;         ///< sum |F . dx| of the double run: the energy that went through the port
   std::uint64_t ticks = 0;
   double cpu_s = 0.0;               ///< CPU time of the whole scene's run (all scalars)
 };

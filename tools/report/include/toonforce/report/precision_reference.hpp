@@ -81,6 +81,12 @@ double observed_order(double error_at_rate, double error_at_double_rate) noexcep
 /// (not converging) the difference itself is returned: the honest bound is "at least that".
 double richardson_error(double difference, double order) noexcept;
 
+/// The finest run's own error from its ladder's last two observed orders: Richardson with the
+/// last order when the two agree within 0.5 (the runs are in the asymptotic range), else the last
+/// difference itself, the conservative bound (an order that jumps, e.g. from 1 to 4 when an
+/// event happens to fall on the same tick at both rates, would make Richardson far too small).
+double ladder_error(double difference, double previous_order, double order) noexcept;
+
 /// What happened at one tick that the report counts as an event.
 enum class EventKind : std::uint8_t { kContactOnset, kContactEnd, kImpactTrigger, kCliffFall };
 std::string_view event_kind_name(EventKind kind) noexcept;
