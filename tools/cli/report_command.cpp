@@ -139,7 +139,7 @@ void add_all(CLI::App& report) {
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
       ->check(number_in(2, 200));
   cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
-  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks, 0.01 simulated hours, 8 points per axis");
+  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks, 0.01 simulated hours of drift, 1 s of closed loop, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
@@ -150,6 +150,7 @@ void add_all(CLI::App& report) {
       options->latency.ticks = 100'000;
       options->precision.timing_ticks = 100'000;
       options->precision.drift_hours = 0.01;
+      options->precision.closed_loop_s = 1.0;
       options->stability.resolution = 8;
     }
     options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
