@@ -76,7 +76,7 @@ struct PrecisionRow {
   std::optional<SineMethod> sine;  ///< set for scenes with an impact transient
   double max_error_n = 0.0;        ///< sampled, every tick
   double rms_error_n = 0.0;        ///< sampled, every tick
-  /// Sampled, ticks away from events only (windows.hpp: near_event): the step's own error.
+  /// Sampled, ticks away from events only (precision_reference.hpp: near_event): the step's own error.
   double away_max_error_n = 0.0;
   double away_rms_error_n = 0.0;
   /// Sampled, against double with the library sine at the same rate: the scalar type's and
