@@ -4,17 +4,25 @@
 Usage:
   plot_report.py work-precision PRECISION.csv OUT.png
   plot_report.py drift DRIFT.csv OUT.png
+  plot_report.py closed-loop CLOSED_LOOP.csv OUT.png
   plot_report.py stability MAP.csv OUT.png --title T --xlabel X --ylabel Y [--linear-x] [--linear-y]
 
 work-precision: one column per paper scene; log-log, one marker per configuration, lines join
 the servo rates of one scalar type and sine method (labelled with the rate in kHz):
-  top     x = max sampled error against the 40 kHz double reference, y = ns per tick;
-  middle  x = RMS held (zero-order hold) error, y = CPU time per simulated second
-          (ns per tick x rate): what a faster loop costs;
+  top     x = RMS held (zero-order hold) error away from events against the converged double
+          reference (precision.cpp), y = CPU time per simulated second (ns per tick x rate);
+          a dotted vertical line marks the reference's own error (Richardson);
+  middle  x = max sampled error, every tick (events included), y = ns per tick;
   bottom  x = max error against double at the same rate (the scalar type's and the sine's own
           share), y = ns per tick.
   A zero error is drawn at the bottom edge (1e-9 N) and said so in the legend.
-drift: one panel per scene, max error per simulated hour against hours, one line per scalar.
+drift: one panel per scene, the largest |difference| per bucket of simulated time against
+  hours, one line per scalar and quantity (observer - port work, observer vs double, force vs
+  double), with each line's fitted slope per hour in the legend.
+closed-loop: to pick a scalar type and a rate for a force accuracy: one panel per scene, x = RMS
+  force error of the closed loop against the converged double reference, y = CPU time per
+  simulated second (loop tick x rate), each point labelled scalar and rate; a dotted line marks
+  the reference's own error.
 stability: the sweep's points coloured by class (decaying, bounded, unstable), the points whose eigenvalue predicts growth (rho > 1), and the bound
   drawn over them.
 
@@ -57,9 +65,9 @@ def save(fig, out):
 def work_precision(rows, out):
     fig, axes = plt.subplots(3, len(SCENES), figsize=(22, 13), squeeze=False)
     panels = [
-        ("max_error_n", lambda r: float(r["mean_ns"]), "max error vs 40 kHz reference [N]", "ns per tick"),
-        ("held_rms_error_n", lambda r: float(r["mean_ns"]) * float(r["rate_hz"]) / 1000.0,
-         "RMS held error vs reference [N]", "CPU per simulated second [us]"),
+        ("held_away_rms_error_n", lambda r: float(r["mean_ns"]) * float(r["rate_hz"]) / 1000.0,
+         "RMS held error away from events vs reference [N]", "CPU per simulated second [us]"),
+        ("max_error_n", lambda r: float(r["mean_ns"]), "max sampled error, events included [N]", "ns per tick"),
         ("same_rate_max_error_n", lambda r: float(r["mean_ns"]), "max error vs double, same rate [N]", "ns per tick"),
     ]
     floored = False
@@ -86,6 +94,11 @@ def work_precision(rows, out):
                     for x, y, r in zip(xs, ys, points):
                         ax.annotate(f"{float(r['rate_hz']) / 1000:g}k", (x, y), fontsize=6,
                                     xytext=(2, 2), textcoords="offset points", color="dimgray")
+            if row_index == 0 and scene_rows and "reference_away_rms_error_n" in scene_rows[0]:
+                reference_error = float(scene_rows[0]["reference_away_rms_error_n"])
+                if reference_error > 0.0:
+                    ax.axvline(reference_error, color="k", linestyle=":", linewidth=0.8,
+                               label="reference's own error")
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.grid(True, which="both", linewidth=0.3)
@@ -105,24 +118,63 @@ def work_precision(rows, out):
 
 
 def drift(rows, out):
-    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 4), squeeze=False)
+    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 4.5), squeeze=False)
+    styles = {"observer - port work": "-", "observer vs double": "--", "force vs double": ":"}
     for column, scene in enumerate(SCENES):
         ax = axes[0][column]
-        for scalar in ("double", "float", "q16.16"):
-            points = [r for r in rows if r["scene"] == scene and r["scalar"] == scalar]
-            if not points:
-                continue
-            hours = [int(r["hour"]) for r in points]
-            errors = [max(float(r["max_error_n"]), FLOOR) for r in points]
-            ax.plot(hours, errors, marker=".", color=SCALAR_COLOURS[scalar], label=scalar)
+        series = {}
+        for r in rows:
+            if r["scene"] == scene:
+                series.setdefault((r["quantity"], r["scalar"], r["unit"]), []).append(r)
+        for (quantity, scalar, unit), points in sorted(series.items()):
+            hours = [float(r["t_h"]) for r in points]
+            values = [max(float(r["max_abs"]), FLOOR) for r in points]
+            slope = float(points[0]["slope_per_h"])
+            ax.plot(hours, values, marker=".", linestyle=styles.get(quantity, "-"),
+                    color=SCALAR_COLOURS.get(scalar, "k"),
+                    label=f"{scalar}: {quantity} [{unit}], {slope:.2g}/h")
         ax.set_yscale("log")
         ax.set_title(scene)
-        ax.set_xlabel("simulated hour")
+        ax.set_xlabel("simulated hours")
         if column == 0:
-            ax.set_ylabel("max error in that hour [N]")
+            ax.set_ylabel("largest |difference| in the bucket")
         ax.grid(True, which="both", linewidth=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle("Drift: the servo loop at 1 kHz on the repeating scenario against the 40 kHz double reference")
+        ax.legend(fontsize=5)
+    fig.suptitle("Drift: the closed loop (servo loop, simulated device and seeded hand); "
+                 "passivity observer against true port work, float and Q16.16 against double")
+    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    save(fig, out)
+
+
+def closed_loop(rows, out):
+    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 5), squeeze=False)
+    for column, scene in enumerate(SCENES):
+        ax = axes[0][column]
+        scene_rows = [r for r in rows if r["scene"] == scene and not r["refused"]]
+        for scalar in ("double", "float", "q16.16"):
+            points = sorted((r for r in scene_rows if r["scalar"] == scalar), key=lambda r: float(r["rate_hz"]))
+            if not points:
+                continue
+            xs = [max(float(r["force_rms_error_n"]), FLOOR) for r in points]
+            ys = [float(r["cpu_us_per_s"]) for r in points]
+            ax.plot(xs, ys, marker="o", color=SCALAR_COLOURS[scalar], linewidth=0.8, label=scalar)
+            for x, y, r in zip(xs, ys, points):
+                ax.annotate(f"{scalar} {float(r['rate_hz']) / 1000:g}k", (x, y), fontsize=6,
+                            xytext=(3, 2), textcoords="offset points", color=SCALAR_COLOURS[scalar])
+        if scene_rows:
+            reference_error = float(scene_rows[0]["reference_force_rms_error_n"])
+            if reference_error > 0.0:
+                ax.axvline(reference_error, color="k", linestyle=":", linewidth=0.8, label="reference's own error")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", linewidth=0.3)
+        ax.set_title(scene)
+        ax.set_xlabel("RMS rendered-force error vs converged reference [N]", fontsize=8)
+        if column == 0:
+            ax.set_ylabel("CPU per simulated second [us] (x86 loop tick x rate)", fontsize=8)
+        ax.legend(fontsize=6)
+    fig.suptitle("Closed loop (servo loop, simulated device and seeded hand): pick the cheapest point left of "
+                 "the force accuracy you need")
     fig.tight_layout(rect=(0, 0, 1, 0.93))
     save(fig, out)
 
@@ -164,7 +216,7 @@ def stability(rows, out, title, xlabel, ylabel, log_x, log_y):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("kind", choices=["work-precision", "drift", "stability"])
+    parser.add_argument("kind", choices=["work-precision", "drift", "closed-loop", "stability"])
     parser.add_argument("csv")
     parser.add_argument("out")
     parser.add_argument("--title", default="")
@@ -180,6 +232,8 @@ def main():
         work_precision(rows, args.out)
     elif args.kind == "drift":
         drift(rows, args.out)
+    elif args.kind == "closed-loop":
+        closed_loop(rows, args.out)
     else:
         stability(rows, args.out, args.title, args.xlabel, args.ylabel, not args.linear_x, not args.linear_y)
 

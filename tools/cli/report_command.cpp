@@ -55,19 +55,45 @@ void add_latency(CLI::App& report) {
 void add_precision(CLI::App& report) {
   auto options = std::make_shared<report::PrecisionOptions>();
   CLI::App* cmd = report.add_subcommand(
-      "precision", "Force error against a 40 kHz double reference, against ns per tick; drift over simulated hours");
+      "precision",
+      "Force error against references whose own error is known (closed form; a 40-320 kHz convergence ladder), event "
+      "lateness, ns per tick; closed-loop drift over simulated hours");
+  auto docs = std::make_shared<std::string>();
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
   cmd->add_option("--rates", options->rates_hz, "Servo rates to compare [Hz] (default 500 1000 4000 10000)");
   cmd->add_option("--ticks", options->timing_ticks, "Timed ticks per configuration (default 10^6)")
       ->check(positive_number());
-  cmd->add_option("--drift-hours", options->drift_hours, "Simulated hours of the drift run (default 24; 0: none)")
+  cmd->add_option("--reference-rates", options->reference_rates_hz,
+                  "The double reference's ladder, each twice the last; the last is the reference [Hz] "
+                  "(default 40000 80000 160000 320000)");
+  cmd->add_option("--drift-hours", options->drift_hours,
+                  "Simulated hours of closed loop per scene in the drift run (default 1; 0: none)")
       ->check(non_negative_number());
+  cmd->add_option("--drift-rate", options->drift_rate_hz, "Servo rate of the drift run [Hz] (default 1000)")
+      ->check(positive_number());
+  cmd->add_option("--drift-seed", options->drift_seed, "Seed of the drift run's hand motion (default 15)");
   cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
-  cmd->callback([options] {
+  cmd->add_option("--docs", *docs,
+                  "Also write the CSVs and plots into DIR/report/ and regenerate the precision block of "
+                  "DIR/PERFORMANCE.md");
+  auto no_plot = std::make_shared<bool>(false);
+  cmd->add_flag("--no-plot", *no_plot, "With --docs: no plots");
+  cmd->callback([options, docs, no_plot, cmd] {
     options->root = report::source_root(options->root);
     const auto result = report::run_precision(*options, progress);
     if (report_error(result)) return;
-    std::fputs(report::precision_markdown(result.value()).c_str(), stdout);
+    if (!docs->empty()) {
+      // The command as asked for, written beside the figures.
+      std::string line = "toonforce report precision --docs " + *docs;
+      if (options->drift_hours != report::PrecisionOptions{}.drift_hours) line += fmt::format(" --drift-hours {:g}", options->drift_hours);
+      if (!options->filter.empty()) line += " --filter " + options->filter;
+      if (cmd->count("--ticks") > 0) line += fmt::format(" --ticks {}", options->timing_ticks);
+      const auto written = report::write_precision_documents(result.value(), *docs, line, !*no_plot);
+      if (report_error(written)) return;
+      for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());
+    } else {
+      std::fputs(report::precision_markdown(result.value()).c_str(), stdout);
+    }
     set_exit_code(0);
   });
 }
@@ -134,12 +160,13 @@ void add_all(CLI::App& report) {
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
   cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row (default 10^7)")
       ->check(positive_number());
-  cmd->add_option("--drift-hours", options->precision.drift_hours, "Simulated hours of the drift run (default 24)")
+  cmd->add_option("--drift-hours", options->precision.drift_hours,
+                  "Simulated hours of closed loop per scene in the drift run (default 1)")
       ->check(non_negative_number());
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
       ->check(number_in(2, 200));
   cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
-  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks (100 cold), 0.1 simulated hours, 8 points per axis");
+  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks (100 cold), 0.01 simulated hours of drift, 1 s of closed loop, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
@@ -150,7 +177,8 @@ void add_all(CLI::App& report) {
       options->latency.ticks = 100'000;
       options->latency.cold_ticks = 100;
       options->precision.timing_ticks = 100'000;
-      options->precision.drift_hours = 0.1;
+      options->precision.drift_hours = 0.01;
+      options->precision.closed_loop_s = 1.0;
       options->stability.resolution = 8;
     }
     options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");

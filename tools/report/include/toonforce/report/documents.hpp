@@ -16,6 +16,10 @@ namespace toonforce::report {
 
 inline constexpr std::string_view kBeginMarker = "<!-- toonforce report: begin -->";
 inline constexpr std::string_view kEndMarker = "<!-- toonforce report: end -->";
+/// The precision report's own block in PERFORMANCE.md, so `toonforce report precision --docs`
+/// regenerates it alone (the latency block is a benchmark of its own).
+inline constexpr std::string_view kPrecisionBeginMarker = "<!-- toonforce report precision: begin -->";
+inline constexpr std::string_view kPrecisionEndMarker = "<!-- toonforce report precision: end -->";
 
 struct DocumentsOptions {
   std::string out_dir = "docs";
@@ -36,6 +40,13 @@ Result<std::vector<std::string>> write_stability_documents(const DocumentsOption
                                                            const Progress& progress = {});
 /// `existing` with the text between the markers replaced by `generated` (markers kept); if it
 /// has no markers, `existing` followed by the markers around `generated`.
-std::string merge_generated(const std::string& existing, const std::string& generated);
+std::string merge_generated(const std::string& existing, const std::string& generated,
+                            std::string_view begin_marker = kBeginMarker, std::string_view end_marker = kEndMarker);
+
+/// Writes the precision report's CSVs and plots into <out_dir>/report/ and its block of
+/// <out_dir>/PERFORMANCE.md (after the main generated block if it has none yet). Returns the
+/// files written.
+Result<std::vector<std::string>> write_precision_documents(const PrecisionReport& precision, const std::string& out_dir,
+                                                           const std::string& command_line, bool plot);
 
 }  // namespace toonforce::report

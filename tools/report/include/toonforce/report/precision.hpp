@@ -3,20 +3,29 @@
 /// shared/reference/realtime-safety-stability.md §7), for each paper scene, scalar type, servo
 /// rate and sine method.
 ///
-/// Reference: the servo loop with the spec's stages (ServoLoop, kSpecStages) in double with the library sine at 40 kHz, on the same scripted
-/// scenario (report/scenario.hpp), velocity estimated from the positions as on a Falcon; the
-/// scenario runs twice and only the second pass is compared, so the filters and the effects'
-/// states are in their periodic regime. Every compared rate divides 40 kHz, so each of their
-/// ticks falls exactly on a reference tick:
-///   - sampled error: |F(t_k) - F_ref(t_k)| at the configuration's own ticks (what its
-///     arithmetic, its velocity estimate and its event timing get wrong);
-///   - held error: at every reference tick, the configuration's force held since its last
-///     tick (zero-order hold, what the device renders) against the reference's.
+/// References (issue 15 item 1), each with its own error stated:
+///   - the analytic wall: the wall's law along a sinusoidal penetration path, where the force is
+///     known in closed form at every instant (precision_reference.hpp: AnalyticWall); its only
+///     error is double rounding;
+///   - the scripted scenario (report/scenario.hpp) of every paper scene: the servo loop with the
+///     spec's stages in double with the library sine at 40, 80, 160 and 320 kHz (a convergence
+///     ladder), velocity estimated from the positions as on a Falcon, two passes of the scenario
+///     with only the second compared. The finest is the reference; its own error is the
+///     Richardson estimate from the last doubling and the observed order. Every compared rate
+///     divides it, so each of their ticks falls on a reference tick:
+///       - sampled error: |F(t_k) - F_ref(t_k)| at the configuration's own ticks, every tick and
+///         away from events (a window of 2 ticks before and 2 ticks plus the force-rate ramp
+///         after each contact onset or end, impact trigger or cliff fall, and the whole of a
+///         running impact transient): the step's own error apart from event timing;
+///       - held error: at every reference tick, the configuration's force held since its last
+///         tick (zero-order hold, what the device renders) against the reference's;
+///       - event lateness: each kind of event's time in the configuration minus the reference's.
 /// Cost: the mean and median ns of that configuration's loop tick (TSC, each tick alone).
 ///
-/// Drift: the same loop at 1 kHz for `drift_hours` simulated hours on the repeating scenario,
-/// each tick compared with the reference at the same phase; the maximum and RMS error per hour
-/// must stay flat (time is integer ticks, so nothing accumulates).
+/// Drift (issue 15 item 3): hours of the closed loop (tools/sim SimSession: the servo loop with
+/// every stage on the simulated device and hand) with a seeded, varied hand; per scalar type,
+/// the passivity observer's energy against the plant's true port work, and float and Q16.16
+/// against double, each difference fitted by a line against time.
 
 #include <cstdint>
 #include <optional>
@@ -25,20 +34,39 @@
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/toml_reader.hpp"
+#include "toonforce/host_sim/hand_script.hpp"
 #include "toonforce/math/sine.hpp"
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/machine.hpp"
+#include "toonforce/report/precision_reference.hpp"
 
 namespace toonforce::report {
 
 struct PrecisionOptions {
   std::string root;
   std::vector<double> rates_hz{500.0, 1000.0, 4000.0, 10000.0};
-  double reference_rate_hz = 40000.0;
+  /// The double reference's convergence ladder, each twice the last; the last is the
+  /// reference every configuration is compared with, and each rate above divides it.
+  std::vector<double> reference_rates_hz{40000.0, 80000.0, 160000.0, 320000.0};
   std::uint64_t timing_ticks = 1'000'000;  ///< timed ticks per configuration
-  double drift_hours = 24.0;               ///< 0: no drift run
+  double drift_hours = 1.0;                ///< closed-loop simulated hours per scene; 0: no drift run
   double drift_rate_hz = 1000.0;
+  std::uint64_t drift_seed = 15;           ///< the hand's motion
+  /// The closed-loop comparison: seconds of the seeded hand (0: none), and its double ladder
+  /// (each twice the last; the last is the reference; each rate above divides it).
+  double closed_loop_s = 3.0;
+  std::vector<double> closed_loop_reference_rates_hz{40000.0, 80000.0, 160000.0};
   std::string filter;                      ///< only scenes whose name contains one of these
+};
+
+/// How late a configuration sees each kind of event, against the reference.
+struct EventTiming {
+  EventKind kind = EventKind::kContactOnset;
+  std::size_t matched = 0;
+  std::size_t unmatched = 0;
+  double max_late_s = 0.0;
+  double min_late_s = 0.0;
+  double mean_late_s = 0.0;
 };
 
 struct PrecisionRow {
@@ -46,25 +74,108 @@ struct PrecisionRow {
   ScalarKind scalar = ScalarKind::kDouble;
   double rate_hz = 0.0;
   std::optional<SineMethod> sine;  ///< set for scenes with an impact transient
-  double max_error_n = 0.0;        ///< sampled
-  double rms_error_n = 0.0;        ///< sampled
+  double max_error_n = 0.0;        ///< sampled, every tick
+  double rms_error_n = 0.0;        ///< sampled, every tick
+  /// Sampled, ticks away from events only (precision_reference.hpp: near_event): the step's own error.
+  double away_max_error_n = 0.0;
+  double away_rms_error_n = 0.0;
   /// Sampled, against double with the library sine at the same rate: the scalar type's and
   /// the sine method's own share of the error (0 for that configuration itself).
   double same_rate_max_error_n = 0.0;
   double held_max_error_n = 0.0;   ///< zero-order hold, at every reference tick
   double held_rms_error_n = 0.0;
+  double held_away_rms_error_n = 0.0;  ///< the same, away from events
   double mean_ns = 0.0;
   double median_ns = 0.0;
   std::uint64_t fault_ticks = 0;   ///< ticks with a fault (Q16.16 saturation) in the compared pass
+  std::vector<EventTiming> events; ///< lateness per kind of event
 };
 
+/// One step of a scene's reference ladder: double at `rate_hz` against double at 2 x rate,
+/// compared at the coarser run's ticks.
+struct ConvergenceStep {
+  double rate_hz = 0.0;
+  double max_diff_n = 0.0;
+  double rms_diff_n = 0.0;
+  double away_max_diff_n = 0.0;
+  double away_rms_diff_n = 0.0;
+  double away_rms_order = 0.0;  ///< observed order against the previous step (NaN for the first)
+  double away_max_order = 0.0;
+  double rms_order = 0.0;       ///< every tick
+};
+
+struct SceneConvergence {
+  std::string scene;
+  std::vector<ConvergenceStep> steps;
+  /// The reference's own error (the last rate of the ladder), Richardson-estimated from the
+  /// last step and its observed order (away from events), and the raw last difference (every tick).
+  double reference_away_rms_error_n = 0.0;
+  double reference_away_max_error_n = 0.0;
+  double reference_max_diff_n = 0.0;
+  /// Every tick, RMS, Richardson: for scenes whose force away from events is exact at the ticks
+  /// (position-only laws: the away difference is 0), this is the reference's error that remains.
+  double reference_rms_error_n = 0.0;
+  std::vector<std::pair<EventKind, std::size_t>> event_counts;  ///< in the reference's compared pass
+  double settle_s = 0.0;  ///< the part of the window after an event (force-rate ramp of the clamp)
+};
+
+/// The analytic wall (precision_reference.hpp): a configuration's force against the closed form.
+struct AnalyticRow {
+  ScalarKind scalar = ScalarKind::kDouble;
+  double rate_hz = 0.0;
+  double sampled_max_error_n = 0.0;  ///< at its own ticks: the arithmetic only
+  double held_max_error_n = 0.0;     ///< zero-order hold against F(t), 64 points per tick
+  double held_rms_error_n = 0.0;
+  double held_rms_theory_n = 0.0;    ///< T rms(dF/dt) / sqrt(3): the hold's first-order error
+  double held_rms_order = 0.0;       ///< observed, against the previous rate (NaN for the first)
+};
+
+/// One difference tracked over a closed-loop drift run.
 struct DriftSeries {
   std::string scene;
   ScalarKind scalar = ScalarKind::kDouble;
-  std::vector<double> max_error_n;  ///< per simulated hour (the last one may be partial)
-  std::vector<double> rms_error_n;
+  std::string quantity;             ///< what is compared (see precision_markdown)
+  std::string unit;
+  std::vector<double> bucket_end_h; ///< simulated time at the end of each bucket
+  std::vector<double> max_abs;      ///< the largest |difference| in each bucket
+  double slope_per_h = 0.0;         ///< least-squares slope of |difference| against time
+  double intercept = 0.0;
+  double r_squared = 0.0;
+  double final_abs = 0.0;           ///< |difference| at the last tick
+  double final_signed = 0.0;        ///< the difference itself at the last tick (its sign)
+  double exchanged_j = 0.0;         ///< sum |F . dx| of the double run: the energy that went through the port
   std::uint64_t ticks = 0;
-  double cpu_s = 0.0;               ///< CPU time the run took
+  double cpu_s = 0.0;               ///< CPU time of the whole scene's run (all scalars)
+};
+
+/// The closed loop (issue 15 item 2): one scalar type and rate against the converged double
+/// closed loop, the same seeded hand, the same simulated device.
+struct ClosedLoopRow {
+  std::string scene;
+  ScalarKind scalar = ScalarKind::kDouble;
+  double rate_hz = 0.0;
+  std::string refused;              ///< why the loop refused this configuration (else empty)
+  double force_rms_error_n = 0.0;   ///< rendered force, held, at every reference tick
+  double force_max_error_n = 0.0;
+  double position_rms_error_m = 0.0;  ///< the handle's true position, at the configuration's ticks
+  double position_max_error_m = 0.0;
+  double loop_mean_ns = 0.0;        ///< the servo loop tick with every stage (timed alone)
+};
+
+/// The closed loop's double ladder, one step: rate against 2 x rate.
+struct ClosedLoopStep {
+  double rate_hz = 0.0;
+  double force_rms_diff_n = 0.0;
+  double position_rms_diff_m = 0.0;
+  double force_order = 0.0;     ///< observed, against the previous step (NaN for the first)
+  double position_order = 0.0;
+};
+
+struct ClosedLoopConvergence {
+  std::string scene;
+  std::vector<ClosedLoopStep> steps;
+  double reference_force_rms_error_n = 0.0;     ///< Richardson, from the last step
+  double reference_position_rms_error_m = 0.0;
 };
 
 struct PrecisionReport {
@@ -74,7 +185,13 @@ struct PrecisionReport {
   TscCalibration clock;
   PrecisionOptions options;
   std::vector<PrecisionRow> rows;
+  std::vector<SceneConvergence> convergence;
+  std::vector<AnalyticRow> analytic;
+  AnalyticWall analytic_wall;
   std::vector<DriftSeries> drift;
+  std::vector<ClosedLoopRow> closed_loop;
+  std::vector<ClosedLoopConvergence> closed_loop_convergence;
+  double drift_segments_per_h = 0.0;  ///< hand-script segments per simulated hour
 };
 
 Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Progress& progress = {});
@@ -82,7 +199,16 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
 std::string precision_markdown(const PrecisionReport& report, const std::string& plot_dir_in_docs = {});
 /// One row per configuration (the work-precision plot's input).
 std::string precision_csv(const PrecisionReport& report);
-/// One row per scene, scalar and hour.
+/// One row per scene, scalar, quantity and bucket.
 std::string drift_csv(const PrecisionReport& report);
+/// The reference ladder per scene.
+std::string convergence_csv(const PrecisionReport& report);
+/// One row per closed-loop configuration (the closed-loop plot's input).
+std::string closed_loop_csv(const PrecisionReport& report);
+
+/// A seeded, varied hand for the drift run: `duration_s` of minimum-jerk moves between random
+/// points above, on and under the scenes' ground (z = 0) across the cliff's gap, with holds
+/// pressing down in between; never one pass repeated. Start-up code.
+host_sim::HandScript random_hand_script(std::uint64_t seed, double duration_s);
 
 }  // namespace toonforce::report
