@@ -43,7 +43,7 @@ Result<FalconCalibration> describe(const toml::table& root, ErrorList& errors) {
     c.reference_force_n = mr.optional_number("reference_force_n", Range::kPositive);
     c.measured_force_n = mr.optional_number("measured_force_n", Range::kPositive);
     c.date = mr.optional_string("date").value_or("");
-    c.note = mr.optional_string("note").value_or("");
+    c.note = mr.optional_string("note", TableReader::StringKind::kText).value_or("");
     mr.finish();
   }
   r.finish();

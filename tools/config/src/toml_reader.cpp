@@ -303,13 +303,14 @@ std::optional<std::int64_t> TableReader::optional_integer(std::string_view key, 
   return value;
 }
 
-std::optional<std::string> TableReader::optional_string(std::string_view key) {
+std::optional<std::string> TableReader::optional_string(std::string_view key, StringKind kind) {
   const toml::node* node = take(key);
   if (node == nullptr) return std::nullopt;
   if (const auto* s = node->as_string()) {
     // Names and labels end up in summaries, traces and the viewer: no control characters.
     const std::string& text = s->get();
-    const bool control = std::any_of(text.begin(), text.end(), [](char c) {
+    const bool control = std::any_of(text.begin(), text.end(), [kind](char c) {
+      if (kind == StringKind::kText && (c == '\n' || c == '\t')) return false;
       return static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7F;
     });
     if (!control) return text;

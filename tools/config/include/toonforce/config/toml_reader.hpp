@@ -83,7 +83,11 @@ class TableReader {
   std::optional<Vec3<double>> optional_vec3(std::string_view key, std::string_view unit);
   /// An optional whole number >= `min_value` (a count, not a quantity: no scalar-range check).
   std::optional<std::int64_t> optional_integer(std::string_view key, std::int64_t min_value);
-  std::optional<std::string> optional_string(std::string_view key);
+  /// An optional string. A one-line string (a name, a label, a kind: they end up in summaries,
+  /// traces and the viewer) may have no control character; a free `text` (a note) may have
+  /// new lines and tabs, and no other.
+  enum class StringKind : std::uint8_t { kOneLine, kText };
+  std::optional<std::string> optional_string(std::string_view key, StringKind kind = StringKind::kOneLine);
   /// An optional boolean (true/false).
   std::optional<bool> optional_bool(std::string_view key);
   /// True if the table has `key` (whether read or not).
