@@ -30,7 +30,7 @@ inline constexpr std::array<std::string_view, 10> kTraceCoreColumns{"t", "x", "y
                                                                     "fx", "fy", "fz"};
 
 /// The largest trace `run` and `sim` write unless told otherwise (--max-output): 1 GiB, about
-/// 50 minutes of a 1 kHz `run` trace. Reaching it warns and stops the trace, never the run.
+/// one to two and a half hours of a 1 kHz `run` trace (120-350 bytes a row). Reaching it warns and stops the trace, never the run.
 inline constexpr std::uint64_t kDefaultTraceLimitBytes = std::uint64_t{1} << 30;
 
 /// What to tell the user before a trace of about `expected_bytes` (0: unknown, e.g. a run until
