@@ -136,6 +136,21 @@ class PassivityController {
   /// The last update() damped some slot.
   constexpr bool damped() const noexcept { return damped_; }
 
+  /// A live scene's update moved the active parts between slots (issue 19): which episode is
+  /// whose is no longer known, so every slot of the new layout continues an episode that has
+  /// spent the most any running one had. Conservative: an update never gives an active part a
+  /// fresh budget (a part not in an episode at its next tick starts one from zero, as always).
+  constexpr void relayout(std::size_t old_slots, std::size_t new_slots) noexcept {
+    Wide<S> most{};
+    bool any = false;
+    for (std::size_t i = 0; i < old_slots && i < slots_.size(); ++i) {
+      if (!slots_[i].in_episode) continue;
+      any = true;
+      if (slots_[i].energy > most) most = slots_[i].energy;
+    }
+    for (std::size_t i = 0; i < new_slots && i < slots_.size(); ++i) slots_[i] = Slot{most, {}, {}, any};
+  }
+
   /// The largest episode energy among running episodes [J] (0 if none).
   constexpr Wide<S> max_episode_energy(std::size_t slots) const noexcept {
     Wide<S> most{};
@@ -215,6 +230,12 @@ class Passivity {
   /// End of a tick whose force was cut: nothing of the effects' forces reached the device.
   void cut() noexcept { applied_ = S{}; }
 
+  /// A live scene's update: `slots` active parts from now on (PassivityController::relayout).
+  void relayout(std::size_t slots) noexcept {
+    controller_.relayout(slots_, slots);
+    slots_ = slots < kSlots ? slots : kSlots;
+  }
+
   /// Whether the controller may need the velocity (it damps along -v).
   bool needs_velocity() const noexcept { return controller_.enabled() && slots_ > 0; }
   const PassivityObserver<S>& observer() const noexcept { return observer_; }
@@ -241,6 +262,7 @@ class NoPassivity {
   bool damping(const ActiveForce<S>*, const Vec3<S>&, Vec3<S>&) noexcept { return false; }
   void settle(const Vec3<S>&, const Vec3<S>&) noexcept {}
   void cut() noexcept {}
+  void relayout(std::size_t) noexcept {}
   bool needs_velocity() const noexcept { return false; }
 };
 

@@ -31,11 +31,14 @@ struct LoopStages {
   bool passivity = true;      ///< observer, and the controller for the active effects' budgets
   bool thermal = true;        ///< the motor thermal model derating the clamp
   bool motion_limits = true;  ///< velocity limit and workspace bounds
+  bool live = false;          ///< takes scene updates between ticks (issue 19; scene_updates.hpp)
 };
 /// Every stage: a loop that drives a device (run, sim, the examples).
 inline constexpr LoopStages kEveryStage{};
 /// Only effects.md §6 (non-finite guard, force-rate limit, clamp): replay.
-inline constexpr LoopStages kSpecStages{false, false, false, false, false};
+inline constexpr LoopStages kSpecStages{false, false, false, false, false, false};
+/// Every stage, and a scene an application changes while the loop runs (issue 19).
+inline constexpr LoopStages kLiveStages{true, true, true, true, true, true};
 
 struct SafetyConfig {
   /// [N] forces engage (after enable, start and re-arm) only once the scene force at the
@@ -51,6 +54,9 @@ struct SafetyConfig {
   bool has_workspace = false;
   Vec3<double> workspace_min_m;
   Vec3<double> workspace_max_m;
+  /// [s] a live scene's update keeps the force continuous and fades the difference out over
+  /// this time (docs/spec/live-scenes.md); 0: none (an update is felt as a step).
+  double update_fade_s = 0.25;
   /// A gap of more than this many periods between two ticks (missed deadlines, a stalled
   /// loop) latches Fault::kWatchdog. The heartbeat watchdog outside the loop uses it too.
   std::int64_t watchdog_periods = 30;

@@ -19,6 +19,9 @@
 /// (control/realtime_runner.hpp), a self-clocked device's own servo thread, or a simulation.
 /// `request_rearm()` may be called from any thread (one atomic flag).
 
+#include <cmath>
+#include <concepts>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <type_traits>
@@ -41,6 +44,17 @@
 
 namespace toonforce {
 
+namespace detail {
+template <class SceneT, bool kLive>
+struct MailboxOf {
+  using type = void;
+};
+template <class SceneT>
+struct MailboxOf<SceneT, true> {
+  using type = SceneMailbox<SceneT>;
+};
+}  // namespace detail
+
 /// The outcome of one tick.
 struct TickStatus {
   LoopState state = LoopState::kIdle;
@@ -59,10 +73,13 @@ class ServoLoop {
  public:
   using S = typename SceneT::Scalar;
   using Scene = SceneT;
-  static constexpr std::size_t kSlots = SceneT::kActiveCapacity;
+  using Stage = SceneStage<SceneT, kStages.live>;
+  static constexpr std::size_t kSlots = Stage::kActiveCapacity;
   /// Whether anything in this loop can need a velocity estimate (else the estimator is compiled out).
   static constexpr bool kMayEstimate = has(SceneT::kNeeds, Needs::kVelocity) || kStages.motion_limits ||
                                        (kStages.passivity && kSlots > 0);
+  /// What a live loop's updates come through (scene_updates.hpp; void unless live).
+  using Mailbox = typename detail::MailboxOf<SceneT, kStages.live>::type;
 
   /// `config` must pass check_servo_config(); the loop starts engaging at its first tick.
   ServoLoop(Device device, const SceneT& scene, const ServoConfig& config, PinsT pins = {}) noexcept
@@ -72,14 +89,28 @@ class ServoLoop {
         supervisor_(config.supervisor()),
         scene_(scene),
         engage_(config.engage()),
-        passivity_(config.safety.passivity, scene.active_slots(), unlimited_or(config.limits), config.period_s),
+        passivity_(config.safety.passivity, Stage::slots_of(scene), unlimited_or(config.limits), config.period_s),
         thermal_(config.safety.thermal, config.period_s, unlimited_or(config.limits)),
         motion_(config.motion_limits()),
         safety_(config.limits),
+        // A live scene may come to need the velocity: what its type may need decides.
         sensor_(config.velocity_cutoff_hz,
-                has(scene.needs(), Needs::kVelocity) || motion_.needs_velocity() || passivity_.needs_velocity(),
+                has(kStages.live ? SceneT::kNeeds : scene.needs(), Needs::kVelocity) || motion_.needs_velocity() ||
+                    passivity_.needs_velocity(),
                 config.period_s),
-        max_force_n_(scalar_cast<S>(unlimited_or(config.limits))) {}
+        max_force_n_(scalar_cast<S>(unlimited_or(config.limits))),
+        fade_ticks_(kStages.live ? std::llround(config.safety.update_fade_s / config.period_s) : 0) {}
+
+  /// A live loop takes its scene updates from `mailbox` (the application's side pushes them;
+  /// config/scene_editor.hpp) from the next tick on. Before the loop runs, or from its thread.
+  template <class M>
+  void listen(M& mailbox) noexcept
+    requires(kStages.live && std::same_as<M, Mailbox>)
+  {
+    mailbox_ = &mailbox;
+  }
+  /// Live loop: updates applied since the start.
+  std::uint64_t updates_applied() const noexcept { return updates_applied_; }
 
   /// One tick at integer time `k` (strictly increasing; a smaller k is taken as last + 1).
   TickStatus tick(std::int64_t k) noexcept { return tick(Instant{k, 0.0}); }
@@ -109,6 +140,7 @@ class ServoLoop {
       derated = allowed < max_force_n_;
     }
     passivity_.observe(out_.force_n, hip.position_m, hip.position_finite);
+    if constexpr (kStages.live) take_update(gate, hip, time);
 
     // The scene and the safety chain (into out_); no position, no force.
     Outcome& out = out_;
@@ -234,7 +266,7 @@ class ServoLoop {
   void shape(const Gate& gate, const Hip<S>& hip, const TickTime& time, Outcome& o) noexcept {
     const std::int64_t k = time.now.tick;
     SceneForce<S> scene{};
-    if (hip.finite) scene = scene_.force(SceneStage<SceneT>::input(hip, time));
+    if (hip.finite) scene = scene_.force(Stage::input(hip, time));
     o.scene_n = scene.force_n;
     if (!scene.counts) {  // spec §6.1: zero now, bypassing the rate limit; states kept
       o.faults.set(hip.finite ? Fault::kNonFiniteForce : Fault::kNonFiniteInput);
@@ -260,6 +292,20 @@ class ServoLoop {
     if (o.gain < scalar_cast<S>(1.0)) o.limits = o.limits | Limit::kSoftStart;
     if (damping) o.limits = o.limits | Limit::kPassivity;
     passivity_.settle(wanted, o.force_n);
+  }
+
+  /// A live loop's one update a tick, if there is one: whole, before the scene's force.
+  void take_update(const Gate& gate, const Hip<S>& hip, const TickTime& time) noexcept {
+    if constexpr (kStages.live) {
+      if (mailbox_ == nullptr) return;
+      const auto* update = mailbox_->front();
+      if (update == nullptr) return;
+      const TickInput<S> in = Stage::input(hip, time);
+      scene_.apply(*update, gate.position && hip.finite ? &in : nullptr, time.now, fade_ticks_);
+      passivity_.relayout(scene_.active_slots());
+      mailbox_->pop(update->sequence);
+      ++updates_applied_;
+    }
   }
 
   /// Zero force now (bypassing the rate limit); if it was on at tick `k` >= 0, ramp again after.
@@ -323,7 +369,7 @@ class ServoLoop {
   [[no_unique_address]] PinsT pins_;
   LoopClock clock_;
   std::conditional_t<kStages.supervisor, Supervisor, NoSupervisor> supervisor_;
-  SceneStage<SceneT> scene_;
+  Stage scene_;
   [[no_unique_address]] StageOf<kStages.engage, Engage, NoEngage> engage_;
   [[no_unique_address]] StageOf<kStages.passivity, PassivityOn, PassivityOff> passivity_;
   StageOf<kStages.thermal, ThermalModel, NoThermal> thermal_;
@@ -332,6 +378,9 @@ class ServoLoop {
   HipSensor<S, kMayEstimate> sensor_;
   S max_force_n_;  ///< the configured clamp (the thermal model derates below it)
   S period_max_step_ = safety_.max_step_for(scalar_cast<S>(1.0 / clock_.period_s()));
+  std::int64_t fade_ticks_;  ///< live: the update fade, in ticks
+  Mailbox* mailbox_ = nullptr;
+  std::uint64_t updates_applied_ = 0;
 
   // State between ticks: the last tick's outcome (its force is held until the next write).
   Outcome out_{};

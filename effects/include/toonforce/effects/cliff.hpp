@@ -89,6 +89,17 @@ struct CartoonCliff {
     return {};
   }
 
+  /// A live scene's one-shot event (issue 19, docs/spec/live-scenes.md): "look_down" zeroes
+  /// the filtered lateral speed s_f, as a cartoon character stops and looks down. Over the gap
+  /// the next tick's filter leaves s_f below the threshold unless the HIP is that fast within
+  /// one tick, so it falls by §5's own rule; elsewhere it walks on (s_f recovers with tau).
+  static constexpr std::array<std::string_view, 1> kEvents{"look_down"};
+  static constexpr bool fire(const Params&, State& s, std::size_t event, double, Instant) noexcept {
+    if (event != 0) return false;
+    s.filtered_speed_m_per_s = S{};
+    return true;
+  }
+
   /// `state` and `speed`; true while the HIP is in the supported ground.
   static constexpr bool describe(const Params& p, const State& s, const TickInput<S>& in, double* values) noexcept {
     values[0] = s.fallen ? 1.0 : 0.0;

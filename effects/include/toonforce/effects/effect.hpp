@@ -16,6 +16,9 @@
 ///   static void check(const Params&, schema::Problems&, ScalarKind);  // checks across keys
 ///   static constexpr Needs needs(const Params&) noexcept;  // what this instance needs
 ///   static constexpr std::size_t kMaxPerScene;        // capacity in a run-time scene (default 8)
+///   static constexpr std::array<std::string_view, N> kEvents;  // one-shot events a live scene
+///   static constexpr bool fire(const Params&, State&, std::size_t event, double value,
+///                              Instant now) noexcept;  // may fire (issue 19; false: refused)
 /// force() runs on every servo tick: no allocation, exception, lock, system call or clock.
 /// Those five optional parts are what the scene-file reader, the run-time scene, the passivity
 /// controller, telemetry and the viewer take from an effect; nothing else in the library names
@@ -149,6 +152,34 @@ constexpr Needs needs(const typename E::Params& p) noexcept {
   } else {
     static_cast<void>(p);
     return E::kNeeds;
+  }
+}
+
+/// The one-shot events E accepts from a live scene (none unless declared): "impact" on a
+/// surface shakes it on demand, "look_down" on a cliff drops the character that is over the gap.
+template <Effect E>
+inline constexpr auto kEvents = [] {
+  if constexpr (requires { E::kEvents; }) {
+    return E::kEvents;
+  } else {
+    return std::array<std::string_view, 0>{};
+  }
+}();
+
+/// Fires E's event number `event` (an index into kEvents<E>) with `value` on this instance at
+/// tick `now`, between two ticks; false if E has no such event or this instance cannot take it.
+template <Effect E>
+constexpr bool fire(const typename E::Params& p, typename E::State& s, std::size_t event, double value,
+                    Instant now) noexcept {
+  if constexpr (requires { E::fire(p, s, event, value, now); }) {
+    return E::fire(p, s, event, value, now);
+  } else {
+    static_cast<void>(p);
+    static_cast<void>(s);
+    static_cast<void>(event);
+    static_cast<void>(value);
+    static_cast<void>(now);
+    return false;
   }
 }
 

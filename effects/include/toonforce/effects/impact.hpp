@@ -128,6 +128,16 @@ struct ImpactTransient {
     return out;
   }
 
+  /// Starts the transient at `now` with v_i = `speed_m_per_s` (a live scene's event): the same
+  /// state a trigger leaves, without disarming (the HIP did not enter). A transient already
+  /// running restarts, as a trigger would (§4).
+  static constexpr bool fire(const Params&, State& s, double speed_m_per_s, Instant now) noexcept {
+    s.running = true;
+    s.trigger = now;
+    s.impact_speed_m_per_s = scalar_cast<S>(speed_m_per_s);
+    return true;
+  }
+
   /// Seconds since the trigger of the running transient, or NaN.
   static constexpr double time_since_trigger(const State& s, const TickInput<S>& in) noexcept {
     return s.running ? in.seconds_since(s.trigger) : std::numeric_limits<double>::quiet_NaN();
@@ -163,6 +173,9 @@ struct MaybeImpact {
   }
   static constexpr double time_since_trigger(const State& s, const TickInput<S>& in) noexcept {
     return ImpactTransient<S>::time_since_trigger(s, in);
+  }
+  static constexpr bool fire(const Params& p, State& s, double speed_m_per_s, Instant now) noexcept {
+    return p.enabled && ImpactTransient<S>::fire(p.law, s, speed_m_per_s, now);
   }
 };
 

@@ -256,6 +256,45 @@ class RuntimeSceneOf {
     return info;
   }
 
+  /// Live scenes (issue 19). `now` holds, for each effect of this scene, the state of the effect
+  /// of the previous scene's `from` it continues (`continues[i]` for this scene's i-th effect in
+  /// order: the index among effects of its kind in the previous scene, or -1 for a new effect,
+  /// whose state starts fresh). Between two ticks, never inside one.
+  constexpr void carry(const State& from, State& now, const std::int16_t* continues) const noexcept {
+    for (std::size_t i = 0; i < effect_count_; ++i) {
+      dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+        auto& state = std::get<I>(now.effects)[e.index];
+        const std::int16_t old = continues[i];
+        const auto& before = std::get<I>(from.effects);
+        state = old >= 0 && static_cast<std::size_t>(old) < before.size() ? before[static_cast<std::size_t>(old)]
+                                                                          : typename Kind<I>::State{};
+      });
+    }
+  }
+  /// The number of event `name` of the i-th effect (effect::kEvents), or -1 if it has none such.
+  constexpr int event_index(std::size_t i, std::string_view name) const noexcept {
+    int found = -1;
+    if (i >= effect_count_) return found;
+    dispatch(order_[i], [&]<std::size_t I>(const Entry&) {
+      const auto& events = effect::kEvents<Kind<I>>;
+      for (std::size_t j = 0; j < events.size(); ++j) {
+        if (events[j] == name) found = static_cast<int>(j);
+      }
+    });
+    return found;
+  }
+  /// Fires event `event` of the i-th effect with `value` at `now` (effect::fire), between two
+  /// ticks; false if it refused.
+  constexpr bool fire(State& state, std::size_t i, std::size_t event, double value, Instant now) const noexcept {
+    bool fired = false;
+    if (i >= effect_count_) return fired;
+    dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
+      fired = effect::fire<Kind<I>>(std::get<I>(params_)[e.index], std::get<I>(state.effects)[e.index], event, value,
+                                    now);
+    });
+    return fired;
+  }
+
   /// How many effects of kind I, and the n-th of them.
   template <std::size_t I>
   constexpr std::size_t count() const noexcept {

@@ -63,6 +63,30 @@ struct Surface {
       Impact::check(p.impact, problems, scalar);
     }
   }
+  /// A live scene's one-shot event (issue 19, docs/spec/live-scenes.md): "impact" starts this
+  /// surface's transient now as if the HIP had entered at `value` m/s (> 0), the law of spec
+  /// effects.md §4 from t = 0 whether or not the HIP touches it; refused without an impact.
+  static constexpr std::array<std::string_view, Impact::kPresent ? 1 : 0> kEvents = [] {
+    if constexpr (Impact::kPresent) {
+      return std::array<std::string_view, 1>{"impact"};
+    } else {
+      return std::array<std::string_view, 0>{};
+    }
+  }();
+  static constexpr bool fire(const Params& p, State& s, std::size_t event, double value, Instant now) noexcept {
+    if constexpr (Impact::kPresent) {
+      if (event != 0 || !impact_configured(p.impact) || !(value > 0.0)) return false;
+      return Impact::fire(p.impact, s.impact, value, now);
+    } else {
+      static_cast<void>(p);
+      static_cast<void>(s);
+      static_cast<void>(event);
+      static_cast<void>(value);
+      static_cast<void>(now);
+      return false;
+    }
+  }
+
   /// Only an impact transient keeps state.
   static constexpr bool stateful(const Params& p) noexcept {
     if constexpr (Impact::kPresent) {

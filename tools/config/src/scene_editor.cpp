@@ -1,0 +1,268 @@
+// Live scene changes, checked as scene files are (scene_editor.hpp; docs/spec/live-scenes.md).
+// The document is the scene's TOML: each change edits a copy of it and reads the copy with the
+// scene files' own reader, so a change is refused with the very message a file would get.
+
+#include "toonforce/config/scene_editor.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <optional>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "toonforce/config/scene_reader.hpp"
+#include "toonforce/config/toml_reader.hpp"
+
+namespace toonforce {
+
+namespace {
+
+using Kinds = RuntimeScene<double>;
+
+/// "surface2" or "surface[2]": the kind's index and the effect's index among its kind (from 0).
+struct EffectName {
+  std::size_t kind = 0;
+  std::size_t index = 0;
+  std::string key;
+};
+
+std::string kind_list() {
+  std::string out;
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    ((out += fmt::format("{}{}", out.empty() ? "" : ", ", Kinds::Kind<I>::kKey)), ...);
+  }(std::make_index_sequence<Kinds::kind_count()>{});
+  return out;
+}
+
+Result<EffectName> parse_effect_name(std::string_view text, const toml::table& doc) {
+  std::size_t split = 0;
+  while (split < text.size() && std::isalpha(static_cast<unsigned char>(text[split])) != 0) ++split;
+  std::string_view key = text.substr(0, split);
+  std::string_view digits = text.substr(split);
+  if (digits.size() >= 2 && digits.front() == '[' && digits.back() == ']') digits = digits.substr(1, digits.size() - 2);
+  const std::size_t kind = Kinds::kind_index(key);
+  std::size_t number = 0;
+  bool ok = !digits.empty() && digits.size() <= 4;
+  for (const char c : digits) {
+    if (std::isdigit(static_cast<unsigned char>(c)) == 0) ok = false;
+    else number = number * 10 + static_cast<std::size_t>(c - '0');
+  }
+  if (kind == Kinds::kind_count() || !ok || number == 0) {
+    return Error{fmt::format("'{}' names no effect: write the kind and its number from 1, as in traces (surface2, "
+                             "cliff1); the kinds are {}\n",
+                             text, kind_list())};
+  }
+  const toml::array* all = doc[key].as_array();
+  const std::size_t count = all != nullptr ? all->size() : 0;
+  if (number > count) {
+    return Error{fmt::format("'{}': the scene has {} {}(s)\n", text, count, key)};
+  }
+  return EffectName{kind, number - 1, std::string(key)};
+}
+
+/// The keys of `from` replace those of `into`; a table given for a table is merged the same way.
+void merge(toml::table& into, const toml::table& from) {
+  for (auto&& [key, node] : from) {
+    toml::node* old = into.get(key.str());
+    if (old != nullptr && old->is_table() && node.is_table()) {
+      merge(*old->as_table(), *node.as_table());
+    } else {
+      into.insert_or_assign(key, node);
+    }
+  }
+}
+
+std::vector<std::int16_t> same_effects(const std::vector<SceneEntry>& order) {
+  std::vector<std::int16_t> continues;
+  for (const SceneEntry& e : order) continues.push_back(static_cast<std::int16_t>(e.index));
+  return continues;
+}
+
+std::size_t place_of(const std::vector<SceneEntry>& order, std::size_t kind, std::size_t index) {
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    if (order[i].kind == kind && order[i].index == index) return i;
+  }
+  return order.size();
+}
+
+}  // namespace
+
+struct SceneDocument::Impl {
+  toml::table doc;
+  ScalarKind scalar = ScalarKind::kDouble;
+  SceneDescription scene;
+
+  /// Reads `candidate` as a scene file named `name` would be; the effects keep `order` (the
+  /// document's, not the lines': a change's keys come from another text).
+  Result<SceneDescription> check(const toml::table& candidate, const std::string& name,
+                                 std::optional<std::vector<SceneEntry>> order) const {
+    ErrorList errors(name);
+    auto read = scene_reader::describe<RuntimeSurface, CartoonCliff>(candidate, errors, scalar, name);
+    if (!read) return Error{read.error()};
+    read->source = scene.source;
+    read->name = scene.name;
+    if (order) read->order = std::move(*order);
+    return read;
+  }
+
+  Result<SceneChange> change(toml::table candidate, std::string what, std::vector<SceneEntry> order,
+                             std::vector<std::int16_t> continues) const {
+    auto read = check(candidate, what, std::move(order));
+    if (!read) return Error{read.error()};
+    SceneChange c;
+    c.scene = std::move(read.value());
+    c.continues = std::move(continues);
+    c.what = std::move(what);
+    c.document = std::make_shared<toml::table>(std::move(candidate));
+    return c;
+  }
+
+  Result<toml::table> keys_of(std::string_view text, const std::string& what) const {
+    ErrorList errors(what);
+    auto keys = parse_toml_text(text, errors);
+    if (!keys) return Error{errors.text()};
+    return std::move(*keys);
+  }
+};
+
+SceneDocument::SceneDocument(std::unique_ptr<Impl> impl) noexcept : impl_(std::move(impl)) {}
+SceneDocument::SceneDocument(SceneDocument&&) noexcept = default;
+SceneDocument& SceneDocument::operator=(SceneDocument&&) noexcept = default;
+SceneDocument::~SceneDocument() = default;
+
+Result<SceneDocument> SceneDocument::parse(std::string_view text, std::string source, ScalarKind scalar) {
+  ErrorList errors(source);
+  auto root = parse_toml_text(text, errors);
+  if (!root) return Error{errors.text()};
+  auto scene = scene_reader::describe<RuntimeSurface, CartoonCliff>(*root, errors, scalar, source);
+  if (!scene) return Error{scene.error()};
+  auto impl = std::make_unique<Impl>();
+  impl->doc = std::move(*root);
+  impl->scalar = scalar;
+  impl->scene = std::move(scene.value());
+  return SceneDocument(std::move(impl));
+}
+
+const SceneDescription& SceneDocument::scene() const noexcept { return impl_->scene; }
+
+Result<SceneChange> SceneDocument::set(std::string_view effect, std::string_view keys_toml) const {
+  auto name = parse_effect_name(effect, impl_->doc);
+  if (!name) return Error{name.error()};
+  const std::string what = fmt::format("set {}{}", name->key, name->index + 1);
+  auto keys = impl_->keys_of(keys_toml, what);
+  if (!keys) return Error{keys.error()};
+  toml::table candidate = impl_->doc;
+  merge(*(*candidate[name->key].as_array())[name->index].as_table(), keys.value());
+  const auto& order = impl_->scene.order;
+  return impl_->change(std::move(candidate), what, order, same_effects(order));
+}
+
+Result<SceneChange> SceneDocument::add(std::string_view key, std::string_view keys_toml) const {
+  const std::size_t kind = Kinds::kind_index(key);
+  if (kind == Kinds::kind_count()) {
+    return Error{fmt::format("add: '{}' is no effect kind; the kinds are {}\n", key, kind_list())};
+  }
+  const std::string what = fmt::format("add {}", key);
+  auto keys = impl_->keys_of(keys_toml, what);
+  if (!keys) return Error{keys.error()};
+  toml::table candidate = impl_->doc;
+  if (candidate.get(key) == nullptr) candidate.insert(key, toml::array{});
+  toml::array* all = candidate[key].as_array();
+  if (all == nullptr) return Error{fmt::format("{}: the scene's '{}' is not an array of tables\n", what, key)};
+  const std::size_t index = all->size();
+  all->push_back(std::move(keys.value()));
+  std::vector<SceneEntry> order = impl_->scene.order;
+  std::vector<std::int16_t> continues = same_effects(order);
+  order.push_back({kind, index, 0});
+  continues.push_back(-1);
+  return impl_->change(std::move(candidate), what, std::move(order), std::move(continues));
+}
+
+Result<SceneChange> SceneDocument::remove(std::string_view effect) const {
+  auto name = parse_effect_name(effect, impl_->doc);
+  if (!name) return Error{name.error()};
+  const std::string what = fmt::format("remove {}{}", name->key, name->index + 1);
+  toml::table candidate = impl_->doc;
+  toml::array& all = *candidate[name->key].as_array();
+  all.erase(all.begin() + static_cast<std::ptrdiff_t>(name->index));
+  if (all.empty()) candidate.erase(name->key);
+  // The later effects of its kind move down one; their states go with them.
+  std::vector<SceneEntry> order;
+  std::vector<std::int16_t> continues;
+  for (const SceneEntry& e : impl_->scene.order) {
+    if (e.kind == name->kind && e.index == name->index) continue;
+    SceneEntry moved = e;
+    if (e.kind == name->kind && e.index > name->index) --moved.index;
+    order.push_back(moved);
+    continues.push_back(static_cast<std::int16_t>(e.index));
+  }
+  return impl_->change(std::move(candidate), what, std::move(order), std::move(continues));
+}
+
+Result<SceneChange> SceneDocument::load(std::string_view text, std::string source) const {
+  const std::string what = fmt::format("load {}", source);
+  ErrorList errors(source);
+  auto root = parse_toml_text(text, errors);
+  if (!root) return Error{errors.text()};
+  // The [device] table sets the loop's safety limits, fixed when it started: a scene that asks
+  // for others would run with the old ones, so it is refused rather than half applied.
+  const toml::node* before = impl_->doc.get("device");
+  const toml::node* after = root->get("device");
+  const bool same_device = (before == nullptr && after == nullptr) ||
+                           (before != nullptr && after != nullptr && before->is_table() && after->is_table() &&
+                            *before->as_table() == *after->as_table());
+  if (!same_device) {
+    return Error{fmt::format("{}: its [device] table differs from the running scene's: the safety limits are the "
+                             "loop's, fixed when it starts; stop and start with this scene instead\n",
+                             what)};
+  }
+  ErrorList check_errors(source);
+  auto scene = scene_reader::describe<RuntimeSurface, CartoonCliff>(*root, check_errors, impl_->scalar, source);
+  if (!scene) return Error{scene.error()};
+  SceneChange c;
+  c.continues.assign(scene->order.size(), -1);  // another scene: every state starts fresh
+  c.scene = std::move(scene.value());
+  c.what = what;
+  c.document = std::make_shared<toml::table>(std::move(*root));
+  return c;
+}
+
+Result<SceneChange> SceneDocument::fire(std::string_view effect, std::string_view event, double value) const {
+  auto name = parse_effect_name(effect, impl_->doc);
+  if (!name) return Error{name.error()};
+  const std::string what = fmt::format("fire {}{} {}", name->key, name->index + 1, event);
+  const auto& order = impl_->scene.order;
+  const std::size_t place = place_of(order, name->kind, name->index);
+  const auto runtime = make_runtime_scene<double>(impl_->scene);
+  if (place == order.size() || runtime.event_index(place, event) < 0) {
+    return Error{fmt::format("{}: a {} has no event '{}' (surface: impact; cliff: look_down)\n", what, name->key,
+                             event)};
+  }
+  if (name->kind == Kinds::kind_index(RuntimeSurface<double>::kKey)) {
+    if (!impl_->scene.of<RuntimeSurface>()[name->index].impact.enabled) {
+      return Error{fmt::format("{}: this surface has no impact table: set one first (set {}{} with [impact] keys)\n",
+                               what, name->key, name->index + 1)};
+    }
+    // v_i [m/s]: what the transient scales with (spec effects.md §4); it must fit the scalar.
+    if (!(std::isfinite(value) && value > 0.0) || (impl_->scalar == ScalarKind::kQ16_16 && value > 32767.0)) {
+      return Error{fmt::format("{}: the impact speed must be a positive number of m/s (got {})\n", what, value)};
+    }
+  }
+  SceneChange c;
+  c.scene = impl_->scene;
+  c.continues = same_effects(order);
+  c.events.push_back({place, std::string(event), value});
+  c.what = what;
+  c.document = std::make_shared<toml::table>(impl_->doc);
+  return c;
+}
+
+void SceneDocument::commit(const SceneChange& change) {
+  if (change.document) impl_->doc = *std::static_pointer_cast<toml::table>(change.document);
+  impl_->scene = change.scene;
+  ++changes_;
+}
+
+}  // namespace toonforce
