@@ -1,6 +1,6 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
-//               [--view [PORT]] [--view-address ADDR]
+//               [--view [PORT]] [--view-address ADDR] [--control [--control-token T]]
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -95,6 +95,19 @@ void add_run(CLI::App& app) {
 #if TOONFORCE_VIEWER
   auto view = std::make_shared<ViewFlags>();
   add_view_flags(cmd, *view);
+  // Live scenes (issue 19; docs/spec/control-protocol.md): the control protocol at /control of
+  // the viewer's server. Its state lives as long as the command's callback.
+  auto control = std::make_shared<bool>(false);
+  auto control_token = std::make_shared<std::string>();
+  CLI::Option* control_flag =
+      cmd->add_flag("--control", *control,
+                    "Take scene changes while running: the control protocol at ws://HOST:PORT/control of the viewer's "
+                    "server (docs/spec/control-protocol.md); changes keep the scene's list of effects")
+          ->needs(view->view);
+  cmd->add_option("--control-token", *control_token,
+                  "The token a control client sends in its hello (default: $TOONFORCE_CONTROL_TOKEN, else a random "
+                  "one, printed)")
+      ->needs(control_flag);
 #endif
   cmd->callback([=] {
     options->lock_memory = !*no_mlock;
@@ -102,6 +115,9 @@ void add_run(CLI::App& app) {
 #if TOONFORCE_VIEWER
     // The viewer takes frames from the thread that drains the telemetry ring (run.hpp), so the
     // servo thread does nothing for it; its server thread runs at normal priority.
+    // Declared before the server: it outlives it (the server's /control drives it).
+    auto live = std::make_unique<LiveMailboxes>();
+    std::unique_ptr<viewer::SceneControl> live_control;
     std::unique_ptr<viewer::ViewerServer> server;
     if (view->wanted()) {
       auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
@@ -121,6 +137,26 @@ void add_run(CLI::App& app) {
       vo.address = view->address;
       vo.hosts = view->hosts;
       vo.port = static_cast<std::uint16_t>(view->port);
+      if (*control) {
+        if (!scene) {  // the run would refuse it too; say it once, before the server starts
+          std::fputs(scene.error().c_str(), stderr);
+          set_exit_code(2);
+          return;
+        }
+        auto opened = open_live_control(options->scene_path, options->scalar, *live);
+        if (!opened) {
+          fmt::print(stderr, "--control: {}\n", opened.error());
+          set_exit_code(2);
+          return;
+        }
+        live_control = std::move(opened.value());
+        vo.control = live_control.get();
+        const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
+        vo.control_options.token = !control_token->empty() ? *control_token
+                                   : env != nullptr && *env != '\0' ? std::string(env)
+                                                                     : viewer::random_token();
+        options->live = live.get();
+      }
       auto started = start_viewer(vo, hello);
       if (!started) {
         fmt::print(stderr, "{}\n", started.error());
@@ -129,6 +165,13 @@ void add_run(CLI::App& app) {
       }
       server = std::move(started.value());
       options->sink = server.get();
+      if (*control) {
+        std::string url = server->url();
+        url.replace(0, 4, "ws");  // http://HOST:PORT/ -> ws://HOST:PORT/
+        fmt::print(stderr, "control: {}control, token {}{}\n", url, vo.control_options.token,
+                   control_token->empty() && std::getenv("TOONFORCE_CONTROL_TOKEN") == nullptr ? " (random; set one with --control-token)" : "");
+        std::fflush(stderr);
+      }
     }
 #endif
     // The statistics file is opened (created) before the loop starts: a path that cannot be

@@ -5,7 +5,10 @@
 #include <signal.h>
 
 #include <chrono>
+#include <concepts>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 #include <fmt/format.h>
@@ -59,6 +62,62 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
   }
   std::fflush(stderr);
   return server;
+}
+
+namespace {
+
+/// The control protocol's SceneControl with the mailbox it pushes into.
+template <Scalar S>
+class LiveControl final : public viewer::SceneControl {
+ public:
+  LiveControl(std::unique_ptr<SceneMailbox<RuntimeScene<S>>> mailbox, SceneEditor<S> editor)
+      : mailbox_(std::move(mailbox)), control_(std::move(editor)) {}
+  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override { return control_.set(effect, keys); }
+  Result<std::uint64_t> add(std::string_view kind, std::string_view keys) override { return control_.add(kind, keys); }
+  Result<std::uint64_t> remove(std::string_view effect) override { return control_.remove(effect); }
+  Result<std::uint64_t> load(std::string_view text, std::string name) override {
+    return control_.load(text, std::move(name));
+  }
+  Result<std::uint64_t> fire(std::string_view effect, std::string_view event, double value) override {
+    return control_.fire(effect, event, value);
+  }
+  std::uint64_t applied() const override { return control_.applied(); }
+  std::string scene_json() const override { return control_.scene_json(); }
+
+ private:
+  std::unique_ptr<SceneMailbox<RuntimeScene<S>>> mailbox_;  // before the editor that points to it
+  viewer::EditorControl<S> control_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
+                                                                LiveMailboxes& live) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (!in) return Error{fmt::format("{}: cannot be read", path)};
+  return with_scalar(
+      scalar,
+      [&]<Scalar S>() -> Result<std::unique_ptr<viewer::SceneControl>> {
+        auto mailbox = std::make_unique<SceneMailbox<RuntimeScene<S>>>();
+        auto editor = SceneEditor<S>::open(text.str(), path, *mailbox);
+        if (!editor) return Error{editor.error()};
+        editor->keep_layout("this run's trace and viewer show the starting scene's effects by column "
+                            "(docs/spec/control-protocol.md): move or retune effects instead");
+        if constexpr (std::same_as<S, double>) {
+          live.of_double = mailbox.get();
+        } else if constexpr (std::same_as<S, float>) {
+          live.of_float = mailbox.get();
+        } else {
+          live.of_q16 = mailbox.get();
+        }
+        return std::unique_ptr<viewer::SceneControl>(
+            std::make_unique<LiveControl<S>>(std::move(mailbox), std::move(editor.value())));
+      },
+      [](ScalarKind kind) -> Result<std::unique_ptr<viewer::SceneControl>> {
+        return Error{fmt::format("--scalar {} is not built here", scalar_kind_name(kind))};
+      });
 }
 
 std::atomic<int>& view_stop() { return g_view_stop; }

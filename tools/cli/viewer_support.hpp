@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "toonforce/run/run.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 #include "toonforce/viewer/hello.hpp"
 #include "toonforce/viewer/scene_json.hpp"
@@ -40,6 +41,13 @@ inline constexpr const char* kViewHostHelp =
 Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerOptions& options, const viewer::HelloInfo& hello,
                                                            std::optional<std::vector<viewer::ViewFrame>> recording = std::nullopt,
                                                            std::string_view host_option = "--view-host");
+
+/// Live scenes (`run --control`): the editor of the scene file at `path` for the run's scalar,
+/// with its mailbox (set in `live`), for the viewer server's /control. Changes keep the scene's
+/// list of effects (the trace's and the viewer's columns). Owns the mailbox: keep it until the
+/// run and the server are over.
+Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
+                                                                LiveMailboxes& live);
 
 /// Set by SIGINT/SIGTERM once install_view_signals() ran.
 std::atomic<int>& view_stop();

@@ -97,7 +97,7 @@ class RunConsumer final : public FrameConsumer {
   bool interactive_ = false;
 };
 
-template <Scalar S, class PinsT>
+template <Scalar S, LoopStages kStages, class PinsT>
 Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver,
                           PinsT& pins) {
   const double period_s = 1.0 / options.rate_hz;
@@ -128,8 +128,14 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
     const std::string room = trace_room_warning(options.trace_path, expected, options.max_output_bytes);
     if (!room.empty()) fmt::print(options.messages, "warning: {}", room);
   }
-  using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT>;
+  using Loop = ServoLoop<DriverRef, RuntimeScene<S>, PinsT, kStages>;
   auto loop = std::make_unique<Loop>(DriverRef(driver), runtime, config, pins);
+  if constexpr (kStages.live) {
+    auto* mailbox = options.live->template of<S>();
+    if (mailbox == nullptr) return Error{"live scene: no mailbox for the run's scalar type"};
+    loop->listen(*mailbox);
+    summary.live = true;
+  }
 
   SessionOptions session;
   session.realtime.rate_hz = options.rate_hz;
@@ -151,6 +157,7 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
+  if constexpr (kStages.live) summary.updates_applied = loop->updates_applied();
   if (trace && !trace->close() && summary.trace_error.empty()) {
     summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
   }
@@ -268,7 +275,12 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   // loop is built with NullPins and runs no GPIO code at all.
   auto result = gpio::with_gpio_pins(options.gpio, [&](auto& pins) -> Result<RunSummary> {
     return with_scalar(
-        options.scalar, [&]<Scalar S>() { return run_as<S>(options, scene.value(), driver, pins); },
+        options.scalar,
+        [&]<Scalar S>() {
+          // The live stage only when asked for (--control): a run without it pays nothing.
+          return options.live != nullptr ? run_as<S, kLiveStages>(options, scene.value(), driver, pins)
+                                         : run_as<S, kEveryStage>(options, scene.value(), driver, pins);
+        },
         [](ScalarKind kind) -> Result<RunSummary> {
           return Error{fmt::format("--scalar {}: this is a firmware build (TOONFORCE_FIRMWARE=ON): the servo loop is "
                                    "compiled for q16.16 only",
@@ -311,6 +323,7 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   row("compute", r.compute.summary());
   row("slack", r.slack.summary());
   text += fmt::format("forces   peak {:.3f} N\n", s.peak_force_n);
+  if (s.live) text += fmt::format("live     {} scene update(s) applied\n", s.updates_applied);
   if (s.device_limited_ticks > 0) {
     text += fmt::format("device   could not give the force asked in {} tick(s): its force envelope is smaller "
                         "there (`toonforce falcon envelope`); the hand felt less than the scene\n",
@@ -351,6 +364,7 @@ std::string stats_json(const RunSummary& s, const RunOptions& o) {
   out += fmt::format("  \"fault_ticks\": {},\n  \"fault_bits\": {},\n  \"latched_at_end\": {},\n  \"rearms\": {},\n",
                      s.fault_ticks, s.fault_bits, s.latched_at_end, s.rearms);
   out += fmt::format("  \"device_limited_ticks\": {},\n", s.device_limited_ticks);
+  out += fmt::format("  \"updates_applied\": {},\n", s.updates_applied);
   out += fmt::format("  \"faults\": {},\n", json_string(describe_faults(s.fault_bits)));
   out += fmt::format("  \"wake_latency_us\": {},\n", json_latency(r.wake.summary()));
   out += fmt::format("  \"compute_us\": {},\n", json_latency(r.compute.summary()));

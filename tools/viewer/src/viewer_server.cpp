@@ -100,6 +100,8 @@ struct ViewerServer::Impl {
   /// session ends. pages_open counts finished handshakes only, too late to be the cap.
   std::atomic<std::size_t> page_slots{0};
   std::atomic<std::size_t> connections{0};  ///< HTTP sessions alive (not yet, or never, pages)
+  std::atomic<std::size_t> control_slots{0};  ///< /control connections alive
+  std::atomic<std::uint64_t> control_messages{0}, control_refused{0};
   bool stopping = false;                    ///< set on the server thread before the io_context stops
 
   asio::io_context io{1};
@@ -320,6 +322,71 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
   std::uint64_t dropped_ = 0;
 };
 
+/// One /control connection (live scenes): each text message goes to a ControlSession on this,
+/// the server's only thread, and its reply comes back in order. A failed hello closes it.
+class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
+ public:
+  /// The caller took a control slot; the socket gives it back.
+  ControlSocket(tcp::socket socket, ViewerServer::Impl& server)
+      : ws_(std::move(socket)), server_(server), session_(*server.options.control, server.options.control_options) {}
+  ~ControlSocket() { server_.control_slots.fetch_sub(1); }
+  ControlSocket(const ControlSocket&) = delete;
+  ControlSocket& operator=(const ControlSocket&) = delete;
+
+  void accept(http::request<http::string_body> request) {
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& response) { response.set(http::field::server, "toonforce-viewer"); }));
+    // Larger messages fail the read (1009, message too big) before any is buffered.
+    ws_.read_message_max(server_.options.control_options.max_message_bytes);
+    ws_.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
+      if (!ec) self->read();
+    });
+  }
+
+ private:
+  void read() {
+    ws_.async_read(in_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) return;  // closed, failed, or too big: the socket ends
+      const std::string text = beast::buffers_to_string(self->in_.data());
+      self->in_.consume(self->in_.size());
+      const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+      const std::uint64_t refused_before = self->session_.refused();
+      ControlSession::Reply reply = self->session_.on_message(text, now_s);
+      self->server_.control_messages.fetch_add(1);
+      if (self->session_.refused() != refused_before) self->server_.control_refused.fetch_add(1);
+      self->closing_ = reply.close;
+      self->out_.push_back(std::move(reply.text));
+      self->write_next();
+      if (!self->closing_) self->read();
+    });
+  }
+  void write_next() {
+    if (writing_ || out_.empty()) return;
+    writing_ = true;
+    ws_.text(true);
+    ws_.async_write(asio::buffer(out_.front()), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      self->writing_ = false;
+      self->out_.pop_front();
+      if (ec) return;
+      if (self->out_.empty() && self->closing_) {
+        self->ws_.async_close(websocket::close_reason(websocket::close_code::policy_error, "hello refused"),
+                              [self](beast::error_code) {});
+        return;
+      }
+      self->write_next();
+    });
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  ViewerServer::Impl& server_;
+  ControlSession session_;
+  beast::flat_buffer in_;
+  std::deque<std::string> out_;
+  bool writing_ = false;
+  bool closing_ = false;
+};
+
 /// One HTTP connection: the page's files, or the upgrade to a PageSession.
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
@@ -357,6 +424,20 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     if (websocket::is_upgrade(request)) {
       const std::string_view origin(request[http::field::origin].data(), request[http::field::origin].size());
+      if (request.target() == "/control" && server_.options.control != nullptr) {
+        // A program (no Origin) or a page of this server; a page of another site never. The
+        // token in the hello is the rest.
+        if (!origin.empty() && !server_.origin_allowed(origin, host)) {
+          refuse(request, http::status::forbidden, "WebSocket origin refused: only this server's pages and programs\n");
+        } else if (server_.control_slots.fetch_add(1) >= server_.options.max_controls) {
+          server_.control_slots.fetch_sub(1);
+          refuse(request, http::status::service_unavailable, "too many control connections open\n");
+        } else {
+          stream_.expires_never();
+          std::make_shared<ControlSocket>(stream_.release_socket(), server_)->accept(std::move(request));
+        }
+        return;
+      }
       if (request.target() != "/ws") {
         refuse(request, http::status::not_found, "no such socket\n");
       } else if (!server_.origin_allowed(origin, host)) {
@@ -727,6 +808,8 @@ ViewerStats ViewerServer::stats() const noexcept {
   s.pages_open = impl_->pages_open.load();
   s.queued_bytes = impl_->queued_bytes.load();
   s.max_queued_bytes = impl_->max_queued_bytes.load();
+  s.control_messages = impl_->control_messages.load();
+  s.control_refused = impl_->control_refused.load();
   return s;
 }
 

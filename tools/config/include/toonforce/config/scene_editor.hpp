@@ -111,6 +111,9 @@ class SceneEditor {
   }
 
   const SceneDescription& scene() const noexcept { return doc_.scene(); }
+  /// From now on, refuse a change that alters the list of effects (their kinds, in order): a
+  /// trace's and a viewer's columns are the starting scene's effects. `why` ends the message.
+  void keep_layout(std::string why) { keep_layout_ = std::move(why); }
   /// The sequence of the last update the loop applied (0: none yet).
   std::uint64_t applied() const noexcept { return mailbox_->applied(); }
 
@@ -119,6 +122,9 @@ class SceneEditor {
 
   Result<std::uint64_t> send(Result<SceneChange> change) {
     if (!change) return Error{change.error()};
+    if (!keep_layout_.empty() && !same_layout(change->scene.order, doc_.scene().order)) {
+      return Error{fmt::format("{}: refused: it changes the list of effects, and {}\n", change->what, keep_layout_)};
+    }
     // Built here, once, off the loop's thread; the mailbox copies it in.
     auto update = std::make_unique<Update>();
     update->scene = make_runtime_scene<S>(change->scene);
@@ -143,8 +149,17 @@ class SceneEditor {
     return update->sequence;
   }
 
+  static bool same_layout(const std::vector<SceneEntry>& a, const std::vector<SceneEntry>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (a[i].kind != b[i].kind || a[i].index != b[i].index) return false;
+    }
+    return true;
+  }
+
   SceneDocument doc_;
   Mailbox* mailbox_;
+  std::string keep_layout_;
 };
 
 }  // namespace toonforce

@@ -4,6 +4,7 @@
 /// the scene's and the device's limits merged, the summary. The loop runs as a servo session
 /// (control/servo_session.hpp) on the device's own clock, whichever backend it is.
 
+#include <concepts>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -13,6 +14,7 @@
 #include "toonforce/common/result.hpp"
 #include "toonforce/control/faults.hpp"
 #include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/control/scene_updates.hpp"
 #include "toonforce/control/servo_session.hpp"
 #include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/hal/device.hpp"
@@ -23,6 +25,25 @@
 #include "toonforce/hal/omni/omni_device.hpp"
 
 namespace toonforce {
+
+/// Live scenes (issue 19, `--control`): the mailbox the run's loop takes scene updates from,
+/// for the run's scalar type (the others stay null). The application's side (the control
+/// protocol's SceneEditor) pushes into it; it outlives the run.
+struct LiveMailboxes {
+  SceneMailbox<RuntimeScene<double>>* of_double = nullptr;
+  SceneMailbox<RuntimeScene<float>>* of_float = nullptr;
+  SceneMailbox<RuntimeScene<Q16_16>>* of_q16 = nullptr;
+  template <Scalar S>
+  SceneMailbox<RuntimeScene<S>>* of() const noexcept {
+    if constexpr (std::same_as<S, double>) {
+      return of_double;
+    } else if constexpr (std::same_as<S, float>) {
+      return of_float;
+    } else {
+      return of_q16;
+    }
+  }
+};
 
 /// The longest `--duration` (30 days; 0 runs until stopped).
 inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
@@ -56,6 +77,8 @@ struct RunOptions {
   /// Also sends every frame to this sink (the live viewer), from the writer thread that
   /// consumes the telemetry ring: the servo thread does no work for it.
   TelemetrySink* sink = nullptr;
+  /// Live scenes: the loop takes scene updates from here (null: a loop without the live stage).
+  const LiveMailboxes* live = nullptr;
 
   /// q16.16 in a firmware build (TOONFORCE_FIRMWARE=ON), else double.
   static ScalarKind default_run_scalar() noexcept;
@@ -79,6 +102,8 @@ struct RunSummary {
   /// Ticks whose reading said the force written before was more than the device could give
   /// (Limit::kDeviceLimited): the user felt less than the scene asked.
   std::int64_t device_limited_ticks = 0;
+  bool live = false;                  ///< the loop took scene updates (--control)
+  std::uint64_t updates_applied = 0;  ///< live: scene updates the loop applied
 };
 
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.

@@ -9,7 +9,9 @@
 ///                                                    send to each page          batch
 ///
 /// Read-only: the socket carries telemetry one way. A page that sends anything is closed with
-/// a policy-violation code; no message changes the run or the scene. The WebSocket upgrade is
+/// a policy-violation code; no message on it changes the run or the scene. Only /control,
+/// when the program asks for it (ViewerOptions::control), takes messages: the control protocol
+/// of live scenes, after a hello with the token (docs/spec/control-protocol.md). The WebSocket upgrade is
 /// refused (403) unless the Origin header is this server's own origin, and every request is
 /// refused (421) unless its Host header names this server: the loopback names, the address
 /// given (on 0.0.0.0 or ::, the addresses of this host's interfaces), or a name in
@@ -36,6 +38,7 @@
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
+#include "toonforce/viewer/control_protocol.hpp"
 #include "toonforce/viewer/view_frame.hpp"
 
 namespace toonforce::viewer {
@@ -63,6 +66,11 @@ struct ViewerOptions {
   bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
   /// The option that gave `address`, for messages (`toonforce view` calls it --address).
   std::string address_option = "--view-address";
+  /// Live scenes (issue 19): when set, /control takes the control protocol's messages
+  /// (control_protocol.hpp) and drives this; it must outlive the server. Null: no /control.
+  SceneControl* control = nullptr;
+  ControlOptions control_options;
+  std::size_t max_controls = 4;  ///< control connections open at once; more upgrades get 503
 };
 
 /// Counters for the summary and the tests (any thread).
@@ -73,6 +81,8 @@ struct ViewerStats {
   std::uint64_t pages_connected = 0;      ///< WebSocket connections accepted so far
   std::uint64_t pages_refused = 0;        ///< upgrades refused (origin or host)
   std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
+  std::uint64_t control_messages = 0;     ///< control protocol messages received
+  std::uint64_t control_refused = 0;      ///< of those, answered with an error
   std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
   std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
   std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
