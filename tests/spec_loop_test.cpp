@@ -228,6 +228,32 @@ TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
   EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
 }
 
+TEST(ForceSafety, Q16ClampHoldsWhenTheForcesNormIsBeyondTheQ16Range) {
+  // Found by tests/fuzz/tick_fuzz.cpp (CI, 2026-11-23): a force of 32767 N on every axis has a
+  // norm of 56755 N, which a Q16.16 norm saturates at 32768; scaled by 8 / 32768 each axis gave
+  // 8 N, (8, 8, 8), 13.9 N out of an 8 N clamp. The ratio is taken with the true norm then.
+  ForceLimits limits;
+  limits.has_max_force = true;
+  limits.max_force_n = 8.0;
+  ForceSafety<Q16_16> safety(limits);
+  const Vec3<Q16_16> huge{Q16_16::max(), Q16_16::max(), Q16_16::lowest()};
+  const auto out = safety.limit(huge, scalar_cast<Q16_16>(1000.0));
+  const Vec3<double> f = to_double(out.force_n);
+  constexpr double kLsb = 1.0 / 65536.0;
+  EXPECT_LE(std::sqrt(dot(f, f)), 8.0 + 2 * kLsb);
+  EXPECT_NEAR(f.x, 8.0 / std::sqrt(3.0), 2 * kLsb) << "direction kept";
+  EXPECT_NEAR(f.z, -8.0 / std::sqrt(3.0), 2 * kLsb);
+  // The rate limit's step the same way, and limit_magnitude too.
+  ForceLimits rate_only;
+  rate_only.has_max_force_rate = true;
+  rate_only.max_force_rate_n_per_s = 5000.0;  // 5 N per tick at 1 kHz
+  ForceSafety<Q16_16> step(rate_only);
+  const Vec3<double> g = to_double(step.limit(huge, scalar_cast<Q16_16>(1000.0)).force_n);
+  EXPECT_LE(std::sqrt(dot(g, g)), 5.0 + 2 * kLsb);
+  const Vec3<double> h = to_double(limit_magnitude(huge, scalar_cast<Q16_16>(3.0)));
+  EXPECT_LE(std::sqrt(dot(h, h)), 3.0 + 2 * kLsb);
+}
+
 /// A tick of every bundled scene, in every scalar type, allocates nothing.
 template <Scalar S>
 void expect_no_allocation(const std::string& name, ScalarKind kind) {

@@ -107,6 +107,32 @@ constexpr Vec3<S> scale_by_ratio(const Vec3<S>& v, S numerator, S denominator) n
   }
 }
 
+/// `v` times numerator / |v|, `magnitude` being norm(v). In a Q format the norm of a vector
+/// whose components are near the largest value exceeds it (up to sqrt(3) times) and norm()
+/// saturates: then the ratio is taken with the true norm, in 64 bits, or the result would be
+/// up to sqrt(3) too long (tick_fuzz found (8, 8, 8) out of an 8 N clamp). Only in that case:
+/// the usual path is scale_by_ratio's.
+template <Scalar S>
+constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, S magnitude) noexcept {
+  if constexpr (kIsFixed<S>) {
+    if (magnitude == S::max()) {
+      using W = typename S::Wide;
+      const auto sq = [](typename S::Raw r) {
+        const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
+        return m * m;
+      };
+      const W den = static_cast<W>(detail::isqrt_round(sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw())));
+      const auto scale = [&](S c) {
+        const W product = W{c.raw()} * numerator.raw();
+        const W m = ((product < 0 ? -product : product) + den / 2) / den;
+        return S::from_wide(product < 0 ? -m : m);
+      };
+      return {scale(v.x), scale(v.y), scale(v.z)};
+    }
+  }
+  return scale_by_ratio(v, numerator, magnitude);
+}
+
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
@@ -114,7 +140,7 @@ constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
   if (!(dot(v, v) > max_magnitude * max_magnitude)) return v;
   const S magnitude = norm(v);
   if (magnitude <= max_magnitude) return v;
-  return scale_by_ratio(v, max_magnitude, magnitude);
+  return scale_to_norm(v, max_magnitude, magnitude);
 }
 
 /// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
