@@ -139,12 +139,51 @@ async def conversation(url):
     return sent
 
 
+async def wrong_hello(url):
+    async with websockets.connect(url) as ws:
+        reply = await talk(ws, {"type": "hello", "version": 1, "token": "not-it"})
+        return reply["type"] == "error"
+
+
+def control_wait(work, scene):
+    """--control-wait: the loop does not start (no trace, no device) until a hello passes; a wrong
+    token is not one; Ctrl-C while waiting ends the run unstarted, exit status 2."""
+    trace = os.path.join(work, "wait-trace.csv")
+    run = subprocess.Popen([BINARY, "run", "--device", "sim", "--scene", scene, "--allow-non-rt", "--no-mlock",
+                            "--duration", "0.2", "--view", "0", "--control", "--control-token", TOKEN,
+                            "--control-wait", "--trace", trace],
+                           stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    url = None
+    for line in run.stderr:
+        print("run: " + line.rstrip(), flush=True)
+        m = re.search(r"control: (ws://\S+/control), token", line)
+        if m:
+            url = m.group(1)
+        if "waiting for a control client" in line:
+            break
+    check(url is not None, "--control-wait: the run says it waits for a control client")
+    if url is not None:
+        check(asyncio.run(wrong_hello(url)), "--control-wait: a wrong token is refused")
+    # Four times the run's duration: had the loop started, its trace would be written by now.
+    try:
+        run.wait(timeout=0.8)
+    except subprocess.TimeoutExpired:
+        pass
+    check(run.poll() is None and not os.path.exists(trace), "--control-wait: the loop has not started (no trace)")
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate(timeout=30)
+    print(out + err)
+    check(run.returncode == 2 and "the loop did not start" in err,
+          "--control-wait: Ctrl-C while waiting ends the run unstarted, exit status 2")
+
+
 def main():
     work = tempfile.mkdtemp(prefix="toonforce_control_")
     scene = os.path.join(work, "scene.toml")
     stats = os.path.join(work, "stats.json")
     with open(scene, "w") as f:
         f.write(SCENE)
+    control_wait(work, scene)
     run = subprocess.Popen([BINARY, "run", "--device", "sim", "--scene", scene, "--allow-non-rt", "--no-mlock",
                             "--view", "0", "--control", "--control-token", TOKEN, "--stats-json", stats,
                             "--trace", os.path.join(work, "trace.csv")],

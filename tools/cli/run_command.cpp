@@ -1,6 +1,6 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
-//               [--view [PORT]] [--view-address ADDR] [--control [--control-token T]]
+//               [--view [PORT]] [--view-address ADDR] [--control [--control-token T] [--control-wait]]
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -108,6 +108,11 @@ void add_run(CLI::App& app) {
                   "The token a control client sends in its hello (default: $TOONFORCE_CONTROL_TOKEN, else a random "
                   "one, printed)")
       ->needs(control_flag);
+  auto control_wait = std::make_shared<bool>(false);
+  cmd->add_flag("--control-wait", *control_wait,
+                "Start the loop only once a control client's hello has passed (a game or story page sets the scene up "
+                "first: its changes then meet the loop's first tick)")
+      ->needs(control_flag);
 #endif
   cmd->callback([=] {
     options->lock_memory = !*no_mlock;
@@ -171,6 +176,19 @@ void add_run(CLI::App& app) {
         fmt::print(stderr, "control: {}control, token {}{}\n", url, vo.control_options.token,
                    control_token->empty() && std::getenv("TOONFORCE_CONTROL_TOKEN") == nullptr ? " (random; set one with --control-token)" : "");
         std::fflush(stderr);
+      }
+      if (*control_wait) {
+        // Before the device opens: a session that never gets its client commands no force at all.
+        install_view_signals();
+        fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
+        std::fflush(stderr);
+        const bool connected = server->wait_for_control(view_stop());
+        restore_view_signals();
+        if (!connected) {
+          fmt::print(stderr, "control: no control client came; the loop did not start\n");
+          set_exit_code(2);  // could not start (interfaces.md: exit status)
+          return;
+        }
       }
     }
 #endif

@@ -102,6 +102,7 @@ struct ViewerServer::Impl {
   std::atomic<std::size_t> connections{0};  ///< HTTP sessions alive (not yet, or never, pages)
   std::atomic<std::size_t> control_slots{0};  ///< /control connections alive
   std::atomic<std::uint64_t> control_messages{0}, control_refused{0};
+  std::atomic<std::uint64_t> controls_authenticated{0};  ///< control connections whose hello passed
   bool stopping = false;                    ///< set on the server thread before the io_context stops
 
   asio::io_context io{1};
@@ -352,8 +353,10 @@ class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
       self->in_.consume(self->in_.size());
       const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
       const std::uint64_t refused_before = self->session_.refused();
+      const bool was_authenticated = self->session_.authenticated();
       ControlSession::Reply reply = self->session_.on_message(text, now_s);
       self->server_.control_messages.fetch_add(1);
+      if (!was_authenticated && self->session_.authenticated()) self->server_.controls_authenticated.fetch_add(1);
       if (self->session_.refused() != refused_before) self->server_.control_refused.fetch_add(1);
       self->closing_ = reply.close;
       self->out_.push_back(std::move(reply.text));
@@ -783,6 +786,14 @@ bool ViewerServer::wait_for_page(const std::atomic<int>& stop) const {
   return impl_->pages_connected.load() > 0;
 }
 
+bool ViewerServer::wait_for_control(const std::atomic<int>& stop) const {
+  while (stop.load() == 0) {
+    if (impl_->controls_authenticated.load() > 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return impl_->controls_authenticated.load() > 0;
+}
+
 void ViewerServer::wait_drained(const std::atomic<int>& stop) const {
   while (stop.load() == 0 && impl_->drained.load(std::memory_order_acquire) < impl_->ring->pushed()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -809,6 +820,7 @@ ViewerStats ViewerServer::stats() const noexcept {
   s.queued_bytes = impl_->queued_bytes.load();
   s.max_queued_bytes = impl_->max_queued_bytes.load();
   s.control_messages = impl_->control_messages.load();
+  s.controls_authenticated = impl_->controls_authenticated.load();
   s.control_refused = impl_->control_refused.load();
   return s;
 }

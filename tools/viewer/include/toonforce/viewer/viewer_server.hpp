@@ -83,6 +83,7 @@ struct ViewerStats {
   std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
   std::uint64_t control_messages = 0;     ///< control protocol messages received
   std::uint64_t control_refused = 0;      ///< of those, answered with an error
+  std::uint64_t controls_authenticated = 0;  ///< control connections whose hello passed
   std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
   std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
   std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
@@ -111,6 +112,9 @@ class ViewerServer final : public TelemetrySink {
   /// Waits until a page has connected, or `stop` becomes non-zero, polling every 50 ms.
   /// True if a page connected.
   bool wait_for_page(const std::atomic<int>& stop) const;
+  /// Waits until a control client's hello has passed (the token was right), or `stop` becomes
+  /// non-zero, polling every 5 ms. True if one has: `run --control-wait` starts the loop then.
+  bool wait_for_control(const std::atomic<int>& stop) const;
   /// Waits until every published frame has been handed to the pages' queues.
   void wait_drained(const std::atomic<int>& stop) const;
 
