@@ -17,7 +17,7 @@ TickInput<double> at(Vec3<double> x, Vec3<double> v = {}, std::int64_t tick = 0)
   in.position_m = x;
   in.velocity_m_per_s = v;
   in.rate_hz = 1.0 / kDt;
-  in.now = Instant{tick, 0.0};
+  in.now = Instant{tick, 0};
   in.period_s = kDt;
   return in;
 }

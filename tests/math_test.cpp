@@ -52,6 +52,32 @@ TEST(Fixed, DivisionRoundsAndSaturatesOnZero) {
   EXPECT_TRUE(take_fixed_saturated());
 }
 
+TEST(Fixed, RatiosOfIntegersRoundOnceAsTheExactQuotientWould) {
+  // The fixed-point loop's time: seconds from nanoseconds, and 1/dt from nanoseconds, in
+  // integers only (a Q16.16 image links no floating point). Checked against the exact quotient
+  // rounded half away from zero, over periods a servo loop uses and beyond.
+  for (const std::int64_t ns : {1LL, 999LL, 15259LL, 125000LL, 333333LL, 1000000LL, 1000001LL, 2000000LL,
+                                100000000LL, 30000000000000LL}) {
+    const double seconds = static_cast<double>(ns) / 1e9;
+    EXPECT_EQ(Q::from_ratio(ns, 1'000'000'000).raw(), Q::from_double(seconds).raw()) << ns;
+    EXPECT_EQ(Q::from_ratio(-ns, 1'000'000'000).raw(), Q::from_double(-seconds).raw()) << ns;
+    if (ns >= 31000) {
+      EXPECT_EQ(Q::from_ratio(1'000'000'000, ns).raw(), Q::from_double(1e9 / static_cast<double>(ns)).raw()) << ns;
+    }
+  }
+  EXPECT_FALSE(take_fixed_saturated());
+  EXPECT_EQ(Q::from_ratio(1'000'000'000, 30000), Q::max()) << "40 kHz's rate is past Q16.16";
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_EQ(Q::from_ratio(std::int64_t{1} << 50, 1), Q::max()) << "a huge numerator saturates, it does not wrap";
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_EQ(Q::from_ratio(1, 0), Q::max()) << "a zero denominator saturates toward the sign";
+  EXPECT_TRUE(take_fixed_saturated());
+  // t <= d exactly: 0.1 s is 6553.6 LSB, so d = 6554 LSB = 0.100006103515625 s.
+  const Q d = Q::from_raw(6554);
+  EXPECT_TRUE(d.ratio_at_most(100'006'103, 1'000'000'000));
+  EXPECT_FALSE(d.ratio_at_most(100'006'104, 1'000'000'000));
+}
+
 TEST(Fixed, MultiplicationAgreesWithLibfixmath) {
   // libfixmath (Debian's libfixmath-dev) as an independent oracle: it rounds to nearest too;
   // the two may differ by one LSB only on exact ties, which they round differently.

@@ -118,7 +118,7 @@ RandomScene random_scene(std::mt19937_64& rng, bool limits) {
 }
 
 /// A random smooth motion through the workspace: sums of sines, with their exact derivative,
-/// an uneven clock (jitter), and optionally a few non-finite rows.
+/// an uneven clock (jitter, to the nanosecond), and optionally a few non-finite rows.
 std::vector<oracle::Row> random_motion(std::mt19937_64& rng, int rows, bool with_nan) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   double amp[3][3], freq[3][3], phase[3][3];
@@ -133,6 +133,9 @@ std::vector<oracle::Row> random_motion(std::mt19937_64& rng, int rows, bool with
   double t = u(rng);
   for (int k = 0; k < rows; ++k) {
     t += 1e-3 * (0.8 + 0.4 * u(rng));
+    // On the nanosecond grid: the loop's stamps are whole nanoseconds (effects/tick.hpp,
+    // Instant), which a recording at any real clock's resolution already is.
+    t = std::round(t * 1e9) / 1e9;
     oracle::Row r{t, {}, {}};
     for (std::size_t i = 0; i < 3; ++i) {
       for (std::size_t j = 0; j < 3; ++j) {
@@ -289,6 +292,17 @@ TEST(ReplayCommand, RejectsTimeThatDoesNotIncreaseNamingFileAndLine) {
                                                     (dir / "o.csv").string()));
   EXPECT_NE(status, 0);
   EXPECT_NE(err.find("back.csv:4: t must increase strictly"), std::string::npos) << err;
+}
+
+TEST(ReplayCommand, RejectsStampsCloserThanTheLoopsNanosecondNamingFileAndLine) {
+  // The loop's stamps are whole nanoseconds: two rows 0.1 ns apart would be one instant.
+  const fs::path dir = temp_dir();
+  write_file(dir / "close.csv", "t,x,y,z\n0.000,0,0,0\n0.001,0,0,0\n0.0010000001,0,0,0\n");
+  const auto [status, err] = run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}'",
+                                                    TOONFORCE_SOURCE_DIR, (dir / "close.csv").string(),
+                                                    (dir / "o.csv").string()));
+  EXPECT_NE(status, 0);
+  EXPECT_NE(err.find("close.csv:4: t must increase by 1 ns at least"), std::string::npos) << err;
 }
 
 TEST(ReplayCommand, RejectsABadSceneNamingFileLineAndKey) {

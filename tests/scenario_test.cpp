@@ -63,7 +63,7 @@ void run_scenario(std::string_view scene, Look look) {
     in.position_m = v.p.position_m;
     in.velocity_m_per_s = v.p.velocity_m_per_s;
     in.rate_hz = kRateHz;
-    in.now = Instant{k, 0.0};
+    in.now = Instant{k, 0};
     in.period_s = 1.0 / kRateHz;
     v.before = previous;
     v.fallen_before = has_cliff && cliffs[0].fallen;

@@ -217,7 +217,7 @@ TEST(ActiveEffects, SlotsAreTheForcesTheActiveEffectsAdded) {
   int running = 0;
   for (std::int64_t k = 0; k < 200; ++k) {
     TickInput<double> in{};
-    in.now = Instant{k, 0.0};
+    in.now = Instant{k, 0};
     in.period_s = kPeriodS;
     in.rate_hz = 1.0 / kPeriodS;
     in.velocity_m_per_s = {0.1, 0.0, k < 3 ? -0.2 : 0.0};

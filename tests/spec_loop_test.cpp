@@ -219,11 +219,11 @@ TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
   SpecLoop ctl(make_runtime_scene<Q16_16>(scene.value()), replay_config(scene.value(), 0.0066));
   constexpr double kLsb = 1.0 / 65536.0;
   Sample s = sample(0, {0, 0, -0.999});  // asks for 29970 N
-  const auto first = ctl.tick(s, 0.0);
+  const auto first = ctl.tick(s, 0);
   EXPECT_LE(first.force_n.z.to_double(), 2000.0 * 0.0066 + 2 * kLsb);
   EXPECT_GE(first.force_n.z.to_double(), 2000.0 * 0.0066 - 2 * kLsb);
   s = sample(1, {0, 0, -0.999});
-  const auto second = ctl.tick(s, 0.0066);
+  const auto second = ctl.tick(s, 6'600'000);
   EXPECT_LE(second.force_n.z.to_double(), 20.0 + 2 * kLsb);  // then the clamp holds
   EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
 }

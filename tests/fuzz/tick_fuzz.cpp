@@ -82,17 +82,18 @@ void run(const toonforce::SceneDescription& d, const double* v, std::size_t n) {
   toonforce::ServoLoop<FuzzDevice, toonforce::RuntimeScene<S>> device(FuzzDevice{&reading}, scene, every);
   const double max_force = d.limits.max_force_n;
   const double max_rate = d.limits.max_force_rate_n_per_s;
-  double t = 0.0;
+  std::int64_t t_ns = 0;  // the loop's stamps are whole nanoseconds
   toonforce::Vec3<double> previous_replayed{};
   toonforce::Vec3<double> previous_device{};
   for (std::size_t i = 0; i + 7 <= n; i += 7) {
     reading.position_m = {v[i], v[i + 1], v[i + 2]};
     reading.velocity_m_per_s = {v[i + 3], v[i + 4], v[i + 5]};
     reading.has_velocity = std::signbit(v[i + 6]);
-    const double dt = dt_of(v[i + 6]);
-    if (i > 0) t += dt;
+    const std::int64_t dt_ns = toonforce::ns_from_seconds(dt_of(v[i + 6]));
+    const double dt = static_cast<double>(dt_ns) / 1e9;
+    if (i > 0) t_ns += dt_ns;
     const auto k = static_cast<std::int64_t>(i / 7);
-    check(replayed, replayed.tick(toonforce::Instant{k, t}), max_force, max_rate, dt, previous_replayed);
+    check(replayed, replayed.tick(toonforce::Instant{k, t_ns}), max_force, max_rate, dt, previous_replayed);
     check(device, device.tick(k), max_force, max_rate, 1e-3, previous_device);
   }
 }

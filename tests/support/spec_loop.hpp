@@ -49,9 +49,9 @@ class SpecLoop {
  public:
   using S = typename SceneT::Scalar;
   SpecLoop(const SceneT& scene, const ServoConfig& c) : loop_(Player{&current_}, scene, c) {}
-  Result<S> tick(const Sample& s, double stamp_s = 0.0) {
+  Result<S> tick(const Sample& s, std::int64_t stamp_ns = 0) {
     current_ = s;
-    const TickStatus status = loop_.tick(Instant{s.k, stamp_s});
+    const TickStatus status = loop_.tick(Instant{s.k, stamp_ns});
     const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
     return {loop_.force(), counted ? loop_.scene_force() : Vec3<S>{}, status.faults, status.limits};
   }

@@ -58,25 +58,21 @@ endforeach()
 # (1,977 before; not yet looked into).
 set_tests_properties(mcu_m3_budget_effects_cartoon_wall mcu_m3_budget_effects_cliff PROPERTIES DISABLED ON)
 
-# No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table.
+# No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table, for
+# every whole-loop image (measuring and size images: the loop, its device, its start-up) and
+# every effects probe.
 find_program(TOONFORCE_ARM_OBJDUMP arm-none-eabi-objdump REQUIRED)
 set(_no_float -DNM=${TOONFORCE_ARM_NM} -DOBJDUMP=${TOONFORCE_ARM_OBJDUMP})
-foreach(image IN LISTS TOONFORCE_MCU_SCENES ITEMS all_scenes)
+foreach(image IN LISTS _mcu_images _mcu_size_images)
   add_test(NAME mcu_m3_no_float_${image} COMMAND ${CMAKE_COMMAND} ${_no_float}
     -DIMAGE=${_mcu_m3_dir}/${image}.elf -P ${_mcu_src}/check_no_float.cmake)
-  # The servo loop takes its device readings, writes its force and keeps its time in double
-  # (hal/device.hpp, control/clock.hpp, hip_sensor.hpp), so the whole-loop images link the
-  # soft-double helpers (tools/mcu/README.md lists the callers); on once that seam is Q16.16.
-  set_tests_properties(mcu_m3_no_float_${image} PROPERTIES LABELS mcu DISABLED ON FIXTURES_REQUIRED mcu_m3_images)
+  set_tests_properties(mcu_m3_no_float_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 endforeach()
 foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   add_test(NAME mcu_m3_no_float_effects_${scene} COMMAND ${CMAKE_COMMAND} ${_no_float}
     -DIMAGE=${_mcu_m3_dir}/effects_probe_${scene}.elf -P ${_mcu_src}/check_no_float.cmake)
   set_tests_properties(mcu_m3_no_float_effects_${scene} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 endforeach()
-# The impact transient computes its time since the trigger in double (spec effects.md §0,
-# ImpactTransient::force): open until the loop hands the effects their time in Q16.16.
-set_tests_properties(mcu_m3_no_float_effects_cartoon_wall PROPERTIES DISABLED ON)
 
 # No heap: an image that allocates does not link.
 add_test(NAME mcu_m3_heap_link_fails

@@ -33,7 +33,7 @@ std::int32_t probe() noexcept {
     in.velocity_m_per_s = {S::from_raw(g_velocities[i][0]), S::from_raw(g_velocities[i][1]),
                            S::from_raw(g_velocities[i][2])};
     in.rate_hz = S::from_raw(1000 << 16);
-    in.now = Instant{k, 0.0};
+    in.now = Instant{k, 0};
     const Vec3<S> f = safety.limit(kScene.force(in, state, active), in.rate_hz).force_n;
     checksum ^= f.x.raw() ^ f.y.raw() ^ f.z.raw();
   }

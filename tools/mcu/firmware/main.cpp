@@ -26,6 +26,8 @@
 namespace toonforce::mcu {
 namespace {
 
+using image::Motion;
+
 // ---- output -----------------------------------------------------------------------------------
 
 /// Line-buffered text through semihosting: one trap per line, not per character.
@@ -126,18 +128,21 @@ struct Tally {
 
 /// Plays one motion file's rows as the device's readings, as replay's device does: row k is
 /// what the device reads at tick k (its position, and its velocity when the file gives one).
-/// What the loop writes is taken from the loop itself (its Q16.16 force, bit for bit), so the
-/// write does nothing here.
+/// It reads in the image's scalar (`Scalar`, hal/device.hpp), as a target's device would: the
+/// generator converted the rows as replay's loop converts its double readings, so no tick
+/// converts through floating point. What the loop writes is taken from the loop itself (its
+/// force, bit for bit), so the write does nothing here.
 struct MotionDevice {
+  using Scalar = image::S;
   const Motion* motion;
   const std::size_t* row;
-  DeviceStatus read(DeviceReading& reading) const noexcept {
+  DeviceStatus read(BasicDeviceReading<Scalar>& reading) const noexcept {
     reading.position_m = motion->rows[*row].position_m;
     reading.has_velocity = motion->velocity_m_per_s != nullptr;
     if (reading.has_velocity) reading.velocity_m_per_s = motion->velocity_m_per_s[*row];
     return DeviceStatus::kOk;
   }
-  DeviceStatus write(const Vec3<double>&) noexcept { return DeviceStatus::kOk; }
+  DeviceStatus write(const Vec3<Scalar>&) noexcept { return DeviceStatus::kOk; }
 };
 
 template <class S>
@@ -171,18 +176,27 @@ struct Run {
   alignas(SpecLoop) static inline unsigned char spec_storage[sizeof(SpecLoop)];
   alignas(FullLoop) static inline unsigned char full_storage[sizeof(FullLoop)];
 
+  // The loops are built at compile time (their constructors are constexpr): the compiler
+  // converts their double settings, and the target only copies them into place, so nothing
+  // converts through floating point at run time either. The first tick's dt of replay's loop
+  // is the recordings' period, as replay's (replay_config; the generator checks they share it).
+  static constexpr SpecLoop kSpecLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::config(image::kMotionPeriodS, true)};
+  static constexpr FullLoop kFullLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::config(kPeriodS, false)};
+
   static SpecLoop& make_spec(const Motion& motion) noexcept {
-    // The first tick's dt is the recording's period, as replay's (replay_config).
-    const ServoConfig c = SceneDef::config(motion.rows[1].t_s - motion.rows[0].t_s, true);
-    return *new (spec_storage) SpecLoop(MotionDevice{&motion, &row}, kScene, c);
+    SpecLoop& loop = *new (spec_storage) SpecLoop(kSpecLoop);
+    loop.device().motion = &motion;
+    return loop;
   }
   static FullLoop& make_full(const Motion& motion) noexcept {
-    return *new (full_storage) FullLoop(MotionDevice{&motion, &row}, kScene, SceneDef::config(kPeriodS, false));
+    FullLoop& loop = *new (full_storage) FullLoop(kFullLoop);
+    loop.device().motion = &motion;
+    return loop;
   }
 
   /// One whole loop tick, read to write, in the replay's stamped time.
   [[gnu::noinline]] static TickStatus spec_tick(SpecLoop& loop, const Motion& motion, std::size_t k) noexcept {
-    return loop.tick(Instant{static_cast<std::int64_t>(k), motion.rows[k].t_s});
+    return loop.tick(Instant{static_cast<std::int64_t>(k), motion.rows[k].t_ns});
   }
   /// One whole loop tick with every stage, at integer tick k.
   [[gnu::noinline]] static TickStatus full_tick(FullLoop& loop, std::size_t k) noexcept {
@@ -236,10 +250,10 @@ struct Run {
       const TickStatus status = spec_tick(again, motion, row);
       if (status.faults.has(Fault::kNonFiniteInput) || status.faults.has(Fault::kNonFiniteForce)) continue;
       TickInput<S> in{};
-      in.position_m = vec_cast<S>(motion.rows[row].position_m);
+      in.position_m = motion.rows[row].position_m;
       in.velocity_m_per_s = again.velocity();
       in.rate_hz = rate_of(motion, row);
-      in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_s};
+      in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_ns};
       Vec3<S> f{};
       effects.add(count([&] { f = effects_and_safety(in, state, safety); }));
       agree = agree && f == again.force();  // the shadow is the loop's own computation
@@ -252,10 +266,15 @@ struct Run {
     return agree;
   }
 
-  /// 1/dt as the loop computes it with stamps: the first tick's dt is the recording's period.
+  /// 1/dt as the loop computes it with stamps: the first tick's dt is the recording's period
+  /// (every motion here has whole rows, so the last tick that counted is the row before).
   static S rate_of(const Motion& motion, std::size_t k) noexcept {
-    const double dt = k == 0 ? motion.rows[1].t_s - motion.rows[0].t_s : motion.rows[k].t_s - motion.rows[k - 1].t_s;
-    return scalar_cast<S>(1.0 / dt);
+    const std::int64_t dt_ns = k == 0 ? ns_from_seconds(image::kMotionPeriodS) : motion.rows[k].t_ns - motion.rows[k - 1].t_ns;
+    if constexpr (kIsFixed<S>) {
+      return S::from_ratio(kNsPerS, dt_ns);
+    } else {
+      return scalar_cast<S>(1.0 / (static_cast<double>(dt_ns) / static_cast<double>(kNsPerS)));
+    }
   }
 
   static bool play_all() noexcept {

@@ -3,21 +3,26 @@
 /// in the image, and the list of compile-time scenes an image carries.
 
 #include <cstddef>
+#include <cstdint>
 
 #include "toonforce/control/servo_loop.hpp"
 
 namespace toonforce::mcu {
 
-/// One row of a replay motion file (scenes/motions/*.csv), as the host's reader parsed it.
-struct MotionRow {
-  double t_s;
-  Vec3<double> position_m;
+/// One row of a replay motion file (scenes/motions/*.csv) as the image's device reads it: the
+/// stamp in whole nanoseconds and the position in the image's scalar, converted by the host
+/// generator exactly as replay's loop converts a double reading.
+template <class S>
+struct MotionRowOf {
+  std::int64_t t_ns;
+  Vec3<S> position_m;
 };
 
-struct Motion {
+template <class S>
+struct MotionOf {
   const char* name;
-  const MotionRow* rows;
-  const Vec3<double>* velocity_m_per_s;  ///< nullptr: the motion gives none (it is estimated)
+  const MotionRowOf<S>* rows;
+  const Vec3<S>* velocity_m_per_s;  ///< nullptr: the motion gives none (it is estimated)
   std::size_t count;
 };
 

@@ -1,5 +1,7 @@
 #include "toonforce/replay/motion_csv.hpp"
 
+#include "toonforce/effects/tick.hpp"
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -102,11 +104,19 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
       values[k] = *value;
     }
     if (!std::isfinite(values[0])) return fail(fmt::format("t must be finite (got {})", values[0]));
+    // The loop takes t to the nearest nanosecond (an integer stamp, effects/tick.hpp).
+    if (!(std::fabs(values[0]) < 9.2e9)) return fail(fmt::format("t = {} s is beyond the stamps' range (|t| < 9.2e9 s)", values[0]));
+    const std::int64_t t_ns = ns_from_seconds(values[0]);
     if (!motion.rows.empty() && !(values[0] > previous_t)) {
       return fail(fmt::format("t must increase strictly ({} after {})", values[0], previous_t));
     }
+    if (!motion.rows.empty() && !(t_ns > motion.rows.back().t_ns)) {
+      return fail(fmt::format("t must increase by 1 ns at least, the resolution of the loop's stamps ({} after {})",
+                              values[0], previous_t));
+    }
     previous_t = values[0];
-    motion.rows.push_back({values[0], {values[1], values[2], values[3]}, {values[4], values[5], values[6]}, line_number});
+    motion.rows.push_back({values[0], t_ns, {values[1], values[2], values[3]}, {values[4], values[5], values[6]},
+                           line_number});
   }
   if (!have_header) return Error{fmt::format("{}: empty motion file (need a header t,x,y,z)", source_name)};
   if (motion.rows.size() < 2) {

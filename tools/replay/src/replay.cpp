@@ -96,7 +96,8 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   const SummaryColumns columns = SummaryColumns::of(names);
   std::size_t row = 0;
   ServoLoop<MotionDevice, RuntimeScene<S>, NullPins, kSpecStages> loop(
-      MotionDevice{&motion, &row}, scene, replay_config(description, motion.rows[1].t_s - motion.rows[0].t_s));
+      MotionDevice{&motion, &row}, scene,
+      replay_config(description, static_cast<double>(motion.rows[1].t_ns - motion.rows[0].t_ns) / 1e9));
   std::string header = "t,fx,fy,fz,faults,limits,scene_fx,scene_fy,scene_fz,contact";
   for (const std::string& n : names) header += "," + n;
   RowWriter w{out, options.output_path, summary.output_error, {}};
@@ -106,7 +107,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   std::vector<double> previous_cliff(columns.cliff_states.size(), 0.0);
   for (; row < motion.rows.size(); ++row) {
     const MotionRow& r = motion.rows[row];
-    const TickStatus status = loop.tick(Instant{static_cast<std::int64_t>(row), r.t_s});
+    const TickStatus status = loop.tick(Instant{static_cast<std::int64_t>(row), r.t_ns});
     const Vec3<double> f = to_double(loop.force());
     const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
     const Vec3<double> scene_f = counted ? to_double(loop.scene_force()) : Vec3<double>{};
@@ -173,7 +174,7 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   // The rows' stamps are replay's rate: each 1/dt must pass the Q16.16 rate rule (a gap after a
   // skipped row only lowers the rate the loop sees, hip_sensor.hpp).
   for (std::size_t i = 1; i < motion->rows.size(); ++i) {
-    const double dt_s = motion->rows[i].t_s - motion->rows[i - 1].t_s;
+    const double dt_s = static_cast<double>(motion->rows[i].t_ns - motion->rows[i - 1].t_ns) / 1e9;
     if (const std::string bad = fixed_point::check_rate(1.0 / dt_s, options.scalar, scene.value()); !bad.empty()) {
       return Error{fmt::format("{}:{}: t: {:g} s after the previous row, a servo rate of {}\n", options.input_path,
                                motion->rows[i].line, dt_s, bad)};

@@ -302,7 +302,7 @@ TickInput<S> tick_input(const Vec3<double>& x, const Vec3<double>& v, std::int64
   in.position_m = vec_cast<S>(x);
   in.velocity_m_per_s = vec_cast<S>(v);
   in.rate_hz = scalar_cast<S>(kRateHz);
-  in.now = Instant{tick, 0.0};
+  in.now = Instant{tick, 0};
   in.period_s = 1.0 / kRateHz;
   return in;
 }
@@ -487,7 +487,7 @@ class CaseBuilder {
     running.impact.started = true;
     running.impact.armed = false;
     running.impact.running = true;
-    running.impact.trigger = Instant{0, 0.0};
+    running.impact.trigger = Instant{0, 0};
     running.impact.impact_speed_m_per_s = scalar_cast<S>(0.2);
     running.impact.previous_penetration_m = scalar_cast<S>(0.001);
     for (const SineMethod method : {SineMethod::kLibrary, SineMethod::kPolynomial, SineMethod::kTable}) {

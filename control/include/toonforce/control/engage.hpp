@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "toonforce/control/supervisor.hpp"
+#include "toonforce/effects/tick.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
@@ -23,10 +24,12 @@ struct EngageConfig {
 template <Scalar S>
 class Engage {
  public:
-  explicit Engage(const EngageConfig& config) noexcept
+  constexpr explicit Engage(const EngageConfig& config) noexcept
       : engage_force_n_(scalar_cast<S>(config.engage_force_n)),
         soft_start_s_(config.soft_start_s),
-        period_s_(config.period_s) {}
+        period_s_(config.period_s),
+        soft_start_ns_(ns_from_seconds(config.soft_start_s)),
+        period_ns_(ns_from_seconds(config.period_s)) {}
 
   /// The gate opened again: wait for the scene force to be small before any force flows.
   void reset() noexcept { state_ = LoopState::kEngaging; }
@@ -44,13 +47,22 @@ class Engage {
     }
     constexpr S kOne = scalar_cast<S>(1.0);
     if (state_ != LoopState::kRamping) return kOne;
-    // Time from integer ticks, in double, converted once (spec §0).
-    const double elapsed_s = static_cast<double>(k - ramp_start_) * period_s_;
-    if (!(elapsed_s < soft_start_s_)) {
-      state_ = LoopState::kActive;
-      return kOne;
+    if constexpr (kIsFixed<S>) {  // integer nanoseconds, no floating point (control/clock.hpp)
+      const std::int64_t elapsed_ns = (k - ramp_start_) * period_ns_;
+      if (!(elapsed_ns < soft_start_ns_)) {
+        state_ = LoopState::kActive;
+        return kOne;
+      }
+      return S::from_ratio(elapsed_ns, soft_start_ns_);
+    } else {
+      // Time from integer ticks, in double, converted once (spec §0).
+      const double elapsed_s = static_cast<double>(k - ramp_start_) * period_s_;
+      if (!(elapsed_s < soft_start_s_)) {
+        state_ = LoopState::kActive;
+        return kOne;
+      }
+      return scalar_cast<S>(elapsed_s / soft_start_s_);
     }
-    return scalar_cast<S>(elapsed_s / soft_start_s_);
   }
 
   bool engaging() const noexcept { return state_ == LoopState::kEngaging; }
@@ -65,6 +77,8 @@ class Engage {
   S engage_force_n_;
   double soft_start_s_;
   double period_s_;
+  std::int64_t soft_start_ns_;  ///< a fixed-point S's time: integer nanoseconds
+  std::int64_t period_ns_;
   LoopState state_ = LoopState::kEngaging;
   std::int64_t ramp_start_ = 0;
 };
@@ -73,7 +87,7 @@ class Engage {
 template <Scalar S>
 class NoEngage {
  public:
-  explicit NoEngage(const EngageConfig&) noexcept {}
+  constexpr explicit NoEngage(const EngageConfig&) noexcept {}
   void reset() noexcept {}
   void restart(std::int64_t) noexcept {}
   S gain(const Vec3<S>&, std::int64_t) noexcept { return scalar_cast<S>(1.0); }

@@ -20,7 +20,7 @@ struct MotionLimitsConfig {
 template <Scalar S>
 class MotionLimits {
  public:
-  explicit MotionLimits(const MotionLimitsConfig& c) noexcept
+  constexpr explicit MotionLimits(const MotionLimitsConfig& c) noexcept
       : max_speed_squared_(scalar_cast<S>(c.has_max_velocity ? c.max_velocity_m_per_s * c.max_velocity_m_per_s : 0.0)),
         min_m_(vec_cast<S>(c.workspace_min_m)),
         max_m_(vec_cast<S>(c.workspace_max_m)),
@@ -36,7 +36,7 @@ class MotionLimits {
                     (outside ? static_cast<std::uint32_t>(Fault::kOutsideWorkspace) : 0U));
   }
   /// The velocity limit needs a velocity estimate.
-  bool needs_velocity() const noexcept { return has_max_velocity_; }
+  constexpr bool needs_velocity() const noexcept { return has_max_velocity_; }
 
  private:
   bool inside(const Vec3<S>& x) const noexcept {
@@ -56,9 +56,9 @@ class MotionLimits {
 template <Scalar S>
 class NoMotionLimits {
  public:
-  explicit NoMotionLimits(const MotionLimitsConfig&) noexcept {}
+  constexpr explicit NoMotionLimits(const MotionLimitsConfig&) noexcept {}
   FaultSet check(const Vec3<S>&, const Vec3<S>&) const noexcept { return {}; }
-  bool needs_velocity() const noexcept { return false; }
+  constexpr bool needs_velocity() const noexcept { return false; }
 };
 
 }  // namespace toonforce

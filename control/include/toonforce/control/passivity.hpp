@@ -69,7 +69,7 @@ class PassivityController {
   static constexpr double kMaxExcessJ = 1.0;
 
   /// `max_force_n` caps each slot's damping force (the clamp caps the sum anyway).
-  PassivityController(const PassivityConfig& config, double max_force_n) noexcept
+  constexpr PassivityController(const PassivityConfig& config, double max_force_n) noexcept
       : enabled_(config.controller),
         budget_(Wide<S>::from_double(config.budget_j)),
         max_excess_(scalar_cast<S>(kMaxExcessJ)),
@@ -191,7 +191,7 @@ class Passivity {
  public:
   /// `slots` of the scene's active parts are in use; `max_force_n` caps the damping; the
   /// controller turns an excess energy into a force over one period `period_s`.
-  Passivity(const PassivityConfig& config, std::size_t slots, double max_force_n, double period_s) noexcept
+  constexpr Passivity(const PassivityConfig& config, std::size_t slots, double max_force_n, double period_s) noexcept
       : controller_(config, max_force_n), slots_(slots), rate_hz_(scalar_cast<S>(1.0 / period_s)) {}
 
   /// Start of a tick: `held_force_n`, commanded since the last good position, moved the HIP to
@@ -237,7 +237,7 @@ class Passivity {
   }
 
   /// Whether the controller may need the velocity (it damps along -v).
-  bool needs_velocity() const noexcept { return controller_.enabled() && slots_ > 0; }
+  constexpr bool needs_velocity() const noexcept { return controller_.enabled() && slots_ > 0; }
   const PassivityObserver<S>& observer() const noexcept { return observer_; }
   const PassivityController<S, kSlots>& controller() const noexcept { return controller_; }
   std::size_t slots() const noexcept { return slots_; }
@@ -257,13 +257,13 @@ class Passivity {
 template <Scalar S, std::size_t kSlots>
 class NoPassivity {
  public:
-  NoPassivity(const PassivityConfig&, std::size_t, double, double) noexcept {}
+  constexpr NoPassivity(const PassivityConfig&, std::size_t, double, double) noexcept {}
   void observe(const Vec3<S>&, const Vec3<S>&, bool) noexcept {}
   bool damping(const ActiveForce<S>*, const Vec3<S>&, Vec3<S>&) noexcept { return false; }
   void settle(const Vec3<S>&, const Vec3<S>&) noexcept {}
   void cut() noexcept {}
   void relayout(std::size_t) noexcept {}
-  bool needs_velocity() const noexcept { return false; }
+  constexpr bool needs_velocity() const noexcept { return false; }
 };
 
 }  // namespace toonforce

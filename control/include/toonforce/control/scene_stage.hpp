@@ -37,18 +37,19 @@ class SceneStage {
   /// The scene's active parts, and in a live stage the update fade's after them.
   static constexpr std::size_t kActiveCapacity = SceneT::kActiveCapacity + (kLive ? 1 : 0);
 
-  explicit SceneStage(const SceneT& scene) noexcept : scene_(scene) {}
+  constexpr explicit SceneStage(const SceneT& scene) noexcept : scene_(scene) {}
   /// The active slots a stage on `scene` uses.
-  static std::size_t slots_of(const SceneT& scene) noexcept { return scene.active_slots() + (kLive ? 1 : 0); }
+  static constexpr std::size_t slots_of(const SceneT& scene) noexcept { return scene.active_slots() + (kLive ? 1 : 0); }
 
   /// The inputs the effects see this tick.
-  static TickInput<S> input(const Hip<S>& hip, const TickTime& time) noexcept {
+  static constexpr TickInput<S> input(const Hip<S>& hip, const TickTime& time) noexcept {
     TickInput<S> in{};
     in.position_m = hip.position_m;
     in.velocity_m_per_s = hip.velocity_m_per_s;
     in.rate_hz = hip.rate_hz;
     in.now = time.now;
     in.period_s = time.period_s;
+    if constexpr (kIsFixed<S>) in.period_ns = time.period_ns;
     return in;
   }
 

@@ -80,9 +80,17 @@ class ServoLoop {
                                        (kStages.passivity && kSlots > 0);
   /// What a live loop's updates come through (scene_updates.hpp; void unless live).
   using Mailbox = typename detail::MailboxOf<SceneT, kStages.live>::type;
+  /// What the device reads and is written in: double, or the loop's own scalar (hal/device.hpp).
+  using DeviceScalar = device_scalar_t<Device>;
+  static_assert(std::same_as<DeviceScalar, double> || std::same_as<DeviceScalar, S>,
+                "a device reads in double or in the loop's scalar");
+  /// A fixed-point loop keeps its time in integer nanoseconds (no floating point on a tick).
+  using Clock = BasicLoopClock<kIsFixed<S>>;
 
   /// `config` must pass check_servo_config(); the loop starts engaging at its first tick.
-  ServoLoop(Device device, const SceneT& scene, const ServoConfig& config, PinsT pins = {}) noexcept
+  /// constexpr: a target may build its loop at compile time, its double settings converted
+  /// by the compiler (tools/mcu), and copy it into place.
+  constexpr ServoLoop(Device device, const SceneT& scene, const ServoConfig& config, PinsT pins = {}) noexcept
       : device_(std::move(device)),
         pins_(pins),
         clock_(config.period_s, config.time_from_stamps),
@@ -113,7 +121,7 @@ class ServoLoop {
   std::uint64_t updates_applied() const noexcept { return updates_applied_; }
 
   /// One tick at integer time `k` (strictly increasing; a smaller k is taken as last + 1).
-  TickStatus tick(std::int64_t k) noexcept { return tick(Instant{k, 0.0}); }
+  TickStatus tick(std::int64_t k) noexcept { return tick(Instant{k, 0}); }
 
   /// One tick at `now`; with ServoConfig::time_from_stamps its stamp gives dt (replay).
   TickStatus tick(Instant now) noexcept {
@@ -122,7 +130,7 @@ class ServoLoop {
     const TickTime time = clock_.advance(now);
 
     // In: the device, and whether force may flow at all.
-    DeviceReading reading{};
+    BasicDeviceReading<DeviceScalar> reading{};
     const DeviceStatus read = device_.read(reading);
     const Gate gate = supervisor_.admit(time.gap, pins_.estop.read(), pins_.enable.read(), read);
     if (gate.position) position_m_ = reading.position_m;
@@ -154,7 +162,7 @@ class ServoLoop {
     }
 
     // Out.
-    const DeviceStatus write = device_.write(to_double(out.force_n));
+    const DeviceStatus write = device_.write(to_device(out.force_n));
     out.faults |= gate.faults | supervisor_.wrote(write);
     if (derated) out.limits = out.limits | Limit::kThermal;
     if (reading.force_limited) out.limits = out.limits | Limit::kDeviceLimited;
@@ -171,16 +179,16 @@ class ServoLoop {
   /// stop leaves the device without force before anything else happens.
   TickStatus shutdown(std::int64_t k) noexcept {
     TickStatus status;
-    DeviceReading reading{};
+    BasicDeviceReading<DeviceScalar> reading{};
     status.read = device_.read(reading);
     if (status.read == DeviceStatus::kOk) position_m_ = reading.position_m;
     safety_.zero();
     out_.force_n = out_.damping_n = Vec3<S>{};
     out_.gain = S{};
-    status.write = device_.write(Vec3<double>{});
+    status.write = device_.write(Vec3<DeviceScalar>{});
     supervisor_.shut_down();
     const Instant next = clock_.next();
-    static_cast<void>(clock_.advance(Instant{clock_.started() && k < next.tick ? next.tick : k, next.stamp_s}));
+    static_cast<void>(clock_.advance(Instant{clock_.started() && k < next.tick ? next.tick : k, next.stamp_ns}));
     pins_.lights.show(LightState::kIdle);
     shown_ = LoopState::kIdle;
     state_ = LoopState::kIdle;
@@ -199,7 +207,7 @@ class ServoLoop {
   void fill_frame(TelemetryFrame& f) const noexcept {
     f.tick = clock_.last().tick;
     f.t_s = clock_.time_s();
-    f.position_m = position_m_;
+    f.position_m = to_double(position_m_);
     f.velocity_m_per_s = to_double(out_.velocity_m_per_s);
     f.force_n = to_double(out_.force_n);
     f.scene_force_n = to_double(out_.scene_n);
@@ -336,8 +344,22 @@ class ServoLoop {
   /// The rate limit's largest step this tick, max_force_rate * dt (the period's, computed
   /// once, on a regular tick).
   S max_step_of(const TickTime& time) const noexcept {
-    if (time.gap == 1 && time.period_s > 0.0) return period_max_step_;
-    return safety_.max_step_for(scalar_cast<S>(1.0 / time.dt_s()));
+    if constexpr (kIsFixed<S>) {  // integer time: 1e9 / dt_ns
+      if (time.gap == 1 && time.period_ns > 0) return period_max_step_;
+      return safety_.max_step_for(S::from_ratio(kNsPerS, time.dt_ns));
+    } else {
+      if (time.gap == 1 && time.period_s > 0.0) return period_max_step_;
+      return safety_.max_step_for(scalar_cast<S>(1.0 / time.dt_s()));
+    }
+  }
+
+  /// The force as the device takes it: double, or the loop's scalar as it is.
+  static constexpr Vec3<DeviceScalar> to_device(const Vec3<S>& force_n) noexcept {
+    if constexpr (std::same_as<DeviceScalar, double>) {
+      return to_double(force_n);
+    } else {
+      return force_n;
+    }
   }
 
 
@@ -356,7 +378,7 @@ class ServoLoop {
 
   /// Without a configured max force, the thermal model and the damping cap use this [N].
   static constexpr double kUnlimitedForceN = 1000.0;
-  static double unlimited_or(const ForceLimits& l) noexcept { return l.has_max_force ? l.max_force_n : kUnlimitedForceN; }
+  static constexpr double unlimited_or(const ForceLimits& l) noexcept { return l.has_max_force ? l.max_force_n : kUnlimitedForceN; }
 
   template <bool kOn, template <class> class On, template <class> class Off>
   using StageOf = std::conditional_t<kOn, On<S>, Off<S>>;
@@ -367,7 +389,7 @@ class ServoLoop {
 
   Device device_;
   [[no_unique_address]] PinsT pins_;
-  LoopClock clock_;
+  Clock clock_;
   std::conditional_t<kStages.supervisor, Supervisor, NoSupervisor> supervisor_;
   Stage scene_;
   [[no_unique_address]] StageOf<kStages.engage, Engage, NoEngage> engage_;
@@ -389,7 +411,7 @@ class ServoLoop {
 
   // For telemetry.
   TickStatus last_status_{};
-  Vec3<double> position_m_{};
+  Vec3<DeviceScalar> position_m_{};
 };
 
 }  // namespace toonforce

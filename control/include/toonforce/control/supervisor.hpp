@@ -63,7 +63,22 @@ struct SupervisorConfig {
 
 class Supervisor {
  public:
-  explicit Supervisor(const SupervisorConfig& config) noexcept : config_(config) {}
+  constexpr explicit Supervisor(const SupervisorConfig& config) noexcept : config_(config) {}
+  /// A copy of a supervisor (a loop built at compile time, copied into place before it runs:
+  /// tools/mcu) carries a pending re-arm over as a plain value.
+  Supervisor(const Supervisor& other) noexcept
+      : config_(other.config_),
+        rearm_requested_(other.rearm_requested_.load(std::memory_order_relaxed)),
+        latched_(other.latched_),
+        mode_(other.mode_),
+        was_armed_(other.was_armed_),
+        armed_again_(other.armed_again_),
+        write_failed_(other.write_failed_),
+        started_(other.started_),
+        steady_(other.steady_),
+        failed_reads_(other.failed_reads_),
+        failed_writes_(other.failed_writes_) {}
+  Supervisor& operator=(const Supervisor&) = delete;
 
   /// The gate for a tick `gap` periods after the previous one.
   Gate admit(std::int64_t gap, PinLevel estop, PinLevel enable, DeviceStatus read) noexcept {
@@ -172,7 +187,7 @@ class Supervisor {
 /// No supervision: the gate is always open (replay of a recorded motion; effects.md §6 only).
 class NoSupervisor {
  public:
-  explicit NoSupervisor(const SupervisorConfig&) noexcept {}
+  constexpr explicit NoSupervisor(const SupervisorConfig&) noexcept {}
   Gate admit(std::int64_t, PinLevel, PinLevel, DeviceStatus read) noexcept {
     Gate g;
     g.position = g.open = read == DeviceStatus::kOk;

@@ -34,7 +34,7 @@ template <Scalar S>
 class ThermalModel {
  public:
   /// `max_force_n` > 0 is the undrated limit; `period_s` the servo period.
-  ThermalModel(const ThermalConfig& config, double period_s, double max_force_n) noexcept
+  constexpr ThermalModel(const ThermalConfig& config, double period_s, double max_force_n) noexcept
       : enabled_(config.enabled() && config.continuous_force_n < max_force_n),
         max_force_n_(scalar_cast<S>(max_force_n)),
         continuous_force_n_(scalar_cast<S>(enabled_ ? config.continuous_force_n : max_force_n)),
@@ -83,7 +83,7 @@ class ThermalModel {
 template <Scalar S>
 class NoThermal {
  public:
-  NoThermal(const ThermalConfig&, double, double max_force_n) noexcept : max_force_n_(scalar_cast<S>(max_force_n)) {}
+  constexpr NoThermal(const ThermalConfig&, double, double max_force_n) noexcept : max_force_n_(scalar_cast<S>(max_force_n)) {}
   constexpr void advance(const Vec3<S>&, std::int64_t) noexcept {}
   constexpr S allowed_force() const noexcept { return max_force_n_; }
   constexpr bool enabled() const noexcept { return false; }

@@ -114,13 +114,27 @@ struct ImpactTransient {
     }
     if (!s.running) return out;
 
-    const double elapsed_s = in.seconds_since(s.trigger);
-    if (!(elapsed_s <= to_double(p.duration_s))) {  // past d: the transient is over
-      s.running = false;
-      out.triggered = false;
-      return out;
+    S t;
+    if constexpr (kIsFixed<S>) {
+      // A Q scalar times in integer nanoseconds: t <= d tested exactly, t rounded once, no
+      // floating point (an FPU-less target, tools/mcu). 2^46 ns is past any Q16.16 duration.
+      const std::int64_t elapsed_ns = in.ns_since(s.trigger);
+      constexpr std::int64_t kPastAnyDuration = std::int64_t{1} << (62 - S::kFracBits);
+      if (!(elapsed_ns < kPastAnyDuration && p.duration_s.ratio_at_most(elapsed_ns, kNsPerS))) {
+        s.running = false;  // past d: the transient is over
+        out.triggered = false;
+        return out;
+      }
+      t = S::from_ratio(elapsed_ns, kNsPerS);
+    } else {
+      const double elapsed_s = in.seconds_since(s.trigger);
+      if (!(elapsed_s <= to_double(p.duration_s))) {  // past d: the transient is over
+        s.running = false;
+        out.triggered = false;
+        return out;
+      }
+      t = scalar_cast<S>(elapsed_s);
     }
-    const S t = scalar_cast<S>(elapsed_s);
     const S oscillation = sin_turns(p.frequency_hz * t, p.sine);
     out.running = true;
     out.force_n = s.impact_speed_m_per_s * (p.duration_s - t) *

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <string_view>
+#include <type_traits>
 
 #include "toonforce/effects/schema.hpp"
 #include "toonforce/math/vec3.hpp"
@@ -26,11 +27,23 @@ constexpr bool has(Needs set, Needs need) noexcept {
 
 /// When a tick happened, exact over any run length (spec §0: time is never accumulated in the
 /// scalar type). The servo loop counts integer ticks on a fixed period (skipped ticks
-/// included); replay carries each row's own time stamp.
+/// included); replay carries each row's own time stamp, in whole nanoseconds (an integer, so
+/// a fixed-point loop, which keeps its time in integers, needs no floating point for it).
 struct Instant {
-  std::int64_t tick = 0;  ///< ticks since the start of the run
-  double stamp_s = 0.0;   ///< [s] replay: the row's t; unused on a fixed period
+  std::int64_t tick = 0;      ///< ticks since the start of the run
+  std::int64_t stamp_ns = 0;  ///< [ns] replay: the row's t; unused on a fixed period
 };
+
+inline constexpr std::int64_t kNsPerS = 1'000'000'000;
+
+/// Seconds to the nearest whole nanosecond (a stamp or a period; |seconds| < 9.2e9).
+constexpr std::int64_t ns_from_seconds(double seconds) noexcept {
+  const double ns = seconds * static_cast<double>(kNsPerS);
+  return static_cast<std::int64_t>(ns >= 0.0 ? ns + 0.5 : ns - 0.5);
+}
+
+/// Holds nothing: TickInput's nanosecond period in a floating-point loop (which times in double).
+struct NoNanoseconds {};
 
 /// The inputs of one tick, already in scalar S (converted once by the caller).
 template <Scalar S>
@@ -44,12 +57,21 @@ struct TickInput {
   Instant now;
   /// [s] > 0: ticks are this far apart and times are (k - k0) * period; 0: use the stamps.
   double period_s = 0.0;
+  /// A fixed-point S: the period in whole nanoseconds (0: use the stamps), so that the laws'
+  /// times are integers (`ns_since`) and a Q build links no floating point (tools/mcu).
+  [[no_unique_address]] std::conditional_t<kIsFixed<S>, std::int64_t, NoNanoseconds> period_ns{};
 
   /// Seconds from `earlier` to this tick, in double (spec §0: "(k - k_trigger) * T, in
   /// double, converted once"; replay: "t_row - t_trigger").
   constexpr double seconds_since(Instant earlier) const noexcept {
     return period_s > 0.0 ? static_cast<double>(now.tick - earlier.tick) * period_s
-                          : now.stamp_s - earlier.stamp_s;
+                          : static_cast<double>(now.stamp_ns - earlier.stamp_ns) / static_cast<double>(kNsPerS);
+  }
+  /// A fixed-point S: nanoseconds from `earlier` to this tick, in integers.
+  constexpr std::int64_t ns_since(Instant earlier) const noexcept
+    requires kIsFixed<S>
+  {
+    return period_ns > 0 ? (now.tick - earlier.tick) * period_ns : now.stamp_ns - earlier.stamp_ns;
   }
 };
 

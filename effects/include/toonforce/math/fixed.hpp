@@ -95,6 +95,25 @@ class Fixed {
     return static_cast<double>(raw_) / static_cast<double>(kOneRaw);
   }
 
+  /// num / den in this format, rounded to nearest (half away from zero), saturating with the
+  /// flag; den <= 0 saturates toward num's sign. Integers only: a fixed-point loop takes its
+  /// times and rates from integer nanoseconds this way (seconds = ns / 1e9, 1/dt = 1e9 / ns),
+  /// so a Q image links no floating point (tools/mcu).
+  static constexpr Fixed from_ratio(Wide num, Wide den) noexcept {
+    constexpr Wide kLimit = Wide{1} << (62 - FracBits);  // num * 2^FracBits stays within 2^62
+    if (den <= 0) return num == 0 ? (flag_saturation(), Fixed{}) : saturated(num > 0);
+    if (num >= kLimit) return saturated(true);
+    if (num <= -kLimit) return saturated(false);
+    const Wide scaled = num * kOneRaw;
+    const Wide magnitude = scaled < 0 ? -scaled : scaled;
+    const Wide q = (magnitude + den / 2) / den;  // < 2^63: both terms < 2^62
+    return from_wide(scaled < 0 ? -q : q);
+  }
+  /// Whether num / den <= this value, exactly (den > 0, |num| < 2^(62 - FracBits), den < 2^31).
+  constexpr bool ratio_at_most(Wide num, Wide den) const noexcept {
+    return num * kOneRaw <= Wide{raw_} * den;
+  }
+
   /// Saturates a wide intermediate into range, setting the flag when it had to.
   static constexpr Fixed from_wide(Wide wide) noexcept {
     if (wide > std::numeric_limits<Raw>::max()) return saturated(true);

@@ -33,7 +33,7 @@ class Wide {
   constexpr Wide() noexcept = default;
 
   /// From a configuration value (start-up).
-  static Wide from_double(double value) noexcept {
+  static constexpr Wide from_double(double value) noexcept {
     Wide w;
     if constexpr (kIsFixed<S>) {
       const double scaled = value * kOne;
@@ -140,7 +140,7 @@ class Decay {
  public:
   constexpr Decay() noexcept = default;
   /// From a configuration value in [0, 1] (start-up); 1 saturates to the largest factor < 1.
-  static Decay from_double(double r) noexcept {
+  static constexpr Decay from_double(double r) noexcept {
     Decay d;
     if constexpr (kIsFixed<S>) {
       const double scaled = std::round(r * 4294967296.0);

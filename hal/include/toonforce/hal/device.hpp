@@ -44,10 +44,12 @@ constexpr std::string_view to_string(DeviceStatus s) noexcept {
   return "?";
 }
 
-/// One reading of the device.
-struct DeviceReading {
-  Vec3<double> position_m;        ///< HIP position, scene frame [m]
-  Vec3<double> velocity_m_per_s;  ///< valid when has_velocity
+/// One reading of the device, in scalar T: double at every backend of hal/; a device on a
+/// fixed-point target reads in the loop's own scalar instead (see `device_scalar_t`).
+template <class T>
+struct BasicDeviceReading {
+  Vec3<T> position_m;        ///< HIP position, scene frame [m]
+  Vec3<T> velocity_m_per_s;  ///< valid when has_velocity
   bool has_velocity = false;      ///< the device measures velocity itself: no estimator runs
   std::uint32_t buttons = 0;      ///< bit i = button i pressed
   /// The device scaled the last force written before this reading down to what it can give
@@ -56,6 +58,23 @@ struct DeviceReading {
   /// viewer). Backends that never scale a force leave it false.
   bool force_limited = false;
 };
+using DeviceReading = BasicDeviceReading<double>;
+
+/// The scalar a device reads and is written in: double, unless the device type says
+/// `using Scalar = ...;` (a microcontroller's device in the loop's Q16.16, so that no tick
+/// converts through floating point: tools/mcu). A device in another scalar than double must
+/// be in the loop's own.
+template <class D>
+struct DeviceScalarOf {
+  using type = double;
+};
+template <class D>
+  requires requires { typename D::Scalar; }
+struct DeviceScalarOf<D> {
+  using type = typename D::Scalar;
+};
+template <class D>
+using device_scalar_t = typename DeviceScalarOf<D>::type;
 
 /// Who calls the servo loop's tick.
 enum class Clocking : std::uint8_t {
@@ -96,7 +115,8 @@ struct DeviceInfo {
 };
 
 template <class D>
-concept ServoDevice = requires(D& device, DeviceReading& reading, const Vec3<double>& force_n) {
+concept ServoDevice = requires(D& device, BasicDeviceReading<device_scalar_t<D>>& reading,
+                               const Vec3<device_scalar_t<D>>& force_n) {
   { device.read(reading) } noexcept -> std::same_as<DeviceStatus>;
   { device.write(force_n) } noexcept -> std::same_as<DeviceStatus>;
 };
