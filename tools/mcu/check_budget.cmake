@@ -3,7 +3,8 @@
 # (firmware/main.cpp's "count" lines in OUTPUT), costs at most BUDGET instructions for WHAT:
 # "loop" (replay's whole loop tick, read to write: effects.md §6 stages, stamped time), "every"
 # (the whole loop tick with every stage at 1 kHz) or "effects" (the scene's effects plus the
-# safety stage). Variables: OUTPUT SCENE WHAT BUDGET.
+# safety stage); and, with MEAN_BUDGET, their mean over each motion at most that. Variables:
+# OUTPUT SCENE WHAT BUDGET [MEAN_BUDGET].
 foreach(var OUTPUT SCENE WHAT BUDGET)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "check_budget.cmake: ${var} is not set")
@@ -37,6 +38,10 @@ foreach(line IN LISTS lines)
     message(FATAL_ERROR "check_budget.cmake: WHAT is loop, every or effects, not '${WHAT}'")
   endif()
   math(EXPR mean "${sum} / ${ticks}")
+  if(DEFINED MEAN_BUDGET AND mean GREATER MEAN_BUDGET)
+    set(failed TRUE)
+    message("over: ${SCENE} with ${motion}: ${WHAT} mean ${mean} instructions a tick > ${MEAN_BUDGET}")
+  endif()
   if(worst GREATER BUDGET)
     set(failed TRUE)
     message("over: ${SCENE} with ${motion}: ${WHAT} most expensive tick ${worst} instructions > ${BUDGET} (mean ${mean})")
@@ -45,5 +50,5 @@ foreach(line IN LISTS lines)
   endif()
 endforeach()
 if(failed)
-  message(FATAL_ERROR "${SCENE}: a tick is over the ${BUDGET}-instruction budget for ${WHAT}")
+  message(FATAL_ERROR "${SCENE}: over the budget for ${WHAT} (every tick ${BUDGET}, mean ${MEAN_BUDGET})")
 endif()
