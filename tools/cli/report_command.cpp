@@ -1,6 +1,7 @@
 // toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself (issue 8).
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
-// plots (tools/report/include/toonforce/report/documents.hpp).
+// plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when
+// the Cortex-M3 images are built (mcu.hpp).
 #include <cstdio>
 #include <memory>
 
@@ -211,6 +212,7 @@ void add_all(CLI::App& report) {
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
+    const std::string root_given = options->root;
     options->root = report::source_root(options->root);
     options->latency.callgrind = !*no_callgrind;
     options->plot = !*no_plot;
@@ -223,6 +225,21 @@ void add_all(CLI::App& report) {
       options->stability.resolution = 8;
     }
     options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
+    // The microcontroller figures first (seconds; an image that fails stops here, before the
+    // long reports): only with the Cortex-M3 images built, which needs the cross compiler.
+    report::McuOptions mcu;
+    mcu.root = options->root;
+    mcu.command = "toonforce report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
+    if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
+      std::printf("not regenerated: the microcontroller block of %s/PERFORMANCE.md: %s\n", options->out_dir.c_str(),
+                  why.c_str());
+    } else {
+      const auto figures = report::run_mcu(mcu, progress);
+      if (report_error(figures)) return;
+      const auto mcu_written = report::write_mcu_documents(figures.value(), options->out_dir);
+      if (report_error(mcu_written)) return;
+      for (const auto& file : mcu_written.value()) std::printf("wrote %s (microcontroller block)\n", file.c_str());
+    }
     const auto written = report::write_documents(*options, progress);
     if (report_error(written)) return;
     for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());

@@ -3,7 +3,9 @@
 /// docs/PERFORMANCE.md (its generated part only: everything outside the markers
 ///   <!-- toonforce report: begin --> ... <!-- toonforce report: end -->
 /// is kept byte for byte, so sections other commands measured stay as they were) and
-/// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/.
+/// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/. The CLI's `report
+/// all` also regenerates the microcontroller block (write_mcu_documents) when the Cortex-M3
+/// images are built (tools/cli/report_command.cpp).
 
 #include <string>
 
