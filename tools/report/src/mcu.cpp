@@ -181,6 +181,13 @@ std::string with_executable(const std::string& command, const std::string& root)
   return exe + command.substr(std::string_view("toonforce").size());
 }
 
+/// A value inside a QEMU option list: its commas doubled (a temporary directory may have one).
+std::string qemu_option_value(const std::string& value) {
+  std::string out;
+  for (const char c : value) out += c == ',' ? std::string(",,") : std::string(1, c);
+  return out;
+}
+
 struct Tools {
   std::string size;
   std::string qemu;
@@ -221,7 +228,7 @@ Result<bool> measure(McuCore& core, const fs::path& dir, bool all_scenes, const 
     // into a file, no display, serial or monitor.
     const std::vector<std::string> argv{tools.qemu, "-machine", core.machine, "-cpu", core.cpu, "-display", "none",
                                         "-monitor", "none", "-serial", "none", "-chardev",
-                                        "file,id=out,path=" + out.string(), "-semihosting-config",
+                                        "file,id=out,path=" + qemu_option_value(out.string()), "-semihosting-config",
                                         "enable=on,target=native,chardev=out", "-icount",
                                         fmt::format("shift={},align=off,sleep=off", shift), "-kernel", image.string()};
     auto status = run_captured(argv, log.string(), log.string(), kQemuTimeout);
