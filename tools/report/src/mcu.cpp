@@ -406,7 +406,8 @@ std::string mcu_markdown(const McuReport& report) {
     md += fmt::format("### {} (QEMU {}): instructions per tick ({})\n\n{}\n", core->title, core->machine, opt(*core),
                       core->run_table);
   }
-  while (md.size() >= 2 && md[md.size() - 1] == '\n' && md[md.size() - 2] == '\n') md.pop_back();
+  // One blank line before the end marker: a table's last row is not followed by the comment.
+  while (md.size() >= 3 && md.compare(md.size() - 3, 3, "\n\n\n") == 0) md.pop_back();
   return md;
 }
 
