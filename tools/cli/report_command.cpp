@@ -1,6 +1,7 @@
-// toonforce report latency|precision|fixed-point|stability|all: the project measuring itself (issue 8).
+// toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself (issue 8).
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
-// plots (tools/report/include/toonforce/report/documents.hpp).
+// plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when
+// the Cortex-M3 images are built (mcu.hpp).
 #include <cstdio>
 #include <memory>
 
@@ -11,6 +12,7 @@
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/paths.hpp"
 #include "toonforce/report/fixed_point_map.hpp"
+#include "toonforce/report/mcu.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/stability.hpp"
 
@@ -149,6 +151,46 @@ void add_stability(CLI::App& report) {
   });
 }
 
+/// The microcontroller figures (issue 18): the Cortex-M3 images (and the M4F ones beside them)
+/// under QEMU, their tables; --docs regenerates their block of PERFORMANCE.md.
+void add_mcu(CLI::App& report) {
+  auto options = std::make_shared<report::McuOptions>();
+  auto docs = std::make_shared<std::string>();
+  CLI::App* cmd = report.add_subcommand(
+      "mcu",
+      "Microcontroller figures: each Cortex-M3 (and M4F) image's size and its exact instructions per tick under QEMU "
+      "(needs the images, arm-none-eabi-size and qemu-system-arm)");
+  cmd->add_option("--root", options->root, "Source tree the default directories are in");
+  cmd->add_option("--images", options->images,
+                  "The Cortex-M3 images (default: build/cortex-m3/tools/mcu/cortex-m3 if it has images, else "
+                  "build/release/tools/mcu/cortex-m3)");
+  cmd->add_option("--m4f-images", options->m4f_images,
+                  "The Cortex-M4F images (default: cortex-m4f beside the M3 ones; if absent, the section says so)");
+  cmd->add_option("--gen", options->gen, "toonforce_mcu_gen (default: in the M3 images' parent directory)");
+  cmd->add_option("--docs", *docs, "Regenerate the microcontroller block of DIR/PERFORMANCE.md instead of printing it");
+  cmd->callback([options, docs] {
+    // The command as asked for, written into the section.
+    std::string line = "toonforce report mcu";
+    if (!docs->empty()) line += " --docs " + *docs;
+    if (!options->root.empty()) line += " --root " + options->root;
+    if (!options->images.empty()) line += " --images " + options->images;
+    if (!options->m4f_images.empty()) line += " --m4f-images " + options->m4f_images;
+    if (!options->gen.empty()) line += " --gen " + options->gen;
+    options->command = line;
+    options->root = report::source_root(options->root);
+    const auto result = report::run_mcu(*options, progress);
+    if (report_error(result)) return;
+    if (!docs->empty()) {
+      const auto written = report::write_mcu_documents(result.value(), *docs);
+      if (report_error(written)) return;
+      for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());
+    } else {
+      std::fputs(report::mcu_markdown(result.value()).c_str(), stdout);
+    }
+    set_exit_code(0);
+  });
+}
+
 void add_all(CLI::App& report) {
   auto options = std::make_shared<report::DocumentsOptions>();
   auto quick = std::make_shared<bool>(false);
@@ -170,6 +212,7 @@ void add_all(CLI::App& report) {
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
+    const std::string root_given = options->root;
     options->root = report::source_root(options->root);
     options->latency.callgrind = !*no_callgrind;
     options->plot = !*no_plot;
@@ -182,6 +225,21 @@ void add_all(CLI::App& report) {
       options->stability.resolution = 8;
     }
     options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
+    // The microcontroller figures first (seconds; an image that fails stops here, before the
+    // long reports): only with the Cortex-M3 images built, which needs the cross compiler.
+    report::McuOptions mcu;
+    mcu.root = options->root;
+    mcu.command = "toonforce report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
+    if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
+      std::printf("not regenerated: the microcontroller block of %s/PERFORMANCE.md: %s\n", options->out_dir.c_str(),
+                  why.c_str());
+    } else {
+      const auto figures = report::run_mcu(mcu, progress);
+      if (report_error(figures)) return;
+      const auto mcu_written = report::write_mcu_documents(figures.value(), options->out_dir);
+      if (report_error(mcu_written)) return;
+      for (const auto& file : mcu_written.value()) std::printf("wrote %s (microcontroller block)\n", file.c_str());
+    }
     const auto written = report::write_documents(*options, progress);
     if (report_error(written)) return;
     for (const auto& file : written.value()) std::printf("wrote %s\n", file.c_str());
@@ -192,12 +250,13 @@ void add_all(CLI::App& report) {
 }  // namespace
 
 void add_report(CLI::App& app) {
-  CLI::App* report = app.add_subcommand("report", "Measure toonforce: latency, precision, stability (Markdown)");
+  CLI::App* report = app.add_subcommand("report", "Measure toonforce: latency, precision, stability, microcontroller figures (Markdown)");
   report->require_subcommand(1);
   add_latency(*report);
   add_precision(*report);
   add_fixed_point(*report);
   add_stability(*report);
+  add_mcu(*report);
   add_all(*report);
 }
 

@@ -100,6 +100,24 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
         -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scene} -DMOTIONS=${motions_arg}
         -DOUT_DIR=${_mcu_bin}/runs/cortex-m4f/${image}
         -P ${_mcu_src}/run_image.cmake)
-    set_tests_properties(mcu_m4f_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m4f_images)
+    set_tests_properties(mcu_m4f_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m4f_images
+      FIXTURES_SETUP mcu_m4f_run_${image})
   endforeach()
 endforeach()
+
+# `toonforce report mcu --docs` (docs/PERFORMANCE.md's Microcontroller block) on a copy of the
+# docs, from images that passed their runs: every scene in every table, sizes and counts that
+# must hold whatever the numbers, and the prose outside the block unchanged.
+set(_mcu_report_fixtures mcu_m4f_images)
+foreach(image IN LISTS _mcu_images _mcu_size_images)
+  list(APPEND _mcu_report_fixtures mcu_m3_run_${image})
+endforeach()
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  list(APPEND _mcu_report_fixtures mcu_m4f_run_${scene} mcu_m4f_run_size_${scene})
+endforeach()
+string(REPLACE ";" "," _mcu_scenes_arg "${TOONFORCE_MCU_SCENES}")
+add_test(NAME mcu_report COMMAND ${CMAKE_COMMAND}
+  -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
+  -DIMAGES=${_mcu_m3_dir} -DM4F_IMAGES=${_mcu_m4f_dir} -DDOCS=${PROJECT_SOURCE_DIR}/docs
+  -DOUT=${_mcu_bin}/report -DSCENES=${_mcu_scenes_arg} -P ${_mcu_src}/check_report.cmake)
+set_tests_properties(mcu_report PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED "${_mcu_report_fixtures}")

@@ -56,6 +56,11 @@ Result<bool> plot(const std::vector<std::string>& args) {
   return true;
 }
 
+/// A new PERFORMANCE.md's start, before the generated blocks.
+constexpr const char* kPerformanceHead =
+    "# Performance\n\nMeasured figures, with the exact commands that produced them. Timings are benchmarks, never "
+    "pass/fail tests.\n";
+
 constexpr const char* kProxyComparison =
     "For comparison (not measured here: the figure is the issue's): a mesh-and-proxy renderer of the CHAI3D kind "
     "(a finger proxy on a triangle mesh with friction) costs about 9,000 to 14,000 instructions and about one heap "
@@ -275,10 +280,7 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();
-  if (text.empty()) {
-    text = "# Performance\n\nMeasured figures, with the exact commands that produced them. Timings are benchmarks, "
-           "never pass/fail tests.\n";
-  }
+  if (text.empty()) text = kPerformanceHead;
   const std::string section = performance_section(latency.value(), options.command_line);
   if (auto w = write_file(performance, merge_generated(text, section)); !w) return Error{w.error()};
   written.push_back(performance.string());
@@ -348,6 +350,36 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   if (auto w = write_file(performance, text); !w) return Error{w.error()};
   written.push_back(performance.string());
   return written;
+}
+
+Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const std::string& out_dir) {
+  const fs::path out = out_dir;
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) return Error{fmt::format("cannot create {}: {}", out.string(), ec.message())};
+  const fs::path performance = out / "PERFORMANCE.md";
+  auto existing = read_file(performance);
+  if (!existing) return Error{existing.error()};
+  std::string text = existing.value();
+  if (text.empty()) text = kPerformanceHead;  // report all into a new directory starts with this block
+  const auto begins = text.find(kMcuBeginMarker);
+  // Once each, begin before end: anything else is a hand edit to look at, not to guess about.
+  const auto ends = text.find(kMcuEndMarker);
+  const bool twice = (begins != std::string::npos && text.find(kMcuBeginMarker, begins + 1) != std::string::npos) ||
+                     (ends != std::string::npos && text.find(kMcuEndMarker, ends + 1) != std::string::npos);
+  if (twice || (begins == std::string::npos) != (ends == std::string::npos) ||
+      (begins != std::string::npos && ends < begins)) {
+    return Error{fmt::format("{}: the markers {} and {} must be there once each, in that order, or not at all",
+                             performance.string(), kMcuBeginMarker, kMcuEndMarker)};
+  }
+  if (begins == std::string::npos) {
+    if (!text.empty() && text.back() != '\n') text += '\n';
+    text += (text.empty() ? "" : "\n") + std::string("## Microcontroller\n");
+  }
+  if (auto w = write_file(performance, merge_generated(text, mcu_markdown(mcu), kMcuBeginMarker, kMcuEndMarker)); !w) {
+    return Error{w.error()};
+  }
+  return std::vector<std::string>{performance.string()};
 }
 
 }  // namespace toonforce::report

@@ -3,12 +3,15 @@
 /// docs/PERFORMANCE.md (its generated part only: everything outside the markers
 ///   <!-- toonforce report: begin --> ... <!-- toonforce report: end -->
 /// is kept byte for byte, so sections other commands measured stay as they were) and
-/// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/.
+/// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/. The CLI's `report
+/// all` also regenerates the microcontroller block (write_mcu_documents) when the Cortex-M3
+/// images are built (tools/cli/report_command.cpp).
 
 #include <string>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/report/latency.hpp"
+#include "toonforce/report/mcu.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/stability.hpp"
 
@@ -48,5 +51,10 @@ std::string merge_generated(const std::string& existing, const std::string& gene
 /// files written.
 Result<std::vector<std::string>> write_precision_documents(const PrecisionReport& precision, const std::string& out_dir,
                                                            const std::string& command_line, bool plot);
+
+/// Regenerates the microcontroller block of <out_dir>/PERFORMANCE.md (kMcuBeginMarker ...
+/// kMcuEndMarker; everything outside it kept byte for byte). With no block yet, it goes at the
+/// end under a "## Microcontroller" heading. Returns the files written.
+Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const std::string& out_dir);
 
 }  // namespace toonforce::report
