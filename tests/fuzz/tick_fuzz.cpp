@@ -76,7 +76,10 @@ void run(const toonforce::SceneDescription& d, const double* v, std::size_t n) {
   toonforce::DeviceReading reading;
   const toonforce::RuntimeScene<S> scene = toonforce::make_runtime_scene<S>(d);
   toonforce::ServoLoop<FuzzDevice, toonforce::RuntimeScene<S>, toonforce::NullPins, toonforce::kSpecStages> replayed(
-      FuzzDevice{&reading}, scene, toonforce::replay_config(d, dt_of(v[6])));
+      FuzzDevice{&reading}, scene,
+      // The first tick's dt, like every other, to the nanosecond of the loop's stamps, as replay
+      // takes it (the check below measures the rate limit against that dt).
+      toonforce::replay_config(d, static_cast<double>(toonforce::ns_from_seconds(dt_of(v[6]))) / 1e9));
   toonforce::ServoConfig every = toonforce::servo_config(d, 1e-3);
   every.safety.soft_start_s = 0.0;  // the rate limit is what this checks, from the first tick
   toonforce::ServoLoop<FuzzDevice, toonforce::RuntimeScene<S>> device(FuzzDevice{&reading}, scene, every);
