@@ -44,12 +44,30 @@ void add_latency(CLI::App& report) {
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions (no valgrind run)");
   cmd->add_option("--valgrind", options->valgrind, "The valgrind to run (default: valgrind from PATH)");
   cmd->add_option("--tick-count", options->tick_count, "toonforce_tick_count (default: beside this executable)");
-  cmd->callback([options, no_callgrind] {
+  auto docs = std::make_shared<std::string>();
+  cmd->add_option("--docs", *docs, "Regenerate the latency block of DIR/PERFORMANCE.md instead of printing it");
+  cmd->callback([options, no_callgrind, docs, cmd] {
     options->callgrind = !*no_callgrind;
+    const bool root_given = !options->root.empty();
     options->root = report::source_root(options->root);
     const auto result = report::run_latency(*options, progress);
     if (report_error(result)) return;
-    std::fputs(report::latency_markdown(result.value()).c_str(), stdout);
+    if (docs->empty()) {
+      std::fputs(report::latency_markdown(result.value()).c_str(), stdout);
+      set_exit_code(0);
+      return;
+    }
+    // The line that made the block, for the block's header: the options given, no paths of this machine.
+    std::string line = "toonforce report latency --docs " + *docs;
+    if (cmd->count("--ticks") > 0) line += fmt::format(" --ticks {}", options->ticks);
+    if (cmd->count("--cold-ticks") > 0) line += fmt::format(" --cold-ticks {}", options->cold_ticks);
+    if (cmd->count("--filter") > 0) line += fmt::format(" --filter {}", options->filter);
+    if (cmd->count("--cpu") > 0) line += fmt::format(" --cpu {}", options->cpu);
+    if (*no_callgrind) line += " --no-callgrind";
+    if (root_given) line += " --root " + options->root;
+    const auto written = report::write_latency_documents(result.value(), *docs, line);
+    if (report_error(written)) return;
+    for (const auto& path : written.value()) std::fprintf(stderr, "report: wrote %s\n", path.c_str());
     set_exit_code(0);
   });
 }

@@ -194,10 +194,13 @@ std::string performance_section(const LatencyReport& latency, const std::string&
   md += "Reading the figures: instruction counts are exact and the same on every run. The most expensive tick "
         "of a scripted pass is the largest over the inputs of that pass, which drive every branch of the scene: "
         "it is not a bound over every input (a sine's cost depends on its argument, a Q16.16 square root's on the "
-        "size of its argument), so these pages do not call it the worst case. Times are medians of 10^7 single ticks on a shared VM whose counter steps by 10 ns, so a "
-        "median is a multiple of 10 ns and the mean (ticks under 50 us) is the finer figure. The maxima are the "
-        "VM's: an interrupt or a preemption (tens of us to ms) landing inside one of 10^7 ticks, not work done by "
-        "the tick (the most expensive tick, by instructions, is a few hundred instructions, about 100 ns).\n";
+        "size of its argument), so these pages do not call it the worst case (the searched inputs above are dearer). ";
+  md += fmt::format(
+      "Times are medians of {0} single ticks on a shared VM whose counter steps by 10 ns, so a median is a multiple "
+      "of 10 ns and the mean (ticks under 50 us) is the finer figure. The maxima are the VM's: an interrupt or a "
+      "preemption (tens of us to ms) landing inside one of {0} ticks, not work done by the tick (the most expensive "
+      "tick, by instructions, is a few hundred to a few thousand instructions, about 100 ns to 1 us).\n",
+      latency.ticks);
   return md;
 }
 
@@ -292,6 +295,19 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
   if (!stability) return Error{stability.error()};
   written.insert(written.end(), stability->begin(), stability->end());
   return written;
+}
+
+Result<std::vector<std::string>> write_latency_documents(const LatencyReport& latency, const std::string& out_dir,
+                                                         const std::string& command_line) {
+  const fs::path performance = fs::path(out_dir) / "PERFORMANCE.md";
+  auto existing = read_file(performance);
+  if (!existing) return Error{existing.error()};
+  std::string text = existing.value();
+  if (text.empty()) text = kPerformanceHead;
+  if (auto w = write_file(performance, merge_generated(text, performance_section(latency, command_line))); !w) {
+    return Error{w.error()};
+  }
+  return std::vector<std::string>{performance.string()};
 }
 
 Result<std::vector<std::string>> write_precision_documents(const PrecisionReport& precision, const std::string& out_dir,

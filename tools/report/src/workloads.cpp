@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <optional>
 #include <utility>
 
 #include <fmt/format.h>
@@ -338,6 +340,121 @@ std::vector<Vec3<double>> scenario_samples(std::string_view scene, double rate_h
   return samples;
 }
 
+/// Issue 15 item 7: inputs constructed to drive the expensive branches of every stage at once,
+/// then searched. A search pass is kSearchStrikes strikes of kSearchStrikeTicks ticks at 1 kHz.
+/// Each strike starts a fresh loop at the scenario's first point (out of contact: the loop
+/// engages there), then follows a smooth path (cubic Hermite) through random waypoints near the
+/// scenario's own points, up to 12 mm off them on each axis (deeper into walls and gaps than
+/// the scenario goes: forces of several times the clamp), at random speeds up to 1.25 m/s
+/// (past the 1.2 m/s velocity limit now and then) and random tangential motion. With
+/// search_config() (a short soft start, a quick thermal model, a tiny passivity budget) the
+/// soft-start ramp, the thermal derating, the passivity controller's damping, the rate limit,
+/// the clamp and the effects' own branches are all reachable within one strike, and they
+/// coincide on some ticks (the report counts them). Seeded: the same inputs on every machine.
+struct SearchPath {
+  std::vector<Vec3<double>> position_m;
+  std::vector<Vec3<double>> velocity_m_per_s;
+};
+
+SearchPath search_path(std::string_view scene) {
+  const KeyframePath scenario = paper_scenario(scene);
+  Lcg r(0x5EA4C4U + scene.size());
+  SearchPath path;
+  const auto inside = [](Vec3<double> p) {
+    for (double* c : {&p.x, &p.y, &p.z}) *c = std::clamp(*c, -0.055, 0.055);  // the workspace is +-60 mm
+    return p;
+  };
+  constexpr double kStrikeS = static_cast<double>(kSearchStrikeTicks) / kRateHz;
+  for (std::size_t strike = 0; strike < kSearchStrikes; ++strike) {
+    std::vector<Keyframe> keys;
+    keys.push_back({0.0, scenario.at(0.0).position_m, {}});
+    double t = 0.0;
+    while (t < kStrikeS) {
+      t += r.uniform(0.01, 0.06);
+      const Vec3<double> near = scenario.at(r.uniform(0.0, scenario.period_s() * 0.999)).position_m;
+      const Vec3<double> off{r.uniform(-0.012, 0.012), r.uniform(-0.012, 0.012), r.uniform(-0.012, 0.006)};
+      const double speed = r.uniform(0.0, 1.25);
+      const Vec3<double> dir{r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0)};
+      const double n = std::sqrt(dir.x * dir.x + dir.y * dir.y + dir.z * dir.z);
+      keys.push_back({t, inside(near + off), n > 1e-9 ? dir * (speed / n) : Vec3<double>{}});
+    }
+    const KeyframePath strike_path(std::move(keys));
+    for (std::size_t k = 0; k < kSearchStrikeTicks; ++k) {
+      const PathPoint p = strike_path.at(static_cast<double>(k) / kRateHz);
+      path.position_m.push_back(inside(p.position_m));
+      path.velocity_m_per_s.push_back(p.velocity_m_per_s);
+    }
+  }
+  return path;
+}
+
+/// every_stage_config, tuned so that every stage's expensive branch is reachable within a
+/// strike: a 0.1 s soft start, a thermal model at half the clamp with a 50 ms time constant
+/// (derates within a strike of hard contact), a passivity budget of 0.1 mJ (the active
+/// effects exceed it within a few ticks of contact, so the controller damps).
+ServoConfig search_config(const SceneDescription& desc) {
+  ServoConfig c = every_stage_config(desc, kRateHz);
+  c.safety.soft_start_s = 0.1;
+  c.safety.thermal.time_constant_s = 0.05;
+  c.safety.passivity.budget_j = 1e-4;
+  return c;
+}
+
+/// The whole loop on a search path: a fresh loop (engaging, cold thermal model, no episode)
+/// at the start of every strike, built outside the counted tick.
+template <class SceneT>
+struct SearchLoopWork {
+  using Device = typename LoopWork<SceneT, kEveryStage>::ScriptedDevice;
+  using Script = typename LoopWork<SceneT, kEveryStage>::Script;
+  using Loop = ServoLoop<Device, SceneT, NullPins, kEveryStage>;
+
+  SearchLoopWork(SceneT scene, ServoConfig config, std::vector<Vec3<double>> samples)
+      : scene_(std::move(scene)), config_(config),
+        samples_(std::make_shared<std::vector<Vec3<double>>>(std::move(samples))) {
+    rebuild();
+  }
+  SearchLoopWork(const SearchLoopWork& o) : scene_(o.scene_), config_(o.config_), samples_(o.samples_) { rebuild(); }
+  SearchLoopWork& operator=(const SearchLoopWork& o) {
+    scene_ = o.scene_;
+    config_ = o.config_;
+    samples_ = o.samples_;
+    rebuild();
+    return *this;
+  }
+  std::size_t size() const noexcept { return samples_->size(); }
+
+  void prepare(std::uint64_t i) noexcept {
+    const auto at = static_cast<std::size_t>(i % samples_->size());
+    if (at % kSearchStrikeTicks == 0) loop_->emplace(Device{script_.get()}, scene_, config_);
+    script_->next = at;
+    k_ = static_cast<std::int64_t>(i);
+  }
+  TickStatus tick() noexcept { return (**loop_).tick(k_); }
+
+ private:
+  void rebuild() {
+    script_ = std::make_unique<Script>();
+    script_->samples = samples_.get();
+    loop_ = std::make_unique<std::optional<Loop>>();
+    loop_->emplace(Device{script_.get()}, scene_, config_);
+  }
+  SceneT scene_;
+  ServoConfig config_;
+  std::shared_ptr<std::vector<Vec3<double>>> samples_;
+  std::unique_ptr<Script> script_;
+  std::unique_ptr<std::optional<Loop>> loop_;
+  std::int64_t k_ = 0;
+};
+
+template <Scalar S>
+std::vector<TickInput<S>> search_inputs(const SearchPath& path) {
+  std::vector<TickInput<S>> inputs;
+  for (std::size_t k = 0; k < path.position_m.size(); ++k) {
+    inputs.push_back(tick_input<S>(path.position_m[k], path.velocity_m_per_s[k], static_cast<std::int64_t>(k)));
+  }
+  return inputs;
+}
+
 struct Loaded {
   SceneDescription wall, friction, slippery, cartoon, cliff;
 };
@@ -395,6 +512,25 @@ class CaseBuilder {
       LoopWork<RuntimeScene<S>, kEveryStage> work(runtime, config, scenario_samples(name));
       const auto ticks = work.size();
       add(Level::kLoop, name, "scenario", "runtime", ticks, std::move(work));
+    }
+  }
+
+  /// Issue 15 item 7: effects plus safety, and the whole loop, on the search path (form
+  /// "search"; the scene file's run-time scene, the dearer form).
+  void scene_searches() {
+    for (const auto& [name, desc] : paper_scenes()) {
+      auto inputs = search_inputs<S>(search_path(name));
+      const std::size_t ticks = inputs.size();
+      add(Level::kScene, name, "search", "search", ticks,
+          SceneWork<RuntimeScene<S>>{make_runtime_scene<S>(*desc), ForceSafety<S>(desc->limits), std::move(inputs), {}, {}});
+    }
+  }
+  void loop_searches() {
+    for (const auto& [name, desc] : paper_scenes()) {
+      SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(*desc), search_config(*desc),
+                                           search_path(name).position_m);
+      const auto ticks = work.size();
+      add(Level::kLoop, name, "search", "search", ticks, std::move(work));
     }
   }
 
@@ -647,8 +783,10 @@ Result<bool> add_scalar(const std::string& root, std::vector<std::unique_ptr<Tic
   if (!loaded) return Error{loaded.error()};
   CaseBuilder<S>(loaded.value(), effects).effects();
   CaseBuilder<S>(loaded.value(), scenes).scenes();
+  CaseBuilder<S>(loaded.value(), scenes).scene_searches();
   CaseBuilder<S>(loaded.value(), controllers).spec_loops();
   CaseBuilder<S>(loaded.value(), controllers).loops();
+  CaseBuilder<S>(loaded.value(), controllers).loop_searches();
   return true;
 }
 
@@ -682,6 +820,24 @@ Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, s
         return spec_loop_case<S>(desc.value(), scene, rate_hz, sine);
       },
       [](ScalarKind) -> Result<std::unique_ptr<TickCase>> { return Error{"scalar not built"}; });
+}
+
+Result<std::vector<SearchTick>> search_loop_ticks(const std::string& root, std::string_view scene, ScalarKind scalar) {
+  auto desc = load(root, scene, scalar);
+  if (!desc) return Error{desc.error()};
+  return with_scalar(
+      scalar, [&]<Scalar S>() -> Result<std::vector<SearchTick>> {
+        SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(desc.value()), search_config(desc.value()),
+                                             search_path(scene).position_m);
+        std::vector<SearchTick> ticks;
+        for (std::size_t i = 0; i < work.size(); ++i) {
+          work.prepare(i);
+          const TickStatus status = work.tick();
+          ticks.push_back({status.limits, status.faults.bits()});
+        }
+        return ticks;
+      },
+      [](ScalarKind) -> Result<std::vector<SearchTick>> { return Error{"scalar not built"}; });
 }
 
 Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& root) {

@@ -55,6 +55,10 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
 /// Regenerates the microcontroller block of <out_dir>/PERFORMANCE.md (kMcuBeginMarker ...
 /// kMcuEndMarker; everything outside it kept byte for byte). With no block yet, it goes at the
 /// end under a "## Microcontroller" heading. Returns the files written.
+/// Regenerates only the latency block of OUT/PERFORMANCE.md (`toonforce report latency --docs`):
+/// the timing tables want a quiet machine, the other reports do not.
+Result<std::vector<std::string>> write_latency_documents(const LatencyReport& latency, const std::string& out_dir,
+                                                         const std::string& command_line);
 Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const std::string& out_dir);
 
 }  // namespace toonforce::report

@@ -52,6 +52,12 @@ struct LatencyRow {
   std::optional<double> instructions_max;   ///< scenarios: the most expensive tick of the pass
   std::optional<double> cold_median_ns;     ///< data caches cold (LatencyOptions::cold_ticks)
   std::optional<double> cold_p99_ns;
+  /// Search rows (issue 15 item 7): the index of the most expensive tick in the pass.
+  std::optional<std::size_t> instructions_argmax;
+  /// Loop search rows: what the loop did on each tick (workloads.hpp search_loop_ticks) and
+  /// each tick's instructions (harness subtracted), in pass order.
+  std::vector<SearchTick> search_ticks;
+  std::vector<double> search_instructions;
 };
 
 struct LatencyReport {

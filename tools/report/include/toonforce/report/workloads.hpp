@@ -20,6 +20,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "toonforce/common/result.hpp"
@@ -113,6 +114,21 @@ Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& roo
 Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, std::string_view scene,
                                                       ScalarKind scalar, double rate_hz,
                                                       std::optional<SineMethod> sine);
+
+/// Issue 15 item 7: the search cases ("scene/NAME/SCALAR/search", "loop/NAME/SCALAR/search";
+/// workloads.cpp, search_path): a pass is kSearchStrikes strikes of kSearchStrikeTicks ticks
+/// at 1 kHz, a fresh loop at the start of each.
+inline constexpr std::size_t kSearchStrikes = 8;
+inline constexpr std::size_t kSearchStrikeTicks = 300;
+
+/// What one tick of a loop search case did: its Limit bits and fault bits.
+struct SearchTick {
+  std::uint8_t limits = 0;
+  std::uint32_t faults = 0;
+};
+/// Every tick of one pass of "loop/SCENE/SCALAR/search", run natively (the same ticks callgrind
+/// counts, in the same order): which stages limited the force on each.
+Result<std::vector<SearchTick>> search_loop_ticks(const std::string& root, std::string_view scene, ScalarKind scalar);
 
 /// Whether `id` is selected by `filter`: empty selects all; otherwise any of its
 /// comma-separated parts is a substring of `id`.
