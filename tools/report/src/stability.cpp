@@ -864,9 +864,9 @@ std::string port_markdown(const StabilityMap& map) {
       "\nPassivity by port energy (measured: the servo loop driven by the handle's motion at {} frequencies from "
       "0.1 Hz to Nyquist; see how a point is classified): with the sampled sinusoid joined by straight lines "
       "(Colgate's worst motion through those samples) {} of {} points agree with b_req's verdict, with the "
-      "sinusoid itself {}{}. The measured and modelled Colgate-Schenkel integrand differ by at most {:.2g} N s/m "
+      "sinusoid itself {} of {}{}. The measured and modelled Colgate-Schenkel integrand differ by at most {:.2g} N s/m "
       "at the same theta.\n",
-      frequencies, agree_ramp, counted, agree_sine,
+      frequencies, agree_ramp, counted, agree_sine, counted,
       on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound),
       model_difference);
   if (disagreements.empty()) return md;

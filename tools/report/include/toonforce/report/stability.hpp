@@ -12,6 +12,10 @@
 /// 2. by the energy of one autonomous run on the simulation (the nonlinear truth: one-sided
 ///    contact, clamps, friction, quantisation where the map has them).
 ///
+/// On the linear maps passivity is decided twice too: by Colgate and Schenkel's b_req of the
+/// modelled law (`required_damping_n_s_per_m`), and measured as port energy on the real servo
+/// loop driven by an imposed motion over a band of frequencies (`port_passivity`).
+///
 /// The passivity bound of control/passivity_bound.hpp (Colgate-Brown with the delay term of
 /// Diolaiti et al. 2006: b > (1 + 2 d) K T / 2 + |B|) is drawn over each map with the delay d of
 /// the map's device. It is a sufficient condition for passivity (stability with any passive
