@@ -7,9 +7,13 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdint>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "toonforce/control/passivity_bound.hpp"
+#include "toonforce/control/velocity_estimator.hpp"
 #include "toonforce/report/spectral.hpp"
 #include "toonforce/report/stability.hpp"
 
@@ -262,6 +266,92 @@ TEST(StabilityModel, AClampedWallStoresItsForceIntegral) {
   const int n = 20000;
   for (int i = 0; i < n; ++i) integral += std::min(1000.0 * (i + 0.5) * 1e-6, 8.0) * 1e-6;
   EXPECT_NEAR(wall_energy_j(1000.0, 0.02, 8.0), integral, 1e-12);
+}
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// A pressed spring wall K on the ideal device at T = 1 ms, behind d ticks of I/O delay, driven
+/// along its normal through the real servo loop (the plain backward-difference velocity).
+PortDrive pressed_spring(double k, double b, int d) {
+  PortDrive drive;
+  drive.scene_toml = "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = " +
+                     std::to_string(k) + "\n";
+  drive.period_s = 1e-3;
+  drive.device_damping_n_s_per_m = b;
+  drive.delay_ticks = d;
+  drive.velocity_cutoff_hz = 1e9;
+  drive.amplitude_m = 1e-6;
+  drive.x0_m = {0.0, 0.0, -2e-6};  // in contact at every tick
+  drive.direction = {0.0, 0.0, 1.0};
+  return drive;
+}
+
+TEST(StabilityPort, ASampledSpringsPortEnergyPerCycleIsColgatesClosedForm) {
+  // x = x0 + A sin(theta k) read, F_k = K depth_k held over [(k + d) T, (k + d + 1) T]: the
+  // held forces do (pi K / theta) (cos d theta - cos (d + 1) theta) A^2 of work per cycle
+  // (the phase average of -K x_(j-d) (x_(j+1) - x_j) over 2 pi / theta ticks), b absorbs
+  // b A^2 w pi of a sinusoid's motion and b A^2 (2 pi / theta) (1 - cos theta) / T of the
+  // ramp through its samples. The sums over whole periods in whole ticks are exact up to
+  // round-off (1e-9 relative). 0.1 Hz to 0.47 of the rate, 1 to 473 periods a window.
+  constexpr double kStiffness = 2000.0;
+  constexpr double kDamping = 0.7;
+  constexpr double kT = 1e-3;
+  for (const int d : {0, 1, 2}) {
+    for (const auto& [p, q] : {std::pair<std::int64_t, std::int64_t>{1, 10000}, {1, 97}, {37, 1009}, {473, 1009}}) {
+      const auto cycle = port_cycle(pressed_spring(kStiffness, kDamping, d), p, q);
+      ASSERT_TRUE(cycle) << cycle.error();
+      const double theta = 2.0 * kPi * static_cast<double>(p) / static_cast<double>(q);
+      const double w = theta / kT;
+      const double work = kPi * kStiffness / theta * (std::cos(d * theta) - std::cos((d + 1) * theta));
+      const double sine = kDamping * w * kPi;
+      const double ramp = kDamping * 2.0 * kPi / theta * (1.0 - std::cos(theta)) / kT;
+      EXPECT_NEAR(cycle->theta_rad, theta, 1e-15);
+      EXPECT_NEAR(cycle->controller_work_j_per_m2, work, 1e-9 * std::abs(work)) << "d " << d << ", p/q " << p << "/" << q;
+      EXPECT_NEAR(cycle->absorbed_sine_j_per_m2(), sine - work, 1e-9 * (sine + std::abs(work)));
+      EXPECT_NEAR(cycle->absorbed_ramp_j_per_m2(), ramp - work, 1e-9 * (ramp + std::abs(work)));
+    }
+  }
+}
+
+TEST(StabilityPort, ASpringWallIsPassiveByPortEnergyJustAboveColgatesBoundAndNotJustBelow) {
+  // b_req = (1 + 2 d) K T / 2 lies at theta -> 0; at the lowest forcing frequency (0.1 Hz,
+  // theta = 6.3e-4) the port's need is within theta^2 (1 + 2 d)^2 / 12 (3e-7 at d = 2) of it, so
+  // 1e-4 either side of the bound flips the verdict, for the sinusoid and the ramp alike.
+  constexpr double kStiffness = 2000.0;
+  for (const int d : {0, 1, 2}) {
+    const double b_req = damping_needed_n_s_per_m(kStiffness, 1e-3, d);
+    for (const double side : {1.0 + 1e-4, 1.0 - 1e-4}) {
+      const auto port = port_passivity(pressed_spring(kStiffness, b_req * side, d), 40);
+      ASSERT_TRUE(port) << port.error();
+      EXPECT_EQ(port->frequencies, 40);
+      const bool passive = side > 1.0;
+      EXPECT_EQ(port->passive_ramp(), passive) << "d " << d << ", b / b_req " << side;
+      EXPECT_EQ(port->passive_sine(), passive) << "d " << d << ", b / b_req " << side;
+      EXPECT_LT(port->tolerance_n_s_per_m, 1e-6 * b_req);  // the flip is not the tolerance's
+      // A sinusoid's need falls with frequency (K T (1 - cos theta) / theta^2 at d = 0): the
+      // worst is the lowest. (The ramp's is flat at d = 0, its maximum anywhere.)
+      EXPECT_NEAR(port->worst_sine_hz, 0.1, 1e-12);
+    }
+  }
+}
+
+TEST(StabilityPort, TheMeasuredIntegrandIsTheModelsAtEveryForcingFrequency) {
+  // A spring with damping behind a delay and a first-order velocity filter: the code's port
+  // energy, divided by what the ramp through its samples dissipates per unit b, is the model's
+  // Colgate-Schenkel integrand at the same theta (the model being H(z) = z^-d (K + B V(z))).
+  PortDrive drive = pressed_spring(1500.0, 1.0, 1);
+  drive.scene_toml += "damping = 0.4\n";
+  drive.velocity_cutoff_hz = 50.0;
+  drive.x0_m = {0.0, 0.0, -2e-3};  // deep: the damping force never lifts the wall's off
+  SampledLoop model;
+  model.delay_ticks = 1;
+  model.stiffness_n_per_m = 1500.0;
+  model.velocity_feedback_n_s_per_m = -0.4;
+  model.velocity_gain = VelocityEstimator<double>(50.0).gain(1000.0);
+  const auto port = port_passivity(drive, 40, &model);
+  ASSERT_TRUE(port) << port.error();
+  EXPECT_LT(port->model_difference_n_s_per_m, 1e-9);
+  EXPECT_NEAR(port->model_grid_margin_n_s_per_m, port->margin_ramp_n_s_per_m, 1e-9);
 }
 
 }  // namespace

@@ -219,6 +219,8 @@ struct Sweep {
   /// The loop's linear model(s) at a point (the slippery map: normal and tangential axes; rho
   /// is the largest); empty: none.
   std::function<std::vector<SampledLoop>(double, double)> linear;
+  /// The port-energy check's drives, one per loop of `linear` (same order); empty: none.
+  std::function<std::vector<PortDrive>(double, double)> drives;
   /// Lengthen a point's run when its rho > 1 (the linear maps; the impact maps' clamp and
   /// friction hold what grows, and their model is only the in-contact linearisation).
   bool lengthen = false;
@@ -241,6 +243,27 @@ SampledLoop pressed_wall_loop(double k, double virtual_damping, double device_da
   l.stiffness_n_per_m = k;
   l.velocity_feedback_n_s_per_m = -virtual_damping;
   return l;
+}
+
+/// The port-energy check's amplitude: 1 um keeps every force far inside any cap (the
+/// slippery map's tangential force is at most mu 2 A / T = 0.06 N against its 2 N).
+constexpr double kPortAmplitudeM = 1e-6;
+
+/// Driving `pressed_wall`'s normal axis: deep enough that K (depth - A) exceeds the wall's
+/// damping force B 2 A / T (the backward difference's largest), so the wall pushes all the time.
+PortDrive wall_drive(const std::string& scene_toml, double k, double virtual_damping, double device_damping,
+                     double period_s) {
+  PortDrive d;
+  d.scene_toml = scene_toml;
+  d.period_s = period_s;
+  d.device_damping_n_s_per_m = device_damping;
+  d.delay_ticks = ideal_device(device_damping).io_delay_ticks;
+  d.velocity_cutoff_hz = kVelocityCutoffHz;
+  d.amplitude_m = kPortAmplitudeM;
+  const double depth_m = 2.0 * kPortAmplitudeM * (1.0 + 2.0 * std::abs(virtual_damping) / (k * period_s));
+  d.x0_m = {0.0, 0.0, -depth_m};
+  d.direction = {0.0, 0.0, 1.0};
+  return d;
 }
 
 std::vector<Sweep> sweeps(const StabilityOptions& o) {
@@ -276,6 +299,9 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.bound_curve =
         bound_curve(s.xs, [b_falcon, d](double k) { return stiffest_passive_wall_n_per_m(b_falcon, 1.0, d) / k; });
     s.linear = [b_falcon](double k, double t) { return std::vector{pressed_wall_loop(k, 0.0, b_falcon, t)}; };
+    s.drives = [b_falcon](double k, double t) {
+      return std::vector{wall_drive(wall_toml(k, 0.0), k, 0.0, b_falcon, t)};
+    };
     s.lengthen = true;
     all.push_back(std::move(s));
   }
@@ -295,6 +321,7 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.inside_bound = [d](double k, double b) { return b > damping_needed_n_s_per_m(k, 1e-3, d); };
     s.map.bound_curve = bound_curve(s.xs, [d](double k) { return damping_needed_n_s_per_m(k, 1e-3, d); });
     s.linear = [](double k, double b) { return std::vector{pressed_wall_loop(k, 0.0, b, 1e-3)}; };
+    s.drives = [](double k, double b) { return std::vector{wall_drive(wall_toml(k, 0.0), k, 0.0, b, 1e-3)}; };
     s.lengthen = true;
     all.push_back(std::move(s));
   }
@@ -318,6 +345,9 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
       if (b > s.ys.front()) s.map.bound_curve.emplace_back(k, b);
     }
     s.linear = [b_falcon](double k, double b) { return std::vector{pressed_wall_loop(k, b, b_falcon, 1e-3)}; };
+    s.drives = [b_falcon](double k, double b) {
+      return std::vector{wall_drive(wall_toml(k, b), k, b, b_falcon, 1e-3)};
+    };
     s.lengthen = true;
     all.push_back(std::move(s));
   }
@@ -359,6 +389,13 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
       SampledLoop tangential = pressed_wall_loop(0.0, 0.0, b, 1e-3);
       tangential.velocity_feedback_n_s_per_m = mu;
       return std::vector{pressed_wall_loop(kWall, 0.0, b, 1e-3), tangential};
+    };
+    s.drives = [](double mu, double b) {
+      const std::string scene = wall_toml(kWall, 0.0) + fmt::format("  [surface.slippery]\n  mu = {}\n", mu);
+      PortDrive normal = wall_drive(scene, kWall, 0.0, b, 1e-3);
+      PortDrive along = normal;  // pressed in, moving along the surface
+      along.direction = {1.0, 0.0, 0.0};
+      return std::vector{normal, along};
     };
     s.lengthen = true;
     all.push_back(std::move(s));
@@ -512,8 +549,18 @@ Matrix transition_matrix(const SampledLoop& l) {
 
 Result<double> loop_spectral_radius(const SampledLoop& loop) { return spectral_radius(transition_matrix(loop)); }
 
-double required_damping_n_s_per_m(const SampledLoop& l) noexcept {
+double required_damping_at_n_s_per_m(const SampledLoop& l, double theta) noexcept {
   using Complex = std::complex<double>;
+  const Complex z_inverse = std::polar(1.0, -theta);
+  const double half_sin = std::sin(theta / 2.0);
+  const double one_minus_cos = 2.0 * half_sin * half_sin;  // 1 - cos theta without cancellation
+  const Complex difference(one_minus_cos, std::sin(theta));  // 1 - z^-1, likewise
+  const Complex estimator = l.velocity_gain * difference / (l.period_s * (1.0 - (1.0 - l.velocity_gain) * z_inverse));
+  const Complex h = std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
+  return l.period_s / 2.0 * std::real(difference * h) / one_minus_cos;
+}
+
+double required_damping_n_s_per_m(const SampledLoop& l) noexcept {
   constexpr int kFrequencies = 4096;
   constexpr double kPi = 3.14159265358979323846;
   double required = -std::numeric_limits<double>::infinity();
@@ -522,17 +569,166 @@ double required_damping_n_s_per_m(const SampledLoop& l) noexcept {
     // lie): 1e-7 rad meets it to 1e-14 relative, and the expression is evaluated without
     // cancellation.
     const double theta = i == 0 ? 1e-7 : kPi * static_cast<double>(i) / kFrequencies;
-    const Complex z_inverse = std::polar(1.0, -theta);
-    const double half_sin = std::sin(theta / 2.0);
-    const double one_minus_cos = 2.0 * half_sin * half_sin;  // 1 - cos theta without cancellation
-    const Complex difference(one_minus_cos, std::sin(theta));  // 1 - z^-1, likewise
-    const Complex estimator =
-        l.velocity_gain * difference / (l.period_s * (1.0 - (1.0 - l.velocity_gain) * z_inverse));
-    const Complex h = std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
-    required = std::max(required, l.period_s / 2.0 * std::real(difference * h) / one_minus_cos);
+    required = std::max(required, required_damping_at_n_s_per_m(l, theta));
   }
   return required;
 }
+
+namespace {
+
+constexpr double kTwoPi = 6.28318530717958647692;
+/// Forcing windows of fewer ticks than a period of this many are q = 1009 ticks long.
+constexpr std::int64_t kShortestOnePeriodWindow = 50;
+constexpr std::int64_t kPrimeWindowTicks = 1009;
+/// The sums' round-off relative to the dampings compared (measured: below 1e-11; see each
+/// section's model difference).
+constexpr double kPortRelativeTolerance = 1e-9;
+
+/// The handle as a motion source: reads x(kT) = x0 + A sin(2 pi p k / q), records the force the
+/// loop writes at each tick (along the drive's direction; work along any other is zero).
+struct MotionSource {
+  const PortDrive* drive;
+  std::int64_t periods;
+  std::int64_t ticks;
+  std::vector<double>* forces_n;
+  std::int64_t k = 0;
+  DeviceStatus read(DeviceReading& r) noexcept {
+    // The phase from integers, so a long window's sine is as exact as its first period's.
+    const double phase = kTwoPi * static_cast<double>((periods * k) % ticks) / static_cast<double>(ticks);
+    r.position_m = drive->x0_m + drive->direction * (drive->amplitude_m * std::sin(phase));
+    r.has_velocity = false;
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>& force_n) noexcept {
+    (*forces_n)[static_cast<std::size_t>(k)] = dot(force_n, drive->direction);
+    ++k;
+    return DeviceStatus::kOk;
+  }
+};
+
+Result<PortCycle> port_cycle_of(const PortDrive& drive, const SceneDescription& desc, std::int64_t p, std::int64_t q) {
+  if (p < 1 || q < 3 || (2 * p) % q == 0) {
+    return Error{fmt::format("port forcing: {} periods in {} ticks alias to DC", p, q)};
+  }
+  // The spec's stages only, and no clamp or rate limit: the law itself, linear.
+  ServoConfig config = servo_config(desc, drive.period_s);
+  if (drive.velocity_cutoff_hz > 0.0) config.velocity_cutoff_hz = drive.velocity_cutoff_hz;
+  config.limits.has_max_force = false;
+  config.limits.has_max_force_rate = false;
+  const double a = velocity_gain(config.velocity_cutoff_hz, drive.period_s);
+  // The estimator forgets its start as (1 - a)^k: 40 / a ticks leave e^-40 of it.
+  const std::int64_t settle = drive.delay_ticks + 2 + static_cast<std::int64_t>(std::ceil(40.0 / a));
+  std::vector<double> forces(static_cast<std::size_t>(settle + q), 0.0);
+  ServoLoop<MotionSource, RuntimeScene<double>, NullPins, kSpecStages> loop(
+      MotionSource{&drive, p, q, &forces}, make_runtime_scene<double>(desc), config);
+  for (std::int64_t k = 0; k < settle + q - drive.delay_ticks; ++k) static_cast<void>(loop.tick(k));
+
+  // Hold interval j = [jT, (j+1)T] carries the force written at tick j - d. Over q ticks (p
+  // whole periods) the displacements sum to zero, so a constant force does no work: the press
+  // force is taken out before summing, to keep its round-off out of the small net.
+  const double amplitude = drive.amplitude_m;
+  const double pi_over_q = kTwoPi / 2.0 / static_cast<double>(q);
+  const double half_step = 2.0 * amplitude * std::sin(pi_over_q * static_cast<double>(p));
+  const double reference_n = forces[static_cast<std::size_t>(settle - drive.delay_ticks)];
+  double work = 0.0;
+  double ramp = 0.0;
+  for (std::int64_t j = settle; j < settle + q; ++j) {
+    // x((j+1)T) - x(jT) = 2 A sin(pi p / q) cos(pi p (2 j + 1) / q), the phase again exact.
+    const double dx = half_step * std::cos(pi_over_q * static_cast<double>((p * (2 * j + 1)) % (2 * q)));
+    work += (forces[static_cast<std::size_t>(j - drive.delay_ticks)] - reference_n) * dx;
+    ramp += dx * dx / drive.period_s;
+  }
+  PortCycle c;
+  c.frequency_hz = static_cast<double>(p) / (static_cast<double>(q) * drive.period_s);
+  c.theta_rad = kTwoPi * static_cast<double>(p) / static_cast<double>(q);
+  c.damping_n_s_per_m = drive.device_damping_n_s_per_m;
+  const double per_cycle = 1.0 / (static_cast<double>(p) * amplitude * amplitude);
+  c.controller_work_j_per_m2 = work * per_cycle;
+  c.ramp_v2_per_m2 = ramp * per_cycle;
+  c.sine_v2_per_m2 = kTwoPi * c.frequency_hz * kTwoPi / 2.0;  // integral of (A w cos)^2 over 2 pi / w, per A^2
+  return c;
+}
+
+}  // namespace
+
+std::vector<std::pair<std::int64_t, std::int64_t>> port_frequencies(double period_s, int count) {
+  std::vector<std::pair<std::int64_t, std::int64_t>> out;
+  const double nyquist_hz = 0.5 / period_s;
+  for (const double f : logspace(0.1, nyquist_hz, count)) {
+    const double cycles_per_tick = f * period_s;
+    std::pair<std::int64_t, std::int64_t> pq;
+    if (cycles_per_tick * static_cast<double>(kShortestOnePeriodWindow) <= 1.0) {
+      pq = {1, std::llround(1.0 / cycles_per_tick)};
+    } else {
+      const auto p = std::llround(cycles_per_tick * static_cast<double>(kPrimeWindowTicks));
+      pq = {std::clamp<std::int64_t>(p, 1, (kPrimeWindowTicks - 1) / 2), kPrimeWindowTicks};
+    }
+    if (out.empty() || out.back() != pq) out.push_back(pq);
+  }
+  return out;
+}
+
+Result<PortCycle> port_cycle(const PortDrive& drive, std::int64_t periods, std::int64_t ticks) {
+  auto desc = parse_scene(drive.scene_toml, "port.toml");
+  if (!desc) return Error{desc.error()};
+  return port_cycle_of(drive, desc.value(), periods, ticks);
+}
+
+Result<PortPassivity> port_passivity(const PortDrive& drive, int count, const SampledLoop* model) {
+  auto desc = parse_scene(drive.scene_toml, "port.toml");
+  if (!desc) return Error{desc.error()};
+  PortPassivity r;
+  const double b = drive.device_damping_n_s_per_m;
+  for (const auto& [p, q] : port_frequencies(drive.period_s, count)) {
+    auto c = port_cycle_of(drive, desc.value(), p, q);
+    if (!c) return Error{c.error()};
+    ++r.frequencies;
+    const double sine = c->required_sine_n_s_per_m() - b;
+    const double ramp = c->required_ramp_n_s_per_m() - b;
+    r.tolerance_n_s_per_m = std::max({r.tolerance_n_s_per_m, kPortRelativeTolerance * b,
+                                      kPortRelativeTolerance * std::abs(c->required_sine_n_s_per_m()),
+                                      kPortRelativeTolerance * std::abs(c->required_ramp_n_s_per_m())});
+    if (sine > r.margin_sine_n_s_per_m) {
+      r.margin_sine_n_s_per_m = sine;
+      r.worst_sine_hz = c->frequency_hz;
+    }
+    if (ramp > r.margin_ramp_n_s_per_m) {
+      r.margin_ramp_n_s_per_m = ramp;
+      r.worst_ramp_hz = c->frequency_hz;
+    }
+    if (model != nullptr) {
+      const double modelled = required_damping_at_n_s_per_m(*model, c->theta_rad);
+      r.model_difference_n_s_per_m =
+          std::max(r.model_difference_n_s_per_m, std::abs(modelled - c->required_ramp_n_s_per_m()));
+      r.model_grid_margin_n_s_per_m = std::max(r.model_grid_margin_n_s_per_m, modelled - b);
+      // A sinusoid dissipates theta^2 / (2 (1 - cos theta)) times what the ramp through its samples does.
+      const double half_sin = std::sin(c->theta_rad / 2.0);
+      r.model_grid_sine_margin_n_s_per_m = std::max(
+          r.model_grid_sine_margin_n_s_per_m, modelled * 4.0 * half_sin * half_sin / (c->theta_rad * c->theta_rad) - b);
+    }
+  }
+  return r;
+}
+
+namespace {
+/// The point's port check over several axes: the worst of each.
+void merge(PortPassivity& into, const PortPassivity& axis) {
+  if (axis.margin_sine_n_s_per_m > into.margin_sine_n_s_per_m) {
+    into.margin_sine_n_s_per_m = axis.margin_sine_n_s_per_m;
+    into.worst_sine_hz = axis.worst_sine_hz;
+  }
+  if (axis.margin_ramp_n_s_per_m > into.margin_ramp_n_s_per_m) {
+    into.margin_ramp_n_s_per_m = axis.margin_ramp_n_s_per_m;
+    into.worst_ramp_hz = axis.worst_ramp_hz;
+  }
+  into.model_difference_n_s_per_m = std::max(into.model_difference_n_s_per_m, axis.model_difference_n_s_per_m);
+  into.model_grid_margin_n_s_per_m = std::max(into.model_grid_margin_n_s_per_m, axis.model_grid_margin_n_s_per_m);
+  into.model_grid_sine_margin_n_s_per_m =
+      std::max(into.model_grid_sine_margin_n_s_per_m, axis.model_grid_sine_margin_n_s_per_m);
+  into.frequencies = std::max(into.frequencies, axis.frequencies);
+  into.tolerance_n_s_per_m = std::max(into.tolerance_n_s_per_m, axis.tolerance_n_s_per_m);
+}
+}  // namespace
 
 Result<StabilityReport> run_stability(const StabilityOptions& options, const Progress& progress) {
   StabilityReport report;
@@ -560,6 +756,16 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
             p.passivity_margin_n_s_per_m =
                 std::max(p.passivity_margin_n_s_per_m, required_damping_n_s_per_m(l) - l.damping_n_s_per_m);
           }
+          if (s.drives && options.port_frequencies > 0) {
+            const auto loops = s.linear(x, y);
+            const auto drives = s.drives(x, y);
+            p.has_port = true;
+            for (std::size_t i = 0; i < drives.size(); ++i) {
+              auto port = port_passivity(drives[i], options.port_frequencies, &loops[i]);
+              if (!port) return Error{fmt::format("{} at ({}, {}): port energy: {}", s.map.name, x, y, port.error())};
+              merge(p.port, port.value());
+            }
+          }
           if (p.spectral_radius > 1.0) {
             p.efold_s = experiment.period_s / std::log(p.spectral_radius);
             if (s.lengthen) {
@@ -584,16 +790,19 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
 
 std::string stability_csv(const StabilityMap& map) {
   std::string csv =
-      "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s,passivity_margin_n_s_per_m\n";
+      "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s,passivity_margin_n_s_per_m,"
+      "port_margin_ramp_n_s_per_m,port_margin_sine_n_s_per_m\n";
   for (const auto& p : map.points) {
-    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{}\n", p.x, p.y,
+    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{},{},{}\n", p.x, p.y,
                        stability_name(p.outcome.stability), p.inside_bound ? 1 : 0, p.outcome.peak_ratio,
                        p.outcome.growth, p.outcome.max_force_n,
                        p.has_spectrum ? fmt::format("{:.9f}", p.spectral_radius) : std::string(),
                        p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s,
-                       p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string());
+                       p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string(),
+                       p.has_port ? fmt::format("{:.6g}", p.port.margin_ramp_n_s_per_m) : std::string(),
+                       p.has_port ? fmt::format("{:.6g}", p.port.margin_sine_n_s_per_m) : std::string());
   }
-  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,,\n", x, y);
+  for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,,,,\n", x, y);
   return csv;
 }
 
@@ -601,6 +810,84 @@ namespace {
 
 /// A run shows growth that e-folds in tau if it lasts a few tau: 3 (the energy grows e^6).
 constexpr double kEfoldsToSee = 3.0;
+/// A point within round-off of b_req (a grid point exactly on the bound, b = mu) is neither.
+constexpr double kOnTheBoundNsPerM = 1e-9;
+
+/// The port-energy check beside b_req: agreement for both motions, and the disagreements.
+std::string port_markdown(const StabilityMap& map) {
+  struct Disagreement {
+    const SweepPoint* p;
+    const char* motion;
+    const char* why;
+  };
+  std::vector<Disagreement> disagreements;
+  int counted = 0;
+  int on_the_bound = 0;
+  int agree_ramp = 0;
+  int agree_sine = 0;
+  int frequencies = 0;
+  double model_difference = 0.0;
+  for (const auto& p : map.points) {
+    if (!p.has_port) continue;
+    frequencies = std::max(frequencies, p.port.frequencies);
+    model_difference = std::max(model_difference, p.port.model_difference_n_s_per_m);
+    if (std::abs(p.passivity_margin_n_s_per_m) <= kOnTheBoundNsPerM) {
+      ++on_the_bound;
+      continue;
+    }
+    ++counted;
+    const bool by_b_req = p.passivity_margin_n_s_per_m < 0.0;
+    const bool ramp = p.port.passive_ramp();
+    const bool sine = p.port.passive_sine();
+    // The model on the same frequencies: if it says what the measurement says, the measurement
+    // is right and b_req's maximum lies off the grid (or, for the sinusoid, at a frequency where
+    // a sinusoid is not the worst input).
+    const bool grid_ramp = p.port.model_grid_margin_n_s_per_m <= p.port.tolerance_n_s_per_m;
+    const bool grid_sine = p.port.model_grid_sine_margin_n_s_per_m <= p.port.tolerance_n_s_per_m;
+    if (ramp == by_b_req) {
+      ++agree_ramp;
+    } else {
+      disagreements.push_back({&p, "ramp", grid_ramp == ramp ? "b_req's maximum lies off the forcing frequencies"
+                                                            : "the code parts from the model"});
+    }
+    if (sine == by_b_req) {
+      ++agree_sine;
+    } else {
+      disagreements.push_back(
+          {&p, "sinusoid",
+           grid_sine != sine                ? "the code parts from the model"
+           : grid_ramp == by_b_req          ? "a sinusoid dissipates more than the worst motion through its samples"
+                                            : "b_req's maximum lies off the forcing frequencies"});
+    }
+  }
+  std::string md = fmt::format(
+      "\nPassivity by port energy (measured: the servo loop driven by the handle's motion at {} frequencies from "
+      "0.1 Hz to Nyquist; see how a point is classified): with the sampled sinusoid joined by straight lines "
+      "(Colgate's worst motion through those samples) {} of {} points agree with b_req's verdict, with the "
+      "sinusoid itself {} of {}{}. The measured and modelled Colgate-Schenkel integrand differ by at most {:.2g} N s/m "
+      "at the same theta.\n",
+      frequencies, agree_ramp, counted, agree_sine, counted,
+      on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound),
+      model_difference);
+  if (disagreements.empty()) return md;
+  md += fmt::format("\n{} disagreements{}:\n\n", disagreements.size(),
+                    disagreements.size() > 8 ? " (the 8 nearest the bound)" : "");
+  std::sort(disagreements.begin(), disagreements.end(), [](const Disagreement& a, const Disagreement& b) {
+    return std::abs(a.p->passivity_margin_n_s_per_m) < std::abs(b.p->passivity_margin_n_s_per_m);
+  });
+  md += fmt::format("| {} | {} | motion | b_req - b [N s/m] | measured margin [N s/m] | at [Hz] | why |\n"
+                    "| ---: | ---: | --- | ---: | ---: | ---: | --- |\n",
+                    map.x_label, map.y_label);
+  for (std::size_t i = 0; i < std::min<std::size_t>(disagreements.size(), 8); ++i) {
+    const auto& d = disagreements[i];
+    const bool ramp = std::string_view(d.motion) == "ramp";
+    md += fmt::format("| {:.4g} | {:.4g} | {} | {:.3g} | {:.3g} | {:.4g} | {} |\n", d.p->x, d.p->y, d.motion,
+                      d.p->passivity_margin_n_s_per_m,
+                      ramp ? d.p->port.margin_ramp_n_s_per_m : d.p->port.margin_sine_n_s_per_m,
+                      ramp ? d.p->port.worst_ramp_hz : d.p->port.worst_sine_hz, d.why);
+  }
+  return md;
+}
 
 std::string spectral_markdown(const StabilityMap& map) {
   std::string md;
@@ -621,8 +908,6 @@ std::string spectral_markdown(const StabilityMap& map) {
   md += "| points | decaying | bounded | unstable |\n| --- | ---: | ---: | ---: |\n";
   md += fmt::format("| rho < 1 (linear loop stable) | {} | {} | {} |\n", table[0][0], table[0][1], table[0][2]);
   md += fmt::format("| rho > 1 (linear loop unstable) | {} | {} | {} |\n", table[1][0], table[1][1], table[1][2]);
-  // A point within round-off of b_req (a grid point exactly on the bound, b = mu) is neither.
-  constexpr double kOnTheBoundNsPerM = 1e-9;
   int passive[2][2] = {};  // [inside the bound][passive by b_req]
   int on_the_bound = 0;
   for (const auto& p : map.points) {
@@ -639,6 +924,7 @@ std::string spectral_markdown(const StabilityMap& map) {
       on_the_bound == 0 ? std::string()
                         : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
                                       kOnTheBoundNsPerM));
+  if (!map.points.empty() && map.points.front().has_port) md += port_markdown(map);
   // |rho - 1| within the eigenvalue routine's accuracy (about 1e-15; a margin of 1e-9): marginal,
   // on the stability boundary (the slippery map's b = mu exactly), whichever row it fell in.
   constexpr double kMarginalRho = 1e-9;

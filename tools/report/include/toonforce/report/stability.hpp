@@ -12,6 +12,10 @@
 /// 2. by the energy of one autonomous run on the simulation (the nonlinear truth: one-sided
 ///    contact, clamps, friction, quantisation where the map has them).
 ///
+/// On the linear maps passivity is decided twice too: by Colgate and Schenkel's b_req of the
+/// modelled law (`required_damping_n_s_per_m`), and measured as port energy on the real servo
+/// loop driven by an imposed motion over a band of frequencies (`port_passivity`).
+///
 /// The passivity bound of control/passivity_bound.hpp (Colgate-Brown with the delay term of
 /// Diolaiti et al. 2006: b > (1 + 2 d) K T / 2 + |B|) is drawn over each map with the delay d of
 /// the map's device. It is a sufficient condition for passivity (stability with any passive
@@ -35,6 +39,7 @@
 ///   - bounded: neither: V rose above V0 but did not grow (a decaying or steady oscillation).
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -127,6 +132,83 @@ Result<double> loop_spectral_radius(const SampledLoop& loop);
 /// physical damping and spring do not enter: they are the device and the user.
 double required_damping_n_s_per_m(const SampledLoop& loop) noexcept;
 
+/// Colgate and Schenkel's integrand at one normalised frequency 0 < theta <= pi: the damping
+/// the loop's discrete law needs against inputs at theta, (T / 2) Re{(1 - e^(-j theta))
+/// H(e^(j theta))} / (1 - cos theta) [N s/m]; b_req is its maximum over theta.
+double required_damping_at_n_s_per_m(const SampledLoop& loop, double theta_rad) noexcept;
+
+/// The port-energy check of passivity: the handle is a motion source driving the real servo
+/// loop (`ServoLoop` with the spec's stages, no clamp or rate limit) along `direction` with
+/// x(t) = x0 + A sin(w t); the loop reads x(kT), and each force it writes is held over
+/// [(k + d) T, (k + d + 1) T] (the device's I/O delay d and zero-order hold). The law must be
+/// linear there: x0 keeps the handle in contact and A keeps every force inside any cap.
+struct PortDrive {
+  std::string scene_toml;
+  double period_s = 1e-3;
+  double device_damping_n_s_per_m = 0.0;  ///< b, the device's own viscous damping
+  int delay_ticks = 0;
+  double velocity_cutoff_hz = 0.0;  ///< > 0 overrides the scene's
+  Vec3<double> x0_m;
+  Vec3<double> direction{0.0, 0.0, 1.0};  ///< unit
+  double amplitude_m = 1e-6;
+};
+
+/// One forcing frequency, over whole periods after the estimator's transient. Energies are
+/// per cycle and per A^2; the law is linear, so they do not depend on A.
+struct PortCycle {
+  double frequency_hz = 0.0;  ///< p / (q T): p whole periods in q whole ticks
+  double theta_rad = 0.0;     ///< w T
+  double damping_n_s_per_m = 0.0;  ///< b
+  /// Work the loop's held forces do on the handle [J/m^2]: the sum over hold intervals of
+  /// F . dx (exact, F being constant over each); > 0 is energy the controller gives out.
+  double controller_work_j_per_m2 = 0.0;
+  /// integral v^2 dt [1/s] of the sinusoid (w pi per cycle), and of the motion through the
+  /// same samples moving linearly between them (sum dx^2 / T: the least any motion through
+  /// those samples dissipates in b, Colgate's worst case). b times these is what b absorbs.
+  double sine_v2_per_m2 = 0.0;
+  double ramp_v2_per_m2 = 0.0;
+  /// Net energy the device and controller absorb per cycle [J/m^2]; >= 0 at every
+  /// frequency: passive.
+  double absorbed_sine_j_per_m2() const noexcept { return damping_n_s_per_m * sine_v2_per_m2 - controller_work_j_per_m2; }
+  double absorbed_ramp_j_per_m2() const noexcept { return damping_n_s_per_m * ramp_v2_per_m2 - controller_work_j_per_m2; }
+  /// The damping b that would absorb exactly what the controller gives [N s/m] (the ramp's
+  /// is Colgate and Schenkel's integrand at theta, measured).
+  double required_sine_n_s_per_m() const noexcept { return controller_work_j_per_m2 / sine_v2_per_m2; }
+  double required_ramp_n_s_per_m() const noexcept { return controller_work_j_per_m2 / ramp_v2_per_m2; }
+};
+
+/// `count` forcing frequencies log-spaced from 0.1 Hz to just under Nyquist, each moved to
+/// p / (q T) with whole p periods in q ticks: q = 1 / (f T) rounded (p = 1) for periods of 50
+/// ticks and more, else q = 1009 (a prime, so the sample phases never repeat within the window
+/// and never alias to DC: p <= 504 < q / 2). Returned as (p, q).
+std::vector<std::pair<std::int64_t, std::int64_t>> port_frequencies(double period_s, int count);
+/// The port's energy at p periods in q ticks.
+Result<PortCycle> port_cycle(const PortDrive& drive, std::int64_t periods, std::int64_t ticks);
+
+/// The measured margin: the largest required damping over the frequencies minus b [N s/m]
+/// (> 0: some frequency's port gives energy out, not passive), for both motions.
+struct PortPassivity {
+  double margin_sine_n_s_per_m = -std::numeric_limits<double>::infinity();
+  double margin_ramp_n_s_per_m = -std::numeric_limits<double>::infinity();
+  double worst_sine_hz = 0.0;
+  double worst_ramp_hz = 0.0;
+  /// With a model: the largest |measured - modelled| required damping at the same theta
+  /// (the ramp's; Colgate-Schenkel's integrand) [N s/m], and the model's margin on the same
+  /// frequencies (how far the grid's maximum falls short of b_req's).
+  double model_difference_n_s_per_m = 0.0;
+  double model_grid_margin_n_s_per_m = -std::numeric_limits<double>::infinity();
+  double model_grid_sine_margin_n_s_per_m = -std::numeric_limits<double>::infinity();
+  int frequencies = 0;
+  /// Round-off of the sums: margins within this of 0 [N s/m] (1e-9 of the largest damping
+  /// involved, b or a frequency's need) count as 0, on the bound.
+  double tolerance_n_s_per_m = 0.0;
+  bool passive_sine() const noexcept { return margin_sine_n_s_per_m <= tolerance_n_s_per_m; }
+  bool passive_ramp() const noexcept { return margin_ramp_n_s_per_m <= tolerance_n_s_per_m; }
+};
+/// Every frequency of port_frequencies(period, count); `model` (may be null) is the linear
+/// model of the same axis, compared at each theta.
+Result<PortPassivity> port_passivity(const PortDrive& drive, int count, const SampledLoop* model = nullptr);
+
 struct SweepPoint {
   double x = 0.0;
   double y = 0.0;
@@ -139,6 +221,9 @@ struct SweepPoint {
   /// The largest Colgate-Schenkel b_req minus the damping it is compared with, over the map's
   /// loops: < 0 passive (the port, under any input), > 0 not. Meaningful when has_spectrum.
   double passivity_margin_n_s_per_m = 0.0;
+  /// The port-energy check over the map's axes (the largest margins): has_port when measured.
+  bool has_port = false;
+  PortPassivity port;
 };
 
 struct StabilityMap {
@@ -162,6 +247,8 @@ struct StabilityOptions {
   /// so the growth the eigenvalue predicts shows in the run (or the point says it could not).
   double longest_run_s = 300.0;
   std::string filter;        ///< only maps whose name contains one of these
+  /// Forcing frequencies of the port-energy check on every linear-map point; 0: no check.
+  int port_frequencies = 40;
 };
 
 struct StabilityReport {
