@@ -13,6 +13,7 @@
 #include "toonforce/sim/closed_loop.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/precision_reference.hpp"
+#include "toonforce/report/scenario.hpp"
 
 namespace toonforce::report {
 namespace {
@@ -231,6 +232,55 @@ TEST(Precision, TheDriftRunsPortWorkIsWhatTheObserverSeesWithoutDelayOrQuantisat
   const double two_ticks = observer_minus_port_work(2, false, 20.0);
   EXPECT_GT(one_tick, 1e-3);
   EXPECT_GT(two_ticks, 1.5 * one_tick);
+}
+
+TEST(Precision, TheTimedClosedLoopIsTheSimulationsClosedLoop) {
+  // The closed-loop rows time ServoLoop::tick alone by splitting the simulated device at the
+  // tick (the plant steps after it): the run must still be SimSession's, bit for bit, or the
+  // cost would be measured on another loop than the error. Every tick is timed exactly once.
+  HandScriptFile hand;
+  hand.script = random_hand_script(15, 3.0);
+  host_sim::PlanError error;
+  hand.intent = *host_sim::HandIntent::plan(hand.script, error);
+  for (const char* scene : {"cartoon_wall", "cliff"}) {
+    const std::string path = paper_scene_path(TOONFORCE_SOURCE_DIR, scene);
+    for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16}) {
+      const SimConfig config = closed_loop_sim_config(kind, 1000.0, 15);
+      CycleHistogram cycles;
+      const ClosedLoopRun run = closed_loop_run(path, hand, config, 2.0, &cycles);
+      ASSERT_TRUE(run.refused.empty()) << run.refused;
+      EXPECT_EQ(run.ticks, 2000U);
+      EXPECT_EQ(cycles.count(), run.ticks);
+      ASSERT_EQ(run.force_n.size(), run.ticks);
+      auto session = SimSession::create(load_scene_file(path, kind).value(), hand, config);
+      ASSERT_TRUE(session) << session.error();
+      std::size_t differing = 0;
+      double largest_force_n = 0.0;
+      for (std::size_t k = 0; k < run.force_n.size(); ++k) {
+        const SimRecord r = session->step();
+        if (!(r.device_force_n == run.force_n[k]) || !(r.true_position_m == run.position_m[k])) ++differing;
+        largest_force_n = std::max(largest_force_n, norm(r.device_force_n));
+      }
+      EXPECT_EQ(differing, 0U) << scene << " " << scalar_kind_name(kind);
+      EXPECT_GT(largest_force_n, 0.5) << "the hand never pressed: nothing compared";
+    }
+  }
+}
+
+TEST(Precision, EveryClosedLoopRowTimesEveryTickOfItsRun) {
+  // Loop CPU per simulated second is the mean tick times the ticks the run made: rate x
+  // duration of them, each timed once (a deterministic count, not a time).
+  const PrecisionOptions defaults;
+  std::size_t rows = 0;
+  for (const auto& row : wall_report().closed_loop) {
+    ASSERT_TRUE(row.refused.empty()) << row.refused;
+    EXPECT_EQ(row.loop_ticks, static_cast<std::uint64_t>(std::llround(row.rate_hz * defaults.closed_loop_s)))
+        << row.scene << " " << scalar_kind_name(row.scalar) << " " << row.rate_hz;
+    EXPECT_LE(row.loop_ticks_left_out, row.loop_ticks);
+    EXPECT_TRUE(std::isnan(row.m3_instructions_per_s)) << "no Cortex-M3 figures were given";
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2U * 3U * defaults.rates_hz.size());  // wall and cartoon_wall, three scalars
 }
 
 TEST(Precision, TheDriftHandIsSeededVariedAndPlannable) {
