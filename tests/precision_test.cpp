@@ -11,6 +11,7 @@
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/host_sim/hand_intent.hpp"
 #include "toonforce/sim/closed_loop.hpp"
+#include "toonforce/report/mcu.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/precision_reference.hpp"
 #include "toonforce/report/scenario.hpp"
@@ -281,6 +282,47 @@ TEST(Precision, EveryClosedLoopRowTimesEveryTickOfItsRun) {
     ++rows;
   }
   EXPECT_EQ(rows, 2U * 3U * defaults.rates_hz.size());  // wall and cartoon_wall, three scalars
+}
+
+TEST(Precision, TheCortexM3LoopTickIsReadFromReportMcusTable) {
+  // report mcu's instructions table, as its generator prints it (two scenes): the every-stage
+  // loop's mean is the fifth column, not the replay loop's third.
+  McuCore m3;
+  m3.run_table =
+      "| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | effects + safety, mean | "
+      "max | stack per tick [B] | loop state, replay's / every stage [B] |\n"
+      "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
+      "| wall | 3901 | 863 | 1422 | 1146 | 1241 | 283 | 854 | 580 | 336 / 648 |\n"
+      "| cliff | 3901 | 1751 | 2859 | 1713 | 2819 | 998 | 2098 | 688 | 416 / 696 |\n";
+  const auto loop = mcu_loop_mean_instructions(m3);
+  ASSERT_EQ(loop.size(), 2U);
+  EXPECT_EQ(loop[0], (std::pair<std::string, double>{"wall", 1146.0}));
+  EXPECT_EQ(loop[1], (std::pair<std::string, double>{"cliff", 1713.0}));
+  m3.run_table = "| scene | ticks |\n| --- | ---: |\n| wall | 3901 |\n";
+  EXPECT_TRUE(mcu_loop_mean_instructions(m3).empty());
+
+  // Given those, each q16.16 closed-loop row's M3 cost is the 1 kHz mean times its rate; the
+  // other scalar types have none (their M3 images are not built).
+  PrecisionOptions o;
+  o.root = TOONFORCE_SOURCE_DIR;
+  o.filter = "cliff";
+  o.timing_ticks = 100;
+  o.drift_hours = 0.0;
+  o.closed_loop_s = 0.5;
+  o.closed_loop_timing_runs = 1;
+  o.m3_loop_instructions_per_tick = {{"wall", 1146.0}, {"cliff", 1713.0}};
+  const auto r = run_precision(o);
+  ASSERT_TRUE(r) << r.error();
+  std::size_t q16_rows = 0;
+  for (const auto& row : r->closed_loop) {
+    if (row.scalar == ScalarKind::kQ16_16) {
+      EXPECT_DOUBLE_EQ(row.m3_instructions_per_s, 1713.0 * row.rate_hz);
+      ++q16_rows;
+    } else {
+      EXPECT_TRUE(std::isnan(row.m3_instructions_per_s));
+    }
+  }
+  EXPECT_EQ(q16_rows, o.rates_hz.size());
 }
 
 TEST(Precision, TheDriftHandIsSeededVariedAndPlannable) {
