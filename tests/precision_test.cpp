@@ -11,8 +11,10 @@
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/host_sim/hand_intent.hpp"
 #include "toonforce/sim/closed_loop.hpp"
+#include "toonforce/report/mcu.hpp"
 #include "toonforce/report/precision.hpp"
 #include "toonforce/report/precision_reference.hpp"
+#include "toonforce/report/scenario.hpp"
 
 namespace toonforce::report {
 namespace {
@@ -231,6 +233,96 @@ TEST(Precision, TheDriftRunsPortWorkIsWhatTheObserverSeesWithoutDelayOrQuantisat
   const double two_ticks = observer_minus_port_work(2, false, 20.0);
   EXPECT_GT(one_tick, 1e-3);
   EXPECT_GT(two_ticks, 1.5 * one_tick);
+}
+
+TEST(Precision, TheTimedClosedLoopIsTheSimulationsClosedLoop) {
+  // The closed-loop rows time ServoLoop::tick alone by splitting the simulated device at the
+  // tick (the plant steps after it): the run must still be SimSession's, bit for bit, or the
+  // cost would be measured on another loop than the error. Every tick is timed exactly once.
+  HandScriptFile hand;
+  hand.script = random_hand_script(15, 3.0);
+  host_sim::PlanError error;
+  hand.intent = *host_sim::HandIntent::plan(hand.script, error);
+  for (const char* scene : {"cartoon_wall", "cliff"}) {
+    const std::string path = paper_scene_path(TOONFORCE_SOURCE_DIR, scene);
+    for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16}) {
+      const SimConfig config = closed_loop_sim_config(kind, 1000.0, 15);
+      CycleHistogram cycles;
+      const ClosedLoopRun run = closed_loop_run(path, hand, config, 2.0, &cycles);
+      ASSERT_TRUE(run.refused.empty()) << run.refused;
+      EXPECT_EQ(run.ticks, 2000U);
+      EXPECT_EQ(cycles.count(), run.ticks);
+      ASSERT_EQ(run.force_n.size(), run.ticks);
+      auto session = SimSession::create(load_scene_file(path, kind).value(), hand, config);
+      ASSERT_TRUE(session) << session.error();
+      std::size_t differing = 0;
+      double largest_force_n = 0.0;
+      for (std::size_t k = 0; k < run.force_n.size(); ++k) {
+        const SimRecord r = session->step();
+        if (!(r.device_force_n == run.force_n[k]) || !(r.true_position_m == run.position_m[k])) ++differing;
+        largest_force_n = std::max(largest_force_n, norm(r.device_force_n));
+      }
+      EXPECT_EQ(differing, 0U) << scene << " " << scalar_kind_name(kind);
+      EXPECT_GT(largest_force_n, 0.5) << "the hand never pressed: nothing compared";
+    }
+  }
+}
+
+TEST(Precision, EveryClosedLoopRowTimesEveryTickOfItsRun) {
+  // Loop CPU per simulated second is the mean tick times the ticks the run made: rate x
+  // duration of them, each timed once (a deterministic count, not a time).
+  const PrecisionOptions defaults;
+  std::size_t rows = 0;
+  for (const auto& row : wall_report().closed_loop) {
+    ASSERT_TRUE(row.refused.empty()) << row.refused;
+    EXPECT_EQ(row.loop_ticks, static_cast<std::uint64_t>(std::llround(row.rate_hz * defaults.closed_loop_s)))
+        << row.scene << " " << scalar_kind_name(row.scalar) << " " << row.rate_hz;
+    EXPECT_LE(row.loop_ticks_left_out, row.loop_ticks);
+    EXPECT_TRUE(std::isnan(row.m3_instructions_per_s)) << "no Cortex-M3 figures were given";
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2U * 3U * defaults.rates_hz.size());  // wall and cartoon_wall, three scalars
+}
+
+TEST(Precision, TheCortexM3LoopTickIsReadFromReportMcusTable) {
+  // report mcu's instructions table, as its generator prints it (two scenes): the every-stage
+  // loop's mean is the fifth column, not the replay loop's third.
+  McuCore m3;
+  m3.run_table =
+      "| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | effects + safety, mean | "
+      "max | stack per tick [B] | loop state, replay's / every stage [B] |\n"
+      "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n"
+      "| wall | 3901 | 863 | 1422 | 1146 | 1241 | 283 | 854 | 580 | 336 / 648 |\n"
+      "| cliff | 3901 | 1751 | 2859 | 1713 | 2819 | 998 | 2098 | 688 | 416 / 696 |\n";
+  const auto loop = mcu_loop_mean_instructions(m3);
+  ASSERT_EQ(loop.size(), 2U);
+  EXPECT_EQ(loop[0], (std::pair<std::string, double>{"wall", 1146.0}));
+  EXPECT_EQ(loop[1], (std::pair<std::string, double>{"cliff", 1713.0}));
+  m3.run_table = "| scene | ticks |\n| --- | ---: |\n| wall | 3901 |\n";
+  EXPECT_TRUE(mcu_loop_mean_instructions(m3).empty());
+
+  // Given those, each q16.16 closed-loop row's M3 cost is the 1 kHz mean times its rate; the
+  // other scalar types have none (their M3 images are not built).
+  PrecisionOptions o;
+  o.root = TOONFORCE_SOURCE_DIR;
+  o.filter = "cliff";
+  o.timing_ticks = 100;
+  o.drift_hours = 0.0;
+  o.closed_loop_s = 0.5;
+  o.closed_loop_timing_runs = 1;
+  o.m3_loop_instructions_per_tick = {{"wall", 1146.0}, {"cliff", 1713.0}};
+  const auto r = run_precision(o);
+  ASSERT_TRUE(r) << r.error();
+  std::size_t q16_rows = 0;
+  for (const auto& row : r->closed_loop) {
+    if (row.scalar == ScalarKind::kQ16_16) {
+      EXPECT_DOUBLE_EQ(row.m3_instructions_per_s, 1713.0 * row.rate_hz);
+      ++q16_rows;
+    } else {
+      EXPECT_TRUE(std::isnan(row.m3_instructions_per_s));
+    }
+  }
+  EXPECT_EQ(q16_rows, o.rates_hz.size());
 }
 
 TEST(Precision, TheDriftHandIsSeededVariedAndPlannable) {

@@ -19,10 +19,12 @@ the servo rates of one scalar type and sine method (labelled with the rate in kH
 drift: one panel per scene, the largest |difference| per bucket of simulated time against
   hours, one line per scalar and quantity (observer - port work, observer vs double, force vs
   double), with each line's fitted slope per hour in the legend.
-closed-loop: to pick a scalar type and a rate for a force accuracy: one panel per scene, x = RMS
-  force error of the closed loop against the converged double reference, y = CPU time per
-  simulated second (loop tick x rate), each point labelled scalar and rate; a dotted line marks
-  the reference's own error.
+closed-loop: to pick a scalar type and a rate for a force accuracy: one panel per scene, y = RMS
+  force error of the closed loop against the converged double reference, x = the servo loop's
+  CPU per simulated second on x86, measured inside the same closed-loop runs (cpu_us_per_s),
+  each point labelled scalar and rate; a dotted line marks the reference's own error. When the
+  CSV has Cortex-M3 figures (m3_instructions_per_s, q16.16 rows), a second row of panels puts
+  those on x.
 stability: the sweep's points coloured by class (decaying, bounded, unstable), the points whose eigenvalue predicts growth (rho > 1), and the bound
   drawn over them.
 
@@ -147,35 +149,46 @@ def drift(rows, out):
 
 
 def closed_loop(rows, out):
-    fig, axes = plt.subplots(1, len(SCENES), figsize=(22, 5), squeeze=False)
-    for column, scene in enumerate(SCENES):
-        ax = axes[0][column]
-        scene_rows = [r for r in rows if r["scene"] == scene and not r["refused"]]
-        for scalar in ("double", "float", "q16.16"):
-            points = sorted((r for r in scene_rows if r["scalar"] == scalar), key=lambda r: float(r["rate_hz"]))
-            if not points:
-                continue
-            xs = [max(float(r["force_rms_error_n"]), FLOOR) for r in points]
-            ys = [float(r["cpu_us_per_s"]) for r in points]
-            ax.plot(xs, ys, marker="o", color=SCALAR_COLOURS[scalar], linewidth=0.8, label=scalar)
-            for x, y, r in zip(xs, ys, points):
-                ax.annotate(f"{scalar} {float(r['rate_hz']) / 1000:g}k", (x, y), fontsize=6,
-                            xytext=(3, 2), textcoords="offset points", color=SCALAR_COLOURS[scalar])
-        if scene_rows:
-            reference_error = float(scene_rows[0]["reference_force_rms_error_n"])
-            if reference_error > 0.0:
-                ax.axvline(reference_error, color="k", linestyle=":", linewidth=0.8, label="reference's own error")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.grid(True, which="both", linewidth=0.3)
-        ax.set_title(scene)
-        ax.set_xlabel("RMS rendered-force error vs converged reference [N]", fontsize=8)
-        if column == 0:
-            ax.set_ylabel("CPU per simulated second [us] (x86 loop tick x rate)", fontsize=8)
-        ax.legend(fontsize=6)
-    fig.suptitle("Closed loop (servo loop, simulated device and seeded hand): pick the cheapest point left of "
+    m3 = any(r.get("m3_instructions_per_s") for r in rows)
+    targets = [("cpu_us_per_s", "x86: loop CPU per simulated second [us]\n(measured in the closed-loop runs)",
+                ("double", "float", "q16.16"))]
+    if m3:
+        targets.append(("m3_instructions_per_s",
+                        "Cortex-M3: instructions per simulated second\n(1 kHz motions' mean per tick x rate)",
+                        ("q16.16",)))
+    fig, axes = plt.subplots(len(targets), len(SCENES), figsize=(22, 5 * len(targets)), squeeze=False)
+    for line, (column_name, xlabel, scalars) in enumerate(targets):
+        for column, scene in enumerate(SCENES):
+            ax = axes[line][column]
+            scene_rows = [r for r in rows if r["scene"] == scene and not r["refused"] and r.get(column_name)]
+            for scalar in scalars:
+                points = sorted((r for r in scene_rows if r["scalar"] == scalar), key=lambda r: float(r["rate_hz"]))
+                if not points:
+                    continue
+                xs = [float(r[column_name]) for r in points]
+                ys = [max(float(r["force_rms_error_n"]), FLOOR) for r in points]
+                ax.plot(xs, ys, marker="o", color=SCALAR_COLOURS[scalar], linewidth=0.8, label=scalar)
+                for x, y, r in zip(xs, ys, points):
+                    # Each scalar's labels on its own side: the three lines run close together.
+                    offset = {"double": (-4, -9), "float": (4, 4), "q16.16": (4, 2)}[scalar]
+                    ax.annotate(f"{scalar} {float(r['rate_hz']) / 1000:g} kHz", (x, y), fontsize=6,
+                                xytext=offset, textcoords="offset points", color=SCALAR_COLOURS[scalar],
+                                ha="right" if scalar == "double" else "left")
+            if scene_rows:
+                reference_error = float(scene_rows[0]["reference_force_rms_error_n"])
+                if reference_error > 0.0:
+                    ax.axhline(reference_error, color="k", linestyle=":", linewidth=0.8, label="reference's own error")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.grid(True, which="both", linewidth=0.3)
+            ax.set_title(scene)
+            ax.set_xlabel(xlabel, fontsize=8)
+            if column == 0:
+                ax.set_ylabel("RMS rendered-force error vs converged reference [N]", fontsize=8)
+            ax.legend(fontsize=6)
+    fig.suptitle("Closed loop (servo loop, simulated device and seeded hand): pick the cheapest point below "
                  "the force accuracy you need")
-    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
     save(fig, out)
 
 

@@ -98,8 +98,24 @@ void add_precision(CLI::App& report) {
                   "DIR/PERFORMANCE.md");
   auto no_plot = std::make_shared<bool>(false);
   cmd->add_flag("--no-plot", *no_plot, "With --docs: no plots");
-  cmd->callback([options, docs, no_plot, cmd] {
+  auto mcu_images = std::make_shared<std::string>();
+  cmd->add_option("--mcu-images", *mcu_images,
+                  "The Cortex-M3 images whose loop tick gives the closed loop's M3 column (default: report mcu's; "
+                  "not built: the column says so)");
+  cmd->callback([options, docs, no_plot, mcu_images, cmd] {
     options->root = report::source_root(options->root);
+    // The closed loop's second target: the Cortex-M3's loop tick, when its images are built
+    // (seconds under QEMU); else the column says "not built".
+    report::McuOptions mcu;
+    mcu.root = options->root;
+    mcu.images = *mcu_images;
+    if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
+      std::fprintf(stderr, "closed loop, Cortex-M3 column: not built: %s\n", why.c_str());
+    } else {
+      const auto figures = report::run_mcu(mcu, progress);
+      if (report_error(figures)) return;
+      options->m3_loop_instructions_per_tick = report::mcu_loop_mean_instructions(figures.value().m3);
+    }
     const auto result = report::run_precision(*options, progress);
     if (report_error(result)) return;
     if (!docs->empty()) {
@@ -254,6 +270,7 @@ void add_all(CLI::App& report) {
     } else {
       const auto figures = report::run_mcu(mcu, progress);
       if (report_error(figures)) return;
+      options->precision.m3_loop_instructions_per_tick = report::mcu_loop_mean_instructions(figures.value().m3);
       const auto mcu_written = report::write_mcu_documents(figures.value(), options->out_dir);
       if (report_error(mcu_written)) return;
       for (const auto& file : mcu_written.value()) std::printf("wrote %s (microcontroller block)\n", file.c_str());

@@ -2,7 +2,9 @@
 
 #include <stdlib.h>  // mkdtemp
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -371,6 +373,43 @@ Result<McuReport> run_mcu(const McuOptions& options, const Progress& progress) {
     }
   }
   return report;
+}
+
+std::vector<std::pair<std::string, double>> mcu_loop_mean_instructions(const McuCore& core) {
+  const auto cells = [](std::string_view line) {
+    std::vector<std::string> out;
+    std::size_t start = line.find('|');
+    while (start != std::string_view::npos) {
+      const std::size_t end = line.find('|', start + 1);
+      if (end == std::string_view::npos) break;
+      std::string_view cell = line.substr(start + 1, end - start - 1);
+      while (!cell.empty() && cell.front() == ' ') cell.remove_prefix(1);
+      while (!cell.empty() && cell.back() == ' ') cell.remove_suffix(1);
+      out.emplace_back(cell);
+      start = end;
+    }
+    return out;
+  };
+  std::vector<std::pair<std::string, double>> out;
+  std::size_t column = 0;  // 0: the header not seen yet (column 0 is the scene)
+  std::size_t start = 0;
+  while (start < core.run_table.size()) {
+    std::size_t end = core.run_table.find('\n', start);
+    if (end == std::string::npos) end = core.run_table.size();
+    const std::vector<std::string> row = cells(std::string_view(core.run_table).substr(start, end - start));
+    start = end + 1;
+    if (row.empty()) continue;
+    if (row.front() == "scene") {
+      const auto it = std::find(row.begin(), row.end(), "every-stage loop tick, mean");
+      column = it == row.end() ? 0 : static_cast<std::size_t>(it - row.begin());
+      continue;
+    }
+    if (column == 0 || column >= row.size() || row.front().rfind("---", 0) == 0) continue;
+    char* parsed_end = nullptr;
+    const double value = std::strtod(row[column].c_str(), &parsed_end);
+    if (parsed_end != row[column].c_str()) out.emplace_back(row.front(), value);
+  }
+  return out;
 }
 
 std::string mcu_markdown(const McuReport& report) {

@@ -12,7 +12,10 @@
 
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_loop.hpp"
+#include "toonforce/host_sim/sim_device.hpp"
+#include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/report/scenario.hpp"
+#include "toonforce/report/tsc_clock.hpp"
 #include "toonforce/report/workloads.hpp"
 #include "toonforce/sim/closed_loop.hpp"
 
@@ -314,51 +317,104 @@ Result<std::vector<DriftSeries>> drift_run(const std::string& path, std::string_
   return series;
 }
 
-/// One closed-loop run: the rendered force and the handle's true position at every tick.
-struct ClosedRun {
-  std::vector<Vec3<double>> force_n;
-  std::vector<Vec3<double>> position_m;
-  std::string refused;
+/// The simulated device split at the servo loop's tick, so that a counter pair can hold the
+/// loop's tick alone: the loop reads the reading the device gave before the tick and leaves its
+/// force here; the plant steps with it after the tick (SimDevice::write), outside the timed
+/// region. Its I/O is then a copy each way, as cheap as the scripted device's the latency
+/// report times. SimDevice's read and write always succeed, so the loop sees what it would see
+/// on the SimDevice itself: the same run, tick for tick (test
+/// Precision.TheTimedClosedLoopIsTheSimulationsClosedLoop).
+struct HeldIo {
+  DeviceReading reading;
+  DeviceStatus read_status = DeviceStatus::kOk;
+  Vec3<double> force_n;
 };
-ClosedRun closed_run(const std::string& path, ScalarKind kind, double rate_hz, const HandScriptFile& hand,
-                     double duration_s, std::uint64_t seed) {
-  ClosedRun run;
-  auto desc = load_scene_file(path, kind);
-  if (!desc) {
-    run.refused = desc.error();
+struct HeldDevice {
+  HeldIo* io;
+  DeviceStatus read(DeviceReading& r) noexcept {
+    r = io->reading;
+    return io->read_status;
+  }
+  DeviceStatus write(const Vec3<double>& force_n) noexcept {
+    io->force_n = force_n;
+    return DeviceStatus::kOk;
+  }
+};
+template <Scalar S>
+using HeldLoop = ServoLoop<HeldDevice, RuntimeScene<S>>;
+
+/// One tick of the loop between the counter reads, as the latency report's cases time theirs
+/// (flattened: the tick's code inlined here, the reads around nothing else). Not inlined into
+/// the run, so the plant's code stays out of it.
+template <Scalar S>
+[[gnu::noinline, gnu::flatten]] std::uint64_t timed_tick(HeldLoop<S>& loop, std::int64_t k) noexcept {
+  const std::uint64_t start = tsc_begin();
+  const TickStatus status = loop.tick(k);
+  keep(status);
+  const std::uint64_t end = tsc_end();
+  return end - start;
+}
+
+template <Scalar S>
+ClosedLoopRun closed_run_of(const SceneDescription& desc, const HandScriptFile& hand, const SimConfig& config,
+                            double duration_s, CycleHistogram* cycles) {
+  ClosedLoopRun run;
+  auto device = host_sim::SimDevice::create(config.device, hand.intent, config.plant, config.seed);
+  if (!device) {
+    run.refused = device.error();
     return run;
   }
-  SimConfig config;
-  config.scalar = kind;
-  config.seed = seed;
-  config.plant.period_s = 1.0 / rate_hz;
-  // No encoder or DAC steps: they are the device's, the same for every scalar type and rate, and
-  // they do not converge as the rate grows (a 20 um step differenced over a shorter tick is a
-  // larger velocity spike), so a reference with them has no error of its own to state.
-  config.device.encoder_step_m = 0.0;
-  config.device.force_step_n = 0.0;
-  auto session = SimSession::create(desc.value(), hand, config);
-  if (!session) {
-    run.refused = session.error();
+  // SimSession's configuration: the scene's, the device's figures filling the gaps.
+  const ServoConfig servo = with_device(servo_config(desc, config.plant.period_s),
+                                        host_sim::device_info(config.device, config.plant.period_s));
+  if (const std::string problems = check_servo_config(servo); !problems.empty()) {
+    run.refused = fmt::format("{}: the servo configuration does not work:\n{}", desc.source, problems);
     return run;
   }
-  const std::int64_t n = session->ticks_for(duration_s);
+  host_sim::SimDevice& sim = device.value();
+  HeldIo io;
+  HeldLoop<S> loop(HeldDevice{&io}, make_runtime_scene<S>(desc), servo);
+  const std::int64_t n = std::llround(duration_s / config.plant.period_s);  // SimSession::ticks_for
   run.force_n.reserve(static_cast<std::size_t>(n));
   run.position_m.reserve(static_cast<std::size_t>(n));
   for (std::int64_t k = 0; k < n; ++k) {
-    const SimRecord r = session->step();
-    run.force_n.push_back(r.device_force_n);
-    run.position_m.push_back(r.true_position_m);
+    const std::int64_t tick = sim.tick();
+    run.position_m.push_back(sim.plant().position_m());
+    io.read_status = sim.read(io.reading);
+    const std::uint64_t c = timed_tick<S>(loop, tick);
+    if (cycles != nullptr) cycles->add(c);
+    static_cast<void>(sim.write(io.force_n));
+    run.force_n.push_back(sim.applied_force_n());
   }
+  run.ticks = static_cast<std::uint64_t>(n);
   return run;
 }
+
+/// A closed-loop row's timed runs: the least disturbed (smallest mean) kept whole.
+struct ClosedTiming {
+  std::size_t row;
+  SimConfig config;
+  CycleHistogram best;
+  int runs = 1;
+  double min_mean_cycles = best.mean_in_bins();
+  double max_mean_cycles = min_mean_cycles;
+  void add(CycleHistogram cycles) {
+    const double mean = cycles.mean_in_bins();
+    ++runs;
+    max_mean_cycles = std::max(max_mean_cycles, mean);
+    if (mean < min_mean_cycles) {
+      min_mean_cycles = mean;
+      best = std::move(cycles);
+    }
+  }
+};
 
 /// Run `a` at rate_a against `b` at a multiple of it: the held force at every tick of b, the
 /// position at a's ticks (RMS and max).
 struct ClosedDifference {
   double force_rms_n = 0.0, force_max_n = 0.0, position_rms_m = 0.0, position_max_m = 0.0;
 };
-ClosedDifference closed_difference(const ClosedRun& a, double rate_a, const ClosedRun& b, double rate_b) {
+ClosedDifference closed_difference(const ClosedLoopRun& a, double rate_a, const ClosedLoopRun& b, double rate_b) {
   ClosedDifference d;
   const auto step = static_cast<std::size_t>(std::llround(rate_b / rate_a));
   double sum = 0.0;
@@ -383,6 +439,36 @@ ClosedDifference closed_difference(const ClosedRun& a, double rate_a, const Clos
 }
 
 }  // namespace
+
+SimConfig closed_loop_sim_config(ScalarKind kind, double rate_hz, std::uint64_t seed) {
+  SimConfig config;
+  config.scalar = kind;
+  config.seed = seed;
+  config.plant.period_s = 1.0 / rate_hz;
+  // No encoder or DAC steps: they are the device's, the same for every scalar type and rate, and
+  // they do not converge as the rate grows (a 20 um step differenced over a shorter tick is a
+  // larger velocity spike), so a reference with them has no error of its own to state.
+  config.device.encoder_step_m = 0.0;
+  config.device.force_step_n = 0.0;
+  return config;
+}
+
+ClosedLoopRun closed_loop_run(const std::string& scene_path, const HandScriptFile& hand, const SimConfig& config,
+                              double duration_s, CycleHistogram* cycles) {
+  auto desc = load_scene_file(scene_path, config.scalar);
+  if (!desc) {
+    ClosedLoopRun run;
+    run.refused = desc.error();
+    return run;
+  }
+  return with_scalar(
+      config.scalar, [&]<Scalar S>() { return closed_run_of<S>(desc.value(), hand, config, duration_s, cycles); },
+      [](ScalarKind kind) {
+        ClosedLoopRun run;
+        run.refused = fmt::format("this build has no servo loop in {}", scalar_kind_name(kind));
+        return run;
+      });
+}
 
 host_sim::HandScript random_hand_script(std::uint64_t seed, double duration_s) {
   SplitMix64 rng(seed);
@@ -616,10 +702,11 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
       if (!intent) return Error{fmt::format("closed-loop hand: {}: {}", plan_error.key, plan_error.problem)};
       hand.intent = std::move(*intent);
       const auto& ladder_rates = options.closed_loop_reference_rates_hz;
-      std::vector<ClosedRun> cl_ladder;
+      std::vector<ClosedLoopRun> cl_ladder;
       for (const double rate : ladder_rates) {
         say(fmt::format("{}: closed loop, double reference cl_ladder at {:g} Hz", scene, rate));
-        cl_ladder.push_back(closed_run(path, ScalarKind::kDouble, rate, hand, options.closed_loop_s, options.drift_seed));
+        cl_ladder.push_back(closed_loop_run(path, hand, closed_loop_sim_config(ScalarKind::kDouble, rate, options.drift_seed),
+                                            options.closed_loop_s));
         if (!cl_ladder.back().refused.empty()) return Error{cl_ladder.back().refused};
       }
       ClosedLoopConvergence cl_conv;
@@ -643,9 +730,10 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
       }
       report.closed_loop_convergence.push_back(cl_conv);
       const double closed_reference_rate = ladder_rates.back();
+      std::vector<ClosedTiming> timings;
       for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16}) {
-        // The loop's tick with every stage, as the closed loop runs it: its cost per tick does
-        // not depend on the rate (the tables above), so it is timed once per scalar type.
+        // For comparison: the loop's tick with every stage timed alone on the scripted scenario
+        // (what this table's cost was before it was measured inside the closed loop).
         double loop_ns = 0.0;
         const std::string id = fmt::format("loop/{}/{}/runtime", scene, scalar_kind_name(kind));
         for (const auto& c : loop_cases) {
@@ -661,24 +749,65 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
           row.scene = std::string(scene);
           row.scalar = kind;
           row.rate_hz = rate;
-          row.loop_mean_ns = loop_ns;
+          row.scripted_mean_ns = loop_ns;
           const double ratio = closed_reference_rate / rate;
           if (std::abs(ratio - std::round(ratio)) > 1e-9) {
             row.refused = fmt::format("{:g} Hz does not divide the reference's {:g} Hz", rate, closed_reference_rate);
           } else {
             say(fmt::format("{}: closed loop, {} at {:g} Hz", scene, scalar_kind_name(kind), rate));
-            const ClosedRun run = closed_run(path, kind, rate, hand, options.closed_loop_s, options.drift_seed);
+            const SimConfig sim_config = closed_loop_sim_config(kind, rate, options.drift_seed);
+            CycleHistogram cycles;
+            const ClosedLoopRun run = closed_loop_run(path, hand, sim_config, options.closed_loop_s, &cycles);
             row.refused = run.refused;
             if (run.refused.empty()) {
+              if (kind == ScalarKind::kQ16_16) {
+                for (const auto& [m3_scene, instructions] : options.m3_loop_instructions_per_tick) {
+                  if (m3_scene == scene) row.m3_instructions_per_s = instructions * rate;
+                }
+              }
               const ClosedDifference d = closed_difference(run, rate, cl_ladder.back(), closed_reference_rate);
               row.force_rms_error_n = d.force_rms_n;
               row.force_max_error_n = d.force_max_n;
               row.position_rms_error_m = d.position_rms_m;
               row.position_max_error_m = d.position_max_m;
+              timings.push_back({report.closed_loop.size(), sim_config, std::move(cycles)});
             }
           }
           report.closed_loop.push_back(row);
         }
+      }
+      // The same runs again, only for their time (deterministic: the same ticks and branches),
+      // in rounds over the scene's configurations so that a slow spell of the VM falls on
+      // different ones; each row keeps its least disturbed run (the smallest mean).
+      for (int round = 1; round < options.closed_loop_timing_runs; ++round) {
+        say(fmt::format("{}: closed loop, timing round {} of {}", scene, round + 1, options.closed_loop_timing_runs));
+        for (auto& t : timings) {
+          CycleHistogram cycles;
+          static_cast<void>(closed_loop_run(path, hand, t.config, options.closed_loop_s, &cycles));
+          t.add(std::move(cycles));
+        }
+      }
+      for (auto& t : timings) {
+        const auto mean_ns = [&report](double mean_cycles) {
+          return std::max(0.0, mean_cycles - report.clock.overhead_mean_cycles) / report.clock.cycles_per_ns;
+        };
+        // The empty measurement's cost off each tick: its mean from the mean, its median from
+        // the percentiles (as the latency report does).
+        const auto net_ns = [&report](std::uint64_t cycles) {
+          const std::uint64_t overhead = report.clock.overhead_cycles;
+          return static_cast<double>(cycles > overhead ? cycles - overhead : 0) / report.clock.cycles_per_ns;
+        };
+        ClosedLoopRow& row = report.closed_loop[t.row];
+        row.loop_runs = t.runs;
+        row.loop_mean_min_ns = mean_ns(t.min_mean_cycles);
+        row.loop_mean_max_ns = mean_ns(t.max_mean_cycles);
+        row.loop_ticks = t.best.count();
+        row.loop_ticks_left_out = t.best.overflow();
+        row.loop_mean_ns = mean_ns(t.best.mean_in_bins());
+        row.loop_median_ns = net_ns(t.best.percentile(0.5));
+        row.loop_p99_ns = net_ns(t.best.percentile(0.99));
+        // Every tick of the run at the mean (the preemptions left out), over its simulated time.
+        row.loop_cpu_us_per_s = row.loop_mean_ns * static_cast<double>(row.loop_ticks) / options.closed_loop_s / 1e3;
       }
     }
 
@@ -741,17 +870,21 @@ std::string convergence_csv(const PrecisionReport& r) {
 
 std::string closed_loop_csv(const PrecisionReport& r) {
   std::string csv =
-      "scene,scalar,rate_hz,force_rms_error_n,force_max_error_n,position_rms_error_m,position_max_error_m,loop_mean_ns,"
-      "cpu_us_per_s,reference_force_rms_error_n,refused\n";
+      "scene,scalar,rate_hz,force_rms_error_n,force_max_error_n,position_rms_error_m,position_max_error_m,loop_ticks,"
+      "loop_ticks_left_out,loop_runs,loop_mean_min_ns,loop_mean_max_ns,loop_mean_ns,loop_median_ns,loop_p99_ns,cpu_us_per_s,scripted_mean_ns,scripted_cpu_us_per_s,"
+      "m3_instructions_per_s,reference_force_rms_error_n,refused\n";
   for (const auto& row : r.closed_loop) {
     double reference_error = 0.0;
     for (const auto& c : r.closed_loop_convergence) {
       if (c.scene == row.scene) reference_error = c.reference_force_rms_error_n;
     }
-    csv += fmt::format("{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{:.2f},{:.2f},{:.6e},{}\n", row.scene,
-                       scalar_kind_name(row.scalar), row.rate_hz, row.force_rms_error_n, row.force_max_error_n,
-                       row.position_rms_error_m, row.position_max_error_m, row.loop_mean_ns,
-                       row.loop_mean_ns * row.rate_hz / 1000.0, reference_error, row.refused.empty() ? "" : "refused");
+    csv += fmt::format("{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{:.6e},{}\n",
+                       row.scene, scalar_kind_name(row.scalar), row.rate_hz, row.force_rms_error_n,
+                       row.force_max_error_n, row.position_rms_error_m, row.position_max_error_m, row.loop_ticks,
+                       row.loop_ticks_left_out, row.loop_runs, row.loop_mean_min_ns, row.loop_mean_max_ns, row.loop_mean_ns, row.loop_median_ns, row.loop_p99_ns,
+                       row.loop_cpu_us_per_s, row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0,
+                       std::isnan(row.m3_instructions_per_s) ? std::string() : fmt::format("{:.0f}", row.m3_instructions_per_s),
+                       reference_error, row.refused.empty() ? "" : "refused");
   }
   return csv;
 }
@@ -947,6 +1080,11 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   }
   if (!r.closed_loop.empty()) {
     const double cl_reference = r.options.closed_loop_reference_rates_hz.back();
+    std::uint64_t left_out = 0, timed = 0;
+    for (const auto& row : r.closed_loop) {
+      left_out += row.loop_ticks_left_out;
+      timed += row.loop_ticks;
+    }
     md += fmt::format(
         "\n### The closed loop: error against cost, to pick a scalar type and a rate\n\n"
         "The servo loop with every stage on the simulated Falcon-class device (one tick of I/O delay, Coulomb "
@@ -958,10 +1096,42 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
         "that the device's delay is one tick, so it shrinks with the rate: the reference is the ideal device's limit, "
         "not a 1 kHz Falcon's. **Force**: the rendered force (after the DAC), held over each tick, against the "
         "reference's at every reference tick (events included: a closed loop has no common event times). "
-        "**Position**: the handle's true position at the configuration's ticks. **Cost**: the servo loop tick with "
-        "every stage (`loop/SCENE/SCALAR/runtime`, timed alone on the scripted scenario, {} ticks) times the rate.\n\n",
+        "**Position**: the handle's true position at the configuration's ticks.\n\n"
+        "**Cost, x86** (this machine, the line at the top of this section): every `ServoLoop::tick` call of the very "
+        "runs that give the errors, each between two reads of the time-stamp counter; the plant, the hand and the "
+        "records step outside them (the simulated device is split at the tick: the loop reads the reading the device "
+        "gave before it and leaves its force, a copy each way, as on the scripted device; the plant then steps with "
+        "that force; the run is the simulation's own, tick for tick, test "
+        "`Precision.TheTimedClosedLoopIsTheSimulationsClosedLoop`). The empty measurement's cost is subtracted, its "
+        "mean from the mean and its median from the median and p99. **Loop CPU per simulated second** = mean x ticks "
+        "/ {:g} s, the ticks being rate x duration, every tick as the run meets it: its first ticks are cold "
+        "(caches, branch predictors), which weighs more in 500 Hz's {:g} ticks than in 10 kHz's {:g}. Ticks of 2^17 "
+        "cycles and more (preemptions) are left out of the mean ({} of {} here; counted per row in "
+        "closed_loop.csv). How accurate: the counter advances in steps of {:.1f} ns here, so each tick's time, the "
+        "median and the p99 are multiples of it (less the overhead); a mean over thousands of ticks resolves below "
+        "the step, but this is a 2-vCPU VM shared with other work (load average above), whose noise moved one run's "
+        "mean by up to 2x while this was written, for seconds at a time. So each configuration runs {} times "
+        "(bit-identical runs: the same ticks and branches), in rounds over the scene's configurations so that a slow "
+        "spell falls on different ones; the row gives the least disturbed run (the smallest mean: the noise only adds "
+        "time), and **runs' means, min..max** shows how far the noise moved the others. Between two whole reports "
+        "minutes apart the least disturbed means of one configuration still differed by up to 25 % (a slow spell "
+        "longer than a round): read rows within that of each other as equal. "
+        "**Scripted pass**, for comparison: the loop's tick with every stage timed alone on the scripted scenario "
+        "(`loop/SCENE/SCALAR/runtime`, {} ticks, warm) times the rate: what this table's cost was before it was "
+        "measured in the closed loop.\n\n"
+        "**Cost, Cortex-M3** (q16.16 rows): `toonforce report mcu`'s every-stage loop tick, the mean instructions "
+        "per tick over the scene's 1 kHz scripted motions under QEMU (exact), times the rate. An approximation: the "
+        "motions are not this hand's, and it takes the instructions per tick at every rate to be those at 1 kHz. "
+        "Instructions, not cycles. {}\n\n",
         r.options.drift_seed, r.options.closed_loop_s, fmt::join(r.options.closed_loop_reference_rates_hz, ", "),
-        cl_reference, r.options.timing_ticks);
+        cl_reference, r.options.closed_loop_s, r.options.rates_hz.front() * r.options.closed_loop_s,
+        r.options.rates_hz.back() * r.options.closed_loop_s, left_out, timed,
+        static_cast<double>(r.clock.step_cycles) / r.clock.cycles_per_ns, r.options.closed_loop_timing_runs,
+        r.options.timing_ticks,
+        r.options.m3_loop_instructions_per_tick.empty()
+            ? "The Cortex-M3 images were not built when this ran: \"not built\" below (`cmake --workflow --preset "
+              "release && ctest --preset release -L mcu` builds them)."
+            : "Here from the images as `report mcu` ran them just before this report.");
     if (!plot_dir.empty()) md += fmt::format("![closed loop: force error against CPU per simulated second]({}/closed_loop.png)\n\n", plot_dir);
     md += "The reference ladder:\n\n| scene | rates | force: RMS diff [N] | order | position: RMS diff [m] | order |\n"
           "| --- | --- | ---: | ---: | ---: | ---: |\n";
@@ -978,18 +1148,25 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
                         sci(c.reference_position_rms_error_m));
     }
     md += "\n| scene | scalar | rate | force RMS error [N] | force max error [N] | position RMS error [m] | position max "
-          "error [m] | loop tick [ns] | CPU per simulated second [us] |\n"
-          "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+          "error [m] | ticks per run | loop tick: mean [ns] | median [ns] | p99 [ns] | runs' means, min..max [ns] | "
+          "**loop CPU per simulated second [us]** | scripted pass: tick [ns] | scripted pass: CPU per simulated second "
+          "[us] | Cortex-M3: instructions per simulated second [10^6] |\n"
+          "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& row : r.closed_loop) {
       if (!row.refused.empty()) {
-        md += fmt::format("| {} | {} | {:g} Hz | refused: {} | | | | | |\n", row.scene, scalar_kind_name(row.scalar),
-                          row.rate_hz, row.refused);
+        md += fmt::format("| {} | {} | {:g} Hz | refused: {} | | | | | | | | | | | | |\n", row.scene,
+                          scalar_kind_name(row.scalar), row.rate_hz, row.refused);
         continue;
       }
-      md += fmt::format("| {} | {} | {:g} Hz | {} | {} | {} | {} | {:.1f} | {:.0f} |\n", row.scene,
-                        scalar_kind_name(row.scalar), row.rate_hz, sci(row.force_rms_error_n), sci(row.force_max_error_n),
-                        sci(row.position_rms_error_m), sci(row.position_max_error_m), row.loop_mean_ns,
-                        row.loop_mean_ns * row.rate_hz / 1000.0);
+      const std::string m3 = row.scalar != ScalarKind::kQ16_16          ? std::string("-")
+                             : std::isnan(row.m3_instructions_per_s) ? std::string("not built")
+                                                                      : fmt::format("{:.2f}", row.m3_instructions_per_s / 1e6);
+      md += fmt::format("| {} | {} | {:g} Hz | {} | {} | {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {:.1f}..{:.1f} | **{:.0f}** | {:.1f} | {:.0f} | {} |\n",
+                        row.scene, scalar_kind_name(row.scalar), row.rate_hz, sci(row.force_rms_error_n),
+                        sci(row.force_max_error_n), sci(row.position_rms_error_m), sci(row.position_max_error_m),
+                        row.loop_ticks, row.loop_mean_ns, row.loop_median_ns, row.loop_p99_ns, row.loop_mean_min_ns,
+                        row.loop_mean_max_ns, row.loop_cpu_us_per_s,
+                        row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0, m3);
     }
   }
   if (!r.drift.empty()) {

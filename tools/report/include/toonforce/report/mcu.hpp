@@ -8,6 +8,7 @@
 
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "toonforce/common/result.hpp"
@@ -65,6 +66,11 @@ struct McuReport {
 };
 
 Result<McuReport> run_mcu(const McuOptions& options, const Progress& progress = {});
+
+/// Per scene, the every-stage loop tick's mean instructions (a core's run table, column
+/// "every-stage loop tick, mean": Q16.16 on the Cortex-M3, the mean over the scene's 1 kHz
+/// motions). Empty if the table has no such column. For the precision report's closed loop.
+std::vector<std::pair<std::string, double>> mcu_loop_mean_instructions(const McuCore& core);
 
 /// The generated block's text (between the markers): the commands, then per core its size
 /// table and its instructions table.

@@ -27,9 +27,11 @@
 /// the passivity observer's energy against the plant's true port work, and float and Q16.16
 /// against double, each difference fitted by a line against time.
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "toonforce/common/result.hpp"
@@ -39,6 +41,8 @@
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/machine.hpp"
 #include "toonforce/report/precision_reference.hpp"
+#include "toonforce/report/workloads.hpp"
+#include "toonforce/sim/closed_loop.hpp"
 
 namespace toonforce::report {
 
@@ -56,7 +60,13 @@ struct PrecisionOptions {
   /// (each twice the last; the last is the reference; each rate above divides it).
   double closed_loop_s = 3.0;
   std::vector<double> closed_loop_reference_rates_hz{40000.0, 80000.0, 160000.0};
+  /// Times each closed-loop configuration runs (bit-identical runs) to time its loop: a
+  /// shared VM's noise moved one run's mean by up to 2x; the least disturbed run is reported.
+  int closed_loop_timing_runs = 7;
   std::string filter;                      ///< only scenes whose name contains one of these
+  /// The Cortex-M3's every-stage Q16.16 loop tick per scene, mean instructions over its 1 kHz
+  /// motions (report mcu's table, mcu_loop_mean_instructions); empty when not built.
+  std::vector<std::pair<std::string, double>> m3_loop_instructions_per_tick;
 };
 
 /// How late a configuration sees each kind of event, against the reference.
@@ -159,7 +169,21 @@ struct ClosedLoopRow {
   double force_max_error_n = 0.0;
   double position_rms_error_m = 0.0;  ///< the handle's true position, at the configuration's ticks
   double position_max_error_m = 0.0;
-  double loop_mean_ns = 0.0;        ///< the servo loop tick with every stage (timed alone)
+  /// The servo loop's tick timed inside this run (ServoLoop::tick only: the plant, hand and
+  /// the records step outside the counter reads), the empty measurement's cost subtracted.
+  std::uint64_t loop_ticks = 0;       ///< ticks timed in one run: rate x duration
+  int loop_runs = 0;                  ///< runs timed; the figures below are the least disturbed one's (smallest mean)
+  double loop_mean_min_ns = 0.0;      ///< the smallest and largest mean of the runs (the noise)
+  double loop_mean_max_ns = 0.0;
+  std::uint64_t loop_ticks_left_out = 0;  ///< of them, 2^17 cycles and more (preemptions): not in the mean
+  double loop_mean_ns = 0.0;
+  double loop_median_ns = 0.0;
+  double loop_p99_ns = 0.0;
+  double loop_cpu_us_per_s = 0.0;   ///< loop CPU per simulated second: mean x ticks / duration
+  double scripted_mean_ns = 0.0;    ///< for comparison: the same loop's tick on the scripted scenario (timed alone)
+  /// Q16.16 rows: the Cortex-M3's every-stage loop tick (report mcu, mean over the scene's
+  /// 1 kHz motions) x the rate; NaN when the images were not built or for other scalars.
+  double m3_instructions_per_s = std::nan("");
 };
 
 /// The closed loop's double ladder, one step: rate against 2 x rate.
@@ -205,6 +229,23 @@ std::string drift_csv(const PrecisionReport& report);
 std::string convergence_csv(const PrecisionReport& report);
 /// One row per closed-loop configuration (the closed-loop plot's input).
 std::string closed_loop_csv(const PrecisionReport& report);
+
+/// One closed-loop run of the report: the rendered force (what the device applied over each
+/// tick) and the handle's true position at each tick.
+struct ClosedLoopRun {
+  std::vector<Vec3<double>> force_n;
+  std::vector<Vec3<double>> position_m;
+  std::uint64_t ticks = 0;  ///< ServoLoop::tick calls made (and timed)
+  std::string refused;      ///< why the scene or configuration was refused (else empty)
+};
+/// The closed-loop rows' simulated device: Falcon-class, without its encoder and DAC steps.
+SimConfig closed_loop_sim_config(ScalarKind kind, double rate_hz, std::uint64_t seed);
+/// The closed loop of SimSession (the servo loop with every stage on the simulated device and
+/// hand), run by the report so that each ServoLoop::tick call, and nothing else, is timed with
+/// the time-stamp counter into `cycles` (raw cycles, the empty measurement's cost included;
+/// null: not kept). The same run as SimSession's, tick for tick.
+ClosedLoopRun closed_loop_run(const std::string& scene_path, const HandScriptFile& hand, const SimConfig& config,
+                              double duration_s, CycleHistogram* cycles = nullptr);
 
 /// A seeded, varied hand for the drift run: `duration_s` of minimum-jerk moves between random
 /// points above, on and under the scenes' ground (z = 0) across the cliff's gap, with holds
