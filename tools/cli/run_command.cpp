@@ -2,6 +2,7 @@
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
 //               [--view [PORT]] [--view-address ADDR] [--control [--control-token T] [--control-wait]]
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -245,6 +246,14 @@ void add_run(CLI::App& app) {
 #if TOONFORCE_VIEWER
     if (server) {
       std::fflush(stdout);
+      // A run stopped from outside (SIGTERM, SIGHUP, ...: a service manager, a script, `kill`)
+      // ends the command with it: one signal, not two. After its --duration, or after Ctrl-C or
+      // 'q' at a terminal, the page keeps the recording to scrub until the next Ctrl-C.
+      const int stopped_by = summary->report.stop_signal;
+      if (stopped_by != 0 && stopped_by != SIGINT && stopped_by != kStopByUser) {
+        fmt::print(stderr, "viewer: the run was stopped by {}; the page closes with it\n", signal_name(stopped_by));
+        return;
+      }
       serve_until_stopped(*server, "the run is over");
     }
 #endif
