@@ -155,9 +155,9 @@ TEST(InstructionBudget, Q16EveryTickOfEveryPaperSceneAndTheWholeLoopStayWithinTh
 // bits). The search cases (workloads.cpp, search_path and search_config: strikes deeper and
 // faster than the scenarios, with the soft start, the thermal derating, the passivity damping,
 // the rate limit and the clamp acting together on some ticks) found, when these were set
-// (2026-11-24, g++ 12 -O3, x86 under callgrind): effects plus safety at most 290 in double and
-// 1,589 in Q16.16 (the slippery surface); the whole loop, every stage, at most 876 in double
-// and 2,926 in Q16.16 (the slippery surface; its scenario's most expensive tick is 1,817). The
+// (2026-11-24, g++ 12 -O3, x86 under callgrind): effects plus safety at most 285 in double and
+// 1,589 in Q16.16 (the slippery surface); the whole loop, every stage, at most 820 in double
+// and 2,964 in Q16.16 (the slippery surface; its scenario's most expensive tick is 1,817). The
 // budgets are the issue-8 bar for double effects plus safety, and the others those maxima plus
 // about 15 %: room for the compiler's drift, not for a regression of that size. They are
 // maxima found by a seeded search, not bounds (docs/PERFORMANCE.md says so).
