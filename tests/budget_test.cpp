@@ -26,7 +26,7 @@ namespace toonforce::report {
 namespace {
 
 /// The scenario rows of a level, scene and scalar (both forms; not the search rows).
-std::string scenario_filter(std::string_view level, std::string_view scene, std::string_view scalar) {
+[[maybe_unused]] std::string scenario_filter(std::string_view level, std::string_view scene, std::string_view scalar) {
   return fmt::format(",{0}/{1}/{2}/compile-time,{0}/{1}/{2}/runtime", level, scene, scalar);
 }
 
