@@ -2,10 +2,14 @@
 // malformed files are rejected with the file, the line and the key in the message.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -428,6 +432,94 @@ TEST(SceneFile, RefusesMoreSurfacesThanASceneHolds) {
   const auto scene = parse_scene(text, "many.toml");
   ASSERT_FALSE(scene);
   EXPECT_NE(scene.error().find("more than the 16 a scene holds"), std::string::npos) << scene.error();
+}
+
+// ---- depth and size before the parser (issue 27) -------------------------------------------------
+// A dotted key ~40,000 deep crashed check, replay, sim and run inside toml++ (it recurses once
+// per level), and a `load` message the same: the text is measured first, in one pass.
+
+std::string repeated(std::string_view part, std::size_t n) {
+  std::string out;
+  out.reserve(part.size() * n);
+  for (std::size_t i = 0; i < n; ++i) out += part;
+  return out;
+}
+
+bool parses(std::string_view text, std::string* error = nullptr) {
+  ErrorList errors("deep.toml");
+  const bool ok = parse_toml_text(text, errors).has_value();
+  if (error != nullptr) *error = errors.text();
+  return ok;
+}
+
+struct DeepText {
+  const char* what;
+  std::string text;
+  int line = 2;  ///< where the limit is passed
+};
+
+class DeepToml : public ::testing::TestWithParam<DeepText> {};
+
+TEST_P(DeepToml, IsRefusedWithTheLimitAndItsLineBeforeTheParserRecurses) {
+  std::string error;
+  EXPECT_FALSE(parses(GetParam().text, &error)) << GetParam().what;
+  EXPECT_NE(error.find(fmt::format("deep.toml:{}: nested deeper than {} levels", GetParam().line, kMaxTomlDepth)), std::string::npos)
+      << GetParam().what << ": " << error.substr(0, 300);
+}
+
+const DeepText kDeep[] = {
+    {"a dotted key 40,000 deep", "name = \"x\"\n" + repeated("a.", 40000) + "b = 1\n"},
+    {"a table header 40,000 deep", "name = \"x\"\n[" + repeated("a.", 40000) + "b]\nc = 1\n"},
+    {"an unclosed header 40,000 deep", "name = \"x\"\n[" + repeated("a.", 40000)},
+    {"arrays 50,000 deep", "name = \"x\"\nk = " + repeated("[", 50000) + repeated("]", 50000) + "\n"},
+    {"inline tables 30,000 deep", "name = \"x\"\nk = " + repeated("{a = ", 30000) + "1" + repeated("}", 30000) + "\n"},
+    // Each part within the limit, together past it: 12 inline tables, each keyed 9 dots deep.
+    {"dotted keys inside nested inline tables",
+     "name = \"x\"\nk = " + repeated("{a.b.c.d.e.f.g.h.i.j = ", 12) + "1" + repeated("}", 12) + "\n"},
+    {"a header's depth added to its keys'", "name = \"x\"\n[" + repeated("a.", 40) + "b]\n" + repeated("c.", 40) + "d = 1\n", 3},
+};
+INSTANTIATE_TEST_SUITE_P(SceneFile, DeepToml, ::testing::ValuesIn(kDeep), [](const auto& param_info) {
+  std::string name;
+  for (const char c : std::string_view(param_info.param.what)) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return name;
+});
+
+TEST(SceneFile, NestingWithinTheLimitAndLongFlatArraysStillParse) {
+  std::string error;
+  // 40 levels of arrays, 5,000 numbers with a dot each on one line, a multi-line array of
+  // arrays, dotted keys in an array of tables, dots inside strings and comments.
+  EXPECT_TRUE(parses("k = " + repeated("[", 40) + repeated("]", 40) + "\n", &error)) << error;
+  std::string flat = "k = [";
+  for (int i = 0; i < 5000; ++i) flat += fmt::format("{}{}.5", i == 0 ? "" : ", ", i);
+  EXPECT_TRUE(parses(flat + "]\n", &error)) << error;
+  EXPECT_TRUE(parses("p = [\n  [1.0, 2.0, 3.0],\n  [4.0, 5.0, 6.0],\n]\n[[a.b.c]]\nd.e.f = 1.5\n"
+                     "g = \"" + repeated("x.", 500) + "\" # " + repeated("y.", 500) + "\n",
+                     &error))
+      << error;
+  EXPECT_TRUE(parses("[" + repeated("a.", 20) + "b]\n" + repeated("c.", 20) + "d = 1\n", &error)) << error;
+}
+
+TEST(SceneFile, AFileLargerThanTheLimitIsRefusedAfterReadingNoMoreThanIt) {
+  ErrorList errors("/dev/zero");
+  EXPECT_FALSE(parse_toml_file("/dev/zero", errors));  // endless: read only to the limit
+  EXPECT_NE(errors.text().find(fmt::format("larger than {} MiB", kMaxTomlBytes >> 20)), std::string::npos)
+      << errors.text();
+  std::string error;
+  EXPECT_FALSE(parses(std::string(kMaxTomlBytes + 1, ' '), &error));
+  EXPECT_NE(error.find("larger than"), std::string::npos) << error;
+  EXPECT_TRUE(parses(std::string(1000, '\n') + "k = 1\n", &error)) << error;
+}
+
+TEST(SceneFile, ADeepSceneFileIsRefusedByTheLoaderWithFileAndLine) {
+  const auto path = std::filesystem::temp_directory_path() / fmt::format("toonforce_deep_{}.toml", ::getpid());
+  {
+    std::ofstream out(path);
+    out << "name = \"deep\"\n" << repeated("a.", 40000) << "b = 1\n";
+  }
+  const auto scene = load_scene_file(path.string());
+  std::filesystem::remove(path);
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.error().find(path.string() + ":2: nested deeper than"), std::string::npos) << scene.error().substr(0, 300);
 }
 
 }  // namespace

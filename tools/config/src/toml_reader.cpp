@@ -1,6 +1,7 @@
 #include "toonforce/config/toml_reader.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cerrno>
@@ -8,7 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <system_error>
-#include <sstream>
 
 #include <fmt/format.h>
 
@@ -410,6 +410,73 @@ std::size_t utf8_length(std::string_view text, std::size_t i) {
   return n;
 }
 
+/// An upper estimate of a TOML text's nesting, fed one character at a time outside comments and
+/// strings, so that no parser recursion ever sees a deep text. A level is each part of the
+/// current table header, each part of a dotted key at every open bracket, and each open array
+/// or inline table; numbers' dots count until the next separator, which only overstates.
+class DepthScan {
+ public:
+  /// False once the estimate passes kMaxTomlDepth.
+  bool on(char c) noexcept {
+    const bool line_start = line_start_;
+    if (c == '\n') {
+      line_start_ = true;
+      dots_ = 0;
+      if (open_ == 0) committed_ = 0;  // the next top-level key starts afresh
+      return true;
+    }
+    if (c != ' ' && c != '\t' && c != '\r') line_start_ = false;
+    switch (c) {
+      case '.': ++dots_; break;
+      case '=':
+        committed_ = committed_ - key_dots_[open_] + dots_;
+        key_dots_[open_] = dots_;
+        dots_ = 0;
+        break;
+      case ',': dots_ = 0; break;
+      case '[':
+      case '{':
+        if (in_header_) break;                              // the second '[' of "[[table]]"
+        if (c == '[' && open_ == 0 && line_start) {         // a table header
+          in_header_ = true;
+          header_ = 0;
+          committed_ = 0;
+          key_dots_[0] = 0;
+        } else {
+          if (open_ + 1 >= key_dots_.size()) return false;  // deeper than any estimate allows
+          ++open_;
+          key_dots_[open_] = 0;
+        }
+        dots_ = 0;
+        break;
+      case ']':
+      case '}':
+        if (in_header_) {
+          in_header_ = false;
+          header_ = dots_ + 2;  // its parts, and the array of a "[[table]]" (an overestimate otherwise)
+        } else if (open_ > 0) {
+          committed_ -= key_dots_[open_];
+          --open_;
+        }
+        dots_ = 0;
+        break;
+      default: break;
+    }
+    return depth() <= kMaxTomlDepth;
+  }
+
+ private:
+  std::uint32_t depth() const noexcept { return header_ + committed_ + open_ + dots_ + 1; }
+
+  std::array<std::uint32_t, kMaxTomlDepth + 2> key_dots_{};  ///< the key's dots at each open level
+  std::uint32_t open_ = 0;                                  ///< arrays and inline tables open
+  std::uint32_t committed_ = 0;                             ///< sum of key_dots_[0..open_]
+  std::uint32_t header_ = 0;                                ///< levels of the current table header
+  std::uint32_t dots_ = 0;                                  ///< dots since the last separator
+  bool in_header_ = false;
+  bool line_start_ = true;
+};
+
 /// Checks what toml++ 3.3 (Debian 12's) cannot be trusted with: invalid UTF-8, and non-ASCII
 /// characters where the parser classifies whitespace (outside comments and strings, and right
 /// after a line-ending backslash in a multi-line string). There its whitespace lookup reaches
@@ -419,6 +486,7 @@ std::size_t utf8_length(std::string_view text, std::size_t i) {
 bool check_text(std::string_view text, ErrorList& errors) {
   enum class State { kNormal, kComment, kBasic, kLiteral, kMultiBasic, kMultiLiteral, kLineEndingBackslash };
   State state = State::kNormal;
+  DepthScan depth;
   std::uint32_t line = 1;
   const auto starts = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
   std::size_t i = 0;
@@ -445,6 +513,12 @@ bool check_text(std::string_view text, ErrorList& errors) {
       continue;
     }
     if (c == '\n') ++line;
+    if ((state == State::kNormal || (state == State::kComment && c == '\n')) && !depth.on(c)) {
+      errors.add(line, "", fmt::format("nested deeper than {} levels (table headers, dotted keys, arrays and inline "
+                                       "tables counted together); a scene or hand script needs a handful",
+                                       kMaxTomlDepth));
+      return false;
+    }
     switch (state) {
       case State::kNormal:
         if (c == '#') state = State::kComment;
@@ -499,12 +573,20 @@ std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& e
     errors.add(0, "", fmt::format("cannot be read: {}", std::strerror(errno != 0 ? errno : EIO)));
     return std::nullopt;
   }
-  std::stringstream text;
-  text << file.rdbuf();
-  return parse_toml_text(text.str(), errors);
+  // Read no further than just past the limit: /dev/zero or a huge file costs nothing more.
+  std::string text;
+  std::array<char, 1U << 16> chunk{};
+  while (text.size() <= kMaxTomlBytes && (file.read(chunk.data(), chunk.size()) || file.gcount() > 0)) {
+    text.append(chunk.data(), static_cast<std::size_t>(file.gcount()));
+  }
+  return parse_toml_text(text, errors);
 }
 
 std::optional<toml::table> parse_toml_text(std::string_view text, ErrorList& errors) {
+  if (text.size() > kMaxTomlBytes) {
+    errors.add(0, "", fmt::format("larger than {} MiB; a scene or hand script is a few KiB", kMaxTomlBytes >> 20));
+    return std::nullopt;
+  }
   if (!check_text(text, errors)) return std::nullopt;
   try {
     return toml::parse(text, errors.file());

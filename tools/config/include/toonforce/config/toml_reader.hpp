@@ -133,7 +133,16 @@ class TableReader {
 /// The known key nearest to `key` by edit distance, if it is a plausible typo.
 std::optional<std::string> nearest_key(std::string_view key, std::span<const std::string> known);
 
-/// Parses a TOML file; on a syntax error, records it and returns nullopt.
+/// The deepest structure a TOML text may have: tables, dotted keys, arrays and inline tables
+/// counted together (an upper estimate, see check_text). toonforce's files need fewer than 8;
+/// toml++ recurses once per level, and ~32,000 levels overflowed a thread's stack (issue 27),
+/// so the text is measured before the parser sees it.
+inline constexpr std::uint32_t kMaxTomlDepth = 64;
+/// The largest TOML text read: a scene or hand script is a few KiB.
+inline constexpr std::size_t kMaxTomlBytes = std::size_t{16} << 20;
+
+/// Parses a TOML file; on a syntax error, records it and returns nullopt. The size
+/// (kMaxTomlBytes) and the depth (kMaxTomlDepth) are checked first, in one pass over the text.
 std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors);
 std::optional<toml::table> parse_toml_text(std::string_view text, ErrorList& errors);
 
