@@ -14,7 +14,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstring>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -127,6 +129,82 @@ TEST(RealtimeRunner, AStalledTickIsSkippedNotBurstedAndTripsTheHeartbeatWatchdog
   EXPECT_GE(*(after + 1) - 100, 200) << "the next tick runs at the latest passed deadline";
   EXPECT_GE(report->watchdog_trips, 1);
   EXPECT_GE(g_emergency_calls.load(), 1);
+}
+
+// ---- a stack overflow in the servo thread still commands zero force (issue 27) -----------------
+// Without an alternate signal stack the fatal-signal handler had no stack to run on: the
+// process died of SIGSEGV with the device's last force still commanded. A child process runs
+// the real runner with its handlers; its device writes every command into a pipe, the
+// parent reads what the device was told.
+
+int g_device_pipe = -1;
+
+/// A device as the loop sees it, reduced to its commands: each one goes out on the pipe as
+/// "F <newtons>\n", the emergency zero as "Z 0\n" (write(2) is async-signal-safe).
+void send_command(char kind, int newtons) noexcept {
+  char text[16];
+  const int n = std::snprintf(text, sizeof text, "%c %d\n", kind, newtons);
+  if (n > 0) static_cast<void>(::write(g_device_pipe, text, static_cast<std::size_t>(n)));
+}
+void pipe_emergency_zero(void*) noexcept { send_command('Z', 0); }
+
+volatile bool g_recurse = true;  // always true: only so the compiler sees an end to the recursion
+
+[[gnu::noinline]] int overflow_the_stack(volatile char* caller, int depth) noexcept {
+  volatile char frame[1024];  // volatile: the recursion cannot be folded away
+  frame[0] = caller != nullptr ? caller[0] : 1;
+  if (!g_recurse) return frame[0];
+  return overflow_the_stack(frame, depth + 1) + frame[depth % 1024];
+}
+
+/// Commands 2 N every tick, like a stylus pressed into a wall, until tick `overflow_at` (or the
+/// first after it, should that deadline be missed).
+struct OverflowingTask final : PeriodicTask {
+  std::int64_t overflow_at = 20;
+  void tick(std::int64_t k) noexcept override {
+    send_command('F', 2);
+    if (k >= overflow_at) static_cast<void>(overflow_the_stack(nullptr, 0));
+  }
+  void publish(std::int64_t, const TickTiming&) noexcept override {}
+  void shutdown(std::int64_t) noexcept override { send_command('F', 0); }
+};
+
+TEST(RealtimeRunner, AStackOverflowInTheServoThreadStillCommandsZeroForceBeforeTheProcessDies) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer takes SIGSEGV and stack overflows for its own reports";
+#endif
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::close(fds[0]);
+    g_device_pipe = fds[1];
+    static std::atomic<int> stop{0};
+    const EmergencyZero zero{pipe_emergency_zero, nullptr};
+    install_signal_handlers(stop, zero);
+    OverflowingTask task;
+    static_cast<void>(run_realtime(task, quick(2000), zero, stop));
+    ::_exit(0);  // not reached: the tick overflows its stack
+  }
+  ::close(fds[1]);
+  std::string commands;
+  char buffer[4096];
+  for (ssize_t n; (n = ::read(fds[0], buffer, sizeof buffer)) != 0;) {
+    if (n < 0 && errno == EINTR) continue;
+    ASSERT_GT(n, 0) << std::strerror(errno);
+    commands.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "status " << status << "; the device was told:\n" << commands;
+  EXPECT_EQ(WTERMSIG(status), SIGSEGV) << "the overflow ends the process as it would have";
+  // 2 N on every tick up to the one that overflowed, then the emergency zero and nothing else
+  // (the loop's own shutdown never ran): the last thing the device was told is zero force.
+  ASSERT_GE(commands.size(), 8U) << commands;
+  EXPECT_EQ(commands.substr(commands.size() - 8), "F 2\nZ 0\n") << "the device was told:\n" << commands;
+  EXPECT_EQ(commands.find("F 0"), std::string::npos) << commands;
 }
 
 TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {

@@ -175,6 +175,7 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
         setup.notes += fmt::format("not pinned to CPU {} ({})\n", options.cpu, std::strerror(pin_error));
       }
     }
+    static_cast<void>(use_alternate_signal_stack());  // before the loop: the tick makes no system call
     prefault_stack();
     ready.set_value("");
 
@@ -230,6 +231,7 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
   }
   std::thread watchdog_thread([&watchdog, &setup, &options] {
     pthread_setname_np(pthread_self(), "toonforce-wdog");
+    static_cast<void>(use_alternate_signal_stack());
     // Above the servo thread, so a runaway loop cannot starve its own watchdog.
     if (setup.fifo) static_cast<void>(make_fifo(options.priority + 1));
     watchdog.run();
@@ -259,6 +261,9 @@ struct ClockedRun {
 
 TickVerdict clocked_tick(void* context, const ClockedTick& clock) noexcept {
   auto& run = *static_cast<ClockedRun*>(context);
+  // The vendor's thread, which toonforce does not start: its alternate signal stack is set up
+  // in its first frame, once (system calls in that frame only).
+  if (run.last_tick < 0) static_cast<void>(use_alternate_signal_stack());
   if (run.last_tick >= 0 && clock.tick > run.last_tick + 1) run.missed += clock.tick - run.last_tick - 1;
   run.last_tick = clock.tick;
   if (run.stop.load(std::memory_order_relaxed) != 0 || (run.deadlines > 0 && run.report.ticks >= run.deadlines)) {
@@ -305,6 +310,7 @@ Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, c
                     options.watchdog_periods * static_cast<std::int64_t>(std::llround(1e9 / rate_hz))};
   std::thread watchdog_thread([&watchdog] {
     pthread_setname_np(pthread_self(), "toonforce-wdog");
+    static_cast<void>(use_alternate_signal_stack());
     watchdog.run();
   });
   ClockedRun run{task, *report, options.deadlines, stop, heartbeat};
@@ -330,6 +336,49 @@ Result<RunReport> run_on_device(PeriodicTask& task, DeviceDriver& device, const 
 }
 
 // ---- signals -----------------------------------------------------------------------------------
+
+namespace {
+
+/// One thread's alternate signal stack, mapped when the thread first asks for it and unmapped
+/// when it ends (a thread_local's destructor).
+class AlternateStack {
+ public:
+  AlternateStack() noexcept {
+    void* memory = mmap(nullptr, kBytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (memory == MAP_FAILED) return;
+    stack_t stack{};
+    stack.ss_sp = memory;
+    stack.ss_size = kBytes;
+    if (sigaltstack(&stack, nullptr) != 0) {
+      munmap(memory, kBytes);
+      return;
+    }
+    memory_ = memory;
+  }
+  ~AlternateStack() {
+    if (memory_ == nullptr) return;
+    stack_t off{};
+    off.ss_flags = SS_DISABLE;
+    sigaltstack(&off, nullptr);
+    munmap(memory_, kBytes);
+  }
+  AlternateStack(const AlternateStack&) = delete;
+  AlternateStack& operator=(const AlternateStack&) = delete;
+  bool installed() const noexcept { return memory_ != nullptr; }
+
+ private:
+  // The handler calls the device's emergency zero (a USB or vendor-library write): room for
+  // that, far above MINSIGSTKSZ.
+  static constexpr std::size_t kBytes = std::size_t{64} << 10;
+  void* memory_ = nullptr;
+};
+
+}  // namespace
+
+bool use_alternate_signal_stack() noexcept {
+  thread_local AlternateStack stack;
+  return stack.installed();
+}
 
 namespace {
 
@@ -373,15 +422,18 @@ std::string signal_name(int signo) {
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   g_stop = &stop;
   g_emergency = emergency;
+  static_cast<void>(use_alternate_signal_stack());  // this thread's; the others install their own
   struct sigaction action{};
   sigemptyset(&action.sa_mask);
   action.sa_handler = on_stop_signal;
   // Restarted: a write of the trace under way when the signal comes completes (the loop polls
   // the flag; nothing waits for EINTR), so the trace stays whole to its last row.
-  action.sa_flags = SA_RESTART;
+  action.sa_flags = SA_RESTART | SA_ONSTACK;
   for (const int s : kStopSignals) sigaction(s, &action, nullptr);
   action.sa_handler = on_fatal_signal;
-  action.sa_flags = static_cast<int>(SA_RESETHAND);
+  // On the alternate stack: a stack overflow is a SIGSEGV that the overflowed stack cannot run
+  // a handler on.
+  action.sa_flags = static_cast<int>(SA_RESETHAND | SA_ONSTACK);
   for (const int s : kFatalSignals) sigaction(s, &action, nullptr);
   // A closed pipe (`--trace - | head`) is a write error that the writer reports, never a death.
   struct sigaction ignore{};

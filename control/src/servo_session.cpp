@@ -65,12 +65,18 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
   SessionReport session;
   session.interactive = options.interactive && isatty(STDIN_FILENO) != 0;
   std::atomic<bool> finished{false};
-  std::thread writer([&] { write_frames(ring, consumer, finished); });
+  std::thread writer([&] {
+    static_cast<void>(use_alternate_signal_stack());
+    write_frames(ring, consumer, finished);
+  });
   std::thread commands;
   if (session.interactive) {
     fmt::print(options.messages,
                "running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n");
-    commands = std::thread([&] { read_commands(rearm, g_stop, finished); });
+    commands = std::thread([&] {
+      static_cast<void>(use_alternate_signal_stack());
+      read_commands(rearm, g_stop, finished);
+    });
   }
 
   auto report = run_on_device(task, device, options.realtime, g_stop);

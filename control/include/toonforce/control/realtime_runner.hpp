@@ -107,8 +107,16 @@ std::string realtime_permission_advice(int priority);
 /// signals (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP) call `emergency` (best
 /// effort: it should be a single device write), then re-raise with the default action.
 /// `restore_signals()` puts the default handlers back.
+/// The handlers run on the thread's alternate signal stack (use_alternate_signal_stack()), so a
+/// stack overflow, itself a SIGSEGV, still commands zero force; this installs one for the calling
+/// thread, and every thread the runner and the session start installs its own.
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency);
 void restore_signals();
+/// Gives the calling thread an alternate signal stack (64 KiB, mapped once per thread, before
+/// its loop; released when the thread ends). Without one, a thread that overflowed its stack
+/// died of SIGSEGV with no zero-force command (issue 27): the handler had no stack to run on.
+/// False if it could not be set up (the handler then runs on the thread's own stack).
+bool use_alternate_signal_stack() noexcept;
 /// The signals install_signal_handlers() turns into a stop.
 std::span<const int> stop_signals() noexcept;
 /// "SIGHUP", "SIGINT", ... ("signal N" for a number without a name).
