@@ -126,6 +126,9 @@ void add_run(CLI::App& app) {
     std::unique_ptr<viewer::SceneControl> live_control;
     std::unique_ptr<viewer::ViewerServer> server;
     if (view->wanted()) {
+      // From here to the end, every stop signal takes one path (issue 27): the viewer's flag
+      // before and after the loop, the loop's own handlers (which put these back) while it runs.
+      install_view_signals();
       auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       viewer::HelloInfo hello;
       hello.source = "run";
@@ -180,17 +183,24 @@ void add_run(CLI::App& app) {
       }
       if (*control_wait) {
         // Before the device opens: a session that never gets its client commands no force at all.
-        install_view_signals();
         fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
         std::fflush(stderr);
-        const bool connected = server->wait_for_control(view_stop());
-        restore_view_signals();
+        const bool connected = view_stop().load() == 0 && server->wait_for_control(view_stop());
         if (!connected) {
-          fmt::print(stderr, "control: no control client came; the loop did not start\n");
+          const int signo = view_stop().load();
+          fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
+                     signo != 0 ? " (stopped by " + signal_name(signo) + ")" : std::string());
           set_exit_code(2);  // could not start (interfaces.md: exit status)
           return;
         }
       }
+    }
+#endif
+#if TOONFORCE_VIEWER
+    if (view->wanted() && view_stop().load() != 0) {  // stopped while the viewer was starting
+      fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(view_stop().load()));
+      set_exit_code(2);  // could not start (exits.md)
+      return;
     }
 #endif
     // The statistics file is opened (created) before the loop starts: a path that cannot be
