@@ -912,6 +912,101 @@ TEST(Cli, AStandardErrorThatCannotBeWrittenIsExitStatus1NotAnAbort) {
   for (const auto& p : {output, trace}) std::filesystem::remove(p);
 }
 
+// `falcon envelope`: a grid that cannot be written aborted (134); an output that is the input
+// emptied the calibration before reading it.
+TEST(FalconCommand, AGridThatCannotBeWrittenIsReportedAndExits1) {
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "falcon", "envelope", "--csv", "/dev/full", "--step", "20"});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find("/dev/full: writing the grid failed: No space left on device"), std::string::npos) << text;
+}
+
+TEST(FalconCommand, AGridThatIsTheCalibrationIsRefusedAndTheCalibrationKept) {
+  const auto calibration = temp_path("calibration.toml");
+  std::ofstream(calibration) << "words_per_n_m = 10000\n";
+  const std::string before = slurp(calibration);
+  const auto link = temp_path("link.toml");
+  std::filesystem::create_symlink(calibration, link);
+  for (const auto& csv : {calibration, link}) {
+    const auto [status, text] = run_binary(
+        {TOONFORCE_BINARY, "falcon", "envelope", "--calibration", calibration.string(), "--csv", csv.string()});
+    EXPECT_EQ(status, 2) << text;
+    EXPECT_NE(text.find("is the --calibration file"), std::string::npos) << text;
+    EXPECT_EQ(slurp(calibration), before);
+  }
+  for (const auto& p : {calibration, link}) std::filesystem::remove(p);
+}
+
+TEST(BringupCommand, AReportThatWouldOverwriteAnInputOrIsADirectoryIsRefusedBeforeAnyStep) {
+  const auto base = temp_path("b");
+  const std::string json = base.string() + ".json";
+  const std::string md = base.string() + ".md";
+  std::ofstream(json) << "calibration\n";
+  std::ofstream(md) << "firmware\n";
+  {
+    const auto [status, text] = run_binary({TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report",
+                                            base.string(), "--calibration", json});
+    EXPECT_EQ(status, 2) << text;
+    EXPECT_NE(text.find("would overwrite the input " + json), std::string::npos) << text;
+  }
+  {
+    const auto [status, text] = run_binary({TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report",
+                                            base.string(), "--firmware", md});
+    EXPECT_EQ(status, 2) << text;
+    EXPECT_NE(text.find("would overwrite the input " + md), std::string::npos) << text;
+  }
+  EXPECT_EQ(slurp(json), "calibration\n");
+  EXPECT_EQ(slurp(md), "firmware\n");
+  const auto dir = temp_path("reports");
+  std::filesystem::create_directory(dir);
+  for (const std::string& report : {dir.string(), dir.string() + "/"}) {
+    const auto [status, text] =
+        run_binary({TOONFORCE_BINARY, "bringup", "gpio", "--non-interactive", "--report", report});
+    EXPECT_EQ(status, 2) << text;
+    EXPECT_NE(text.find("is a directory"), std::string::npos) << text;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / ".md"));
+  EXPECT_FALSE(std::filesystem::exists(dir / ".json"));
+  std::filesystem::remove_all(dir);
+  for (const auto& p : {json, md}) std::filesystem::remove(p);
+}
+
+// Every numeric option range-checked when the command line is read: exit status 2 and a line
+// naming the option and its range, before anything slow runs (issue 27).
+TEST(Cli, NumericOptionsOutsideTheirRangeAreRefusedAtOnceWithExit2) {
+  const std::vector<std::vector<std::string>> bad = {
+      {"report", "stability", "--duration", "1e308"},
+      {"report", "stability", "--duration", "1e7"},
+      {"report", "stability", "--longest-run", "1e308"},
+      {"report", "precision", "--rates", "inf"},
+      {"report", "precision", "--rates", "0"},
+      {"report", "precision", "--rates", "nan"},
+      {"report", "precision", "--rates", "1e9"},
+      {"report", "precision", "--drift-hours", "1e308"},
+      {"report", "precision", "--drift-rate", "1e12"},
+      {"report", "precision", "--rates", "3000"},  // does not divide 320 kHz: refused before the slow parts
+      {"report", "latency", "--cold-ticks", "18446744073709551615"},
+      {"report", "latency", "--cpu", "-1"},
+      {"report", "all", "--drift-hours", "1e308"},
+      {"bringup", "falcon", "--non-interactive", "--homing-timeout", "nan"},
+      {"bringup", "falcon", "--non-interactive", "--homing-timeout", "inf"},
+      {"bringup", "falcon", "--non-interactive", "--homing-timeout", "-5"},
+      {"run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--max-output", "-1"},
+      {"run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--max-output",
+       "18446744073709551616"},
+      {"sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+       TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", "/dev/null", "--max-output", "-1"},
+  };
+  for (const auto& args : bad) {
+    std::vector<std::string> command{TOONFORCE_BINARY};
+    command.insert(command.end(), args.begin(), args.end());
+    const auto [status, text] = run_binary(command);
+    const std::string& option = args[args.size() - 2];
+    EXPECT_EQ(status, 2) << option << " " << args.back() << ": " << text;
+    EXPECT_NE(text.find(option), std::string::npos) << text;
+    EXPECT_LT(text.size(), 400U) << text;
+  }
+}
+
 // Under a small `ulimit -v`, `run` aborted (134: bad_alloc, or a thread refused while another
 // was joinable). Over a range of limits each run now ends 0 or 2 with a message; 127 is the
 // dynamic loader's own refusal, before the program runs.

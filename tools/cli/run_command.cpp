@@ -78,8 +78,9 @@ void add_run(CLI::App& app) {
   cmd->add_option("--trace", options->trace_path, "Trace CSV to write (t,x,y,z,vx,vy,vz,fx,fy,fz, then the rest)");
   cmd->add_option("--max-output", options->max_output_bytes,
                   "Largest trace to write, e.g. 500M or 4G (0: no limit; default 1G); past it the trace stops "
-                  "with a warning, the run goes on")
-      ->transform(CLI::AsSizeValue(false));
+                  "with a warning, the run goes on; at most 4E")
+      ->transform(CLI::AsSizeValue(false))
+      ->check(max_output_range());
   cmd->add_option("--stats-json", options->stats_json_path, "Timing statistics and counts as JSON");
   cmd->add_option("--cpu", options->cpu, "Pin the servo thread to this CPU")->check(non_negative_number());
   cmd->add_option("--priority", options->priority, "SCHED_FIFO priority of the servo thread (1..98)")
