@@ -912,6 +912,54 @@ TEST(Cli, AStandardErrorThatCannotBeWrittenIsExitStatus1NotAnAbort) {
   for (const auto& p : {output, trace}) std::filesystem::remove(p);
 }
 
+// `replay` under a stop signal: it died by the default action, leaving a cut CSV. Its output on
+// a pipe this test reads, so the signal comes mid-replay on any machine.
+class ReplayStopSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(ReplayStopSignal, EndsOnAWholeRowSaysHowFarItGotAndExits1) {
+  const auto motion = temp_path("motion.csv");
+  {
+    std::ofstream out(motion);
+    out << "t,x,y,z\n";
+    for (int i = 0; i < 200000; ++i) out << fmt::format("{:.3f},0,0,{:.6f}\n", i * 0.001, 0.01 - 1e-7 * i);
+  }
+  const auto output = temp_path("replay-output.txt");
+  int read_fd = -1;
+  Child child = spawn_piped({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--input",
+                             motion.string(), "--output", "-"},
+                            output, read_fd);
+  ASSERT_TRUE(started(child));
+  std::FILE* in = fdopen(read_fd, "r");
+  ASSERT_NE(in, nullptr);
+  std::vector<std::string> lines;
+  char* line = nullptr;
+  std::size_t capacity = 0;
+  bool signalled = false;
+  for (ssize_t n; (n = getline(&line, &capacity, in)) > 0;) {
+    lines.emplace_back(line, static_cast<std::size_t>(n));
+    if (!signalled && lines.size() == 300) {
+      ASSERT_EQ(kill(child.pid, GetParam()), 0);
+      signalled = true;
+    }
+  }
+  std::free(line);
+  std::fclose(in);
+  EXPECT_EQ(wait_exit(child), 1) << slurp(output);
+  ASSERT_TRUE(signalled);
+  ASSERT_LT(lines.size(), 200001U) << "the replay went on to its end";
+  const auto header = fields(lines[0]);
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    ASSERT_EQ(lines[i].back(), '\n') << "row " << i << " is cut";
+    ASSERT_EQ(fields(lines[i]).size(), header.size()) << "row " << i << ": " << lines[i];
+  }
+  const std::string text = slurp(output);
+  EXPECT_NE(text.find(fmt::format("stopped by {} after {} of 200000 rows", signal_name(GetParam()), lines.size() - 1)),
+            std::string::npos)
+      << text;
+  for (const auto& p : {motion, output}) std::filesystem::remove(p);
+}
+INSTANTIATE_TEST_SUITE_P(ReplayCommand, ReplayStopSignal, kTerminatingSignals, kSignalTestName);
+
 // `falcon envelope`: a grid that cannot be written aborted (134); an output that is the input
 // emptied the calibration before reading it.
 TEST(FalconCommand, AGridThatCannotBeWrittenIsReportedAndExits1) {
@@ -1005,6 +1053,22 @@ TEST(Cli, NumericOptionsOutsideTheirRangeAreRefusedAtOnceWithExit2) {
     EXPECT_NE(text.find(option), std::string::npos) << text;
     EXPECT_LT(text.size(), 400U) << text;
   }
+}
+
+// A trace's fields quoted in `view`'s messages are escaped and cut like the scene's (printable):
+// an escape sequence cleared the terminal, a 1 MB field made a 1 MB line.
+TEST(ViewCommand, ATraceFieldInAMessageIsEscapedAndCut) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto trace = temp_path("hostile.csv");
+  for (const std::string& field : {std::string("\x1b[2J\x1b]0;owned\x07"), std::string(1 << 20, 'k')}) {
+    std::ofstream(trace, std::ios::trunc) << "t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0," << field << "\n";
+    const auto [status, text] = run_binary({TOONFORCE_BINARY, "view", "--port", "0", trace.string()});
+    EXPECT_EQ(status, 1) << text;
+    EXPECT_NE(text.find(":2: column 'fz'"), std::string::npos) << text.substr(0, 300);
+    EXPECT_EQ(text.find('\x1b'), std::string::npos) << text.substr(0, 300);
+    EXPECT_LT(text.size(), 400U);
+  }
+  std::filesystem::remove(trace);
 }
 
 // Under a small `ulimit -v`, `run` aborted (134: bad_alloc, or a thread refused while another
