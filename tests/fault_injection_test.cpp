@@ -1071,6 +1071,23 @@ TEST(ViewCommand, ATraceFieldInAMessageIsEscapedAndCut) {
   std::filesystem::remove(trace);
 }
 
+// `check` refused a hand script longer than a day that `run --script` took: one shared rule.
+TEST(RunCommand, AHandScriptLongerThanADayIsRefusedAsCheckRefusesIt) {
+  const auto script = temp_path("long.toml");
+  std::ofstream(script) << "name = \"long\"\n[hand]\nstart = [0.0, 0.0, 0.03]\n[[segment]]\ntype = \"hold\"\nduration = 1e6\n";
+  const std::string expected = "lasts 1e+06 s, over the maximum of 86400 s";
+  const auto [check_status, check_text] =
+      run_binary({TOONFORCE_BINARY, "check", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", script.string()});
+  EXPECT_NE(check_status, 0) << check_text;
+  EXPECT_NE(check_text.find(expected), std::string::npos) << check_text;
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--script", script.string(), "--duration", "0.05", "--allow-non-rt", "--no-mlock"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find(expected), std::string::npos) << text;
+  std::filesystem::remove(script);
+}
+
 // Under a small `ulimit -v`, `run` aborted (134: bad_alloc, or a thread refused while another
 // was joinable). Over a range of limits each run now ends 0 or 2 with a message; 127 is the
 // dynamic loader's own refusal, before the program runs.

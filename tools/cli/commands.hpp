@@ -36,6 +36,10 @@ CLI::Validator max_output_range();
 /// same path by name. Empty names are skipped.
 std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs);
 
+/// "" or why `check` and `run --script` refuse a hand script lasting `length_s` (one shared
+/// rule: over one day; `sim` takes such a script only with a shorter --duration).
+std::string hand_script_length_problem(const std::string& path, double length_s);
+
 /// The exit status the subcommand that ran asked for.
 int exit_code();
 void set_exit_code(int code);

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/sim/sim_run.hpp"
 
 namespace toonforce::cli {
 
@@ -61,6 +62,12 @@ CLI::Validator max_output_range() {
         return check_number(text, 0.0, 4.0 * 1152921504606846976.0, "0 .. 4E bytes");
       },
       "SIZE");
+}
+
+std::string hand_script_length_problem(const std::string& path, double length_s) {
+  if (!(length_s > kMaxSimDurationS)) return {};
+  return fmt::format("{}: the hand script lasts {:g} s, over the maximum of {:g} s simulated (one day)", path, length_s,
+                     kMaxSimDurationS);
 }
 
 std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs) {

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
@@ -204,6 +205,17 @@ void add_run(CLI::App& app) {
       return;
     }
 #endif
+    // The hand script's length by check's rule (one shared check: check refused what run took).
+    if (options->device == "sim" && !options->hand_script_path.empty()) {
+      if (auto script = load_hand_script(options->hand_script_path)) {
+        if (std::string bad = hand_script_length_problem(options->hand_script_path, script->intent.duration_s());
+            !bad.empty()) {
+          fmt::print(stderr, "{}\n", bad);
+          set_exit_code(2);
+          return;
+        }
+      }  // a script that does not load: run_servo says why
+    }
     // The statistics file is opened (created) before the loop starts: a path that cannot be
     // written is a reason not to start, not a surprise after the session.
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> stats_file(nullptr, &std::fclose);
