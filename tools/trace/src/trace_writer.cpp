@@ -133,7 +133,9 @@ char* TraceWriter::put(char* out, std::size_t column, double x) noexcept {
 }
 
 bool TraceWriter::put_out(const char* data, std::size_t size) {
-  if (failed_) return false;  // after a failed write, not one byte more to that file
+  // After a failed write (the stream's error flag), not one byte more to that file. (failed_
+  // may also mean a row that did not match the header: the rows before it still go out.)
+  if (std::ferror(file_) != 0) return false;
   if (std::fwrite(data, 1, size, file_) == size && std::fflush(file_) == 0) {
     committed_ += size;
     return true;
@@ -154,7 +156,7 @@ bool TraceWriter::flush() {
     memory_.append(buffer_.get(), used_);
   } else if (file_ != nullptr && used_ > 0) {
     put_out(buffer_.get(), used_);
-  } else if (file_ != nullptr && !failed_ && std::fflush(file_) != 0) {
+  } else if (file_ != nullptr && std::ferror(file_) == 0 && std::fflush(file_) != 0) {
     failed_ = true;
   }
   used_ = 0;
