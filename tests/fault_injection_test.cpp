@@ -1071,6 +1071,19 @@ TEST(ViewCommand, ATraceFieldInAMessageIsEscapedAndCut) {
   std::filesystem::remove(trace);
 }
 
+// A UTF-8 byte order mark before a trace's header: `view` refused the trace, naming an
+// invisible character as its first column. It is read past: the header holds, and the row's
+// own error is the one said.
+TEST(ViewCommand, AByteOrderMarkBeforeTheHeaderIsReadPast) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto trace = temp_path("bom.csv");
+  std::ofstream(trace) << "\xEF\xBB\xBFt,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,zz\n";
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "view", "--port", "0", trace.string()});
+  EXPECT_EQ(status, 1) << text;
+  EXPECT_NE(text.find(":2: column 'fz': 'zz' is not a number"), std::string::npos) << text;
+  std::filesystem::remove(trace);
+}
+
 // `check` refused a hand script longer than a day that `run --script` took: one shared rule.
 TEST(RunCommand, AHandScriptLongerThanADayIsRefusedAsCheckRefusesIt) {
   const auto script = temp_path("long.toml");

@@ -46,6 +46,9 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
   // Every writer ends each row with a newline: a last row without one was cut (a SIGKILLed run,
   // a full disk). Leave it out and say so, rather than refuse the whole trace.
   std::size_t cut_line = 0;
+  // A UTF-8 byte order mark (a spreadsheet's "CSV UTF-8") before the header is read past, as the
+  // motion reader does: it made the first column an invisible "\xEF\xBB\xBFt".
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
   if (!text.empty() && text.back() != '\n') {
     const std::size_t last_nl = text.rfind('\n');
     if (last_nl != std::string_view::npos) {
