@@ -139,7 +139,8 @@ void install_view_signals() {
   g_view_stop.store(0);
   struct sigaction action {};
   action.sa_sigaction = on_view_signal;
-  action.sa_flags = SA_SIGINFO;
+  // Restarted: a message or a statistics file being written when the signal comes completes.
+  action.sa_flags = SA_SIGINFO | SA_RESTART;
   sigemptyset(&action.sa_mask);
   const auto signals = stop_signals();
   g_old_actions.resize(signals.size());
