@@ -402,5 +402,30 @@ const BadMotion kBadMotions[] = {
 };
 INSTANTIATE_TEST_SUITE_P(MotionCsv, BadMotionCsv, ::testing::ValuesIn(kBadMotions));
 
+// Issue 27: a full disk or a killed writer leaves a last row without its newline, possibly cut
+// mid-number ("0.00" of "0.0042"): it is left out with a warning naming the file and line,
+// never read as data.
+TEST(MotionCsv, ALastRowWithoutItsEndOfLineIsLeftOutAndNamed) {
+  const auto m = parse_motion_csv("t,x,y,z\n0,0,0,0.0042\n0.001,0,0,0.0042\n0.002,0,0,0.00", "cut.csv");
+  ASSERT_TRUE(m) << m.error();
+  EXPECT_EQ(m->rows.size(), 2U);
+  EXPECT_NE(m->note.find("cut.csv:4: the last row has no end of line"), std::string::npos) << m->note;
+  const auto whole = parse_motion_csv("t,x,y,z\n0,0,0,0\n0.001,0,0,0\n", "whole.csv");
+  ASSERT_TRUE(whole) << whole.error();
+  EXPECT_TRUE(whole->note.empty()) << whole->note;
+}
+
+// Issue 27: a field quoted in a message is escaped and cut (printable, as scene messages): an
+// escape sequence retitled or cleared the terminal, a 20 MB field made a 20 MB line.
+TEST(MotionCsv, AFieldQuotedInAMessageIsEscapedAndCut) {
+  const auto m = parse_motion_csv("t,x,y,z\n0,0,\x1b]0;owned\x07,0\n", "m.csv");
+  ASSERT_FALSE(m);
+  EXPECT_EQ(m.error().find('\x1b'), std::string::npos) << m.error();
+  EXPECT_NE(m.error().find("\\x1B]0;owned\\x07"), std::string::npos) << m.error();
+  const auto big = parse_motion_csv("t,x,y,z\n0,0," + std::string(1 << 20, 'k') + ",0\n", "m.csv");
+  ASSERT_FALSE(big);
+  EXPECT_LT(big.error().size(), 300U);
+}
+
 }  // namespace
 }  // namespace toonforce

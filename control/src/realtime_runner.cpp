@@ -15,6 +15,8 @@
 #include <cmath>
 #include <cstring>
 #include <future>
+#include <iterator>
+#include <system_error>
 #include <thread>
 
 #include <fmt/format.h>
@@ -223,19 +225,43 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
   };
 
   Watchdog watchdog{heartbeat, done, emergency, options.watchdog_periods * period_ns};
-  std::thread servo_thread(servo);
+  // Both threads exist before the loop runs: a thread refused for want of memory (`ulimit -v`)
+  // is an error before the first tick, never a running servo thread left joinable while the
+  // exception passes (std::terminate).
+  std::atomic<int> go{0};  // 1: the servo thread is set up, watch it; -1: give up
+  std::thread watchdog_thread;
+  try {
+    watchdog_thread = std::thread([&watchdog, &setup, &options, &go] {
+      while (go.load(std::memory_order_acquire) == 0) {
+        timespec ts = to_timespec(1'000'000);
+        nanosleep(&ts, nullptr);
+      }
+      if (go.load(std::memory_order_acquire) < 0) return;
+      pthread_setname_np(pthread_self(), "toonforce-wdog");
+      static_cast<void>(use_alternate_signal_stack());
+      // Above the servo thread, so a runaway loop cannot starve its own watchdog.
+      if (setup.fifo) static_cast<void>(make_fifo(options.priority + 1));
+      watchdog.run();
+    });
+  } catch (const std::system_error& e) {
+    return Error{fmt::format("cannot start the watchdog thread: {} (too little memory: `ulimit -v`?)", e.what())};
+  }
+  std::thread servo_thread;
+  try {
+    servo_thread = std::thread(servo);
+  } catch (const std::system_error& e) {
+    go.store(-1, std::memory_order_release);
+    watchdog_thread.join();
+    return Error{fmt::format("cannot start the servo thread: {} (too little memory: `ulimit -v`?)", e.what())};
+  }
   const std::string refused = ready_result.get();
   if (!refused.empty()) {
     servo_thread.join();
+    go.store(-1, std::memory_order_release);
+    watchdog_thread.join();
     return Error{refused};
   }
-  std::thread watchdog_thread([&watchdog, &setup, &options] {
-    pthread_setname_np(pthread_self(), "toonforce-wdog");
-    static_cast<void>(use_alternate_signal_stack());
-    // Above the servo thread, so a runaway loop cannot starve its own watchdog.
-    if (setup.fifo) static_cast<void>(make_fifo(options.priority + 1));
-    watchdog.run();
-  });
+  go.store(1, std::memory_order_release);
   servo_thread.join();
   done.store(true, std::memory_order_release);
   watchdog_thread.join();
@@ -308,11 +334,16 @@ Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, c
   const double rate_hz = device.info().nominal_rate_hz > 0.0 ? device.info().nominal_rate_hz : options.rate_hz;
   Watchdog watchdog{heartbeat, done, EmergencyZero{zero_device, &device},
                     options.watchdog_periods * static_cast<std::int64_t>(std::llround(1e9 / rate_hz))};
-  std::thread watchdog_thread([&watchdog] {
-    pthread_setname_np(pthread_self(), "toonforce-wdog");
-    static_cast<void>(use_alternate_signal_stack());
-    watchdog.run();
-  });
+  std::thread watchdog_thread;
+  try {
+    watchdog_thread = std::thread([&watchdog] {
+      pthread_setname_np(pthread_self(), "toonforce-wdog");
+      static_cast<void>(use_alternate_signal_stack());
+      watchdog.run();
+    });
+  } catch (const std::system_error& e) {
+    return Error{fmt::format("cannot start the watchdog thread: {} (too little memory: `ulimit -v`?)", e.what())};
+  }
   ClockedRun run{task, *report, options.deadlines, stop, heartbeat};
   const std::int64_t begin = now_ns();
   auto ended = device.run_clocked(&clocked_tick, &run);
@@ -386,7 +417,15 @@ std::atomic<int>* g_stop = nullptr;
 EmergencyZero g_emergency;
 struct sigaction g_old_pipe {};
 
-extern "C" void on_stop_signal(int signo) {
+extern "C" void on_stop_signal(int signo, siginfo_t* info, void* /*context*/) {
+  // A file-size limit (`ulimit -f`) makes the kernel send SIGXFSZ to the writer: ignored, the
+  // write fails with EFBIG and the writer reports it as on a full disk (the run goes on). A
+  // SIGXFSZ sent by someone (`kill -XFSZ`) is a stop like any other.
+  // (The kernel sends it as if the process had: SI_USER with the process's own pid.)
+  if (signo == SIGXFSZ && info != nullptr &&
+      ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid())) {
+    return;
+  }
   if (g_stop == nullptr) return;
   int expected = 0;
   if (!g_stop->compare_exchange_strong(expected, signo)) {
@@ -404,11 +443,15 @@ extern "C" void on_fatal_signal(int signo) {
 
 // Every signal whose default action ends the process and that can be caught, the fatal ones
 // (the process state is unknown after them) aside: each stops the loop like Ctrl-C, so that a
-// dropped SSH session (SIGHUP), a CPU or file-size limit (SIGXCPU, SIGXFSZ), a timer or a
+// dropped SSH session (SIGHUP), a CPU limit (SIGXCPU), a `kill -XFSZ`, a timer or a
 // stray `kill -USR1` ends with zero force, the summary and a whole trace.
 constexpr int kStopSignals[] = {SIGHUP,    SIGINT,  SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM,
                                 SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ, SIGIO,   SIGPWR};
 constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP};
+
+/// What each stop signal did before install_signal_handlers: restore_signals puts it back, so
+/// a caller's own stop path (the viewer's, around the run) stays in place after the loop.
+struct sigaction g_old_stop[std::size(kStopSignals)] {};
 
 }  // namespace
 
@@ -425,11 +468,11 @@ void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   static_cast<void>(use_alternate_signal_stack());  // this thread's; the others install their own
   struct sigaction action{};
   sigemptyset(&action.sa_mask);
-  action.sa_handler = on_stop_signal;
+  action.sa_sigaction = on_stop_signal;
   // Restarted: a write of the trace under way when the signal comes completes (the loop polls
   // the flag; nothing waits for EINTR), so the trace stays whole to its last row.
-  action.sa_flags = SA_RESTART | SA_ONSTACK;
-  for (const int s : kStopSignals) sigaction(s, &action, nullptr);
+  action.sa_flags = SA_RESTART | SA_SIGINFO | SA_ONSTACK;
+  for (std::size_t i = 0; i < std::size(kStopSignals); ++i) sigaction(kStopSignals[i], &action, &g_old_stop[i]);
   action.sa_handler = on_fatal_signal;
   // On the alternate stack: a stack overflow is a SIGSEGV that the overflowed stack cannot run
   // a handler on.
@@ -443,7 +486,7 @@ void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
 }
 
 void restore_signals() {
-  for (const int s : kStopSignals) signal(s, SIG_DFL);
+  for (std::size_t i = 0; i < std::size(kStopSignals); ++i) sigaction(kStopSignals[i], &g_old_stop[i], nullptr);
   for (const int s : kFatalSignals) signal(s, SIG_DFL);
   sigaction(SIGPIPE, &g_old_pipe, nullptr);  // as it was (the toonforce program ignores it throughout)
   g_stop = nullptr;

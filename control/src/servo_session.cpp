@@ -6,6 +6,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <cstdio>
+#include <exception>
 #include <thread>
 
 #include <fmt/format.h>
@@ -20,15 +22,25 @@ void sleep_ms(int ms) noexcept {
 
 std::atomic<int> g_stop{0};
 
+/// One frame to the consumer. A message it cannot write (standard error a closed pipe: fmt
+/// throws) must not end the process from this thread (std::terminate): the frame's message is
+/// lost, the run and the trace go on.
+void consume(FrameConsumer& consumer, const TelemetryFrame& f) noexcept {
+  try {
+    consumer.consume(f);
+  } catch (...) {  // NOLINT(bugprone-empty-catch): nothing left to say it on
+  }
+}
+
 /// Drains the ring into the consumer until the run is over and the ring is empty.
 void write_frames(TelemetryRing& ring, FrameConsumer& consumer, const std::atomic<bool>& finished) {
   TelemetryFrame f;
   for (;;) {
     if (ring.pop(f)) {
-      consumer.consume(f);
+      consume(consumer, f);
     } else if (finished.load(std::memory_order_acquire)) {
       if (!ring.pop(f)) return;  // the servo thread is done: what is left is all there is
-      consumer.consume(f);
+      consume(consumer, f);
     } else {
       sleep_ms(2);
     }
@@ -71,20 +83,26 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
   });
   std::thread commands;
   if (session.interactive) {
-    fmt::print(options.messages,
-               "running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n");
+    // fputs, not fmt::print: a failed write must not throw past the joinable writer thread.
+    std::fputs("running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n", options.messages);
     commands = std::thread([&] {
       static_cast<void>(use_alternate_signal_stack());
       read_commands(rearm, g_stop, finished);
     });
   }
 
-  auto report = run_on_device(task, device, options.realtime, g_stop);
+  // A thread refused for want of memory must not pass the joinable writer (std::terminate).
+  Result<RunReport> report = Error{std::string()};
+  try {
+    report = run_on_device(task, device, options.realtime, g_stop);
+  } catch (const std::exception& e) {
+    report = Error{fmt::format("the run could not start: {} (too little memory: `ulimit -v`?)", e.what())};
+  }
 
   finished.store(true, std::memory_order_release);
   writer.join();
   if (commands.joinable()) commands.join();
-  if (const TelemetryFrame* last = last_frame(last_frame_context)) consumer.consume(*last);
+  if (const TelemetryFrame* last = last_frame(last_frame_context)) consume(consumer, *last);
   consumer.finish();
   if (options.handle_signals) restore_signals();
   if (!report) return Error{report.error()};

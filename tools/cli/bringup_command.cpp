@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <string>
@@ -78,6 +80,28 @@ bool steps_known(const Common& c, const std::vector<std::string>& known) {
   return true;
 }
 
+/// Refuses a --report BASE whose files (BASE.md, BASE.json) would overwrite an input, or that
+/// names a directory (BASE/ wrote the hidden files BASE/.md and BASE/.json); false (said).
+bool report_base_ok(const Common& c, std::initializer_list<std::string> inputs) {
+  if (c.report.empty()) return true;
+  std::error_code ec;
+  if (c.report.back() == '/' || std::filesystem::is_directory(c.report, ec)) {
+    fmt::print(stderr, "--report {}: is a directory; give a base name (e.g. {}/bringup): the report is written to "
+                       "BASE.md and BASE.json\n",
+               c.report, c.report.back() == '/' ? c.report.substr(0, c.report.size() - 1) : c.report);
+    return false;
+  }
+  for (const char* ext : {".md", ".json"}) {
+    const std::string output = c.report + ext;
+    if (const std::string input = input_overwritten_by(output, inputs); !input.empty()) {
+      fmt::print(stderr, "--report {}: its {} would overwrite the input {}; choose another base name\n", c.report,
+                 output, input);
+      return false;
+    }
+  }
+  return true;
+}
+
 void finish(const bringup::Report& report, const Common& c, const char* device) {
   std::string base = c.report;
   if (base.empty()) {
@@ -135,11 +159,17 @@ void add_bringup(CLI::App& app) {
   f->add_option("--calibration-out", falcon->calibration_out,
                 "Where the force step writes the calibration (default: ~/.config/toonforce/falcon-SERIAL.toml, "
                 "which `toonforce run` reads)");
-  f->add_option("--homing-timeout", falcon->homing_timeout_s, "Seconds to wait for homing")->capture_default_str();
+  f->add_option("--homing-timeout", falcon->homing_timeout_s, "Seconds to wait for homing, 0.1..3600")
+      ->check(number_in(0.1, 3600.0))  // nan, inf, negatives reached lround out of its range
+      ->capture_default_str();
   f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")->check(number_in(10, 100000))
       ->capture_default_str();
   f->callback([falcon, falcon_common, falcon_steps] {
     if (!steps_known(*falcon_common, falcon_steps)) return set_exit_code(2);
+    if (!report_base_ok(*falcon_common,
+                        {falcon->falcon.firmware_path, falcon->falcon.calibration_path, falcon->calibration_out})) {
+      return set_exit_code(2);
+    }
     auto person = person_for(*falcon_common);
     if (!person) return set_exit_code(2);
     falcon->only = falcon_common->only;
@@ -164,6 +194,7 @@ void add_bringup(CLI::App& app) {
       ->capture_default_str();
   o->callback([omni, omni_common, omni_steps] {
     if (!steps_known(*omni_common, omni_steps)) return set_exit_code(2);
+    if (!report_base_ok(*omni_common, {omni->omni.library_path})) return set_exit_code(2);
     auto person = person_for(*omni_common);
     if (!person) return set_exit_code(2);
     omni->only = omni_common->only;
@@ -183,6 +214,7 @@ void add_bringup(CLI::App& app) {
   g->add_option("--rate", gpio->rate_hz, "Servo rate [Hz]")->check(number_in(100.0, 10000.0))->capture_default_str();
   g->callback([gpio, gpio_common, gpio_steps] {
     if (!steps_known(*gpio_common, gpio_steps)) return set_exit_code(2);
+    if (!report_base_ok(*gpio_common, {})) return set_exit_code(2);
     auto person = person_for(*gpio_common);
     if (!person) return set_exit_code(2);
     gpio->only = gpio_common->only;

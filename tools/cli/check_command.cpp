@@ -78,10 +78,9 @@ void add_check(CLI::App& app) {
         report(loaded.error());
       } else {
         hand = std::move(loaded.value());
-        const double length = hand->intent.duration_s();
-        if (length > kMaxSimDurationS) {
-          report(fmt::format("{}: the hand script lasts {:g} s, over the maximum of {:g} s simulated (one day)",
-                             o->script_path, length, kMaxSimDurationS));
+        if (std::string long_script = hand_script_length_problem(o->script_path, hand->intent.duration_s());
+            !long_script.empty()) {
+          report(long_script);
         }
       }
     }

@@ -1,6 +1,9 @@
 #pragma once
 // Subcommands of the toonforce command line. Each add_* registers a subcommand whose callback
 // runs it and stores the process exit status.
+#include <initializer_list>
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 namespace toonforce::cli {
@@ -25,6 +28,17 @@ void add_view(CLI::App& app);
 CLI::Validator number_in(double lo, double hi);
 CLI::Validator positive_number();
 CLI::Validator non_negative_number();
+/// --max-output after CLI::AsSizeValue: 0 .. 4 EiB (it let -1 and 2^64 through, refusing 16E).
+CLI::Validator max_output_range();
+
+/// The input among `inputs` that writing `output` would overwrite, or "" if none: the same
+/// device and inode (a link, another spelling), or, for an output that does not exist yet, the
+/// same path by name. Empty names are skipped.
+std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs);
+
+/// "" or why `check` and `run --script` refuse a hand script lasting `length_s` (one shared
+/// rule: over one day; `sim` takes such a script only with a shorter --duration).
+std::string hand_script_length_problem(const std::string& path, double length_s);
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

@@ -5,8 +5,10 @@
 // none, docs/FALCON.md), and print the udev rule that lets group plugdev open it.
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <string>
 
@@ -60,13 +62,16 @@ int run_envelope(const EnvelopeArgs& a) {
   const Vec3<double> along_y{0, 0, -1};
   const Vec3<double> along_z{0, 1, 0};
   std::FILE* csv = nullptr;
+  // Rows go out with fputs, whose errors stay in the stream's error flag for the check at the
+  // end (fmt::print threw them: `--csv /dev/full` aborted).
+  const auto put = [&csv](const std::string& text) { std::fputs(text.c_str(), csv); };
   if (!a.csv.empty()) {
     csv = std::fopen(a.csv.c_str(), "w");
     if (csv == nullptr) {
-      print_error(a.csv + ": cannot write");
+      print_error(fmt::format("{}: cannot write: {}", a.csv, std::strerror(errno)));
       return 1;
     }
-    fmt::print(csv, "# toonforce falcon envelope; {}\nx_m,y_m,z_m,along_x_n,along_y_n,along_z_n,every_direction_n\n", source);
+    put(fmt::format("# toonforce falcon envelope; {}\nx_m,y_m,z_m,along_x_n,along_y_n,along_z_n,every_direction_n\n", source));
   }
   struct Least {
     double n = 1e9;
@@ -91,7 +96,7 @@ int run_envelope(const EnvelopeArgs& a) {
         falcon::Mat3 j;
         const bool ok = falcon::position_jacobian(falcon::FalconGeometry{}, falcon::scene_to_falcon(scene, centre), j);
         if (!ok) {
-          if (csv != nullptr) fmt::print(csv, "{:.4f},{:.4f},{:.4f},,,,\n", scene.x, scene.y, scene.z);
+          if (csv != nullptr) put(fmt::format("{:.4f},{:.4f},{:.4f},,,,\n", scene.x, scene.y, scene.z));
           continue;
         }
         ++reached;
@@ -108,14 +113,19 @@ int run_envelope(const EnvelopeArgs& a) {
           core_below_4n += f[3] < 4.0 ? 1 : 0;
         }
         if (csv != nullptr) {
-          fmt::print(csv, "{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", scene.x, scene.y, scene.z, f[0], f[1], f[2], f[3]);
+          put(fmt::format("{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", scene.x, scene.y, scene.z, f[0], f[1], f[2], f[3]));
         }
       }
     }
   }
-  if (csv != nullptr && std::fclose(csv) != 0) {
-    print_error(a.csv + ": cannot write");
-    return 1;
+  if (csv != nullptr) {
+    errno = 0;
+    const bool flushed = std::fflush(csv) == 0 && std::ferror(csv) == 0;
+    const int error = errno != 0 ? errno : EIO;
+    if (std::fclose(csv) != 0 || !flushed) {
+      print_error(fmt::format("{}: writing the grid failed: {}", a.csv, std::strerror(error)));
+      return 1;
+    }
   }
   falcon::ForceEnvelope at_centre;
   (void)falcon::force_envelope_at(falcon::FalconGeometry{}, centre, scale, at_centre);
@@ -191,7 +201,15 @@ void add_falcon(CLI::App& app) {
   env->add_option("--csv", envelope->csv, "Write the grid: scene x,y,z [m], then the force [N] along x, y, z and "
                                           "in every direction (empty where the kinematics do not reach)");
   env->add_option("--step", envelope->step_mm, "Grid step [mm]")->check(number_in(1.0, 20.0))->capture_default_str();
-  env->callback([envelope] { set_exit_code(run_envelope(*envelope)); });
+  env->callback([envelope] {
+    // Refused before anything is opened: fopen("w") would empty the calibration it reads.
+    if (const std::string input = input_overwritten_by(envelope->csv, {envelope->calibration}); !input.empty()) {
+      print_error(fmt::format("--csv {} is the --calibration file {}: it would be overwritten; choose another file",
+                              envelope->csv, input));
+      return set_exit_code(2);
+    }
+    set_exit_code(run_envelope(*envelope));
+  });
 
   CLI::App* udev = falcon->add_subcommand(
       "udev-rule", fmt::format("Print the udev rule ({}) that lets group plugdev open the Falcon", kFalconUdevRuleName));

@@ -2,6 +2,9 @@
 // registers itself here; this file only parses and dispatches.
 #include <csignal>
 #include <cstdio>
+#include <exception>
+#include <new>
+#include <system_error>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -12,6 +15,9 @@ int main(int argc, char** argv) {
   // A reader that went away (`toonforce ... --trace - | head`) is a write error every writer
   // reports, never a death: the servo loop must end by its own shut-down, not by SIGPIPE.
   std::signal(SIGPIPE, SIG_IGN);
+  // A file-size limit (`ulimit -f`) is a write error (EFBIG) the writers report as a full disk,
+  // never a death with an empty statistics file (a SIGXFSZ sent with kill is a stop in the loop).
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"toonforce: expressive, cartoon-inspired haptic rendering (Haptics Symposium 2010)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
@@ -36,6 +42,24 @@ int main(int argc, char** argv) {
     // A bad command line (unknown flag, missing or out-of-range value) is "cannot start": 2
     // (interfaces.md), not CLI11's own codes (105, 106, 109, ...); --help and --version are 0.
     code = app.exit(e) == 0 ? 0 : 2;
+  } catch (const std::bad_alloc&) {
+    // Too little memory (`ulimit -v`): cannot start (interfaces.md, exits.md), said in one line.
+    std::fputs("toonforce: out of memory (is `ulimit -v` too small?)\n", stderr);
+    code = 2;
+  } catch (const std::system_error& e) {
+    if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory) {
+      // A thread or a mapping refused (`ulimit -v`): cannot start, as above.
+      std::fprintf(stderr, "toonforce: %s (too little memory: is `ulimit -v` too small?)\n", e.what());
+      code = 2;
+    } else {
+      // A message that could not be written (standard error a closed pipe, a full disk): the
+      // run itself ended as it would have; what could not be said is a failed status (exits.md).
+      std::fprintf(stderr, "toonforce: %s\n", e.what());
+      code = 1;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "toonforce: %s\n", e.what());
+    code = 1;
   }
   // What went to standard output must have arrived (`falcon udev-rule > /dev/full`).
   if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0) {

@@ -1,13 +1,17 @@
 // Numeric option checks shared by every subcommand (commands.hpp says why they replace CLI11's).
+#include <sys/stat.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <limits>
 #include <string>
 
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/sim/sim_run.hpp"
 
 namespace toonforce::cli {
 
@@ -48,6 +52,41 @@ CLI::Validator non_negative_number() {
         return check_number(text, 0.0, std::numeric_limits<double>::max(), "a number >= 0");
       },
       "NON-NEGATIVE");
+}
+
+CLI::Validator max_output_range() {
+  return CLI::Validator(
+      [](std::string& text) {
+        // AsSizeValue has turned "500M" into bytes; a sign or a value past 4 EiB is refused.
+        if (text.find('-') != std::string::npos) return fmt::format("{} is negative (bytes, 0 .. 4E)", text);
+        return check_number(text, 0.0, 4.0 * 1152921504606846976.0, "0 .. 4E bytes");
+      },
+      "SIZE");
+}
+
+std::string hand_script_length_problem(const std::string& path, double length_s) {
+  if (!(length_s > kMaxSimDurationS)) return {};
+  return fmt::format("{}: the hand script lasts {:g} s, over the maximum of {:g} s simulated (one day)", path, length_s,
+                     kMaxSimDurationS);
+}
+
+std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs) {
+  if (output.empty() || output == "-") return {};
+  struct stat out {};
+  const bool exists = ::stat(output.c_str(), &out) == 0;
+  std::error_code ec;
+  const std::filesystem::path out_name = std::filesystem::weakly_canonical(output, ec);
+  for (const std::string& input : inputs) {
+    if (input.empty() || input == "-") continue;
+    struct stat in {};
+    if (exists) {
+      if (::stat(input.c_str(), &in) == 0 && in.st_dev == out.st_dev && in.st_ino == out.st_ino) return input;
+    } else {
+      std::error_code in_ec;
+      if (!ec && std::filesystem::weakly_canonical(input, in_ec) == out_name && !in_ec) return input;
+    }
+  }
+  return {};
 }
 
 }  // namespace toonforce::cli

@@ -1,4 +1,5 @@
 // toonforce replay --scene S.toml --input motion.csv --output forces.csv [--scalar ...] [--sine ...]
+#include <atomic>
 #include <cctype>
 #include <cstdio>
 #include <map>
@@ -7,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/replay/replay.hpp"
 
 namespace toonforce::cli {
@@ -41,16 +43,29 @@ void add_replay(CLI::App& app) {
     };
     options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);
     if (!sine->empty()) options->sine = parse_sine_method(lower(*sine));
+    // Every stop signal ends the replay after its row under way: the output ends on a whole
+    // row, the summary says how far it got, exit status 1 (docs/spec/exits.md).
+    std::atomic<int> stop{0};
+    options->stop = &stop;
+    install_signal_handlers(stop, EmergencyZero{});
     const auto summary = run_replay(*options);
+    restore_signals();
     if (!summary) {
       std::fputs(summary.error().c_str(), stderr);
       if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
       set_exit_code(1);
       return;
     }
+    if (!summary->input_note.empty()) fmt::print(stderr, "warning: {}\n", summary->input_note);
     if (!*quiet) std::fputs(format_summary(summary.value(), *options).c_str(), options->output_path == "-" ? stderr : stdout);
     if (!summary->output_error.empty()) {
       fmt::print(stderr, "toonforce: the output is incomplete: {}\n", summary->output_error);
+      set_exit_code(1);
+      return;
+    }
+    if (summary->stop_signal != 0) {
+      fmt::print(stderr, "toonforce: stopped by {} after {} of {} rows: {} ends on the last whole one\n",
+                 signal_name(summary->stop_signal), summary->rows_done, summary->rows, options->output_path);
       set_exit_code(1);
       return;
     }

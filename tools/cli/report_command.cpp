@@ -2,8 +2,10 @@
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
 // plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when
 // the Cortex-M3 images are built (mcu.hpp).
+#include <cmath>
 #include <cstdio>
 #include <memory>
+#include <string>
 
 #include <fmt/format.h>
 
@@ -22,6 +24,29 @@ namespace {
 
 void progress(const std::string& line) { std::fprintf(stderr, "report: %s\n", line.c_str()); }
 
+constexpr double kMaxTicks = 1e10;      // about an hour of timing at a few ns per tick
+constexpr double kMaxDriftHours = 100;  // simulated hours per scene; 1e308 never ended
+constexpr double kMaxCpu = 1023;        // CPU_SETSIZE - 1
+
+/// What run_precision would refuse about the rates, said before anything runs; "" if nothing.
+std::string rates_ladder_error(const report::PrecisionOptions& o) {
+  if (o.reference_rates_hz.empty()) return "--reference-rates: none given";
+  const double reference = o.reference_rates_hz.back();
+  for (const double rate : o.rates_hz) {
+    const double ratio = reference / rate;
+    if (std::abs(ratio - std::round(ratio)) > 1e-9) {
+      return fmt::format("--rates {:g}: does not divide the reference rate {:g} Hz (the last of --reference-rates)",
+                         rate, reference);
+    }
+  }
+  for (std::size_t i = 1; i < o.reference_rates_hz.size(); ++i) {
+    if (o.reference_rates_hz[i] != 2.0 * o.reference_rates_hz[i - 1]) {
+      return "--reference-rates: each must be twice the one before";
+    }
+  }
+  return {};
+}
+
 template <class T>
 bool report_error(const Result<T>& r) {
   if (r) return false;
@@ -36,11 +61,15 @@ void add_latency(CLI::App& report) {
   CLI::App* cmd = report.add_subcommand(
       "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
   cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
-  cmd->add_option("--ticks", options->ticks, "Timed ticks per row (default 10^7)")->check(positive_number());
+  // Every numeric option's range is checked here, before anything runs (issue 27: 2^64-1 cold
+  // ticks ran without end, 1e308 seconds aborted in llround).
+  cmd->add_option("--ticks", options->ticks, "Timed ticks per row, 1..1e10 (default 10^7)")
+      ->check(number_in(1, kMaxTicks));
   cmd->add_option("--cold-ticks", options->cold_ticks,
-                  "Ticks per scene and loop row timed with the data caches cold (default 1000; 0: none)");
+                  "Ticks per scene and loop row timed with the data caches cold, 0..1e6 (default 1000; 0: none)")
+      ->check(number_in(0, 1e6));
   cmd->add_option("--filter", options->filter, "Only rows whose id contains one of these comma-separated texts");
-  cmd->add_option("--cpu", options->cpu, "Pin the timing thread to this CPU");
+  cmd->add_option("--cpu", options->cpu, "Pin the timing thread to this CPU")->check(number_in(0, kMaxCpu));
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions (no valgrind run)");
   cmd->add_option("--valgrind", options->valgrind, "The valgrind to run (default: valgrind from PATH)");
   cmd->add_option("--tick-count", options->tick_count, "toonforce_tick_count (default: beside this executable)");
@@ -80,17 +109,19 @@ void add_precision(CLI::App& report) {
       "lateness, ns per tick; closed-loop drift over simulated hours");
   auto docs = std::make_shared<std::string>();
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
-  cmd->add_option("--rates", options->rates_hz, "Servo rates to compare [Hz] (default 500 1000 4000 10000)");
-  cmd->add_option("--ticks", options->timing_ticks, "Timed ticks per configuration (default 10^6)")
-      ->check(positive_number());
+  cmd->add_option("--rates", options->rates_hz, "Servo rates to compare [Hz], 10..1e6 (default 500 1000 4000 10000)")
+      ->check(number_in(10, 1e6));
+  cmd->add_option("--ticks", options->timing_ticks, "Timed ticks per configuration, 1..1e10 (default 10^6)")
+      ->check(number_in(1, kMaxTicks));
   cmd->add_option("--reference-rates", options->reference_rates_hz,
-                  "The double reference's ladder, each twice the last; the last is the reference [Hz] "
-                  "(default 40000 80000 160000 320000)");
+                  "The double reference's ladder, each twice the last; the last is the reference [Hz], 10..1e7 "
+                  "(default 40000 80000 160000 320000)")
+      ->check(number_in(10, 1e7));
   cmd->add_option("--drift-hours", options->drift_hours,
-                  "Simulated hours of closed loop per scene in the drift run (default 1; 0: none)")
-      ->check(non_negative_number());
-  cmd->add_option("--drift-rate", options->drift_rate_hz, "Servo rate of the drift run [Hz] (default 1000)")
-      ->check(positive_number());
+                  "Simulated hours of closed loop per scene in the drift run, 0..100 (default 1; 0: none)")
+      ->check(number_in(0, kMaxDriftHours));
+  cmd->add_option("--drift-rate", options->drift_rate_hz, "Servo rate of the drift run [Hz], 100..100000 (default 1000)")
+      ->check(number_in(100, 100000));
   cmd->add_option("--drift-seed", options->drift_seed, "Seed of the drift run's hand motion (default 15)");
   cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
   cmd->add_option("--docs", *docs,
@@ -103,6 +134,12 @@ void add_precision(CLI::App& report) {
                   "The Cortex-M3 images whose loop tick gives the closed loop's M3 column (default: report mcu's; "
                   "not built: the column says so)");
   cmd->callback([options, docs, no_plot, mcu_images, cmd] {
+    // The rates' ladder is checked before the slow parts (the Cortex-M3 run): a wrong one is a
+    // bad command line, exit status 2, not a failure after minutes.
+    if (const std::string bad = rates_ladder_error(*options); !bad.empty()) {
+      std::fprintf(stderr, "%s\n", bad.c_str());
+      return set_exit_code(2);
+    }
     options->root = report::source_root(options->root);
     // The closed loop's second target: the Cortex-M3's loop tick, when its images are built
     // (seconds under QEMU); else the column says "not built".
@@ -153,11 +190,11 @@ void add_stability(CLI::App& report) {
       "Sweeps of stiffness, damping, slippery gain, period and impact speed, classified by the loop's eigenvalues "
       "and by energy");
   cmd->add_option("--resolution", options->resolution, "Points per axis (default 24)")->check(number_in(2, 200));
-  cmd->add_option("--duration", options->duration_s, "Simulated seconds per point (default 4)")
-      ->check(positive_number());
+  cmd->add_option("--duration", options->duration_s, "Simulated seconds per point, 0.01..1000 (default 4)")
+      ->check(number_in(0.01, 1000));
   cmd->add_option("--longest-run", options->longest_run_s,
-                  "Longest run [s] of a linear-map point whose eigenvalue predicts growth (default 300)")
-      ->check(positive_number());
+                  "Longest run [s] of a linear-map point whose eigenvalue predicts growth, 1..3600 (default 300)")
+      ->check(number_in(1, 3600));
   cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
   cmd->add_option("--out", *out, "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not PERFORMANCE.md)");
   cmd->add_flag("--no-plot", *no_plot, "With --out: the CSVs and STABILITY.md without plots");
@@ -234,14 +271,14 @@ void add_all(CLI::App& report) {
       "all", "Run every report; regenerate OUT/PERFORMANCE.md (its generated part), OUT/STABILITY.md, OUT/report/");
   cmd->add_option("--out", options->out_dir, "Directory of the documents (default docs)");
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
-  cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row (default 10^7)")
-      ->check(positive_number());
+  cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row, 1..1e10 (default 10^7)")
+      ->check(number_in(1, kMaxTicks));
   cmd->add_option("--drift-hours", options->precision.drift_hours,
-                  "Simulated hours of closed loop per scene in the drift run (default 1)")
-      ->check(non_negative_number());
+                  "Simulated hours of closed loop per scene in the drift run, 0..100 (default 1)")
+      ->check(number_in(0, kMaxDriftHours));
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
       ->check(number_in(2, 200));
-  cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU");
+  cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU")->check(number_in(0, kMaxCpu));
   cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks (100 cold), 0.01 simulated hours of drift, 1 s of closed loop, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");

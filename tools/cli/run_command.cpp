@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
@@ -78,8 +79,9 @@ void add_run(CLI::App& app) {
   cmd->add_option("--trace", options->trace_path, "Trace CSV to write (t,x,y,z,vx,vy,vz,fx,fy,fz, then the rest)");
   cmd->add_option("--max-output", options->max_output_bytes,
                   "Largest trace to write, e.g. 500M or 4G (0: no limit; default 1G); past it the trace stops "
-                  "with a warning, the run goes on")
-      ->transform(CLI::AsSizeValue(false));
+                  "with a warning, the run goes on; at most 4E")
+      ->transform(CLI::AsSizeValue(false))
+      ->check(max_output_range());
   cmd->add_option("--stats-json", options->stats_json_path, "Timing statistics and counts as JSON");
   cmd->add_option("--cpu", options->cpu, "Pin the servo thread to this CPU")->check(non_negative_number());
   cmd->add_option("--priority", options->priority, "SCHED_FIFO priority of the servo thread (1..98)")
@@ -126,6 +128,9 @@ void add_run(CLI::App& app) {
     std::unique_ptr<viewer::SceneControl> live_control;
     std::unique_ptr<viewer::ViewerServer> server;
     if (view->wanted()) {
+      // From here to the end, every stop signal takes one path (issue 27): the viewer's flag
+      // before and after the loop, the loop's own handlers (which put these back) while it runs.
+      install_view_signals();
       auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       viewer::HelloInfo hello;
       hello.source = "run";
@@ -180,19 +185,37 @@ void add_run(CLI::App& app) {
       }
       if (*control_wait) {
         // Before the device opens: a session that never gets its client commands no force at all.
-        install_view_signals();
         fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
         std::fflush(stderr);
-        const bool connected = server->wait_for_control(view_stop());
-        restore_view_signals();
+        const bool connected = view_stop().load() == 0 && server->wait_for_control(view_stop());
         if (!connected) {
-          fmt::print(stderr, "control: no control client came; the loop did not start\n");
+          const int signo = view_stop().load();
+          fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
+                     signo != 0 ? " (stopped by " + signal_name(signo) + ")" : std::string());
           set_exit_code(2);  // could not start (interfaces.md: exit status)
           return;
         }
       }
     }
 #endif
+#if TOONFORCE_VIEWER
+    if (view->wanted() && view_stop().load() != 0) {  // stopped while the viewer was starting
+      fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(view_stop().load()));
+      set_exit_code(2);  // could not start (exits.md)
+      return;
+    }
+#endif
+    // The hand script's length by check's rule (one shared check: check refused what run took).
+    if (options->device == "sim" && !options->hand_script_path.empty()) {
+      if (auto script = load_hand_script(options->hand_script_path)) {
+        if (std::string bad = hand_script_length_problem(options->hand_script_path, script->intent.duration_s());
+            !bad.empty()) {
+          fmt::print(stderr, "{}\n", bad);
+          set_exit_code(2);
+          return;
+        }
+      }  // a script that does not load: run_servo says why
+    }
     // The statistics file is opened (created) before the loop starts: a path that cannot be
     // written is a reason not to start, not a surprise after the session.
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> stats_file(nullptr, &std::fclose);

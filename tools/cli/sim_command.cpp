@@ -36,8 +36,9 @@ void add_sim(CLI::App& app) {
   cmd->add_option("--trace", options->trace_path, "Trace CSV to write ('-' for standard output)")->required();
   cmd->add_option("--max-output", options->max_output_bytes,
                   "Largest trace to write, e.g. 500M or 4G (0: no limit; default 1G); past it the trace stops "
-                  "with a warning, the run goes on")
-      ->transform(CLI::AsSizeValue(false));
+                  "with a warning, the run goes on; at most 4E")
+      ->transform(CLI::AsSizeValue(false))
+      ->check(max_output_range());
   cmd->add_option("--plot", options->plot_path, "Also plot the trace (.png or .svg; python3-matplotlib)");
   cmd->add_option("--plot-kind", options->plot_kind, "Plot layout: auto, stroke, wall, cliff or overview")
       ->check(CLI::IsMember({"auto", "stroke", "wall", "cliff", "overview"}));

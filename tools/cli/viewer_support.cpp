@@ -3,6 +3,7 @@
 #include "commands.hpp"
 
 #include <signal.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <concepts>
@@ -10,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -17,11 +19,21 @@ namespace toonforce::cli {
 
 namespace {
 std::atomic<int> g_view_stop{0};
-struct sigaction g_old_int {};
-struct sigaction g_old_term {};
+// Every stop signal, not SIGINT and SIGTERM alone (issue 27: SIGHUP, SIGQUIT, SIGUSR1, ...
+// ended a `run --control-wait` by their default action): the same stop path as the loop's.
+std::vector<struct sigaction> g_old_actions;
 bool g_installed = false;
 
-extern "C" void on_view_signal(int signal) { g_view_stop.store(signal); }
+extern "C" void on_view_signal(int signal, siginfo_t* info, void* /*context*/) {
+  // The kernel's SIGXFSZ (a file-size limit) is a write error the writer reports, not a stop;
+  // one sent with kill() is a stop like the loop's (realtime_runner.cpp).
+  // (The kernel sends it as if the process had: SI_USER with the process's own pid.)
+  if (signal == SIGXFSZ && info != nullptr &&
+      ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid())) {
+    return;
+  }
+  g_view_stop.store(signal);
+}
 }  // namespace
 
 void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
@@ -123,19 +135,23 @@ Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::strin
 std::atomic<int>& view_stop() { return g_view_stop; }
 
 void install_view_signals() {
+  if (g_installed) return;
   g_view_stop.store(0);
   struct sigaction action {};
-  action.sa_handler = on_view_signal;
+  action.sa_sigaction = on_view_signal;
+  // Restarted: a message or a statistics file being written when the signal comes completes.
+  action.sa_flags = SA_SIGINFO | SA_RESTART;
   sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, &g_old_int);
-  sigaction(SIGTERM, &action, &g_old_term);
+  const auto signals = stop_signals();
+  g_old_actions.resize(signals.size());
+  for (std::size_t i = 0; i < signals.size(); ++i) sigaction(signals[i], &action, &g_old_actions[i]);
   g_installed = true;
 }
 
 void restore_view_signals() {
   if (!g_installed) return;
-  sigaction(SIGINT, &g_old_int, nullptr);
-  sigaction(SIGTERM, &g_old_term, nullptr);
+  const auto signals = stop_signals();
+  for (std::size_t i = 0; i < signals.size(); ++i) sigaction(signals[i], &g_old_actions[i], nullptr);
   g_installed = false;
 }
 

@@ -49,12 +49,12 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
 Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
                                                                 LiveMailboxes& live);
 
-/// Set by SIGINT/SIGTERM once install_view_signals() ran.
+/// Set by any stop signal (stop_signals()) once install_view_signals() ran.
 std::atomic<int>& view_stop();
 void install_view_signals();
 void restore_view_signals();
 
-/// Keeps serving (the page has the whole recording) until Ctrl-C or SIGTERM.
+/// Keeps serving (the page has the whole recording) until Ctrl-C or another stop signal.
 void serve_until_stopped(const viewer::ViewerServer& server, const char* what);
 
 }  // namespace toonforce::cli

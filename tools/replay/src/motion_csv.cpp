@@ -1,5 +1,6 @@
 #include "toonforce/replay/motion_csv.hpp"
 
+#include "toonforce/config/toml_reader.hpp"
 #include "toonforce/effects/tick.hpp"
 
 #include <algorithm>
@@ -52,7 +53,23 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
   constexpr std::array<std::string_view, 7> kNames = {"t", "x", "y", "z", "vx", "vy", "vz"};
   std::array<std::optional<std::size_t>, 7> column{};  // index of each known column
   Motion motion;
-  std::istringstream in(text);
+  // Every writer ends each row with a newline: a last row without one may be cut mid-number
+  // ("0.00" of "0.0042"), so it is left out and named rather than read as data.
+  std::string_view whole = text;
+  std::size_t cut_line = 0;
+  if (!whole.empty() && whole.back() != '\n') {
+    const std::size_t last_nl = whole.rfind('\n');
+    if (last_nl != std::string_view::npos) {
+      cut_line = static_cast<std::size_t>(std::count(whole.begin(), whole.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) + 2;
+      whole = whole.substr(0, last_nl + 1);
+    }
+  }
+  if (cut_line != 0) {
+    motion.note = fmt::format("{}:{}: the last row has no end of line (cut: a full disk or a killed writer?); it is "
+                              "left out",
+                              source_name, cut_line);
+  }
+  std::istringstream in{std::string(whole)};
   std::string raw;
   std::size_t line_number = 0;
   std::size_t field_count = 0;
@@ -80,7 +97,7 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
           continue;
         }
         auto& slot = column[static_cast<std::size_t>(known - kNames.begin())];
-        if (slot) return fail(fmt::format("column '{}' appears twice in the header", fields[i]));
+        if (slot) return fail(fmt::format("column '{}' appears twice in the header", printable(fields[i])));
         slot = i;
       }
       for (std::size_t k = 0; k < 4; ++k) {
@@ -100,7 +117,7 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
     for (std::size_t k = 0; k < 7; ++k) {
       if (!column[k]) continue;
       const auto value = parse_double(fields[*column[k]]);
-      if (!value) return fail(fmt::format("column '{}': '{}' is not a number", kNames[k], fields[*column[k]]));
+      if (!value) return fail(fmt::format("column '{}': '{}' is not a number", kNames[k], printable(fields[*column[k]])));
       values[k] = *value;
     }
     if (!std::isfinite(values[0])) return fail(fmt::format("t must be finite (got {})", values[0]));

@@ -1,5 +1,7 @@
 #include "toonforce/replay/replay.hpp"
 
+#include "toonforce/config/toml_reader.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cerrno>
@@ -81,6 +83,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   summary.duration_s = motion.rows.back().t_s - motion.rows.front().t_s;
   summary.given_velocity = motion.has_velocity;
   summary.ignored_columns = motion.ignored_columns;
+  summary.input_note = motion.note;
   {
     std::vector<double> dts;
     for (std::size_t i = 1; i < motion.rows.size(); ++i) dts.push_back(motion.rows[i].t_s - motion.rows[i - 1].t_s);
@@ -106,6 +109,10 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   std::vector<double> values(names.size());
   std::vector<double> previous_cliff(columns.cliff_states.size(), 0.0);
   for (; row < motion.rows.size(); ++row) {
+    if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed) != 0) {
+      summary.stop_signal = options.stop->load();
+      break;
+    }
     const MotionRow& r = motion.rows[row];
     const TickStatus status = loop.tick(Instant{static_cast<std::int64_t>(row), r.t_ns});
     const Vec3<double> f = to_double(loop.force());
@@ -140,6 +147,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     if (status.faults) ++summary.fault_ticks;
     summary.fault_bits |= status.faults.bits();
   }
+  summary.rows_done = row;
   if (summary.output_error.empty() && std::fflush(out) != 0) w.fail();
   return summary;
 }
@@ -204,7 +212,10 @@ std::string format_summary(const ReplaySummary& s, const ReplayOptions& options)
                       s.rows, s.duration_s, s.median_rate_hz, s.given_velocity ? "given" : "estimated");
   if (!s.ignored_columns.empty()) {
     std::string names;
-    for (const auto& c : s.ignored_columns) names += (names.empty() ? "" : ",") + c;
+    for (const auto& c : s.ignored_columns) {
+      if (!names.empty()) names += ',';
+      names += printable(c);  // a header's text, escaped and cut like a scene's
+    }
     text += fmt::format("note    ignored input columns: {}\n", names);
   }
   text += fmt::format("forces  peak {:.4g} N at t = {:.6g} s (scene peak before safety {:.4g} N); in contact {} ticks\n",

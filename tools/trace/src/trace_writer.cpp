@@ -1,5 +1,8 @@
 #include "toonforce/trace/trace_writer.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -36,6 +39,9 @@ char* put_value(char* out, double x) noexcept {
 Result<std::unique_ptr<TraceWriter>> TraceWriter::open(const std::string& path, std::vector<std::string> extra_columns) {
   std::FILE* file = path == "-" ? stdout : std::fopen(path.c_str(), "wb");
   if (file == nullptr) return Error{fmt::format("{}: cannot open the trace for writing: {}", path, std::strerror(errno))};
+  // Unbuffered: the writer's own buffer holds whole rows, so a failed write leaves nothing in
+  // stdio for fclose to try again, and the file can be cut back to its last whole row.
+  if (file != stdout) std::setvbuf(file, nullptr, _IONBF, 0);
   std::unique_ptr<TraceWriter> writer(new TraceWriter(file, path, std::move(extra_columns)));
   if (!writer->flush()) return Error{fmt::format("{}: cannot write the trace header", path)};
   return writer;
@@ -66,8 +72,8 @@ void TraceWriter::append(std::string_view text) {
   if (text.size() > kCapacity) {  // a header longer than the buffer: straight through
     if (to_memory_) {
       memory_.append(text);
-    } else if (file_ != nullptr && std::fwrite(text.data(), 1, text.size(), file_) != text.size()) {
-      failed_ = true;
+    } else if (file_ != nullptr) {
+      put_out(text.data(), text.size());
     }
     return;
   }
@@ -126,14 +132,34 @@ char* TraceWriter::put(char* out, std::size_t column, double x) noexcept {
   return end;
 }
 
+bool TraceWriter::put_out(const char* data, std::size_t size) {
+  // After a failed write (the stream's error flag), not one byte more to that file. (failed_
+  // may also mean a row that did not match the header: the rows before it still go out.)
+  if (std::ferror(file_) != 0) return false;
+  if (std::fwrite(data, 1, size, file_) == size && std::fflush(file_) == 0) {
+    committed_ += size;
+    return true;
+  }
+  failed_ = true;
+  const int error = errno;  // what the caller reports (ENOSPC, EFBIG, EPIPE, ...)
+  // A regular file ends on its last whole row, not on the part of one the disk took.
+  struct stat st {};
+  if (file_ != stdout && fstat(fileno(file_), &st) == 0 && S_ISREG(st.st_mode)) {
+    static_cast<void>(ftruncate(fileno(file_), static_cast<off_t>(committed_)));
+  }
+  errno = error;
+  return false;
+}
+
 bool TraceWriter::flush() {
   if (to_memory_) {
     memory_.append(buffer_.get(), used_);
   } else if (file_ != nullptr && used_ > 0) {
-    if (std::fwrite(buffer_.get(), 1, used_, file_) != used_) failed_ = true;
+    put_out(buffer_.get(), used_);
+  } else if (file_ != nullptr && std::ferror(file_) == 0 && std::fflush(file_) != 0) {
+    failed_ = true;
   }
   used_ = 0;
-  if (file_ != nullptr && std::fflush(file_) != 0) failed_ = true;
   return !failed_;
 }
 

@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/config/toml_reader.hpp"
 #include "toonforce/trace/trace_writer.hpp"
 
 namespace toonforce::viewer {
@@ -45,6 +46,9 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
   // Every writer ends each row with a newline: a last row without one was cut (a SIGKILLed run,
   // a full disk). Leave it out and say so, rather than refuse the whole trace.
   std::size_t cut_line = 0;
+  // A UTF-8 byte order mark (a spreadsheet's "CSV UTF-8") before the header is read past, as the
+  // motion reader does: it made the first column an invisible "\xEF\xBB\xBFt".
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
   if (!text.empty() && text.back() != '\n') {
     const std::size_t last_nl = text.rfind('\n');
     if (last_nl != std::string_view::npos) {
@@ -69,7 +73,7 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
         if (i >= header.size() || header[i] != kTraceCoreColumns[i]) {
           return Error{fmt::format("{}:{}: not a toonforce trace: the header must start with "
                                    "t,x,y,z,vx,vy,vz,fx,fy,fz (column {} is '{}')",
-                                   name, line_no, i + 1, i < header.size() ? header[i] : "")};
+                                   name, line_no, i + 1, i < header.size() ? printable(header[i]) : "")};
         }
       }
       for (const std::string& h : header) {
@@ -104,7 +108,10 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
       double value = 0.0;
       const std::string_view field = line.substr(start, comma - start);
       if (!parse_number(field, value)) {
-        return Error{fmt::format("{}:{}: column '{}': '{}' is not a number", name, line_no, header[column], trim(field))};
+        // Quoted through printable(): a field's escape sequences must not drive the terminal, nor
+        // a 20 MB field make a 20 MB line.
+        return Error{fmt::format("{}:{}: column '{}': '{}' is not a number", name, line_no, printable(header[column]),
+                                 printable(trim(field)))};
       }
       if (map[column] < kViewStride) frame[map[column]] = value;
       if (comma == std::string_view::npos) break;

@@ -106,7 +106,9 @@ std::string realtime_permission_advice(int priority);
 /// `emergency` and exits at once. SIGPIPE is ignored (a closed pipe is a write error). Fatal
 /// signals (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSYS, SIGTRAP) call `emergency` (best
 /// effort: it should be a single device write), then re-raise with the default action.
-/// `restore_signals()` puts the default handlers back.
+/// A SIGXFSZ the kernel sends for a file-size limit is ignored (the write fails with EFBIG);
+/// one sent with kill() is a stop. `restore_signals()` puts back the stop signals' and
+/// SIGPIPE's earlier actions and the fatal signals' default ones.
 /// The handlers run on the thread's alternate signal stack (use_alternate_signal_stack()), so a
 /// stack overflow, itself a SIGSEGV, still commands zero force; this installs one for the calling
 /// thread, and every thread the runner and the session start installs its own.

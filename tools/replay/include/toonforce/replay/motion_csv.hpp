@@ -29,6 +29,9 @@ struct Motion {
   bool has_velocity = false;
   std::vector<MotionRow> rows;
   std::vector<std::string> ignored_columns;
+  /// Non-empty: a warning naming the file and line, e.g. of a last row without its end of line
+  /// (cut by a full disk or a killed writer), which is left out.
+  std::string note;
 };
 
 /// Reads and checks a whole motion file; errors name the file, the line and the column.

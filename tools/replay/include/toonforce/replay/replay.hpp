@@ -4,6 +4,7 @@
 /// estimate unless given, scene forces, safety stage) on the recorded motion, in the chosen
 /// scalar type.
 
+#include <atomic>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -20,6 +21,9 @@ struct ReplayOptions {
   std::string output_path;  ///< "-" writes to standard output
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;  ///< overrides the scene's sine method
+  /// Non-null and set (to a signal's number): stop after the row under way; the output ends on
+  /// that whole row (a stop signal, issue 27: replay left a cut 80 MB CSV).
+  const std::atomic<int>* stop = nullptr;
 };
 
 /// What a replay did, for the summary printed at the end.
@@ -45,6 +49,9 @@ struct ReplaySummary {
   /// Non-empty: writing the output failed (the message, said at once on standard error); the
   /// output stops there (nothing more is written) and the exit status is 1.
   std::string output_error;
+  std::string input_note;      ///< the motion reader's warning (a cut last row left out), if any
+  int stop_signal = 0;         ///< non-zero: `stop` ended the replay early
+  std::size_t rows_done = 0;   ///< rows replayed (and written, unless the output failed)
 };
 
 Result<ReplaySummary> run_replay(const ReplayOptions& options);

@@ -68,7 +68,9 @@ class TraceWriter {
   void limit_size(std::uint64_t max_bytes) noexcept { limit_bytes_ = max_bytes; }
   bool size_limit_reached() const noexcept { return limit_reached_; }
   std::uint64_t size_bytes() const noexcept { return size_bytes_; }  ///< header and rows written
-  /// Hands the buffered rows to the operating system; false if any write failed.
+  /// Hands the buffered rows to the operating system; false if any write failed. After a
+  /// failed write (a full disk, EFBIG under `ulimit -f`) nothing more is written to the file,
+  /// and a regular file is cut back to its last whole row.
   bool flush();
   /// Flushes and closes; false if any write failed. Called by the destructor if not before.
   bool close();
@@ -83,6 +85,7 @@ class TraceWriter {
  private:
   TraceWriter(std::FILE* file, std::string path, std::vector<std::string> extra_columns);
   void append(std::string_view text);
+  bool put_out(const char* data, std::size_t size);
   char* put(char* out, std::size_t column, double x) noexcept;
 
   /// A column's last value and its text: a value that repeats from one row to the next (a
@@ -105,6 +108,7 @@ class TraceWriter {
   bool to_memory_ = false;
   std::unique_ptr<char[]> buffer_;  ///< whole rows only, flushed before a row might not fit
   std::size_t used_ = 0;
+  std::uint64_t committed_ = 0;  ///< bytes the file holds for sure: whole rows (and the header)
   std::string memory_;
   std::vector<LastValue> last_;  ///< one per column
 };
