@@ -101,6 +101,15 @@ struct PrecisionRow {
   double median_ns = 0.0;
   std::uint64_t fault_ticks = 0;   ///< ticks with a fault (Q16.16 saturation) in the compared pass
   std::vector<EventTiming> events; ///< lateness per kind of event
+  /// Events this configuration saw on another tick than double (library sine) at the same rate:
+  /// what makes a "max vs double, same rate" figure large (issue 32 item 4).
+  struct EventShift {
+    EventKind kind = EventKind::kContactOnset;
+    double double_t_s = 0.0;     ///< when double saw it
+    double shift_s = 0.0;        ///< this configuration's time minus double's
+    Vec3<double> position_m;     ///< the scenario's position at this configuration's tick of it
+  };
+  std::vector<EventShift> same_rate_event_shifts;
 };
 
 /// One step of a scene's reference ladder: double at `rate_hz` against double at 2 x rate,
