@@ -1038,13 +1038,14 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       "The ladder alone does not bound its error at events: an event (a contact's end, a cliff's fall) is seen at the "
       "first tick at or after it, and at two rates of the ladder it can land alike by chance (realistic_friction's "
       "contact end did at 160 and 320 kHz: compare its last ladder row with its check row). So the "
-      "reference is also **checked** against a run at {:g} times its rate, {:g} Hz (last row of each scene, compared at "
+      "reference is also **checked** against a run at {:g} times its rate, {:g} kHz (last row of each scene, compared at "
       "the reference's ticks), and its error at the ticks near events is **bounded** from how far it can have moved "
       "an event: one of its ticks (or, if the check run shows a larger shift, that shift x {:g} / {:g}, first order), "
       "times the force's change over that many ticks on either side (the 2000 N/s rate limit caps it at 2000 N/s x "
-      "the shift).\n\n",
+      "the shift). Test Precision.TheStatedReferenceErrorBoundsItsDifferenceToAFinerRunAtEventsToo holds every "
+      "scene's stated error against a run 8 times finer than the reference.\n\n",
       fmt::join(r.options.reference_rates_hz, ", "), reference_rate, r.options.reference_check_factor,
-      reference_rate * r.options.reference_check_factor, r.options.reference_check_factor,
+      reference_rate * r.options.reference_check_factor / 1e3, r.options.reference_check_factor,
       r.options.reference_check_factor - 1.0);
   md += "| scene | rates | max diff [N] | RMS diff [N] | order (RMS) | away: max diff [N] | away: RMS diff [N] | away: "
         "order (RMS) | away: order (max) |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
