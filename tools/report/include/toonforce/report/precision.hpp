@@ -11,14 +11,17 @@
 ///     spec's stages in double with the library sine at 40, 80, 160 and 320 kHz (a convergence
 ///     ladder), velocity estimated from the positions as on a Falcon, two passes of the scenario
 ///     with only the second compared. The finest is the reference; its own error is the
-///     Richardson estimate from the last doubling and the observed order. Every compared rate
+///     Richardson estimate from the last doubling and the observed order, checked against a
+///     run at 5 times its rate and bounded at events from how far it can have moved one
+///     (issue 32: two rungs can see an event alike by chance). Every compared rate
 ///     divides it, so each of their ticks falls on a reference tick:
 ///       - sampled error: |F(t_k) - F_ref(t_k)| at the configuration's own ticks, every tick and
 ///         away from events (a window of 2 ticks before and 2 ticks plus the force-rate ramp
 ///         after each contact onset or end, impact trigger or cliff fall, and the whole of a
 ///         running impact transient): the step's own error apart from event timing;
-///       - held error: at every reference tick, the configuration's force held since its last
-///         tick (zero-order hold, what the device renders) against the reference's;
+///       - held error: the configuration's force held over its tick (zero-order hold, what the
+///         device renders) against the reference, linear between its ticks, integrated exactly
+///         (precision_reference.hpp held_difference);
 ///       - event lateness: each kind of event's time in the configuration minus the reference's.
 /// Cost: the mean and median ns of that configuration's loop tick (TSC, each tick alone).
 ///
