@@ -1308,7 +1308,7 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     md += "\n| scene | scalar | rate | force RMS error [N] | force max error [N] | position RMS error [m] | position max "
           "error [m] | ticks per run | loop tick: mean [ns] | median [ns] | p99 [ns] | runs' means, min..max [ns] | "
           "**loop CPU per simulated second [us]** | scripted pass: tick [ns] | scripted pass: CPU per simulated second "
-          "[us] | Cortex-M3: instructions per simulated second [10^6] (computed: 1 kHz mean per tick x rate) |\n"
+          "[us] (computed: its tick x rate) | Cortex-M3: instructions per simulated second [10^6] (computed: 1 kHz mean per tick x rate) |\n"
           "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& row : r.closed_loop) {
       if (!row.refused.empty()) {
