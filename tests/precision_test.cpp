@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <string_view>
 #include <string>
 
 #include "toonforce/config/scene_file.hpp"
@@ -82,8 +84,80 @@ TEST(Precision, TheWallsReferenceLadderConvergesAtSecondOrderAwayFromEvents) {
   }
   // Its own error is the Richardson estimate: the last difference / (2^p - 1).
   const auto& last = wall->steps.back();
-  EXPECT_NEAR(wall->reference_away_rms_error_n, last.away_rms_diff_n / (std::exp2(last.away_rms_order) - 1.0), 1e-15);
+  // Or, if larger, the check rung's difference scaled as convergence of that order.
+  const double richardson = last.away_rms_diff_n / (std::exp2(last.away_rms_order) - 1.0);
+  const double f = PrecisionOptions{}.reference_check_factor;
+  const double checked = wall->check.away_rms_diff_n * std::pow(f, last.away_rms_order) /
+                         (std::pow(f, last.away_rms_order) - 1.0);
+  EXPECT_NEAR(wall->reference_away_rms_error_n, std::max(richardson, checked), 1e-15);
   EXPECT_GT(wall->reference_away_rms_error_n, 0.0);
+}
+
+TEST(Precision, TheHeldErrorOfARampIsTheHoldsExactFirstOrderError) {
+  // Issue 32 item 2. A force ramp F = a t held over ticks of T is off by a s at s into a tick:
+  // RMS a T / sqrt(3) and max a T (at the tick's end), exactly, whatever the reference's rate.
+  // The reference here is the ramp at 32 times the rate (10 kHz against 320 kHz in the report);
+  // reading the error at each reference tick's left end only gave 0.977 of that RMS.
+  constexpr double kRateHz = 1000.0, kSlopeNPerS = 2.0;
+  constexpr std::size_t kStep = 32, kTicks = 2000;
+  std::vector<Vec3<double>> run(kTicks), reference(kTicks * kStep);
+  for (std::size_t k = 0; k < run.size(); ++k) run[k] = {kSlopeNPerS * static_cast<double>(k) / kRateHz, 0.0, 0.0};
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    reference[i] = {kSlopeNPerS * static_cast<double>(i) / (kRateHz * kStep), 0.0, 0.0};
+  }
+  // "Away" here: every other tick of the run, whole (its reference ticks).
+  const HeldDifference held = held_difference(run, reference, kStep, [](std::size_t i) { return i / kStep % 2 == 0; });
+  const double theory_rms = kSlopeNPerS / kRateHz / std::sqrt(3.0);
+  EXPECT_NEAR(held.rms_n / theory_rms, 1.0, 1e-4);
+  EXPECT_NEAR(held.away_rms_n / theory_rms, 1.0, 1e-4);
+  EXPECT_NEAR(held.max_n, kSlopeNPerS / kRateHz, 1e-12);
+}
+
+TEST(Precision, TheStatedReferenceErrorBoundsItsDifferenceToAFinerRunAtEventsToo) {
+  // Issue 32 item 1. The reference (the ladder's finest run) must be within its stated error of
+  // the truth at every tick, events included. The truth is taken as a run 8 times finer (not
+  // the report's own check rung of 5: an event lands differently on it). realistic_friction's
+  // contact end drops 0.27 N through the 2000 N/s rate limit, and at 160 and 320 kHz it landed
+  // alike, so the ladder's last difference (2.8e-5 N) was stated while the reference is off
+  // by about 5e-3 N there.
+  const double reference_rate = PrecisionOptions{}.reference_rates_hz.back();
+  for (const char* scene : {"realistic_friction", "wall", "slippery", "cartoon_wall", "cliff"}) {
+    PrecisionOptions o;
+    o.root = TOONFORCE_SOURCE_DIR;
+    o.filter = scene;
+    o.rates_hz = {1000.0};
+    o.timing_ticks = 100;
+    o.drift_hours = 0.0;
+    o.closed_loop_s = 0.0;
+    const auto r = run_precision(o);
+    ASSERT_TRUE(r) << r.error();
+    const SceneConvergence* c = nullptr;
+    for (const auto& conv : r->convergence) {
+      if (conv.scene == scene) c = &conv;
+    }
+    ASSERT_NE(c, nullptr) << scene;
+    const auto reference = scenario_forces(TOONFORCE_SOURCE_DIR, scene, reference_rate);
+    const auto finer = scenario_forces(TOONFORCE_SOURCE_DIR, scene, 8.0 * reference_rate);
+    ASSERT_TRUE(reference && finer);
+    const std::vector<Vec3<double>>& f_ref = reference.value();
+    const std::vector<Vec3<double>>& f_fine = finer.value();
+    ASSERT_EQ(f_fine.size(), 8U * f_ref.size());
+    double max_n = 0.0, sum = 0.0;
+    for (std::size_t i = 0; i < f_ref.size(); ++i) {
+      const double e = norm(f_ref[i] - f_fine[8 * i]);
+      max_n = std::max(max_n, e);
+      sum += e * e;
+    }
+    const double rms_n = std::sqrt(sum / static_cast<double>(f_ref.size()));
+    std::printf("%s: vs 8x: max %.3e RMS %.3e; stated max %.3e RMS %.3e\n", scene, max_n, rms_n,
+                c->reference_max_error_n, c->reference_rms_error_n);
+    EXPECT_LE(max_n, c->reference_max_error_n) << scene;
+    EXPECT_LE(rms_n, c->reference_rms_error_n) << scene;
+    if (std::string_view(scene) == "realistic_friction") {
+      // A bound, not a blanket: the contact end's error is there to be bounded.
+      EXPECT_LE(c->reference_max_error_n, 3.0 * max_n);
+    }
+  }
 }
 
 TEST(Precision, ContactAndImpactEventsAreSeenWithinOneTickOfTheReference) {

@@ -340,6 +340,29 @@ TEST(ReplayCommand, Q16RefusesRowsWhoseOneOverDtDoesNotFitNamingTheLine) {
   EXPECT_EQ(status, 0) << err;
 }
 
+TEST(ReplayCommand, Q16TakesAMotionRecordedAtTheHighestRateItAllowsDespiteWholeNanosecondStamps) {
+  // Issue 32 item 5: `sim` runs Q16.16 at 32767 Hz (the rule's limit, scene_file.hpp), a tick of
+  // 30518.51 ns. Replay rounds t to whole ns, which makes some gaps 30518 ns (32767.55 Hz): the
+  // rule is about the recording's rate, not that rounding, so the motion must be taken. One
+  // Hz faster (32768 Hz, gaps of 30517 ns) it is over the limit whatever the rounding did.
+  const fs::path dir = temp_dir();
+  const auto motion = [&](const std::string& name, double rate_hz) {
+    std::string text = "t,x,y,z\n";
+    for (int k = 0; k < 40; ++k) text += fmt::format("{},0,0,0.01\n", k / rate_hz);
+    write_file(dir / name, text);
+    return (dir / name).string();
+  };
+  const auto replay = [&](const std::string& input) {
+    return run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}' --scalar q16.16",
+                                  TOONFORCE_SOURCE_DIR, input, (dir / "o.csv").string()));
+  };
+  auto [status, err] = replay(motion("limit.csv", 32767.0));
+  EXPECT_EQ(status, 0) << err;
+  std::tie(status, err) = replay(motion("over.csv", 32768.0));
+  EXPECT_NE(status, 0);
+  EXPECT_NE(err.find("up to 32767 Hz"), std::string::npos) << err;
+}
+
 TEST(ReplayCommand, RejectsAnUnknownScalarType) {
   const auto [status, err] = run_binary("replay --scene a.toml --input b.csv --output c.csv --scalar half");
   EXPECT_NE(status, 0);

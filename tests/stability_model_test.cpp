@@ -256,6 +256,32 @@ TEST(StabilityModel, ColgateSchenkelsRequiredDampingIsTheBoundForASpringADamperA
   }
 }
 
+TEST(StabilityModel, TheDelayAwareBoundIsExactWithoutDelayOrWithoutWallDampingAndOnlyABoundWithBoth) {
+  // Issue 32 item 3: (1 + 2 d) K T / 2 + |B| is what passivity_bound.hpp, `check` and the maps
+  // use. Without delay the spring's need K T / 2 is the same at every theta, so it adds to the
+  // damper's wherever that peaks: exact. With delay the spring needs most at theta -> 0, as a
+  // negative damping (B <= 0, the slippery gain) does: exact again. A wall damping B > 0 needs
+  // most at Nyquist, where the delayed spring needs least: the sum overstates b_req (1.30
+  // against 1.70 N s/m at d = 1, K = 1000 N/m, B = 0.2 N s/m, T = 1 ms: docs/STABILITY.md).
+  for (const double k : {100.0, 1000.0, 1e4}) {
+    for (const int d : {0, 1, 2}) {
+      for (const double b_wall : {-3.0, -0.2, 0.0, 0.2, 3.0}) {
+        SampledLoop l;
+        l.delay_ticks = d;
+        l.stiffness_n_per_m = k;
+        l.velocity_feedback_n_s_per_m = -b_wall;
+        const double bound = damping_needed_n_s_per_m(k, 1e-3, d, b_wall);
+        const double b_req = required_damping_n_s_per_m(l);
+        if (d == 0 || b_wall <= 0.0) {
+          EXPECT_NEAR(b_req, bound, 1e-9 * bound) << "d " << d << ", K " << k << ", B " << b_wall;
+        } else {
+          EXPECT_LT(b_req, bound * (1.0 - 1e-3)) << "d " << d << ", K " << k << ", B " << b_wall;
+        }
+      }
+    }
+  }
+}
+
 TEST(StabilityModel, AClampedWallStoresItsForceIntegral) {
   // U(d) = integral of min(K s, F_max) ds.
   EXPECT_DOUBLE_EQ(wall_energy_j(1000.0, 0.004, 8.0), 0.5 * 1000.0 * 0.004 * 0.004);

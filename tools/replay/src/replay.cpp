@@ -180,12 +180,19 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   auto motion = read_motion_csv(options.input_path);
   if (!motion) return Error{motion.error()};
   // The rows' stamps are replay's rate: each 1/dt must pass the Q16.16 rate rule (a gap after a
-  // skipped row only lowers the rate the loop sees, hip_sensor.hpp).
+  // skipped row only lowers the rate the loop sees, hip_sensor.hpp). The rule applies to the
+  // recording's rate, not to the rounding of t to whole ns: each stamp moved by up to 0.5 ns, so
+  // a gap of n ns was recorded as at most n + 1 ns, and 1e9 / (n + 1) is the rate checked. A
+  // recording at exactly 32767 Hz (30518.5 ns) has gaps of 30518 ns: the loop then holds
+  // 1e9 / 30518 = 32767.55 Hz, still below Q16.16's largest value (32767.99998), and the rules
+  // for products keep a whole unit of headroom besides (scene_file.hpp kMaxProduct).
   for (std::size_t i = 1; i < motion->rows.size(); ++i) {
-    const double dt_s = static_cast<double>(motion->rows[i].t_ns - motion->rows[i - 1].t_ns) / 1e9;
-    if (const std::string bad = fixed_point::check_rate(1.0 / dt_s, options.scalar, scene.value()); !bad.empty()) {
-      return Error{fmt::format("{}:{}: t: {:g} s after the previous row, a servo rate of {}\n", options.input_path,
-                               motion->rows[i].line, dt_s, bad)};
+    const std::int64_t dt_ns = motion->rows[i].t_ns - motion->rows[i - 1].t_ns;
+    const double recorded_rate_hz = 1e9 / static_cast<double>(dt_ns + 1);
+    if (const std::string bad = fixed_point::check_rate(recorded_rate_hz, options.scalar, scene.value()); !bad.empty()) {
+      return Error{fmt::format("{}:{}: t: {} ns after the previous row (t rounded to whole ns, so at least {} ns "
+                               "as recorded), a servo rate of {}\n",
+                               options.input_path, motion->rows[i].line, dt_ns, dt_ns + 1, bad)};
     }
   }
 

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/control/passivity_bound.hpp"
 #include "toonforce/report/paths.hpp"
 #include "toonforce/report/process.hpp"
 
@@ -84,7 +85,26 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "with the delay d of each map's device: 0 for the ideal device of the first four maps, 1 for the Falcon-class "
         "device of the impact maps (its `io_delay_ticks`). The bound is about passivity (no energy ever given back "
         "beyond what came in, whatever the user does); it is sufficient for the stability of the loop with any "
-        "passive termination, not necessary: a given loop can be stable outside it (a heavier mass, a damped hand).\n\n"
+        "passive termination, not necessary: a given loop can be stable outside it (a heavier mass, a damped hand).\n\n";
+  {
+    // Where the delay-aware bound is exact and where it only bounds (issue 32 item 3): against
+    // Colgate and Schenkel's b_req of the same discrete law, computed here.
+    SampledLoop delayed_damped_wall;
+    delayed_damped_wall.delay_ticks = 1;
+    delayed_damped_wall.stiffness_n_per_m = 1000.0;
+    delayed_damped_wall.velocity_feedback_n_s_per_m = -0.2;  // a wall damping B = 0.2 N s/m
+    md += fmt::format(
+        "As a formula for the damping a law needs, (1 + 2 d) K T / 2 + |B| is **a sufficient bound, exact in part**: "
+        "it equals Colgate and Schenkel's b_req of the discrete law (below) without delay (d = 0) for any B, and with "
+        "delay when B <= 0 (a spring alone, or the slippery gain: both need most at theta -> 0, where the terms add); "
+        "with delay and a wall damping B > 0 it overstates b_req, because the spring's need is largest at low "
+        "frequency and the damper's at Nyquist: b_req = {:.2f} N s/m against the formula's {:.2f} at d = 1, K = 1000 "
+        "N/m, B = 0.2 N s/m, T = 1 ms (b_req computed by this report, as for the maps). No map here combines a delay "
+        "with B > 0 (the impact maps have d = 1 and B = 0), so every map's bound is exact; `toonforce check` uses the "
+        "formula as a bound, so its warnings can only err on the safe side there.\n\n",
+        required_damping_n_s_per_m(delayed_damped_wall), damping_needed_n_s_per_m(1000.0, 1e-3, 1, 0.2));
+  }
+  md += ""
         "Stability itself, for a linear loop, is decided by the eigenvalues of its transition matrix (Franklin, Powell "
         "and Workman, \"Digital Control of Dynamic Systems\", §4.3): with spectral radius rho (the largest "
         "|eigenvalue|) below 1 every disturbance decays; above 1 one grows as rho^k, its amplitude e-folding in T / ln "
@@ -131,7 +151,8 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "of these smooth curves lies: accurate to about 1e-12; tests/stability_model_test.cpp). That is a property of the port under every input; "
         "no closed-loop run here measures it (a run with a constant press force is one input among all those a user "
         "can apply), so a decaying run is only that. For the laws of these maps b_req is the drawn bound (the test "
-        "checks it), so each section's passivity count matches its bound count; it would part from it with a velocity "
+        "checks it), so each section's passivity count matches its bound count by construction (labelled so there: not "
+        "independent evidence); it would part from it with a velocity "
         "filter.\n\n"
         "**Passivity by port energy** (measured on the code, every point of the same maps, as an independent check of "
         "b_req's model): the handle is made a motion source driving the real servo loop (`ServoLoop` with the spec's "

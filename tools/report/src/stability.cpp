@@ -917,13 +917,20 @@ std::string spectral_markdown(const StabilityMap& map) {
     }
     passive[p.inside_bound ? 1 : 0][p.passivity_margin_n_s_per_m < 0.0 ? 1 : 0]++;
   }
+  // For these maps' laws b_req is the drawn bound (stability_model_test.cpp), so these counts
+  // repeat the bound's rows: say so, so they are not read as a second, independent verdict.
+  const bool as_the_bound = passive[1][0] == 0 && passive[0][1] == 0;
   md += fmt::format(
       "\nPassivity by Colgate and Schenkel's b_req of the discrete law (necessary and sufficient for the linear "
-      "port): inside the bound {} passive, {} not; outside it {} passive, {} not{}.\n",
+      "port): inside the bound {} passive, {} not; outside it {} passive, {} not{}.{}\n",
       passive[1][1], passive[1][0], passive[0][1], passive[0][0],
       on_the_bound == 0 ? std::string()
                         : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
-                                      kOnTheBoundNsPerM));
+                                      kOnTheBoundNsPerM),
+      as_the_bound ? " *True by construction*: for this map's law b_req is the drawn bound (a closed form, "
+                     "tests/stability_model_test.cpp), so these counts are the bound's rows again, not independent "
+                     "evidence; the measured check of passivity is the port energy below."
+                   : " These counts differ from the bound's rows: b_req and the drawn bound part here.");
   if (!map.points.empty() && map.points.front().has_port) md += port_markdown(map);
   // |rho - 1| within the eigenvalue routine's accuracy (about 1e-15; a margin of 1e-9): marginal,
   // on the stability boundary (the slippery map's b = mu exactly), whichever row it fell in.
@@ -937,8 +944,11 @@ std::string spectral_markdown(const StabilityMap& map) {
                       marginal, kMarginalRho);
   }
   md += fmt::format("\nInside the bound: {} points, {} of them with rho > 1{}.\n", inside, inside_unstable,
-                    inside_unstable == 0 ? " (the bound is sufficient for stability, as it must be)"
-                                         : " (the bound should imply rho < 1: a model or bound error)");
+                    inside_unstable == 0
+                        ? " (*true by construction*: a loop passive by the bound is stable with any passive "
+                          "termination, and the model obeys that theorem; a consistency check of the model, not "
+                          "evidence of stability beyond it)"
+                        : " (the bound should imply rho < 1: a model or bound error)");
   if (!unseen.empty()) {
     std::sort(unseen.begin(), unseen.end(),
               [](const SweepPoint* a, const SweepPoint* b) { return a->efold_s > b->efold_s; });

@@ -62,8 +62,8 @@ void check_wall(const Context& c, const std::string& who, double stiffness_n_per
   if (stiffness_n_per_m > held) {
     c.report.warnings.push_back(fmt::format(
         "{}: {} is over the passive bound even when held ({:.4g} N/m with a hand of {:g} N s/m: b + b_hand > "
-        "(1 + 2 d) K T / 2 + |B|, b = {:g} N s/m, d = {}, T = {:g} ms): it can buzz in a firm hand; lower the "
-        "stiffness or raise the rate",
+        "(1 + 2 d) K T / 2 + |B|, b = {:g} N s/m, d = {}, T = {:g} ms; a sufficient bound, which overstates the need "
+        "when d > 0 and B > 0): it can buzz in a firm hand; lower the stiffness or raise the rate",
         who, law, held, kHeldHandDampingNsPerM, c.device.damping_n_s_per_m, d, c.period_s * 1e3));
   } else if (stiffness_n_per_m > alone) {
     const std::string text = fmt::format(
@@ -109,7 +109,8 @@ PlausibilityReport check_plausibility(const SceneDescription& scene, const std::
       device.damping_n_s_per_m, device.io_delay_ticks));
   report.notes.push_back(fmt::format(
       "passive a wall is passive on this device alone up to K = 2 b / ((1 + 2 d) T) = {:.4g} N/m, and held by a hand "
-      "of {:g} N s/m up to {:.4g} N/m (Colgate and Brown 1994, with the delay of Diolaiti et al. 2006)",
+      "of {:g} N s/m up to {:.4g} N/m (Colgate and Brown 1994, with the delay of Diolaiti et al. 2006; a sufficient "
+      "bound, exact for a spring: with delay, a wall's damping B > 0 needs less than the |B| it adds)",
       c.stiffest_alone_n_per_m, kHeldHandDampingNsPerM,
       stiffest_passive_wall_n_per_m(device.damping_n_s_per_m + kHeldHandDampingNsPerM, period_s, device.io_delay_ticks)));
 

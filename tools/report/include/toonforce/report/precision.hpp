@@ -11,14 +11,17 @@
 ///     spec's stages in double with the library sine at 40, 80, 160 and 320 kHz (a convergence
 ///     ladder), velocity estimated from the positions as on a Falcon, two passes of the scenario
 ///     with only the second compared. The finest is the reference; its own error is the
-///     Richardson estimate from the last doubling and the observed order. Every compared rate
+///     Richardson estimate from the last doubling and the observed order, checked against a
+///     run at 5 times its rate and bounded at events from how far it can have moved one
+///     (issue 32: two rungs can see an event alike by chance). Every compared rate
 ///     divides it, so each of their ticks falls on a reference tick:
 ///       - sampled error: |F(t_k) - F_ref(t_k)| at the configuration's own ticks, every tick and
 ///         away from events (a window of 2 ticks before and 2 ticks plus the force-rate ramp
 ///         after each contact onset or end, impact trigger or cliff fall, and the whole of a
 ///         running impact transient): the step's own error apart from event timing;
-///       - held error: at every reference tick, the configuration's force held since its last
-///         tick (zero-order hold, what the device renders) against the reference's;
+///       - held error: the configuration's force held over its tick (zero-order hold, what the
+///         device renders) against the reference, linear between its ticks, integrated exactly
+///         (precision_reference.hpp held_difference);
 ///       - event lateness: each kind of event's time in the configuration minus the reference's.
 /// Cost: the mean and median ns of that configuration's loop tick (TSC, each tick alone).
 ///
@@ -52,6 +55,8 @@ struct PrecisionOptions {
   /// The double reference's convergence ladder, each twice the last; the last is the
   /// reference every configuration is compared with, and each rate above divides it.
   std::vector<double> reference_rates_hz{40000.0, 80000.0, 160000.0, 320000.0};
+  /// The reference's check rung: double at this multiple of the reference rate (0: none).
+  double reference_check_factor = 5.0;
   std::uint64_t timing_ticks = 1'000'000;  ///< timed ticks per configuration
   double drift_hours = 1.0;                ///< closed-loop simulated hours per scene; 0: no drift run
   double drift_rate_hz = 1000.0;
@@ -99,6 +104,15 @@ struct PrecisionRow {
   double median_ns = 0.0;
   std::uint64_t fault_ticks = 0;   ///< ticks with a fault (Q16.16 saturation) in the compared pass
   std::vector<EventTiming> events; ///< lateness per kind of event
+  /// Events this configuration saw on another tick than double (library sine) at the same rate:
+  /// what makes a "max vs double, same rate" figure large (issue 32 item 4).
+  struct EventShift {
+    EventKind kind = EventKind::kContactOnset;
+    double double_t_s = 0.0;     ///< when double saw it
+    double shift_s = 0.0;        ///< this configuration's time minus double's
+    Vec3<double> position_m;     ///< the scenario's position at this configuration's tick of it
+  };
+  std::vector<EventShift> same_rate_event_shifts;
 };
 
 /// One step of a scene's reference ladder: double at `rate_hz` against double at 2 x rate,
@@ -117,14 +131,37 @@ struct ConvergenceStep {
 struct SceneConvergence {
   std::string scene;
   std::vector<ConvergenceStep> steps;
-  /// The reference's own error (the last rate of the ladder), Richardson-estimated from the
-  /// last step and its observed order (away from events), and the raw last difference (every tick).
+  /// The check rung (issue 32 item 1): the reference against double at `check_rate_hz` (a
+  /// multiple of it, not a doubling: a rung that an event may land on differently than on the
+  /// ladder's), compared at the reference's ticks; orders NaN. check_rate_hz 0: none.
+  double check_rate_hz = 0.0;
+  ConvergenceStep check;
+  /// The largest |t_reference - t_check| of an event over the compared pass, and events of the
+  /// reference the check run did not show within 20 ms.
+  double check_event_shift_s = 0.0;
+  std::size_t check_unmatched_events = 0;
+  /// How far the reference may have moved an event from the true instant: one reference tick
+  /// (it sees a position-decided event at its first tick at or after it), or, if the check run
+  /// shows more, that shift scaled as first-order (x factor / (factor - 1)).
+  double event_shift_bound_s = 0.0;
+  /// What that shift can do to the force at the ticks near events (the windows of "away", a
+  /// running impact transient included): at each, the force's change over the neighbouring
+  /// reference ticks times the shift in ticks (the safety stage's rate limit caps that change
+  /// at max_force_rate x T); the largest and the RMS over the compared pass (ticks away from
+  /// events count 0).
+  double event_max_bound_n = 0.0;
+  double event_rms_bound_n = 0.0;
+  /// The reference's own error (the last rate of the ladder), as stated: away from events, the
+  /// Richardson estimate from the last step and its observed order (else the last difference),
+  /// raised to the check rung's difference scaled as first-order convergence if that is larger.
   double reference_away_rms_error_n = 0.0;
   double reference_away_max_error_n = 0.0;
-  double reference_max_diff_n = 0.0;
-  /// Every tick, RMS, Richardson: for scenes whose force away from events is exact at the ticks
-  /// (position-only laws: the away difference is 0), this is the reference's error that remains.
+  double reference_max_diff_n = 0.0;  ///< the ladder's last difference, every tick, max
+  /// Every tick, the bound stated: the largest of the ladder's estimate (Richardson or the last
+  /// difference), the check rung's difference scaled as first-order, and the error away from
+  /// events plus the event bound (max: summed; RMS: in quadrature).
   double reference_rms_error_n = 0.0;
+  double reference_max_error_n = 0.0;
   std::vector<std::pair<EventKind, std::size_t>> event_counts;  ///< in the reference's compared pass
   double settle_s = 0.0;  ///< the part of the window after an event (force-rate ramp of the clamp)
 };
@@ -229,6 +266,10 @@ std::string drift_csv(const PrecisionReport& report);
 std::string convergence_csv(const PrecisionReport& report);
 /// One row per closed-loop configuration (the closed-loop plot's input).
 std::string closed_loop_csv(const PrecisionReport& report);
+
+/// The forces of a paper scene's scripted scenario, second pass, as the reference ladder runs
+/// it: replay's servo loop (spec stages) in double with the library sine at `rate_hz`.
+Result<std::vector<Vec3<double>>> scenario_forces(const std::string& root, std::string_view scene, double rate_hz);
 
 /// One closed-loop run of the report: the rendered force (what the device applied over each
 /// tick) and the handle's true position at each tick.

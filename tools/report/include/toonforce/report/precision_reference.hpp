@@ -17,6 +17,8 @@
 #include <string_view>
 #include <vector>
 
+#include "toonforce/math/vec3.hpp"
+
 namespace toonforce::report {
 
 /// A spring wall z < 0 (normal +z, stiffness K) pressed along a sine: the handle at height
@@ -70,6 +72,44 @@ HeldError held_error(const std::vector<double>& force_n, double t0_s, double rat
   }
   e.rms_n = n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
   return e;
+}
+
+/// Zero-order-hold error of a run at rate r against a reference run at m r (m = `step`, each
+/// run's tick k at k / its rate): the run's force held over its tick (what the device renders)
+/// against the reference taken as a continuous force, linear between its ticks, integrated
+/// exactly over every reference tick: with e0, e1 the differences at a reference tick's two
+/// ends, the mean of |e|^2 over it is (|e0|^2 + e0.e1 + |e1|^2) / 3 and the largest |e| is at
+/// one end. Sampling e at each reference tick's left end instead (what the report did) reads a
+/// ramp's RMS low by sqrt((m - 1)(2 m - 1) / (2 m^2)) (0.977 at m = 32: 10 kHz against 320 kHz).
+/// The reference's last tick has no right end: it is taken as held. `away(i)` says whether
+/// reference tick i counts in the "away from events" RMS.
+struct HeldDifference {
+  double max_n = 0.0;
+  double rms_n = 0.0;
+  double away_rms_n = 0.0;
+};
+template <class Away>
+HeldDifference held_difference(const std::vector<Vec3<double>>& run, const std::vector<Vec3<double>>& reference,
+                               std::size_t step, const Away& away) {
+  HeldDifference d;
+  double sum = 0.0, away_sum = 0.0;
+  std::size_t n = 0, away_n = 0;
+  for (std::size_t i = 0; i < reference.size() && i / step < run.size(); ++i) {
+    const Vec3<double>& held = run[i / step];
+    const Vec3<double> e0 = held - reference[i];
+    const Vec3<double> e1 = i + 1 < reference.size() ? held - reference[i + 1] : e0;
+    const double mean_square = (dot(e0, e0) + dot(e0, e1) + dot(e1, e1)) / 3.0;
+    d.max_n = std::max({d.max_n, norm(e0), norm(e1)});
+    sum += mean_square;
+    ++n;
+    if (away(i)) {
+      away_sum += mean_square;
+      ++away_n;
+    }
+  }
+  d.rms_n = n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+  d.away_rms_n = away_n > 0 ? std::sqrt(away_sum / static_cast<double>(away_n)) : 0.0;
+  return d;
 }
 
 /// Observed order p from the errors of a run at rate r and at 2 r: e(r) / e(2r) = 2^p.
