@@ -223,6 +223,24 @@ TEST(RunCommand, SigpipeNeverKillsTheRun) {
 // (it waits on the pipe), so the signal comes mid-run on any machine.
 class SimStopSignal : public ::testing::TestWithParam<int> {};
 
+/// Reads the child's output line by line from `read_fd` (closed after), and sends it `signo`
+/// once `after` lines have come; `signalled` says whether it was sent.
+std::vector<std::string> read_lines_signalling(int read_fd, pid_t pid, int signo, std::size_t after, bool& signalled) {
+  std::vector<std::string> lines;
+  signalled = false;
+  std::FILE* in = fdopen(read_fd, "r");
+  if (in == nullptr) return lines;
+  char* line = nullptr;
+  std::size_t capacity = 0;
+  for (ssize_t n; (n = getline(&line, &capacity, in)) > 0;) {
+    lines.emplace_back(line, static_cast<std::size_t>(n));
+    if (!signalled && lines.size() == after) signalled = kill(pid, signo) == 0;
+  }
+  std::free(line);
+  std::fclose(in);
+  return lines;
+}
+
 TEST_P(SimStopSignal, EndsWithTheSummaryAndTheShutDownTickAsAWholeLastRow) {
   const auto output = temp_path("sim-output.txt");
   int read_fd = -1;
@@ -230,21 +248,8 @@ TEST_P(SimStopSignal, EndsWithTheSummaryAndTheShutDownTickAsAWholeLastRow) {
                              TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "1000", "--trace", "-"},
                             output, read_fd);
   ASSERT_TRUE(started(child));
-  std::FILE* in = fdopen(read_fd, "r");
-  ASSERT_NE(in, nullptr);
-  std::vector<std::string> lines;
-  char* line = nullptr;
-  std::size_t capacity = 0;
   bool signalled = false;
-  for (ssize_t n; (n = getline(&line, &capacity, in)) > 0;) {
-    lines.emplace_back(line, static_cast<std::size_t>(n));
-    if (!signalled && lines.size() == 300) {
-      ASSERT_EQ(kill(child.pid, GetParam()), 0);
-      signalled = true;
-    }
-  }
-  std::free(line);
-  std::fclose(in);
+  const std::vector<std::string> lines = read_lines_signalling(read_fd, child.pid, GetParam(), 300, signalled);
   EXPECT_EQ(wait_exit(child), 0) << slurp(output);
   ASSERT_TRUE(signalled);
   ASSERT_GT(lines.size(), 300U);
@@ -929,21 +934,8 @@ TEST_P(ReplayStopSignal, EndsOnAWholeRowSaysHowFarItGotAndExits1) {
                              motion.string(), "--output", "-"},
                             output, read_fd);
   ASSERT_TRUE(started(child));
-  std::FILE* in = fdopen(read_fd, "r");
-  ASSERT_NE(in, nullptr);
-  std::vector<std::string> lines;
-  char* line = nullptr;
-  std::size_t capacity = 0;
   bool signalled = false;
-  for (ssize_t n; (n = getline(&line, &capacity, in)) > 0;) {
-    lines.emplace_back(line, static_cast<std::size_t>(n));
-    if (!signalled && lines.size() == 300) {
-      ASSERT_EQ(kill(child.pid, GetParam()), 0);
-      signalled = true;
-    }
-  }
-  std::free(line);
-  std::fclose(in);
+  const std::vector<std::string> lines = read_lines_signalling(read_fd, child.pid, GetParam(), 300, signalled);
   EXPECT_EQ(wait_exit(child), 1) << slurp(output);
   ASSERT_TRUE(signalled);
   ASSERT_LT(lines.size(), 200001U) << "the replay went on to its end";
