@@ -204,6 +204,56 @@ TEST(LiveScene, AnImpactOnDemandIsTheLawOfSection4FromItsFiringTick) {
   EXPECT_FALSE(live.editor->fire("surface1", "look_down", 0.0)) << "a surface cannot look down";
 }
 
+// Issue 27: fire answered ok to speeds whose transient the loop's numbers cannot hold (5 m/s on
+// Q16.16 with these gains; 1e300 in double), which the loop then turned into faults with zero
+// force. The speed is refused, with the range for this table and scalar in the message.
+TEST(LiveScene, AnImpactSpeedTheLoopCannotRepresentIsRefusedWithTheRange) {
+  const std::string wall =
+      "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1000\n"
+      "[surface.impact]\nrecoil_gain = 300\noscillation_gain = 900\nduration = 0.1\nfrequency = 30\n";
+  // Peak force v_i d (|k_r| + |k_osc|) = 120 N per m/s.
+  LiveLoop live(wall);
+  EXPECT_TRUE(live.editor->fire("surface1", "impact", 0.3));
+  const auto huge = live.editor->fire("surface1", "impact", 1e300);
+  ASSERT_FALSE(huge);
+  EXPECT_NE(huge.error().find("on the double loop"), std::string::npos) << huge.error();
+  auto mailbox = std::make_unique<SceneMailbox<RuntimeScene<Q16_16>>>();
+  auto q = SceneEditor<Q16_16>::open(wall, "live.toml", *mailbox);
+  ASSERT_TRUE(q) << q.error();
+  EXPECT_TRUE(q.value().fire("surface1", "impact", 1.5)) << "180 N: within sqrt(32767) N";
+  const auto fast = q.value().fire("surface1", "impact", 5.0);
+  ASSERT_FALSE(fast);
+  // 181.02 N / 120 N per m/s, from the table's gains as Q16.16 holds them.
+  EXPECT_NE(fast.error().find("within [1.53e-05, 1.508"), std::string::npos) << fast.error();
+  EXPECT_NE(fast.error().find("m/s on the q16.16 loop"), std::string::npos) << fast.error();
+  EXPECT_FALSE(q.value().fire("surface1", "impact", 1e-6)) << "below Q16.16's resolution: no transient at all";
+}
+
+// The top of that range is a transient the Q16.16 loop renders: force, no fault.
+TEST(LiveScene, TheFastestImpactAcceptedOnQ16IsRenderedWithoutAFault) {
+  using QScene = RuntimeScene<Q16_16>;
+  const std::string wall =
+      "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1000\n"
+      "[surface.impact]\nrecoil_gain = 300\noscillation_gain = 900\nduration = 0.1\nfrequency = 30\n";
+  auto mailbox = std::make_unique<SceneMailbox<QScene>>();
+  auto editor = SceneEditor<Q16_16>::open(wall, "live.toml", *mailbox);
+  ASSERT_TRUE(editor) << editor.error();
+  Vec3<double> position{0.0, 0.0, 0.01};
+  ServoLoop<HeldDevice, QScene, NullPins, kLiveStages> loop(HeldDevice{&position},
+                                                           make_runtime_scene<Q16_16>(editor.value().scene()),
+                                                           live_config());
+  loop.listen(*mailbox);
+  for (std::int64_t k = 0; k < 5; ++k) loop.tick(k);
+  ASSERT_TRUE(editor.value().fire("surface1", "impact", 1.5));
+  double peak = 0.0;
+  for (std::int64_t k = 5; k < 120; ++k) {
+    loop.tick(k);
+    peak = std::max(peak, std::fabs(to_double(loop.scene_force().z)));
+  }
+  EXPECT_GT(peak, 100.0) << "the transient's force (1.5 m/s x 120 N per m/s at its start)";
+  EXPECT_FALSE(static_cast<bool>(loop.latched())) << "no fault";
+}
+
 TEST(LiveScene, LookDownDropsTheCharacterOverTheGapAndNowhereElse) {
   const std::string cliff =
       "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = 0.0\ngap_max = 0.02\n"

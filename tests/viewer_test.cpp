@@ -12,6 +12,7 @@
 #include <dirent.h>
 #include <ifaddrs.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
@@ -22,6 +23,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -443,7 +445,9 @@ TEST(ViewerServer, HundredsOfConcurrentUpgradesGetTheCapAndBoundedMemory) {
   EXPECT_EQ(held.pages_connected, 16U);
   EXPECT_EQ(held.pages_open, 16U);
   EXPECT_EQ(held.pages_refused, static_cast<std::uint64_t>(answers["503"]));
-  EXPECT_EQ(held.connections_refused, static_cast<std::uint64_t>(answers["closed"]));  // over max_connections
+  // Over max_connections: closed at once (none had been reading long enough to make room).
+  EXPECT_EQ(held.connections_refused, static_cast<std::uint64_t>(answers["closed"]));
+  EXPECT_EQ(held.requests_evicted, 0U);
   // Each page holds one history chunk (and the small hello and status), not the 7 MB history.
   const std::size_t chunk_bytes = (4 + kHistoryChunkFrames * kViewStride) * sizeof(double);
   EXPECT_GT(held.max_queued_bytes, 0U);
@@ -900,3 +904,294 @@ TEST(ViewerHooks, SimWithAViewerWritesTheSameTrace) {
 }
 
 }  // namespace
+
+// ---- /control as a server (issue 27): bounded by construction whatever a connection sends ----
+
+namespace {
+
+/// Answers every change ok; its scene is `scene` (big when a test wants big replies).
+class FakeControl final : public SceneControl {
+ public:
+  Result<std::uint64_t> set(std::string_view, std::string_view) override { return ++sequence; }
+  Result<std::uint64_t> add(std::string_view, std::string_view) override { return ++sequence; }
+  Result<std::uint64_t> remove(std::string_view) override { return ++sequence; }
+  Result<std::uint64_t> load(std::string_view, std::string) override { return ++sequence; }
+  Result<std::uint64_t> fire(std::string_view, std::string_view, double) override { return ++sequence; }
+  std::uint64_t applied() const override { return sequence; }
+  std::string scene_json() const override { return scene; }
+  std::atomic<std::uint64_t> sequence{0};
+  std::string scene = R"({"effects":[]})";
+};
+
+constexpr const char* kToken = "tok-27";
+
+ViewerOptions control_options(FakeControl& control) {
+  ViewerOptions options;
+  options.control = &control;
+  options.control_options.token = kToken;
+  options.control_options.burst_messages = 1e6;
+  options.control_options.max_messages_per_s = 1e6;
+  return options;
+}
+
+/// A WebSocket client of /control, with a generous deadline on every operation (a server that
+/// never answers fails the test instead of hanging it): asynchronous operations, which the
+/// tcp_stream's deadline applies to, run to completion one at a time.
+struct ControlClient {
+  asio::io_context io;
+  websocket::stream<beast::tcp_stream> ws{io};
+  beast::error_code ec;
+  explicit ControlClient(const ViewerServer& server, int receive_buffer = 0) {
+    beast::tcp_stream& stream = ws.next_layer();
+    stream.socket().open(tcp::v4());
+    if (receive_buffer > 0) stream.socket().set_option(asio::socket_base::receive_buffer_size(receive_buffer));
+    stream.expires_after(std::chrono::seconds(10));
+    stream.async_connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), server.port()),
+                         [this](beast::error_code e) { ec = e; });
+    finish();
+    if (ec) return;
+    stream.expires_after(std::chrono::seconds(10));
+    ws.async_handshake(host_of(server), "/control", [this](beast::error_code e) { ec = e; });
+    finish();
+  }
+  void finish() {
+    io.restart();
+    io.run();
+  }
+  bool send(const std::string& text) {
+    ws.next_layer().expires_after(std::chrono::seconds(10));
+    ws.text(true);
+    ws.async_write(asio::buffer(text), [this](beast::error_code e, std::size_t) { ec = e; });
+    finish();
+    return !ec;
+  }
+  /// The next message; empty with ec set when the connection ended (or the deadline passed).
+  std::string receive() {
+    ws.next_layer().expires_after(std::chrono::seconds(10));
+    beast::flat_buffer buffer;
+    ws.async_read(buffer, [this](beast::error_code e, std::size_t) { ec = e; });
+    finish();
+    return ec ? std::string() : beast::buffers_to_string(buffer.data());
+  }
+  std::string say_hello() {
+    send(std::string(R"({"type":"hello","version":1,"token":")") + kToken + R"("})");
+    return receive();
+  }
+};
+
+/// What reading a connection the server should close gives: eof if it does within 10 s,
+/// beast::error::timeout if it does not.
+beast::error_code read_until_closed(asio::io_context& io, beast::tcp_stream& stream) {
+  stream.expires_after(std::chrono::seconds(10));
+  std::array<char, 64> buffer{};
+  beast::error_code ec;
+  stream.async_read_some(asio::buffer(buffer), [&](beast::error_code e, std::size_t) { ec = e; });
+  io.restart();
+  io.run();
+  return ec;
+}
+
+/// The server side of a connection the test made: found among this process's descriptors by
+/// its two ends. -1 if there is none.
+int server_side(std::uint16_t server_port, const tcp::endpoint& client) {
+  int found = -1;
+  if (DIR* dir = ::opendir("/proc/self/fd")) {
+    while (const dirent* entry = ::readdir(dir)) {
+      const int fd = std::atoi(entry->d_name);
+      sockaddr_in local{}, peer{};
+      socklen_t local_size = sizeof local, peer_size = sizeof peer;
+      if (::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_size) != 0 || local.sin_family != AF_INET) continue;
+      if (::getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_size) != 0) continue;
+      if (ntohs(local.sin_port) == server_port && ntohs(peer.sin_port) == client.port()) found = fd;
+    }
+    ::closedir(dir);
+  }
+  return found;
+}
+
+}  // namespace
+
+// Issue 27: replies to pipelined messages waited ~44 ms for the client's delayed ACK (Nagle).
+// Every accepted socket (/control, the viewer's /ws, plain HTTP) has TCP_NODELAY.
+TEST(ControlServer, EveryAcceptedSocketHasNoDelay) {
+  FakeControl control;
+  auto server = start_server(control_options(control));
+  ControlClient c(*server);
+  ASSERT_FALSE(c.ec) << c.ec.message();
+  ASSERT_NE(c.say_hello().find("welcome"), std::string::npos);
+  Client page(*server, "http://" + host_of(*server));
+  ASSERT_FALSE(page.ec) << page.ec.message();
+  for (const tcp::endpoint& end : {c.ws.next_layer().socket().local_endpoint(), page.ws.next_layer().local_endpoint()}) {
+    const int fd = server_side(server->port(), end);
+    ASSERT_GE(fd, 0);
+    int nodelay = 0;
+    socklen_t size = sizeof nodelay;
+    ASSERT_EQ(::getsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &nodelay, &size), 0);
+    EXPECT_EQ(nodelay, 1) << "port " << end.port();
+  }
+}
+
+// Issue 27: a binary message was read as text. It gets an error and the connection closes
+// with 1003 (unsupported data), as the spec says.
+TEST(ControlServer, ABinaryMessageIsRefusedAndTheConnectionClosedWith1003) {
+  FakeControl control;
+  auto server = start_server(control_options(control));
+  ControlClient c(*server);
+  ASSERT_NE(c.say_hello().find("welcome"), std::string::npos);
+  c.ws.binary(true);
+  const std::string message = R"({"type":"remove","effect":"surface1"})";
+  c.ws.next_layer().expires_after(std::chrono::seconds(10));
+  c.ws.async_write(asio::buffer(message), [&](beast::error_code e, std::size_t) { c.ec = e; });
+  c.finish();
+  ASSERT_FALSE(c.ec);
+  EXPECT_NE(c.receive().find("binary"), std::string::npos);
+  EXPECT_TRUE(c.receive().empty());
+  EXPECT_EQ(c.ec, websocket::error::closed);
+  EXPECT_EQ(c.ws.reason().code, websocket::close_code::unknown_data);
+  EXPECT_EQ(control.sequence.load(), 0U) << "nothing changed";
+}
+
+// Issue 27: only the first of two Host (or Origin) headers was checked.
+TEST(ControlServer, ARequestWithTwoHostOrOriginHeadersIsRefused) {
+  FakeControl control;
+  auto server = start_server(control_options(control));
+  const std::string host = host_of(*server);
+  for (const std::string& extra : {"Host: " + host + "\r\n", std::string("Host: evil.example\r\n"),
+                                   "Origin: http://" + host + "\r\nOrigin: http://evil.example\r\n"}) {
+    asio::io_context io;
+    tcp::socket socket(io);
+    socket.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), server->port()));
+    const std::string text = "GET /control HTTP/1.1\r\nHost: " + host + "\r\n" + extra +
+                             "Connection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
+                             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
+    asio::write(socket, asio::buffer(text));
+    beast::flat_buffer buffer;
+    http::response<http::string_body> res;
+    http::read(socket, buffer, res);
+    EXPECT_EQ(res.result(), http::status::bad_request) << extra;
+  }
+}
+
+// Issue 27: the server read the next message whatever replies it still had to send, so a client
+// that sends and never reads grew the process without bound. Now a connection reads its next
+// message only once its reply has been written: a client that does not read stops the reading.
+TEST(ControlServer, AClientThatNeverReadsStopsBeingReadAndHoldsOneReply) {
+  FakeControl control;
+  control.scene = R"({"effects":[],"pad":")" + std::string(200000, 'p') + R"("})";  // 200 kB replies
+  ViewerOptions options = control_options(control);
+  options.send_buffer_bytes = 4096;
+  auto server = start_server(options);
+  ControlClient c(*server, 4096);
+  ASSERT_NE(c.say_hello().find("welcome"), std::string::npos);
+  constexpr int kSent = 100;
+  for (int i = 0; i < kSent; ++i) ASSERT_TRUE(c.send(R"({"type":"scene"})")) << i;
+  // Unread: at most the replies the two sockets' buffers hold (a few 200 kB replies, not 100).
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const ViewerStats s = server->stats();
+  EXPECT_LE(s.control_messages, 1U + 10U) << "messages read while their replies waited";
+  EXPECT_LE(s.max_control_bytes, control.scene.size() + 1000U);
+  // Read now: every reply comes, in order.
+  for (int i = 0; i < kSent; ++i) ASSERT_NE(c.receive().find(R"("type":"scene")"), std::string::npos) << i;
+  EXPECT_EQ(server->stats().control_messages, 1U + kSent);
+}
+
+// Issue 27: connections that never said hello held every control slot as long as they liked.
+// They have slots of their own now and a deadline for the hello.
+TEST(ControlServer, SilentConnectionsGetADeadlineAndSlotsOfTheirOwn) {
+  FakeControl control;
+  ViewerOptions options = control_options(control);
+  options.max_controls = 1;
+  options.max_control_pending = 2;
+  options.control_hello_deadline_s = 0.3;
+  auto server = start_server(options);
+  ControlClient client(*server);
+  ASSERT_NE(client.say_hello().find("welcome"), std::string::npos);
+  ControlClient silent1(*server), silent2(*server);
+  ASSERT_FALSE(silent1.ec) << "an authenticated connection does not take a waiting one's slot";
+  ASSERT_FALSE(silent2.ec);
+  ControlClient third(*server);
+  EXPECT_EQ(third.ec, websocket::error::upgrade_declined) << "beyond the waiting slots: 503";
+  // Without a hello the deadline closes them (1008) ...
+  EXPECT_TRUE(silent1.receive().empty());
+  EXPECT_EQ(silent1.ec, websocket::error::closed);
+  EXPECT_EQ(silent1.ws.reason().code, websocket::close_code::policy_error);
+  EXPECT_TRUE(silent2.receive().empty());
+  EXPECT_EQ(silent2.ec, websocket::error::closed);
+  EXPECT_EQ(server->stats().control_hello_late, 2U);
+  // ... and the client that said hello is still served.
+  client.send(R"({"type":"status","id":1})");
+  EXPECT_NE(client.receive().find(R"("id":1)"), std::string::npos);
+  // A hello beyond max_controls: refused (1013), the connection closed.
+  for (int tries = 0; tries < 100 && server->stats().controls_pending != 0; ++tries) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ControlClient second(*server);
+  ASSERT_FALSE(second.ec) << second.ec.message();
+  EXPECT_NE(second.say_hello().find("too many control connections"), std::string::npos);
+  EXPECT_TRUE(second.receive().empty());
+  EXPECT_EQ(second.ws.reason().code, websocket::close_code::try_again_later);
+}
+
+// Issue 27: a client that sends its request a header line now and then held a connection for
+// 30 s. The whole request must come within request_deadline_s.
+TEST(ControlServer, ARequestNotReadInTimeEndsTheConnection) {
+  ViewerOptions options;
+  options.request_deadline_s = 0.3;
+  auto server = start_server(options);
+  asio::io_context io;
+  beast::tcp_stream stream(io);
+  stream.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), server->port()));
+  asio::write(stream.socket(), asio::buffer(std::string("GET / HTTP/1.1\r\n")));
+  const beast::error_code ec = read_until_closed(io, stream);
+  EXPECT_EQ(ec, asio::error::eof) << ec.message() << " (a timeout here: the server kept the connection)";
+  // The stream closes its socket when the deadline passes, before the server's handler counts it.
+  EXPECT_TRUE(eventually([&] { return server->stats().requests_late == 1U; }));
+}
+
+// Issue 27: a page that connected after a live change was shown the starting scene.
+TEST(ControlServer, APageThatComesAfterAChangeGetsTheSceneAsChanged) {
+  FakeControl control;
+  auto server = start_server(control_options(control));
+  ControlClient c(*server);
+  ASSERT_NE(c.say_hello().find("welcome"), std::string::npos);
+  control.scene = R"({"effects":[{"key":"surface","number":1,"params":{"stiffness":800}}]})";
+  c.send(R"({"type":"set","effect":"surface1","keys":{"stiffness":800}})");
+  ASSERT_NE(c.receive().find(R"("type":"ok")"), std::string::npos);
+  Client page(*server, "http://" + host_of(*server));
+  ASSERT_FALSE(page.ec);
+  std::string text;
+  std::vector<double> values;
+  ASSERT_TRUE(page.next(text, values));
+  EXPECT_NE(text.find(R"("stiffness":800)"), std::string::npos) << text;
+  EXPECT_NE(text.find(R"("test":true)"), std::string::npos) << "the rest of the hello kept: " << text;
+}
+
+// Issue 27: 32 slow clients (a header line every 5 s) held every connection slot, and each new
+// connection was closed at once for 20-30 s per wave. With every slot taken, the connection
+// that has been reading its request longest makes room for the new one.
+TEST(ControlServer, WithEverySlotTakenByReadersTheOldestMakesRoom) {
+  ViewerOptions options;
+  options.max_connections = 2;
+  options.request_deadline_s = 60.0;  // the deadline is not what frees the slots here
+  options.evict_reading_after_s = 0.0;
+  auto server = start_server(options);
+  asio::io_context io;
+  std::vector<std::unique_ptr<beast::tcp_stream>> slow;
+  for (int i = 0; i < 2; ++i) {
+    slow.push_back(std::make_unique<beast::tcp_stream>(io));
+    slow.back()->connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), server->port()));
+    asio::write(slow.back()->socket(), asio::buffer(std::string("GET / HTTP/1.1\r\n")));
+  }
+  // Both are open on the server (reading their requests) before the next connection comes.
+  for (int tries = 0; tries < 500 && server->stats().connections_open < 2; ++tries) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(server->stats().connections_open, 2U);
+  const auto response = request(*server, http::verb::get, "/", host_of(*server));
+  EXPECT_EQ(response.result(), http::status::ok);
+  EXPECT_EQ(server->stats().requests_evicted, 1U);
+  EXPECT_EQ(server->stats().connections_refused, 0U);
+  // The first slow client is the one that was closed.
+  const beast::error_code ec = read_until_closed(io, *slow[0]);
+  EXPECT_EQ(ec, asio::error::eof) << ec.message();
+}

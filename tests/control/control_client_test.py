@@ -43,11 +43,11 @@ async def talk(ws, message):
     return json.loads(await ws.recv())
 
 
-async def closed(ws):
+async def closed(ws, code=1008):
     try:
         await asyncio.wait_for(ws.recv(), 5)
     except websockets.ConnectionClosed as e:
-        return e.rcvd is not None and e.rcvd.code == 1008
+        return e.rcvd is not None and e.rcvd.code == code
     except asyncio.TimeoutError:
         return False
     return False
@@ -66,6 +66,13 @@ async def conversation(url):
     async with websockets.connect(url) as ws:
         reply = await talk(ws, {"type": "hello", "version": 2, "token": TOKEN})
         check(reply["type"] == "error" and "version" in reply["message"], "another protocol version is refused")
+    async with websockets.connect(url) as ws:
+        reply = await talk(ws, "{not json")
+        check(reply["type"] == "error" and await closed(ws), "a first message that is not JSON: error, closed (1008)")
+    async with websockets.connect(url) as ws:
+        reply = await talk(ws, '{"type": "hello", "version": 1, "token": "guess", "token": "%s"}' % TOKEN)
+        check(reply["type"] == "error" and "twice" in reply["message"] and await closed(ws),
+              "a key given twice (a wrong token, then the right one) is refused, closed")
 
     # Another site's page may not drive the scene.
     try:
@@ -136,6 +143,18 @@ async def conversation(url):
         limited = sum(1 for r in replies if r["type"] == "error" and "rate limit" in r["message"])
         check(limited > 0 and all(r["type"] in ("status", "error") for r in replies),
               f"rate limit: {limited} of {flood} messages sent at once refused, every one answered")
+
+    async with websockets.connect(url) as ws:
+        welcome = await talk(ws, {"type": "hello", "version": 1, "token": TOKEN, "id": None})
+        check(welcome["type"] == "welcome" and "id" in welcome and welcome["id"] is None, '"id": null is echoed')
+        reply = await talk(ws, {"type": "status", "id": "x" * 129})
+        check(reply["type"] == "error" and "id" not in reply, "an id longer than 128 bytes is refused, not echoed")
+        reply = await talk(ws, {"type": "set", "effect": "surface1", "keys": {"a": json.loads("[" * 40 + "]" * 40)}})
+        check(reply["type"] == "error" and "at most 32 levels" in reply["message"], "nesting deeper than 32 is refused")
+        await ws.send(json.dumps({"type": "status"}).encode())
+        reply = json.loads(await ws.recv())
+        check(reply["type"] == "error" and "binary" in reply["message"] and await closed(ws, 1003),
+              "a binary message: error, closed (1003)")
     return sent
 
 

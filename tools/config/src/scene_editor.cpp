@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <utility>
 
@@ -245,9 +246,33 @@ Result<SceneChange> SceneDocument::fire(std::string_view effect, std::string_vie
       return Error{fmt::format("{}: this surface has no impact table: set one first (set {}{} with [impact] keys)\n",
                                what, name->key, name->index + 1)};
     }
-    // v_i [m/s]: what the transient scales with (spec effects.md §4); it must fit the scalar.
-    if (!(std::isfinite(value) && value > 0.0) || (impl_->scalar == ScalarKind::kQ16_16 && value > 32767.0)) {
-      return Error{fmt::format("{}: the impact speed must be a positive number of m/s (got {})\n", what, value)};
+    // v_i [m/s]: what the transient scales with (spec effects.md §4). Its peak force
+    // v_i d (|k_r| + |k_osc|) must be a force the loop's scalar represents, squared too (a
+    // force's norm): beyond it the loop faulted with zero force on a speed that got "ok"
+    // (5 m/s on Q16.16 with typical gains; 1e300 in double). The smallest speed is the
+    // scalar's resolution (Q16.16: 2^-16; below it the transient is zero).
+    const auto& law = impl_->scene.of<RuntimeSurface>()[name->index].impact.law;
+    const double d = std::fabs(static_cast<double>(law.duration_s));
+    const double gain = std::fabs(static_cast<double>(law.recoil_gain_n_per_m)) +
+                        std::fabs(static_cast<double>(law.oscillation_gain_n_per_m));
+    double largest_force = std::sqrt(std::numeric_limits<double>::max());
+    double lowest = std::numeric_limits<double>::min();
+    std::string_view scalar = "double";
+    if (impl_->scalar == ScalarKind::kFloat) {
+      largest_force = std::sqrt(static_cast<double>(std::numeric_limits<float>::max()));
+      lowest = static_cast<double>(std::numeric_limits<float>::min());
+      scalar = "float";
+    } else if (impl_->scalar == ScalarKind::kQ16_16) {
+      largest_force = std::sqrt(32767.0);
+      lowest = 1.0 / 65536.0;
+      scalar = "q16.16";
+    }
+    const double highest = largest_force / std::max({1.0, d, d * gain});
+    if (!(std::isfinite(value) && value >= lowest && value <= highest)) {
+      return Error{fmt::format(
+          "{}: the impact speed must be within [{:.3g}, {:.6g}] m/s on the {} loop with this impact table (its peak "
+          "force v_i d (|recoil_gain| + |oscillation_gain|) at most {:.6g} N) (got {})\n",
+          what, lowest, highest, scalar, largest_force, value)};
     }
   }
   SceneChange c;

@@ -40,8 +40,34 @@ std::string toml_string(std::string_view s) {
   return out + "\"";
 }
 
+/// A name quoted from a message in a reply: at most kControlMaxEchoBytes of it.
+std::string shown(std::string_view name) {
+  if (name.size() <= kControlMaxEchoBytes) return std::string(name);
+  return fmt::format("{}... ({} bytes)", name.substr(0, kControlMaxEchoBytes), name.size());
+}
+
+/// Where a value is in a message's keys, for messages only: one step per level, made into text
+/// only when a value is refused (copying the path at every level cost a copy of it per level).
+struct PathStep {
+  std::string_view key;  ///< an object's key, or empty for an array's item
+  std::size_t index = 0;
+};
+std::string path_text(const std::vector<PathStep>& path) {
+  std::string out;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    if (path[i].key.data() == nullptr) {
+      out += fmt::format("[{}]", path[i].index);
+    } else {
+      if (i != 0) out += '.';
+      out += shown(path[i].key);
+    }
+  }
+  return out;
+}
+
 /// A JSON value as a TOML value (numbers, booleans, strings, arrays, objects as inline tables).
-Result<std::string> toml_value(const json& v, const std::string& path) {
+/// Recursive, to the depth of the message: kControlMaxDepth, checked before it was parsed.
+Result<std::string> toml_value(const json& v, std::vector<PathStep>& path) {
   switch (v.type()) {
     case json::value_t::number_integer: return fmt::format("{}", v.get<std::int64_t>());
     case json::value_t::number_unsigned: return fmt::format("{}", v.get<std::uint64_t>());
@@ -53,13 +79,16 @@ Result<std::string> toml_value(const json& v, const std::string& path) {
       return text;
     }
     case json::value_t::boolean: return std::string(v.get<bool>() ? "true" : "false");
-    case json::value_t::string: return toml_string(v.get<std::string>());
+    case json::value_t::string: return toml_string(v.get_ref<const std::string&>());
     case json::value_t::array: {
       std::string out = "[";
       for (std::size_t i = 0; i < v.size(); ++i) {
-        auto item = toml_value(v[i], fmt::format("{}[{}]", path, i));
+        path.push_back(PathStep{{}, i});
+        auto item = toml_value(v[i], path);
+        path.pop_back();
         if (!item) return item;
-        out += (i == 0 ? "" : ", ") + item.value();
+        if (i != 0) out += ", ";
+        out += item.value();
       }
       return out + "]";
     }
@@ -67,26 +96,60 @@ Result<std::string> toml_value(const json& v, const std::string& path) {
       std::string out = "{";
       bool first = true;
       for (const auto& [key, item] : v.items()) {
-        auto value = toml_value(item, path + "." + key);
+        path.push_back(PathStep{key, 0});
+        auto value = toml_value(item, path);
+        path.pop_back();
         if (!value) return value;
         out += fmt::format("{}{} = {}", first ? "" : ", ", toml_string(key), value.value());
         first = false;
       }
       return out + "}";
     }
-    default: return Error{fmt::format("{}: null is not a value of a scene", path)};
+    default: return Error{fmt::format("{}: null is not a value of a scene", path_text(path))};
   }
 }
 
 /// An effect's keys, one per line (a message's "keys" object).
 Result<std::string> toml_keys(const json& keys) {
   std::string out;
+  std::vector<PathStep> path;
+  path.reserve(kControlMaxDepth);
   for (const auto& [key, value] : keys.items()) {
-    auto text = toml_value(value, key);
+    path.assign(1, PathStep{key, 0});
+    auto text = toml_value(value, path);
     if (!text) return text;
     out += fmt::format("{} = {}\n", toml_string(key), text.value());
   }
   return out;
+}
+
+/// What makes a message's text unfit to parse, found in one pass over it: a NUL byte, or arrays
+/// and objects nested deeper than kControlMaxDepth (counted outside strings). Empty: none.
+std::string scan_problem(std::string_view text) {
+  std::size_t depth = 0;
+  bool in_string = false;
+  bool escaped = false;
+  for (const char c : text) {
+    if (c == '\0') return "a message may not contain a NUL byte";
+    if (in_string) {
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kControlMaxDepth) {
+        return fmt::format("arrays and objects nest at most {} levels deep (the message is level 1)", kControlMaxDepth);
+      }
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return {};
 }
 
 /// Constant time in the length of `given`: a wrong token takes as long whatever its prefix.
@@ -127,7 +190,7 @@ std::string check_fields(const json& m, const Message& spec) {
     if (key == "type" || key == "id") continue;
     const bool known = std::find(spec.required.begin(), spec.required.end(), key) != spec.required.end() ||
                        std::find(spec.optional.begin(), spec.optional.end(), key) != spec.optional.end();
-    if (!known) return fmt::format("'{}' has no field '{}'", spec.type, key);
+    if (!known) return fmt::format("'{}' has no field '{}'", spec.type, shown(key));
   }
   for (const std::string_view key : spec.required) {
     if (!m.contains(key)) return fmt::format("'{}' needs the field '{}'", spec.type, key);
@@ -163,17 +226,79 @@ std::string random_token() {
   return out;
 }
 
+namespace {
+
+/// The message parsed, or why not: a key given twice in an object (at any level) is refused,
+/// never resolved by taking one of them (a wrong "token" then the right one passed that way).
+/// Called only on text scan_problem() passed: depth bounded, no NUL.
+std::string parse_message(std::string_view text, json& out) {
+  std::vector<std::vector<std::string>> open_objects;  // the keys seen in each object being read
+  std::string duplicate;
+  bool found = false;
+  const json::parser_callback_t keys = [&](int, json::parse_event_t event, json& parsed) {
+    if (event == json::parse_event_t::object_start) {
+      open_objects.emplace_back();
+    } else if (event == json::parse_event_t::object_end) {
+      if (!open_objects.empty()) open_objects.pop_back();
+    } else if (event == json::parse_event_t::key && !open_objects.empty() && parsed.is_string()) {
+      auto& seen = open_objects.back();
+      const std::string& key = parsed.get_ref<const std::string&>();
+      if (std::find(seen.begin(), seen.end(), key) != seen.end()) {
+        if (!found) duplicate = key;
+        found = true;
+      } else {
+        seen.push_back(key);
+      }
+    }
+    return true;
+  };
+  out = json::parse(text, keys, false);
+  if (out.is_discarded()) return "not JSON";
+  if (found) return fmt::format("the key '{}' is given twice in an object; each key once", shown(duplicate));
+  return {};
+}
+
+}  // namespace
+
 ControlSession::Reply ControlSession::on_message(std::string_view text, double now_s) {
-  json id;  // echoed in the reply when the message has one
+  json id;               // echoed in the reply when the message has one (null too)
+  bool has_id = false;
   const auto error = [&](std::string message, bool close = false) {
     ++refused_;
     while (!message.empty() && message.back() == '\n') message.pop_back();
+    if (message.size() > kControlMaxErrorBytes) {
+      message.resize(kControlMaxErrorBytes);
+      message += "...";
+    }
     json reply{{"type", "error"}, {"message", message}};
-    if (!id.is_null()) reply["id"] = id;
-    return Reply{dump(reply), close};
+    if (has_id) reply["id"] = id;
+    // Before the hello every refusal ends the connection (1008): a first message that is not
+    // a good hello, whatever is wrong with it.
+    return Reply{dump(reply), close || !authenticated_};
+  };
+  const auto answer = [&](json reply) {
+    if (has_id) reply["id"] = id;
+    return Reply{dump(reply), false};
   };
   try {
-    // The rate limit first: a flood costs no parsing.
+    // Bounded before anything is parsed: the size, then one pass for NUL bytes and depth.
+    if (text.size() > options_.max_message_bytes) {
+      return error(fmt::format("a message of {} bytes; at most {}", text.size(), options_.max_message_bytes));
+    }
+    if (const std::string problem = scan_problem(text); !problem.empty()) return error(problem);
+    json m;
+    if (const std::string problem = parse_message(text, m); !problem.empty()) return error(problem);
+    if (!m.is_object()) return error("a message is a JSON object with a \"type\"");
+    if (const auto it = m.find("id"); it != m.end()) {
+      const bool short_string = it->is_string() && it->get_ref<const std::string&>().size() <= kControlMaxIdBytes;
+      if (!(it->is_number() || it->is_boolean() || it->is_null() || short_string)) {
+        return error(fmt::format("an \"id\" is a number, a string of at most {} bytes, true, false or null",
+                                 kControlMaxIdBytes));
+      }
+      id = *it;
+      has_id = true;
+    }
+    // The rate limit, with the id known: a refused message's reply carries it too.
     if (tokens_ < 0.0) {
       tokens_ = options_.burst_messages;
       last_s_ = now_s;
@@ -185,41 +310,33 @@ ControlSession::Reply ControlSession::on_message(std::string_view text, double n
                                options_.max_messages_per_s, options_.burst_messages));
     }
     tokens_ -= 1.0;
-    if (text.size() > options_.max_message_bytes) {
-      return error(fmt::format("a message of {} bytes; at most {}", text.size(), options_.max_message_bytes));
-    }
-    const json m = json::parse(text, nullptr, false);
-    if (m.is_discarded()) return error("not JSON");
-    if (!m.is_object()) return error("a message is a JSON object with a \"type\"");
-    if (m.contains("id")) id = m["id"];
     if (!m.contains("type") || !m["type"].is_string()) return error("a message needs a \"type\": " + type_list());
     const std::string type = m["type"].get<std::string>();
     const auto spec = std::find_if(kMessages.begin(), kMessages.end(), [&](const Message& s) { return s.type == type; });
-    if (spec == kMessages.end()) return error(fmt::format("unknown type '{}'; the types are {}", type, type_list()));
-    if (const std::string problem = check_fields(m, *spec); !problem.empty()) return error(problem, !authenticated_);
+    if (spec == kMessages.end()) {
+      return error(fmt::format("unknown type '{}'; the types are {}", shown(type), type_list()));
+    }
+    if (const std::string problem = check_fields(m, *spec); !problem.empty()) return error(problem);
 
     if (!authenticated_) {
       if (type != "hello") return error("the first message must be a hello with the token", true);
       if (m["version"] != kControlProtocolVersion) {
-        return error(fmt::format("protocol version {} is not spoken here; this server speaks {}", dump(m["version"]),
-                                 kControlProtocolVersion),
+        return error(fmt::format("protocol version {} is not spoken here; this server speaks {}",
+                                 shown(dump(m["version"])), kControlProtocolVersion),
                      true);
       }
       if (!same_token(m["token"].get<std::string>(), options_.token)) return error("wrong token", true);
       authenticated_ = true;
-      json reply{{"type", "welcome"},
-                 {"version", kControlProtocolVersion},
-                 {"applied", control_.applied()},
-                 {"scene", json::parse(control_.scene_json(), nullptr, false)}};
-      if (!id.is_null()) reply["id"] = id;
-      return {dump(reply), false};
+      return answer(json{{"type", "welcome"},
+                         {"version", kControlProtocolVersion},
+                         {"applied", control_.applied()},
+                         {"scene", json::parse(control_.scene_json(), nullptr, false)}});
     }
     if (type == "hello") return error("already said hello");
     if (type == "status" || type == "scene") {
       json reply{{"type", type}, {"applied", control_.applied()}};
       if (type == "scene") reply["scene"] = json::parse(control_.scene_json(), nullptr, false);
-      if (!id.is_null()) reply["id"] = id;
-      return {dump(reply), false};
+      return answer(std::move(reply));
     }
 
     Result<std::uint64_t> sent = Error{""};
@@ -237,9 +354,8 @@ ControlSession::Reply ControlSession::on_message(std::string_view text, double n
       sent = control_.fire(m["effect"].get<std::string>(), m["event"].get<std::string>(), value);
     }
     if (!sent) return error(sent.error());
-    json reply{{"type", "ok"}, {"sequence", sent.value()}};
-    if (!id.is_null()) reply["id"] = id;
-    return {dump(reply), false};
+    if (type != "fire") ++changes_;
+    return answer(json{{"type", "ok"}, {"sequence", sent.value()}});
   } catch (const std::exception& e) {  // the server's thread: a message never ends it
     return error(fmt::format("refused: {}", e.what()));
   }

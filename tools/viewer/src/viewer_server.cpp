@@ -29,6 +29,7 @@
 #endif
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "toonforce/viewer/assets.hpp"
 #include "toonforce/viewer/beast.hpp"
@@ -87,6 +88,7 @@ struct Message {
 };
 
 class PageSession;
+class HttpSession;
 
 }  // namespace
 
@@ -100,7 +102,12 @@ struct ViewerServer::Impl {
   /// session ends. pages_open counts finished handshakes only, too late to be the cap.
   std::atomic<std::size_t> page_slots{0};
   std::atomic<std::size_t> connections{0};  ///< HTTP sessions alive (not yet, or never, pages)
-  std::atomic<std::size_t> control_slots{0};  ///< /control connections alive
+  std::atomic<std::size_t> control_slots{0};  ///< /control connections whose hello passed, alive
+  std::atomic<std::size_t> control_pending{0};  ///< /control connections not yet past their hello
+  std::atomic<std::uint64_t> control_hello_late{0};
+  std::atomic<std::size_t> control_bytes{0}, max_control_bytes{0};  ///< control replies held (being written)
+  std::atomic<std::uint64_t> requests_late{0};  ///< HTTP connections closed: no whole request in time
+  std::atomic<std::uint64_t> requests_evicted{0};  ///< HTTP connections closed to make room for a new one
   std::atomic<std::uint64_t> control_messages{0}, control_refused{0};
   std::atomic<std::uint64_t> controls_authenticated{0};  ///< control connections whose hello passed
   bool stopping = false;                    ///< set on the server thread before the io_context stops
@@ -124,6 +131,8 @@ struct ViewerServer::Impl {
   bool ended = false;
   std::vector<ViewFrame> batch;
   std::vector<std::weak_ptr<PageSession>> pages;
+  /// HTTP connections reading a request, oldest first (some may have finished or ended).
+  std::deque<std::weak_ptr<HttpSession>> readers;
   std::chrono::steady_clock::time_point next_status{};
 
   std::thread thread;
@@ -153,6 +162,15 @@ struct ViewerServer::Impl {
     }
   }
   void free_bytes(std::size_t bytes) noexcept { queued_bytes.fetch_sub(bytes); }
+  void hold_control_bytes(std::size_t bytes) noexcept {
+    const std::size_t now = control_bytes.fetch_add(bytes) + bytes;
+    std::size_t seen = max_control_bytes.load();
+    while (now > seen && !max_control_bytes.compare_exchange_weak(seen, now)) {
+    }
+  }
+  void free_control_bytes(std::size_t bytes) noexcept { control_bytes.fetch_sub(bytes); }
+  /// A control connection changed the scene: pages that connect from now on get it in their hello.
+  void scene_changed();
   /// The last page has gone: give the memory its batches used back to the system. glibc keeps
   /// freed blocks of a thread's arena for reuse; under `run --view` memory is locked, so what it
   /// keeps stays resident and locked in the real-time process.
@@ -163,6 +181,10 @@ struct ViewerServer::Impl {
   }
 
   void start_accept();
+  /// Ends the HTTP connection that has been reading its request longest; false if none is.
+  bool evict_oldest_reader();
+  /// A connection starts reading a request (kept in `readers`, which stays bounded).
+  void reading(const std::weak_ptr<HttpSession>& session);
   void on_timer();
   void add_page(const std::shared_ptr<PageSession>& page);
   void broadcast(const Message& message);
@@ -325,12 +347,29 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
 
 /// One /control connection (live scenes): each text message goes to a ControlSession on this,
 /// the server's only thread, and its reply comes back in order. A failed hello closes it.
+///
+/// Bounded by construction (issue 27): the next message is read only once the reply to the
+/// last has been written, so a connection holds at most one message (max_message_bytes) and
+/// one reply, whatever its client reads. A connection that has not said hello holds one of
+/// max_control_pending slots, for control_hello_deadline_s at most; its hello moves it to one
+/// of max_controls, so connections that never say hello cannot keep a client out.
 class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
  public:
-  /// The caller took a control slot; the socket gives it back.
+  /// The caller took a pending control slot; the socket gives back whichever it holds.
   ControlSocket(tcp::socket socket, ViewerServer::Impl& server)
-      : ws_(std::move(socket)), server_(server), session_(*server.options.control, server.options.control_options) {}
-  ~ControlSocket() { server_.control_slots.fetch_sub(1); }
+      : ws_(std::move(socket)), server_(server), session_(*server.options.control, server.options.control_options),
+        deadline_(ws_.get_executor()) {}
+  ~ControlSocket() {
+    server_.free_control_bytes(reply_.size());
+    if (authenticated_slot_) {
+      server_.control_slots.fetch_sub(1);
+    } else {
+      server_.control_pending.fetch_sub(1);
+    }
+    if (server_.control_slots.load() == 0 && server_.control_pending.load() == 0 && !server_.stopping) {
+      server_.trim_memory();
+    }
+  }
   ControlSocket(const ControlSocket&) = delete;
   ControlSocket& operator=(const ControlSocket&) = delete;
 
@@ -340,6 +379,15 @@ class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
         [](websocket::response_type& response) { response.set(http::field::server, "toonforce-viewer"); }));
     // Larger messages fail the read (1009, message too big) before any is buffered.
     ws_.read_message_max(server_.options.control_options.max_message_bytes);
+    // No hello in time: the connection ends (1008), its pending slot freed.
+    deadline_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(server_.options.control_hello_deadline_s)));
+    deadline_.async_wait([weak = weak_from_this()](beast::error_code ec) {
+      auto self = weak.lock();
+      if (ec || !self || self->session_.authenticated()) return;
+      self->server_.control_hello_late.fetch_add(1);
+      self->finish(websocket::close_code::policy_error, "no hello in time");
+    });
     ws_.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
       if (!ec) self->read();
     });
@@ -348,45 +396,90 @@ class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
  private:
   void read() {
     ws_.async_read(in_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      if (ec) return;  // closed, failed, or too big: the socket ends
-      const std::string text = beast::buffers_to_string(self->in_.data());
-      self->in_.consume(self->in_.size());
-      const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-      const std::uint64_t refused_before = self->session_.refused();
-      const bool was_authenticated = self->session_.authenticated();
-      ControlSession::Reply reply = self->session_.on_message(text, now_s);
-      self->server_.control_messages.fetch_add(1);
-      if (!was_authenticated && self->session_.authenticated()) self->server_.controls_authenticated.fetch_add(1);
-      if (self->session_.refused() != refused_before) self->server_.control_refused.fetch_add(1);
-      self->closing_ = reply.close;
-      self->out_.push_back(std::move(reply.text));
-      self->write_next();
-      if (!self->closing_) self->read();
-    });
-  }
-  void write_next() {
-    if (writing_ || out_.empty()) return;
-    writing_ = true;
-    ws_.text(true);
-    ws_.async_write(asio::buffer(out_.front()), [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      self->writing_ = false;
-      self->out_.pop_front();
-      if (ec) return;
-      if (self->out_.empty() && self->closing_) {
-        self->ws_.async_close(websocket::close_reason(websocket::close_code::policy_error, "hello refused"),
-                              [self](beast::error_code) {});
+      if (ec) {  // closed, failed, or too big: the socket ends
+        self->deadline_.cancel();
         return;
       }
-      self->write_next();
+      self->on_read();
     });
+  }
+
+  void on_read() {
+    if (!ws_.got_text()) {  // the protocol is text; a binary message ends the connection (1003)
+      in_.consume(in_.size());
+      server_.control_messages.fetch_add(1);
+      server_.control_refused.fetch_add(1);
+      reply(R"({"type":"error","message":"binary messages are not spoken here: send JSON text"})",
+            websocket::close_code::unknown_data, "binary message");
+      return;
+    }
+    const std::string_view text(static_cast<const char*>(in_.data().data()), in_.size());
+    const double now_s = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    const std::uint64_t refused_before = session_.refused();
+    const std::uint64_t changes_before = session_.changes();
+    const bool was_authenticated = session_.authenticated();
+    ControlSession::Reply answer = session_.on_message(text, now_s);
+    in_.consume(in_.size());
+    server_.control_messages.fetch_add(1);
+    if (session_.refused() != refused_before) server_.control_refused.fetch_add(1);
+    if (session_.changes() != changes_before) server_.scene_changed();
+    if (!was_authenticated && session_.authenticated()) {
+      deadline_.cancel();
+      // From a pending slot to an authenticated one, if one is free.
+      if (server_.control_slots.fetch_add(1) >= server_.options.max_controls) {
+        server_.control_slots.fetch_sub(1);
+        server_.control_refused.fetch_add(1);
+        reply(R"({"type":"error","message":"too many control connections open"})", websocket::close_code::try_again_later,
+              "too many control connections");
+        return;
+      }
+      server_.control_pending.fetch_sub(1);
+      authenticated_slot_ = true;
+      server_.controls_authenticated.fetch_add(1);
+    }
+    if (answer.close) {
+      reply(std::move(answer.text), websocket::close_code::policy_error, "hello refused");
+    } else {
+      reply(std::move(answer.text));
+    }
+  }
+
+  /// Writes one reply, then reads the next message (or closes with `code`, when given).
+  void reply(std::string text, websocket::close_code code = websocket::close_code::none, const char* why = "") {
+    close_code_ = code;
+    close_why_ = why;
+    reply_ = std::move(text);
+    server_.hold_control_bytes(reply_.size());
+    ws_.text(true);
+    ws_.async_write(asio::buffer(reply_), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      self->server_.free_control_bytes(self->reply_.size());
+      self->reply_.clear();
+      self->reply_.shrink_to_fit();
+      if (ec) return;
+      if (self->close_code_ != websocket::close_code::none) {
+        self->finish(self->close_code_, self->close_why_);
+        return;
+      }
+      self->read();
+    });
+  }
+
+  void finish(websocket::close_code code, const char* why) {
+    deadline_.cancel();
+    if (closing_) return;
+    closing_ = true;
+    ws_.async_close(websocket::close_reason(code, why), [self = shared_from_this()](beast::error_code) {});
   }
 
   websocket::stream<beast::tcp_stream> ws_;
   ViewerServer::Impl& server_;
   ControlSession session_;
+  asio::steady_timer deadline_;
   beast::flat_buffer in_;
-  std::deque<std::string> out_;
-  bool writing_ = false;
+  std::string reply_;  ///< being written (one at a time)
+  websocket::close_code close_code_ = websocket::close_code::none;
+  const char* close_why_ = "";
+  bool authenticated_slot_ = false;
   bool closing_ = false;
 };
 
@@ -401,10 +494,16 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   HttpSession& operator=(const HttpSession&) = delete;
 
   void read() {
+    reading_ = true;
+    reading_since_ = std::chrono::steady_clock::now();
+    server_.reading(weak_from_this());
     parser_.emplace();
     parser_->header_limit(8 * 1024);
     parser_->body_limit(1024);  // GET and HEAD have no body
-    stream_.expires_after(std::chrono::seconds(30));
+    // The whole request in time, or the connection ends: a client sending a header line now
+    // and then holds a connection slot no longer than this.
+    stream_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(server_.options.request_deadline_s)));
     http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       self->on_read(ec);
     });
@@ -412,12 +511,20 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
  private:
   void on_read(beast::error_code ec) {
+    reading_ = false;
+    if (ec == beast::error::timeout) server_.requests_late.fetch_add(1);
     if (ec) {
       beast::error_code ignored;
       stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
       return;
     }
     http::request<http::string_body> request = parser_->release();
+    // Two Host or Origin headers: which one a check reads and which one a proxy or browser
+    // meant are not the same question. Refused, whatever they say.
+    if (request.count(http::field::host) > 1 || request.count(http::field::origin) > 1) {
+      refuse(request, http::status::bad_request, "one Host header and at most one Origin header\n");
+      return;
+    }
     const std::string_view host(request[http::field::host].data(), request[http::field::host].size());
     if (!server_.host_allowed(host)) {
       refuse(request, http::status::misdirected_request,
@@ -432,9 +539,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         // token in the hello is the rest.
         if (!origin.empty() && !server_.origin_allowed(origin, host)) {
           refuse(request, http::status::forbidden, "WebSocket origin refused: only this server's pages and programs\n");
-        } else if (server_.control_slots.fetch_add(1) >= server_.options.max_controls) {
-          server_.control_slots.fetch_sub(1);
-          refuse(request, http::status::service_unavailable, "too many control connections open\n");
+        } else if (server_.control_pending.fetch_add(1) >= server_.options.max_control_pending) {
+          // Slots for connections yet to say hello, apart from the authenticated ones'.
+          server_.control_pending.fetch_sub(1);
+          refuse(request, http::status::service_unavailable, "too many control connections waiting for their hello\n");
         } else {
           stream_.expires_never();
           std::make_shared<ControlSocket>(stream_.release_socket(), server_)->accept(std::move(request));
@@ -514,9 +622,49 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   ViewerServer::Impl& server_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
+  bool reading_ = false;
+  std::chrono::steady_clock::time_point reading_since_{};
+
+ public:
+  bool reading() const noexcept { return reading_; }
+  std::chrono::steady_clock::time_point reading_since() const noexcept { return reading_since_; }
+  /// Ends a connection still reading its request: all slots are taken and a new one came.
+  void evict() {
+    reading_ = false;
+    stream_.cancel();
+  }
 };
 
 }  // namespace
+
+bool ViewerServer::Impl::evict_oldest_reader() {
+  const auto now = std::chrono::steady_clock::now();
+  while (!readers.empty()) {
+    const auto oldest = readers.front().lock();
+    if (!oldest || !oldest->reading()) {
+      readers.pop_front();
+      continue;
+    }
+    // A flood of new connections is refused rather than let it close the ones that came
+    // before it a moment ago: only a connection that has been reading for a while makes room.
+    if (now - oldest->reading_since() < std::chrono::duration<double>(options.evict_reading_after_s)) return false;
+    readers.pop_front();
+    oldest->evict();
+    requests_evicted.fetch_add(1);
+    return true;
+  }
+  return false;
+}
+
+void ViewerServer::Impl::reading(const std::weak_ptr<HttpSession>& session) {
+  if (readers.size() >= 2 * options.max_connections) {
+    std::erase_if(readers, [](const std::weak_ptr<HttpSession>& r) {
+      const auto s = r.lock();
+      return !s || !s->reading();
+    });
+  }
+  readers.push_back(session);
+}
 
 void ViewerServer::Impl::start_accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
@@ -534,13 +682,20 @@ void ViewerServer::Impl::start_accept() {
       return;
     }
     if (!ec) accept_delay = std::chrono::duration<double>(kAcceptRetryMinS);
-    if (!ec && connections.load() >= options.max_connections) {
+    // Every slot taken: the connection that has been reading its request longest makes room, if
+    // it has been reading for evict_reading_after_s (slow clients sending a header line now and
+    // then held every slot until their deadline). Otherwise the new one is refused.
+    if (!ec && connections.load() >= options.max_connections && !evict_oldest_reader()) {
       // Bounded: a flood of connections costs one descriptor for a moment each, and the backlog
       // keeps moving (waiting instead would leave later clients stalled behind the flood).
       connections_refused.fetch_add(1);
       beast::error_code ignored;
       socket.close(ignored);
     } else if (!ec) {
+      // Replies go out when written, not after the client's delayed ACK (Nagle's algorithm held
+      // a reply to pipelined messages ~40 ms).
+      beast::error_code ignored_nodelay;
+      socket.set_option(tcp::no_delay(true), ignored_nodelay);
       if (options.send_buffer_bytes > 0) {
         beast::error_code ignored;
         socket.set_option(asio::socket_base::send_buffer_size(options.send_buffer_bytes), ignored);
@@ -549,6 +704,21 @@ void ViewerServer::Impl::start_accept() {
     }
     start_accept();
   });
+}
+
+void ViewerServer::Impl::scene_changed() {
+  // The hello pages get from now on carries the scene as changed (a page that came after a
+  // live change was shown the starting scene's geometry). Server thread; never throws out.
+  if (options.control == nullptr) return;
+  try {
+    nlohmann::json message = nlohmann::json::parse(*hello, nullptr, false);
+    nlohmann::json scene = nlohmann::json::parse(options.control->scene_json(), nullptr, false);
+    if (message.is_discarded() || !message.is_object() || scene.is_discarded()) return;
+    message["scene"] = std::move(scene);
+    hello = std::make_shared<const std::string>(message.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  } catch (const std::exception&) {
+    // Out of memory: pages keep the hello they had.
+  }
 }
 
 std::shared_ptr<const std::string> ViewerServer::Impl::status_json(std::uint64_t page_dropped) const {
@@ -822,6 +992,14 @@ ViewerStats ViewerServer::stats() const noexcept {
   s.control_messages = impl_->control_messages.load();
   s.controls_authenticated = impl_->controls_authenticated.load();
   s.control_refused = impl_->control_refused.load();
+  s.controls_pending = impl_->control_pending.load();
+  s.controls_open = impl_->control_slots.load();
+  s.control_hello_late = impl_->control_hello_late.load();
+  s.control_bytes = impl_->control_bytes.load();
+  s.max_control_bytes = impl_->max_control_bytes.load();
+  s.requests_late = impl_->requests_late.load();
+  s.requests_evicted = impl_->requests_evicted.load();
+  s.connections_open = impl_->connections.load();
   return s;
 }
 

@@ -22,6 +22,17 @@ namespace toonforce::viewer {
 
 inline constexpr int kControlProtocolVersion = 1;
 
+/// Bounds of a message (docs/spec/control-protocol.md, Limits), checked before it is parsed.
+/// Arrays and objects nest at most this deep (the message itself is level 1): a linear scan of
+/// the text outside strings counts it, so no parse or recursion ever meets a deeper message.
+inline constexpr std::size_t kControlMaxDepth = 32;
+/// An "id" is a number, a string of at most this many bytes, true, false or null; else refused.
+inline constexpr std::size_t kControlMaxIdBytes = 128;
+/// A name a reply quotes from the message it refuses (a type, a field, a key) is cut to this
+/// many bytes; an error's whole message to kControlMaxErrorBytes.
+inline constexpr std::size_t kControlMaxEchoBytes = 64;
+inline constexpr std::size_t kControlMaxErrorBytes = 1024;
+
 /// What the protocol drives: a live scene's editor, whatever its scalar type.
 class SceneControl {
  public:
@@ -77,11 +88,15 @@ class ControlSession {
     std::string text;    ///< the JSON reply to send
     bool close = false;  ///< then close the connection (a failed hello)
   };
-  /// One message received at `now_s` (seconds, any monotonic origin).
+  /// One message received at `now_s` (seconds, any monotonic origin). Never throws. Its cost
+  /// is linear in the message's size (at most max_message_bytes, nested at most
+  /// kControlMaxDepth levels), and an error's reply is at most about kControlMaxErrorBytes.
   Reply on_message(std::string_view text, double now_s);
 
   bool authenticated() const noexcept { return authenticated_; }
   std::uint64_t refused() const noexcept { return refused_; }
+  /// Changes of the scene this session has sent (set, add, remove, load that passed).
+  std::uint64_t changes() const noexcept { return changes_; }
 
  private:
   SceneControl& control_;
@@ -90,6 +105,7 @@ class ControlSession {
   double tokens_ = -1.0;  ///< rate limit bucket (-1: full, not started)
   double last_s_ = 0.0;
   std::uint64_t refused_ = 0;
+  std::uint64_t changes_ = 0;
 };
 
 }  // namespace toonforce::viewer

@@ -61,7 +61,11 @@ struct ViewerOptions {
   double batch_interval_s = 0.02;      ///< frames go out in batches this often (50 Hz)
   std::size_t max_queued_batches = 16; ///< per page, beyond the one being written
   std::size_t max_pages = 16;          ///< WebSocket pages open at once; more upgrades get 503
-  std::size_t max_connections = 32;    ///< HTTP connections (not yet pages) open at once; more are closed at once
+  /// HTTP connections (not yet pages) open at once. One more: the connection reading its
+  /// request longest is closed to make room if it has been reading for evict_reading_after_s;
+  /// else the new one is closed at once.
+  std::size_t max_connections = 32;
+  double evict_reading_after_s = 1.0;
   int send_buffer_bytes = 0;           ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
   bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
   /// The option that gave `address`, for messages (`toonforce view` calls it --address).
@@ -70,7 +74,11 @@ struct ViewerOptions {
   /// (control_protocol.hpp) and drives this; it must outlive the server. Null: no /control.
   SceneControl* control = nullptr;
   ControlOptions control_options;
-  std::size_t max_controls = 4;  ///< control connections open at once; more upgrades get 503
+  std::size_t max_controls = 4;  ///< control connections past their hello at once; a hello beyond is refused (1013)
+  /// Control connections that have not said hello yet, apart from those: more upgrades get 503.
+  std::size_t max_control_pending = 4;
+  double control_hello_deadline_s = 5.0;  ///< a control connection without a hello by then is closed (1008)
+  double request_deadline_s = 5.0;        ///< an HTTP connection without a whole request by then is closed
 };
 
 /// Counters for the summary and the tests (any thread).
@@ -84,6 +92,14 @@ struct ViewerStats {
   std::uint64_t control_messages = 0;     ///< control protocol messages received
   std::uint64_t control_refused = 0;      ///< of those, answered with an error
   std::uint64_t controls_authenticated = 0;  ///< control connections whose hello passed
+  std::size_t controls_pending = 0;       ///< control connections open now, before their hello
+  std::size_t controls_open = 0;          ///< control connections open now, past their hello
+  std::uint64_t control_hello_late = 0;   ///< control connections closed for no hello in time
+  std::size_t control_bytes = 0;          ///< control replies held now (each being written)
+  std::size_t max_control_bytes = 0;      ///< the most control_bytes has been
+  std::uint64_t requests_late = 0;        ///< HTTP connections closed for no whole request in time
+  std::size_t connections_open = 0;       ///< HTTP connections open now (not pages or control connections)
+  std::uint64_t requests_evicted = 0;     ///< HTTP connections still reading, closed to make room for a new one
   std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
   std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
   std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
