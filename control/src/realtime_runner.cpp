@@ -151,7 +151,8 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
     }
   }
 
-  std::atomic<std::int64_t> heartbeat{0};
+  std::atomic<std::int64_t> own_heartbeat{0};
+  std::atomic<std::int64_t>& heartbeat = options.heartbeat != nullptr ? *options.heartbeat : own_heartbeat;
   std::atomic<bool> done{false};
   std::promise<std::string> ready;  // the servo thread's set-up result ("" = go)
   std::future<std::string> ready_result = ready.get_future();
@@ -329,7 +330,8 @@ Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, c
     report->setup.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
     if (!report->setup.memory_locked) report->setup.notes += "mlockall refused: memory not locked\n";
   }
-  std::atomic<std::int64_t> heartbeat{0};
+  std::atomic<std::int64_t> own_heartbeat{0};
+  std::atomic<std::int64_t>& heartbeat = options.heartbeat != nullptr ? *options.heartbeat : own_heartbeat;
   std::atomic<bool> done{false};
   const double rate_hz = device.info().nominal_rate_hz > 0.0 ? device.info().nominal_rate_hz : options.rate_hz;
   Watchdog watchdog{heartbeat, done, EmergencyZero{zero_device, &device},
@@ -428,7 +430,12 @@ extern "C" void on_stop_signal(int signo, siginfo_t* info, void* /*context*/) {
   }
   if (g_stop == nullptr) return;
   int expected = 0;
-  if (!g_stop->compare_exchange_strong(expected, signo)) {
+  // `toonforce run`'s guardian passes on each stop signal it gets; the first it marks as a
+  // possible duplicate (a service manager or a process-group kill may have sent us the same
+  // one): that one is not a second stop (guardian.hpp).
+  const bool guardian_copy = info != nullptr && info->si_code == SI_QUEUE && info->si_pid == getppid() &&
+                             info->si_value.sival_int == kGuardianFirstCopy;
+  if (!g_stop->compare_exchange_strong(expected, signo) && !(guardian_copy && expected == signo)) {
     // Asked twice: the loop did not stop. Zero force and leave now.
     g_emergency();
     _exit(128 + signo);

@@ -1,6 +1,10 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
 //               [--view [PORT]] [--view-address ADDR] [--control [--control-token T] [--control-wait]]
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -8,12 +12,15 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 
 #include "commands.hpp"
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
+#include "toonforce/hal/gpio/output_line.hpp"
+#include "toonforce/run/guardian.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
 #include "toonforce/config/scene_file.hpp"
@@ -21,6 +28,96 @@
 #endif
 
 namespace toonforce::cli {
+
+namespace {
+
+/// Forks the loop process. In the guardian (the parent) it returns the command's exit status
+/// once the loop process has ended; in the loop process, nothing (it goes on as `run`).
+std::optional<int> become_guardian(RunOptions& options, double stall_limit_ms) {
+  // The amplifier-enable line is the guardian's alone: taken before the fork (a problem with
+  // it stops the start), and its descriptors closed in the loop process.
+  std::unique_ptr<gpio::OutputLine> amp_enable;
+  if (!options.gpio.amp_enable_pin.empty()) {
+    auto spec = gpio::parse_line_spec(options.gpio.amp_enable_pin);
+    auto line = spec ? gpio::OutputLine::open(spec.value(), "toonforce-guardian")
+                     : Result<std::unique_ptr<gpio::OutputLine>>(Error{spec.error()});
+    if (!line) {
+      fmt::print(stderr, "--amp-enable-pin {}\n", line.error());
+      return 2;
+    }
+    amp_enable = std::move(line.value());
+  }
+  guardian::SharedPage* page = guardian::map_shared_page();
+  if (page == nullptr) {
+    fmt::print(stderr, "cannot map the page shared with the guardian process: {} (--no-guardian runs without it)\n",
+               std::strerror(errno));
+    return 2;
+  }
+  page->guardian_pid = getpid();
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t loop = fork();
+  if (loop < 0) {
+    fmt::print(stderr, "cannot start the loop's process: {} (--no-guardian runs without it)\n", std::strerror(errno));
+    return 2;
+  }
+  if (loop == 0) {
+    // The loop process: SIGTERM when the guardian dies (it stops with zero force, as on any stop
+    // signal); the guardian may be gone already.
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != page->guardian_pid) raise(SIGTERM);
+    options.guardian = page;
+    if (amp_enable) amp_enable->close_copy();  // the guardian's line: this process never drives it
+    amp_enable.reset();
+    return std::nullopt;
+  }
+  // The guardian, above the loop's priority when it may (a wedged loop thread must not starve
+  // it); without the permission it runs at normal priority (its end is seen by the kernel's
+  // wake-up on the pidfd either way).
+  sched_param sp{};
+  sp.sched_priority = std::min(options.priority + 1, 99);
+  static_cast<void>(sched_setscheduler(0, SCHED_FIFO, &sp));
+  guardian::GuardOptions go;
+  go.stall_limit_ns = static_cast<std::int64_t>(stall_limit_ms * 1e6);
+  struct AmpEnable final : guardian::EnableLine {
+    gpio::OutputLine* line;
+    explicit AmpEnable(gpio::OutputLine* l) : line(l) {}
+    bool set(bool active) noexcept override { return line->set(active); }
+    std::string describe() const override { return "the amplifier-enable line " + line->describe(); }
+  } enable(amp_enable.get());
+  if (amp_enable) go.enable = &enable;
+  const guardian::GuardOutcome outcome = guardian::guard(loop, *page, go);
+  const int status = outcome.wait_status;
+  if (!outcome.loop_died || (WIFEXITED(status) && !outcome.stalled)) {
+    // It ended as `run` ends, or before or after its loop (no force of its own then): its
+    // status is the command's; a signal's default action is passed on as such.
+    if (WIFSIGNALED(status)) {
+      signal(WTERMSIG(status), SIG_DFL);
+      raise(WTERMSIG(status));
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+  }
+  std::fputs(guardian::describe_outcome(outcome, loop).c_str(), stderr);
+  if (!options.trace_path.empty() && options.trace_path != "-") {
+    const std::size_t values = outcome.have_frame ? outcome.last_frame.value_count : 0;
+    const std::string bad = guardian::end_trace(options.trace_path, outcome, values);
+    if (!bad.empty()) {
+      fmt::print(stderr, "guardian: {}\n", bad);
+    } else {
+      fmt::print(stderr, "guardian: {} ends with the zero-force row at t = {:.4f} s\n", options.trace_path, outcome.t_end_s);
+    }
+  }
+  if (!options.stats_json_path.empty()) {
+    const std::string json = guardian::outcome_json(outcome, loop);
+    if (std::FILE* f = std::fopen(options.stats_json_path.c_str(), "wb")) {
+      std::fwrite(json.data(), 1, json.size(), f);
+      std::fclose(f);
+    }
+  }
+  return guardian::kExitLoopDied;
+}
+
+}  // namespace
 
 void add_run(CLI::App& app) {
   auto options = std::make_shared<RunOptions>();
@@ -95,6 +192,17 @@ void add_run(CLI::App& app) {
   cmd->add_option("--scalar", options->scalar, "Scalar type of the servo loop (a firmware build has q16.16 only)")
       ->transform(CLI::CheckedTransformer(scalars, CLI::ignore_case));
   cmd->add_flag("--quiet,-q", *quiet, "Print nothing but errors and fault messages");
+  auto no_guardian = std::make_shared<bool>(false);
+  auto stall_limit_ms = std::make_shared<double>(500.0);
+  cmd->add_flag("--no-guardian", *no_guardian,
+                "One process, without the guardian that zeroes the force when the loop's process dies (to debug "
+                "the loop in gdb; docs/DEPLOY.md \"Processes\")");
+  cmd->add_option("--stall-limit", *stall_limit_ms,
+                  "Milliseconds without a tick after which the guardian kills the loop's process and zeroes the "
+                  "force, 50..10000 (the in-process heartbeat watchdog zeroes first, after the scene's "
+                  "watchdog_periods)")
+      ->check(number_in(50.0, 10000.0))
+      ->capture_default_str();
 #if TOONFORCE_VIEWER
   auto view = std::make_shared<ViewFlags>();
   add_view_flags(cmd, *view);
@@ -119,6 +227,20 @@ void add_run(CLI::App& app) {
 #endif
   cmd->callback([=] {
     options->lock_memory = !*no_mlock;
+    // The guardian first (issue 28): before any thread, device or server exists, `run` forks;
+    // this process becomes the guardian and the child does all the rest.
+    if (*no_guardian && !options->gpio.amp_enable_pin.empty()) {
+      std::fputs("--amp-enable-pin: the guardian process holds the amplifier-enable line; --no-guardian has none\n", stderr);
+      set_exit_code(2);
+      return;
+    }
+    if (!*no_guardian) {
+      const std::optional<int> guardian_status = become_guardian(*options, *stall_limit_ms);
+      if (guardian_status) {
+        set_exit_code(*guardian_status);
+        return;
+      }
+    }
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
 #if TOONFORCE_VIEWER
     // The viewer takes frames from the thread that drains the telemetry ring (run.hpp), so the

@@ -232,6 +232,23 @@ void FalconDriver::emergency_zero() noexcept {
   }
 }
 
+ExternalZero FalconDriver::external_zero() const noexcept {
+  ExternalZero z;
+  const std::string_view node = transport_->usbfs_node();
+  if (node.empty() || node.size() >= sizeof z.usbfs_node) return z;
+  z.kind = ExternalZero::Kind::kUsbBulk;
+  node.copy(z.usbfs_node, node.size());
+  z.interface = 0;  // the FTDI chip's only interface (libusb_transport.cpp kInterface)
+  z.endpoint = kEndpointOut;
+  Command zero;  // as emergency_zero(): no force, the LEDs as they are
+  zero.flags = static_cast<std::uint8_t>(kHomingRequest | led());
+  const Frame frame = encode_command(zero);
+  static_assert(kFrameBytes <= sizeof z.frame);
+  std::copy(frame.begin(), frame.end(), z.frame);
+  z.frame_bytes = static_cast<std::uint8_t>(frame.size());
+  return z;
+}
+
 std::string FalconDriver::last_error() const {
   const std::string who = info_.name;
   const std::string streak =

@@ -155,6 +155,7 @@ std::variant<std::unique_ptr<LibusbTransport>, OpenFailure> LibusbTransport::ope
     return f;
   }
   std::unique_ptr<LibusbTransport> t(new LibusbTransport(std::move(context), handle, falcon.location));
+  t->node_ = falcon.node;
   libusb_device_descriptor d{};
   if (libusb_get_device_descriptor(falcon.device, &d) == LIBUSB_SUCCESS && d.iSerialNumber != 0) {
     unsigned char serial[128] = {};

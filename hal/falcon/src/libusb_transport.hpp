@@ -64,6 +64,7 @@ class LibusbTransport final : public FalconTransport {
   /// no allocation (async-signal-safe), independent of libusb's event handling.
   bool emergency_write(std::span<const std::uint8_t> data) noexcept override;
   std::string_view location() const noexcept override { return location_; }
+  std::string_view usbfs_node() const noexcept override { return node_; }
 
   const std::string& serial() const noexcept { return serial_; }
 
@@ -80,6 +81,7 @@ class LibusbTransport final : public FalconTransport {
   int usbfs_fd_ = -1;
   bool broken_ = false;  ///< a transfer could not be reaped: never touch the buffers again
   std::string location_;
+  std::string node_;
   std::string serial_;
 };
 

@@ -35,6 +35,11 @@ void add_gpio_options(CLI::App& command, gpio::GpioOptions& options) {
                     "Enable (deadman) input: force only while it reads active")
       ->type_name("LINE")
       ->check(kLineSpec);
+  group->add_option("--amp-enable-pin", options.amp_enable_pin,
+                    "Amplifier-enable output, held by the guardian process (not the loop's): active while the "
+                    "loop ticks, dropped at once when the loop's process ends, dies or stalls (docs/DEPLOY.md)")
+      ->type_name("LINE")
+      ->check(kLineSpec);
   group->add_option("--led-pin", options.led_pins,
                     "Status light ROLE=LINE, ROLE one of idle, homing, armed, fault; repeat or "
                     "separate with commas")

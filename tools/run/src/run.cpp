@@ -19,6 +19,7 @@
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/sim/plausibility.hpp"
+#include "toonforce/run/guardian.hpp"
 #include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
@@ -38,8 +39,9 @@ namespace {
 /// the live viewer.
 class RunConsumer final : public FrameConsumer {
  public:
-  RunConsumer(TraceWriter* trace, std::size_t values, std::FILE* messages, TelemetrySink* sink, RunSummary& summary)
-      : trace_(trace), values_(values), messages_(messages), sink_(sink), summary_(summary) {}
+  RunConsumer(TraceWriter* trace, std::size_t values, std::FILE* messages, TelemetrySink* sink, RunSummary& summary,
+              guardian::SharedPage* page)
+      : trace_(trace), values_(values), messages_(messages), sink_(sink), summary_(summary), page_(page) {}
 
   void consume(const TelemetryFrame& f) override {
     ++summary_.frames_written;
@@ -78,6 +80,22 @@ class RunConsumer final : public FrameConsumer {
       std::fflush(messages_);
     }
     if (sink_ != nullptr) sink_->publish(f);  // fan-out here, never in the servo thread
+    if (page_ != nullptr) {
+      guardian::publish_frame(*page_, f);
+      // With a guardian, the trace goes to the file every 20 ms of loop time: if this process
+      // dies, the guardian ends the trace after what the file holds (guardian.hpp).
+      if (trace_ != nullptr && !write_failed && f.t_s - flushed_t_s_ >= 0.02) {
+        flushed_t_s_ = f.t_s;
+        if (!trace_->flush()) write_failed_by_flush(f);
+      }
+    }
+  }
+  void write_failed_by_flush(const TelemetryFrame& f) {
+    write_failed = true;
+    summary_.trace_error = fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
+    fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
+               f.t_s, std::strerror(errno != 0 ? errno : EIO));
+    std::fflush(messages_);
   }
   void finish() override {
     if (sink_ != nullptr) sink_->finish();
@@ -93,6 +111,8 @@ class RunConsumer final : public FrameConsumer {
   std::FILE* messages_;
   TelemetrySink* sink_;
   RunSummary& summary_;
+  guardian::SharedPage* page_;
+  double flushed_t_s_ = 0.0;
   std::uint32_t latched_ = 0;
   bool interactive_ = false;
 };
@@ -146,14 +166,23 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   session.realtime.allow_non_realtime = options.allow_non_realtime;
   session.realtime.lock_memory = options.lock_memory;
   session.realtime.watchdog_periods = config.safety.watchdog_periods;
+  if (options.guardian != nullptr) session.realtime.heartbeat = &options.guardian->heartbeat;
   session.handle_signals = options.handle_signals;
   session.interactive = options.interactive;
   session.messages = options.messages;
-  RunConsumer consumer(trace.get(), values.size(), options.messages, options.sink, summary);
+  RunConsumer consumer(trace.get(), values.size(), options.messages, options.sink, summary, options.guardian);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;
 
   auto report = run_loop(*loop, driver, consumer, session);
+  // The loop commanded zero force on its way out (its shutdown tick): the guardian stands down.
+  if (options.guardian != nullptr) {
+    options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kLoopEnded), std::memory_order_release);
+  }
+  if (options.guardian != nullptr && getppid() != options.guardian->guardian_pid) {
+    fmt::print(options.messages, "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
+               options.guardian->guardian_pid);
+  }
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
@@ -271,6 +300,11 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   auto device = open_device(options);
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();
+  if (options.guardian != nullptr) {  // from here until the loop ends, the guardian zeroes if this process dies
+    options.guardian->zero = driver.external_zero();
+    options.guardian->period_ns = static_cast<std::int64_t>(std::llround(1e9 / options.rate_hz));
+    options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kDeviceOpen), std::memory_order_release);
+  }
   // The GPIO pins are opened (and checked) before the loop starts; without GPIO options the
   // loop is built with NullPins and runs no GPIO code at all.
   auto result = gpio::with_gpio_pins(options.gpio, [&](auto& pins) -> Result<RunSummary> {
@@ -287,6 +321,9 @@ Result<RunSummary> run_servo(const RunOptions& options) {
                                    scalar_kind_name(kind))};
         });
   });
+  if (options.guardian != nullptr) {  // the loop ended or never started: the device closes as usual
+    options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kLoopEnded), std::memory_order_release);
+  }
   if (!result) return Error{result.error()};
   return std::move(result.value());
 }

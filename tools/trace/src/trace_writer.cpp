@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -44,6 +45,44 @@ Result<std::unique_ptr<TraceWriter>> TraceWriter::open(const std::string& path, 
   if (file != stdout) std::setvbuf(file, nullptr, _IONBF, 0);
   std::unique_ptr<TraceWriter> writer(new TraceWriter(file, path, std::move(extra_columns)));
   if (!writer->flush()) return Error{fmt::format("{}: cannot write the trace header", path)};
+  return writer;
+}
+
+Result<std::unique_ptr<TraceWriter>> TraceWriter::append_to(const std::string& path,
+                                                            std::vector<std::string> extra_columns) {
+  std::FILE* file = std::fopen(path.c_str(), "r+b");
+  if (file == nullptr) return Error{fmt::format("{}: cannot open the trace to end it: {}", path, std::strerror(errno))};
+  // Back to the end of the last whole row: a writer killed in the middle of one leaves a part.
+  std::setvbuf(file, nullptr, _IONBF, 0);
+  off_t size = 0;
+  if (std::fseek(file, 0, SEEK_END) == 0) size = ftello(file);
+  char chunk[4096];
+  off_t end = size;
+  while (end > 0) {
+    const off_t from = std::max<off_t>(0, end - static_cast<off_t>(sizeof chunk));
+    const auto n = static_cast<std::size_t>(end - from);
+    if (fseeko(file, from, SEEK_SET) != 0 || std::fread(chunk, 1, n, file) != n) break;
+    const void* nl = memrchr(chunk, '\n', n);
+    if (nl != nullptr) {
+      end = from + static_cast<off_t>(static_cast<const char*>(nl) - chunk) + 1;
+      break;
+    }
+    end = from;
+  }
+  if (end != size && ftruncate(fileno(file), end) != 0) {
+    const int error = errno;
+    std::fclose(file);
+    return Error{fmt::format("{}: cannot cut the trace back to its last whole row: {}", path, std::strerror(error))};
+  }
+  if (fseeko(file, end, SEEK_SET) != 0) {
+    const int error = errno;
+    std::fclose(file);
+    return Error{fmt::format("{}: cannot go to the trace's end: {}", path, std::strerror(error))};
+  }
+  std::unique_ptr<TraceWriter> writer(new TraceWriter(file, path, std::move(extra_columns)));
+  writer->used_ = 0;  // the header is in the file already
+  writer->size_bytes_ = static_cast<std::uint64_t>(end);
+  writer->committed_ = static_cast<std::uint64_t>(end);
   return writer;
 }
 

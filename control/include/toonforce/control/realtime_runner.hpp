@@ -55,6 +55,11 @@ struct RealtimeOptions {
   bool allow_non_realtime = false;  ///< run at normal priority when SCHED_FIFO is refused
   bool lock_memory = true;          ///< mlockall(MCL_CURRENT | MCL_FUTURE)
   std::int64_t watchdog_periods = 30;
+  /// Where the heartbeat (the next tick's index) is stored; nullptr: a counter of the runner's
+  /// own. `toonforce run` points it into the page it shares with its guardian process
+  /// (tools/run/guardian.hpp), which watches it from outside this process: the same store
+  /// per tick, no cost added.
+  std::atomic<std::int64_t>* heartbeat = nullptr;
 };
 
 /// What the runner could set up, in words a person can act on.
@@ -113,6 +118,10 @@ std::string realtime_permission_advice(int priority);
 /// stack overflow, itself a SIGSEGV, still commands zero force; this installs one for the calling
 /// thread, and every thread the runner and the session start installs its own.
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency);
+/// The sigqueue() value with which `toonforce run`'s guardian passes on the first stop signal
+/// it gets: if the loop process already stops for that same signal, it is the same stop (a
+/// process-group kill reached both), not a second one.
+inline constexpr int kGuardianFirstCopy = 0x74676331;
 void restore_signals();
 /// Gives the calling thread an alternate signal stack (64 KiB, mapped once per thread, before
 /// its loop; released when the thread ends). Without one, a thread that overflowed its stack

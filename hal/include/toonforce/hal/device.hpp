@@ -114,6 +114,23 @@ struct DeviceInfo {
   Clocking clocking = Clocking::kHostTimer;
 };
 
+/// How a process other than the one driving the device commands zero force once that process
+/// is gone (`toonforce run`'s guardian, docs/DEPLOY.md "Processes"): for a USB device, one
+/// bulk-OUT transfer of `frame` on `endpoint` after claiming `interface` on the usbfs node
+/// (the driving process's claim ends with it). Fixed-size: it lives in a shared page.
+struct ExternalZero {
+  enum class Kind : std::uint8_t {
+    kNone,     ///< nothing outside the process can reach the device (the simulated one, the Omni)
+    kUsbBulk,  ///< the Falcon: a zero-force frame over usbfs
+  };
+  Kind kind = Kind::kNone;
+  char usbfs_node[64] = {};  ///< "/dev/bus/usb/BBB/DDD"
+  std::uint8_t interface = 0;
+  std::uint8_t endpoint = 0;
+  std::uint8_t frame_bytes = 0;
+  std::uint8_t frame[64] = {};
+};
+
 template <class D>
 concept ServoDevice = requires(D& device, BasicDeviceReading<device_scalar_t<D>>& reading,
                                const Vec3<device_scalar_t<D>>& force_n) {
@@ -137,6 +154,8 @@ class DeviceDriver {
   /// thread and the fatal-signal path call it. Must not block indefinitely.
   virtual void emergency_zero() noexcept = 0;
   virtual const DeviceInfo& info() const noexcept = 0;
+  /// What another process needs to zero the force once this one is gone (ExternalZero).
+  virtual ExternalZero external_zero() const noexcept { return {}; }
   /// A person-readable explanation of the last non-ok status: what happened, what to do.
   virtual std::string last_error() const { return {}; }
   /// Clocking::kDeviceThread: runs `tick` in the device's own servo thread, every period,

@@ -3,6 +3,7 @@
 ///   --tick-pin CHIP:OFFSET            toggled every tick (scope / logic analyser)
 ///   --estop-pin LINE[:active-low]     emergency stop input
 ///   --enable-pin LINE[:active-low]    enable (deadman) input
+///   --amp-enable-pin LINE[:active-low] amplifier-enable output, held by run's guardian process
 ///   --led-pin ROLE=LINE               status light, ROLE idle|homing|armed|fault; repeatable,
 ///                                     or comma-separated (armed=gpiochip0:5,fault=gpiochip0:6)
 /// LINE is CHIP:OFFSET or a line name, with optional :active-low, :pull-up, :pull-down.
@@ -15,7 +16,7 @@
 
 namespace toonforce::cli {
 
-/// Adds the four options to `command` (in an option group "GPIO"), filling `options`.
+/// Adds the five options to `command` (in an option group "GPIO"), filling `options`.
 void add_gpio_options(CLI::App& command, gpio::GpioOptions& options);
 
 }  // namespace toonforce::cli

@@ -25,6 +25,10 @@
 #include "toonforce/hal/omni/omni_device.hpp"
 
 namespace toonforce {
+namespace guardian {
+struct SharedPage;
+}  // namespace guardian
+
 
 /// Live scenes (issue 19, `--control`): the mailbox the run's loop takes scene updates from,
 /// for the run's scalar type (the others stay null). The application's side (the control
@@ -79,6 +83,9 @@ struct RunOptions {
   TelemetrySink* sink = nullptr;
   /// Live scenes: the loop takes scene updates from here (null: a loop without the live stage).
   const LiveMailboxes* live = nullptr;
+  /// The page shared with `toonforce run`'s guardian process (guardian.hpp), when there is one:
+  /// the loop's heartbeat, the device's external zero, the frames the writer takes.
+  guardian::SharedPage* guardian = nullptr;
 
   /// q16.16 in a firmware build (TOONFORCE_FIRMWARE=ON), else double.
   static ScalarKind default_run_scalar() noexcept;

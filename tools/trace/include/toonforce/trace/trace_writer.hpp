@@ -53,6 +53,10 @@ class TraceWriter {
  public:
   /// Creates `path` ("-" for standard output) and writes the header.
   static Result<std::unique_ptr<TraceWriter>> open(const std::string& path, std::vector<std::string> extra_columns);
+  /// Goes on writing rows at the end of an existing trace (its header already there), after
+  /// cutting it back to its last whole row: `toonforce run`'s guardian ends the trace of a
+  /// loop process that died in the middle of a row (tools/run/guardian.hpp).
+  static Result<std::unique_ptr<TraceWriter>> append_to(const std::string& path, std::vector<std::string> extra_columns);
   /// A writer into memory (tests, benchmarks); text() returns what it wrote.
   static std::unique_ptr<TraceWriter> in_memory(std::vector<std::string> extra_columns);
   ~TraceWriter();

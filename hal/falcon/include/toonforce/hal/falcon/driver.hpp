@@ -65,6 +65,8 @@ class FalconDriver final : public DeviceDriver {
   /// allocation): callable from a watchdog thread. It does not latch: the next write() sends
   /// whatever it is given, so the caller stops the loop first.
   void emergency_zero() noexcept override;
+  /// The zero-force frame emergency_zero() sends, on the transport's usbfs node.
+  ExternalZero external_zero() const noexcept override;
   const DeviceInfo& info() const noexcept override { return info_; }
   std::string last_error() const override;
 

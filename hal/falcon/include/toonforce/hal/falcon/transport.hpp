@@ -64,6 +64,9 @@ class FalconTransport {
   virtual bool emergency_write(std::span<const std::uint8_t> data) noexcept = 0;
   /// Where the device is, for messages: "usb 001/005 (/dev/bus/usb/001/005)".
   virtual std::string_view location() const noexcept = 0;
+  /// The usbfs node ("/dev/bus/usb/001/005") another process may open to reach the device;
+  /// empty when there is none (an in-process emulator).
+  virtual std::string_view usbfs_node() const noexcept { return {}; }
 };
 
 }  // namespace toonforce::falcon

@@ -59,8 +59,11 @@ struct GpioOptions {
   std::string estop_pin;              ///< --estop-pin: emergency stop input
   std::string enable_pin;             ///< --enable-pin: enable (deadman) input
   std::vector<std::string> led_pins;  ///< --led-pin ROLE=LINE, repeatable
+  /// --amp-enable-pin: the amplifier-enable output. The guardian process holds it, never the
+  /// loop's (tools/run/guardian.hpp), so it is not one of the loop's pins (empty() leaves it out).
+  std::string amp_enable_pin;
 
-  /// No pin configured: the run uses NullPins and no GPIO code.
+  /// No pin of the loop's configured: the run uses NullPins and no GPIO code.
   bool empty() const noexcept {
     return tick_pin.empty() && estop_pin.empty() && enable_pin.empty() && led_pins.empty();
   }
