@@ -67,7 +67,9 @@ struct Child {
   int status = 0;
 };
 
-Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output) {
+/// `own_group`: the child leads a process group of its own (its pid), for a kill(-pid, ...)
+/// that reaches it and its children as a service manager's or a shell's would.
+Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output, bool own_group = false) {
   std::vector<char*> argv;
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
@@ -76,8 +78,15 @@ Child spawn(const std::vector<std::string>& args, const std::filesystem::path& o
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  if (own_group) {
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attributes, 0);
+  }
   Child child;
-  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
+  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, &attributes, argv.data(), environ);
+  posix_spawnattr_destroy(&attributes);
   posix_spawn_file_actions_destroy(&actions);
   EXPECT_EQ(rc, 0) << std::strerror(rc);
   if (rc != 0) child.pid = -1;
@@ -1115,6 +1124,162 @@ TEST(RunCommand, TooLittleAddressSpaceIsCannotStartNotAnAbort) {
   EXPECT_TRUE(refused) << "no limit was small enough to refuse the run";
 #endif
 }
+
+
+// ---- the guardian (issue 28): the loop's process killed, stalled, or left alone ---------------
+
+namespace guardian_tests {
+
+/// The loop's process of a `run` started by this test: the guardian's only child.
+pid_t loop_process_of(pid_t guardian) {
+  for (int i = 0; i < 500; ++i) {
+    std::ifstream in(fmt::format("/proc/{}/task/{}/children", guardian, guardian));
+    pid_t child = 0;
+    if (in >> child && child > 0) return child;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return -1;
+}
+
+/// Waits (no time asserted) until the trace's file holds a row whose force is at least
+/// `force_n` [N]: the hand is in the middle of its strike on the wall.
+bool wait_for_force(Child& c, const std::filesystem::path& trace, double force_n, const std::filesystem::path& output) {
+  for (int i = 0; i < 6000; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    int status = 0;
+    if (waitpid(c.pid, &status, WNOHANG) != 0) {
+      ADD_FAILURE() << "exited early:\n" << slurp(output);
+      c.pid = -1;
+      return false;
+    }
+    const auto lines = lines_of(trace);
+    for (std::size_t k = lines.size(); k-- > 1;) {
+      const auto row = fields(lines[k]);
+      if (row.size() > 9 && std::hypot(row[7], row[8], row[9]) >= force_n) return true;
+    }
+  }
+  ADD_FAILURE() << "the strike never reached " << force_n << " N";
+  return false;
+}
+
+std::vector<std::string> strike_run(const std::filesystem::path& trace, const std::filesystem::path& stats) {
+  return {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+          "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "60", "--trace", trace.string(),
+          "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"};
+}
+
+/// Every row whole and in time order; the last row's force.
+void expect_whole_rows_ending_at_zero_force(const std::filesystem::path& trace) {
+  const auto lines = lines_of(trace);
+  ASSERT_GT(lines.size(), 2U);
+  const auto header = fields(lines[0]);
+  double previous_t = -1.0;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto row = fields(lines[i]);
+    ASSERT_EQ(row.size(), header.size()) << "row " << i << ": " << lines[i];
+    ASSERT_GT(row[0], previous_t) << "row " << i;
+    previous_t = row[0];
+  }
+  const auto last = fields(lines.back());
+  EXPECT_EQ(std::hypot(last[7], last[8], last[9]), 0.0) << lines.back();
+}
+
+TEST(Guardian, KillingTheLoopsProcessMidStrikeEndsTheTraceOnAZeroForceRowAndExits3) {
+  const auto trace = temp_path("guardian_kill.csv");
+  const auto stats = temp_path("guardian_kill.json");
+  const auto output = temp_path("guardian_kill.txt");
+  Child run = spawn(strike_run(trace, stats), output);
+  ASSERT_TRUE(started(run));
+  const pid_t loop = loop_process_of(run.pid);
+  ASSERT_GT(loop, 0) << "run has no loop process: no guardian";
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  ASSERT_EQ(kill(loop, SIGKILL), 0);
+  EXPECT_EQ(wait_exit(run), 3) << slurp(output);
+  const std::string said = slurp(output);
+  EXPECT_NE(said.find(fmt::format("the loop's process (pid {}) ended during the loop", loop)), std::string::npos) << said;
+  EXPECT_NE(said.find("killed by SIGKILL"), std::string::npos) << said;
+  EXPECT_NE(said.find("ends with the zero-force row"), std::string::npos) << said;
+  expect_whole_rows_ending_at_zero_force(trace);
+  const auto lines = lines_of(trace);
+  const auto before = fields(lines[lines.size() - 2]);
+  EXPECT_GT(std::hypot(before[7], before[8], before[9]), 0.0) << "killed while the wall pushed: " << lines[lines.size() - 2];
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"loop_process_died\": true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"cause\": \"killed by SIGKILL\""), std::string::npos) << json;
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
+TEST(Guardian, AStoppedLoopProcessIsKilledPastTheStallLimitAndTheForceZeroed) {
+  const auto trace = temp_path("guardian_stall.csv");
+  const auto stats = temp_path("guardian_stall.json");
+  const auto output = temp_path("guardian_stall.txt");
+  auto args = strike_run(trace, stats);
+  args.insert(args.end(), {"--stall-limit", "100"});
+  Child run = spawn(args, output);
+  ASSERT_TRUE(started(run));
+  const pid_t loop = loop_process_of(run.pid);
+  ASSERT_GT(loop, 0);
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  ASSERT_EQ(kill(loop, SIGSTOP), 0);  // wedged as a whole: no thread of it runs, its own watchdog neither
+  EXPECT_EQ(wait_exit(run), 3) << slurp(output);
+  const std::string said = slurp(output);
+  EXPECT_NE(said.find("stalled: no tick for"), std::string::npos) << said;
+  EXPECT_NE(said.find("(limit 100 ms), so the guardian killed it"), std::string::npos) << said;
+  expect_whole_rows_ending_at_zero_force(trace);
+  EXPECT_NE(slurp(stats).find("\"stalled\": true"), std::string::npos);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
+TEST(Guardian, WhenTheGuardianDiesTheLoopStopsWithZeroForceAndSaysSo) {
+  const auto trace = temp_path("guardian_dies.csv");
+  const auto stats = temp_path("guardian_dies.json");
+  const auto output = temp_path("guardian_dies.txt");
+  Child run = spawn(strike_run(trace, stats), output);
+  ASSERT_TRUE(started(run));
+  const pid_t guardian = run.pid;
+  const pid_t loop = loop_process_of(guardian);
+  ASSERT_GT(loop, 0);
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  ASSERT_EQ(kill(guardian, SIGKILL), 0);
+  EXPECT_EQ(wait_exit(run), 128 + SIGKILL);
+  // The loop's process is not this test's child: wait for it to go (its parent is now init or
+  // a subreaper, which reaps it).
+  for (int i = 0; i < 3000 && kill(loop, 0) == 0; ++i) {
+    std::ifstream stat(fmt::format("/proc/{}/stat", loop));
+    std::string pid, comm, state;
+    if (stat >> pid >> comm >> state && state == "Z") break;  // ended, not yet reaped
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // its last writes
+  const std::string said = slurp(output);
+  EXPECT_NE(said.find(fmt::format("the guardian process (pid {}) ended during the run: the loop stopped with zero force",
+                                  guardian)),
+            std::string::npos)
+      << said;
+  expect_whole_rows_ending_at_zero_force(trace);
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": " + std::to_string(SIGTERM)), std::string::npos) << slurp(stats);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
+TEST(Guardian, AStopSignalToTheWholeProcessGroupStopsTheLoopOnceWithItsSummary) {
+  // A service manager's SIGTERM to every process of the unit, a shell's kill to the job: the
+  // guardian passes its copy on, and the loop's process must not take it for a second stop.
+  const auto trace = temp_path("guardian_group.csv");
+  const auto stats = temp_path("guardian_group.json");
+  const auto output = temp_path("guardian_group.txt");
+  Child run = spawn(strike_run(trace, stats), output, /*own_group=*/true);
+  ASSERT_TRUE(started(run));
+  ASSERT_GT(loop_process_of(run.pid), 0);
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  ASSERT_EQ(kill(-run.pid, SIGTERM), 0);
+  EXPECT_EQ(wait_exit(run), 0) << slurp(output);
+  expect_whole_rows_ending_at_zero_force(trace);
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": " + std::to_string(SIGTERM)), std::string::npos) << slurp(stats);
+  EXPECT_NE(slurp(output).find("stopped by SIGTERM"), std::string::npos) << slurp(output);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
+}  // namespace guardian_tests
 
 }  // namespace
 }  // namespace toonforce
