@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <optional>
 #include <stdexcept>
@@ -20,6 +21,8 @@
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/hal/gpio/emulated_gpio.hpp"
 #include "toonforce/hal/gpio/gpio_session.hpp"
+#include "toonforce/hal/gpio/output_line.hpp"
+#include "guardian_stand_in.hpp"
 
 namespace toonforce {
 namespace {
@@ -659,6 +662,44 @@ TEST_F(GpioEmulation, ListsTheChips) {
   EXPECT_EQ(chips[0].label, "toonforce-test-0");
   EXPECT_EQ(chips[1].num_lines, 4u);
   EXPECT_TRUE(chips[1].problem.empty());
+}
+
+
+// ---- the amplifier-enable line, held by `toonforce run`'s guardian (issue 28) -----------------
+
+TEST_F(GpioEmulation, TheGuardianHoldsTheAmplifierEnableActiveWhileTheLoopTicksAndDropsItWhenItsProcessIsKilled) {
+  auto spec = gpio::parse_line_spec("gpiochip0:2:active-low");
+  ASSERT_TRUE(spec) << spec.error();
+  auto line = gpio::OutputLine::open(spec.value(), "toonforce-guardian");
+  ASSERT_TRUE(line) << line.error();
+  EXPECT_EQ(emu().line(0, 2).physical, 1) << "requested at its inactive level (active-low: high)";
+  EXPECT_EQ(emu().line(0, 2).consumer, "toonforce-guardian");
+  struct Enable final : guardian::EnableLine {
+    gpio::OutputLine& line;
+    explicit Enable(gpio::OutputLine& l) : line(l) {}
+    bool set(bool active) noexcept override { return line.set(active); }
+    std::string describe() const override { return "the amplifier-enable line " + line.describe(); }
+  } enable(*line.value());
+  const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(
+      ExternalZero{}, &enable, [&] { return emu().line(0, 2).physical == 0; });
+  EXPECT_TRUE(run.active_while_ticking) << "the line is active (low) while the loop ticks";
+  EXPECT_TRUE(run.outcome.loop_died);
+  EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
+  EXPECT_NE(run.outcome.zero_detail.find("the amplifier-enable line /dev/gpiochip0 line 2 was dropped"), std::string::npos)
+      << run.outcome.zero_detail;
+  EXPECT_GE(run.outcome.zero_ns, run.killed_ns);
+  // For tools/bench/guardian-kill (a time, never asserted):
+  std::printf("guardian kill to zero (gpio): %.3f ms\n", static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
+  EXPECT_EQ(emu().line(0, 2).physical, 1) << "dropped: inactive (high) once the loop's process is gone";
+}
+
+TEST_F(GpioEmulation, AnAmplifierEnableLineThatCannotBeTakenSaysWhoHoldsIt) {
+  emu().claim(0, 2, "someone-else");
+  auto spec = gpio::parse_line_spec("gpiochip0:2");
+  ASSERT_TRUE(spec);
+  auto line = gpio::OutputLine::open(spec.value(), "toonforce-guardian");
+  ASSERT_FALSE(line);
+  EXPECT_NE(line.error().find("held by 'someone-else'"), std::string::npos) << line.error();
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -11,9 +12,11 @@
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <vector>
 #include <unistd.h>
 
 #include "alloc_counter.hpp"
+#include "guardian_stand_in.hpp"
 #include "run_command.hpp"
 #include "synthetic_firmware.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
@@ -515,6 +518,37 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --only homeing");
   EXPECT_EQ(r.status, 2) << r.output;
   EXPECT_NE(r.output.find("no bring-up step 'homeing' (the steps are: found, firmware, homing"), std::string::npos) << r.output;
+}
+
+
+// ---- the guardian (issue 28): the Falcon zeroed from outside the process that drove it ----
+
+TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) {
+  // The driver pushes with a steady force; a stand-in loop process ticks the shared heartbeat
+  // until it is killed with SIGKILL; the guardian (this process) must then send the Falcon the
+  // zero-force frame the driver describes, through its own descriptor on the usbfs node.
+  bed_->add_falcon(with_firmware(), "FTEMU0001");
+  auto d = open();
+  ASSERT_NE(d, nullptr);
+  home(*d);
+  DeviceReading r;
+  for (int i = 0; i < 5; ++i) tick(*d, r, {0.0, 0.0, 4.0});
+  bed_->with(0, [](FalconEmulator& e) { ASSERT_GT(norm(e.motor_force_n()), 1.0) << "the motors push before the kill"; });
+  const ExternalZero zero = d->external_zero();
+  ASSERT_EQ(zero.kind, ExternalZero::Kind::kUsbBulk);
+  EXPECT_EQ(std::string(zero.usbfs_node), bed_->devnode(0));
+
+  const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(zero, nullptr);
+  EXPECT_TRUE(run.outcome.loop_died);
+  EXPECT_NE(run.outcome.cause.find("killed by SIGKILL"), std::string::npos) << run.outcome.cause;
+  EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
+  EXPECT_GE(run.outcome.zero_ns, run.killed_ns);
+  // For tools/bench/guardian-kill (a time, never asserted):
+  std::printf("guardian kill to zero (falcon): %.3f ms\n", static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
+  bed_->with(0, [](FalconEmulator& e) {
+    EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "the last frame the Falcon got";
+    EXPECT_EQ(norm(e.motor_force_n()), 0.0);
+  });
 }
 
 }  // namespace
