@@ -8,6 +8,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -1128,7 +1129,6 @@ TEST(RunCommand, TooLittleAddressSpaceIsCannotStartNotAnAbort) {
 
 // ---- the guardian (issue 28): the loop's process killed, stalled, or left alone ---------------
 
-namespace guardian_tests {
 
 /// The loop's process of a `run` started by this test: the guardian's only child.
 pid_t loop_process_of(pid_t guardian) {
@@ -1279,7 +1279,155 @@ TEST(Guardian, AStopSignalToTheWholeProcessGroupStopsTheLoopOnceWithItsSummary) 
   for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
 }
 
-}  // namespace guardian_tests
+
+
+// ---- the server process (issue 28): its failures cannot reach the loop ----------------------
+
+/// The viewer's server process of a `run --view` started by this test (the loop process's child).
+pid_t server_process_of(pid_t guardian) {
+  const pid_t loop = loop_process_of(guardian);
+  return loop > 0 ? loop_process_of(loop) : -1;
+}
+
+std::string proc_text(pid_t pid, const char* file) { return slurp(fmt::format("/proc/{}/{}", pid, file)); }
+
+/// Every tick of the run has its row: ticks in order, none repeated, at most `missed` skipped
+/// in all (the deadlines the runner skipped), the last the shut-down tick with zero force.
+void expect_every_tick_and_a_zero_force_end(const std::filesystem::path& trace, const std::filesystem::path& stats) {
+  const auto lines = lines_of(trace);
+  ASSERT_GT(lines.size(), 100U);
+  std::vector<std::string> names;
+  {
+    std::stringstream cells(lines[0]);
+    for (std::string cell; std::getline(cells, cell, ',');) names.push_back(cell);
+  }
+  const auto tick_at = static_cast<std::size_t>(std::find(names.begin(), names.end(), "tick") - names.begin());
+  ASSERT_LT(tick_at, names.size());
+  const std::string json = slurp(stats);
+  const auto missed_at = json.find("\"missed\": ");
+  ASSERT_NE(missed_at, std::string::npos) << json;
+  const long missed = std::strtol(json.c_str() + missed_at + 10, nullptr, 10);
+  double previous = -1.0;
+  long skipped = 0;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto row = fields(lines[i]);
+    ASSERT_EQ(row.size(), names.size()) << "row " << i;
+    if (previous >= 0.0) {
+      ASSERT_GT(row[tick_at], previous) << "row " << i;
+      skipped += static_cast<long>(row[tick_at] - previous) - 1;
+    }
+    previous = row[tick_at];
+  }
+  EXPECT_LE(skipped, missed) << "rows missing beyond the deadlines the runner skipped";
+  const auto last = fields(lines.back());
+  EXPECT_EQ(std::hypot(last[7], last[8], last[9]), 0.0);
+}
+
+class ServerProcessFault : public ::testing::TestWithParam<int> {};
+
+// SIGKILL (the OOM killer), SIGSEGV (a crash in the parser), SIGSTOP (a hang): the loop runs
+// to its end with every tick, and `run` ends as it would have.
+TEST_P(ServerProcessFault, TheLoopRunsToItsEndWithEveryTick) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto trace = temp_path("server_fault.csv");
+  const auto stats = temp_path("server_fault.json");
+  const auto output = temp_path("server_fault.txt");
+  Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+                     "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "1.5", "--view", "0",
+                     "--control", "--control-token", "t", "--trace", trace.string(), "--stats-json", stats.string(),
+                     "--allow-non-rt", "--no-mlock"},
+                    output);
+  ASSERT_TRUE(started(run));
+  ASSERT_TRUE(wait_for_text(run, output, "control: ws://")) << slurp(output);
+  const pid_t server = server_process_of(run.pid);
+  ASSERT_GT(server, 0) << "no server process under the loop process";
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  ASSERT_EQ(kill(server, GetParam()), 0);
+  if (GetParam() == SIGSTOP) {
+    // After the run, the page would serve the recording until Ctrl-C: the stopped server never
+    // answers, so a Ctrl-C to the loop process ends it (killed after 2 s).
+    ASSERT_TRUE(wait_for_text(run, output, "faults   ")) << slurp(output);
+    kill(loop_process_of(run.pid), SIGINT);
+  }
+  EXPECT_EQ(wait_exit(run), 0) << slurp(output);
+  const std::string said = slurp(output);
+  if (GetParam() != SIGSTOP) {
+    EXPECT_NE(said.find(fmt::format("viewer: the server process (pid {}) killed by {} during the run; the loop goes on "
+                                    "without the viewer",
+                                    server, signal_name(GetParam()))),
+              std::string::npos)
+        << said;
+  } else {
+    EXPECT_NE(said.find(fmt::format("viewer: its server process (pid {}) did not end within 2 s; killed", server)),
+              std::string::npos)
+        << said;
+  }
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"ticks\": "), std::string::npos) << json;
+  expect_every_tick_and_a_zero_force_end(trace, stats);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+INSTANTIATE_TEST_SUITE_P(RunCommand, ServerProcessFault, ::testing::Values(SIGKILL, SIGSEGV, SIGSTOP), kSignalTestName);
+
+TEST(RunCommand, TheServerProcessHasNoRealTimePriorityNoLockedMemoryAndNoCapability) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto output = temp_path("server_rights.txt");
+  Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                     "--duration", "30", "--view", "0", "--allow-non-rt", "--no-mlock", "--trace", "-"},
+                    output);
+  ASSERT_TRUE(started(run));
+  ASSERT_TRUE(wait_for_text(run, output, "viewer: http://")) << slurp(output);
+  const pid_t server = server_process_of(run.pid);
+  ASSERT_GT(server, 0);
+  ASSERT_TRUE(wait_for_text(run, output, "\n0.1,")) << "the loop runs (its trace on standard output): " << slurp(output);
+  const std::string status = proc_text(server, "status");
+  EXPECT_NE(status.find("NoNewPrivs:\t1"), std::string::npos) << status;
+  EXPECT_NE(status.find("CapPrm:\t0000000000000000"), std::string::npos) << status;
+  EXPECT_NE(status.find("CapEff:\t0000000000000000"), std::string::npos) << status;
+  EXPECT_NE(status.find("VmLck:\t       0 kB"), std::string::npos) << status;
+  const std::string limits = proc_text(server, "limits");
+  EXPECT_NE(limits.find("Max realtime priority     0                    0"), std::string::npos) << limits;
+  EXPECT_NE(limits.find("Max locked memory         0                    0"), std::string::npos) << limits;
+  // Its threads run at normal priority: SCHED_OTHER is policy 0, field 41 of each thread's stat.
+  for (const auto& task : std::filesystem::directory_iterator(fmt::format("/proc/{}/task", server))) {
+    std::string stat = slurp(task.path() / "stat");
+    stat = stat.substr(stat.rfind(')') + 2);  // after the name, fields from the state (3rd) on
+    std::stringstream fields_after(stat);
+    std::string field;
+    for (int i = 3; i <= 41 && fields_after >> field; ++i) {
+    }
+    EXPECT_EQ(field, "0") << "thread " << task.path().filename() << " scheduling policy";
+  }
+  ASSERT_EQ(kill(run.pid, SIGTERM), 0);
+  EXPECT_EQ(wait_exit(run), 0) << slurp(output);
+  std::filesystem::remove(output);
+}
+
+
+// Issue 27, "every phase": a stop signal that came while the device opened (the command's flag,
+// set before the loop's handlers exist) stops the loop before its first tick: no force at all,
+// the shut-down row, the summary naming the signal.
+TEST(RunServo, AStopThatCameWhileTheDeviceOpenedStopsTheLoopBeforeItsFirstTick) {
+  std::atomic<int> early{SIGHUP};
+  RunOptions o;
+  o.device = "sim";
+  o.scene_path = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
+  o.duration_s = 5.0;
+  o.trace_path = temp_path("early_stop.csv").string();
+  o.allow_non_realtime = true;
+  o.lock_memory = false;
+  o.interactive = false;
+  o.early_stop = &early;
+  const auto summary = run_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_EQ(summary->report.stop_signal, SIGHUP);
+  EXPECT_EQ(summary->report.ticks, 0);
+  const auto lines = lines_of(o.trace_path);
+  ASSERT_EQ(lines.size(), 2U) << "the header and the shut-down row";
+  const auto row = fields(lines[1]);
+  EXPECT_EQ(std::hypot(row[7], row[8], row[9]), 0.0);
+  std::filesystem::remove(o.trace_path);
+}
 
 }  // namespace
 }  // namespace toonforce

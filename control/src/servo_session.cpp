@@ -74,6 +74,10 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
                                   const SessionOptions& options, RearmRequest rearm) {
   g_stop.store(0);
   if (options.handle_signals) install_signal_handlers(g_stop, EmergencyZero{zero_device, &device});
+  if (options.pending_stop != nullptr && options.pending_stop->load() != 0) {
+    int expected = 0;
+    g_stop.compare_exchange_strong(expected, options.pending_stop->load());
+  }
   SessionReport session;
   session.interactive = options.interactive && isatty(STDIN_FILENO) != 0;
   std::atomic<bool> finished{false};

@@ -20,10 +20,12 @@
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/hal/gpio/output_line.hpp"
+#include "toonforce/run/command_stop.hpp"
 #include "toonforce/run/guardian.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
 #include "toonforce/config/scene_file.hpp"
+#include "server_process.hpp"
 #include "viewer_support.hpp"
 #endif
 
@@ -241,20 +243,23 @@ void add_run(CLI::App& app) {
         return;
       }
     }
+    // From here to the end, every stop signal takes one path (issue 27): the command's flag
+    // before and after the loop (the scene loading, the device opening, the viewer), the loop's
+    // own handlers (which put these back) while it runs; one that came before them stops the
+    // loop at its first tick.
+    install_command_stop_signals();
+    options->early_stop = &command_stop();
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
 #if TOONFORCE_VIEWER
-    // The viewer takes frames from the thread that drains the telemetry ring (run.hpp), so the
-    // servo thread does nothing for it; its server thread runs at normal priority.
-    // Declared before the server: it outlives it (the server's /control drives it).
-    auto live = std::make_unique<LiveMailboxes>();
-    std::unique_ptr<viewer::SceneControl> live_control;
-    std::unique_ptr<viewer::ViewerServer> server;
+    // The viewer and the control protocol's server run in a process of their own (issue 28;
+    // server_process.hpp), forked here, before this process has any thread: the writer thread
+    // (never the servo thread) hands it frames, and its checked scene updates come back through
+    // the live-scene mailbox in the memory they share.
+    std::unique_ptr<ServerProcess> server;
     if (view->wanted()) {
-      // From here to the end, every stop signal takes one path (issue 27): the viewer's flag
-      // before and after the loop, the loop's own handlers (which put these back) while it runs.
-      install_view_signals();
       auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
-      viewer::HelloInfo hello;
+      ServerSetup setup;
+      viewer::HelloInfo& hello = setup.hello;
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
       hello.rate_hz = options->rate_hz;
@@ -266,67 +271,56 @@ void add_run(CLI::App& app) {
         hello.workspace_min_m = scene->safety.workspace_min_m;
         hello.workspace_max_m = scene->safety.workspace_max_m;
       }
-      viewer::ViewerOptions vo;
-      vo.address = view->address;
-      vo.hosts = view->hosts;
-      vo.port = static_cast<std::uint16_t>(view->port);
+      setup.viewer.address = view->address;
+      setup.viewer.hosts = view->hosts;
+      setup.viewer.port = static_cast<std::uint16_t>(view->port);
       if (*control) {
         if (!scene) {  // the run would refuse it too; say it once, before the server starts
           std::fputs(scene.error().c_str(), stderr);
           set_exit_code(2);
           return;
         }
-        auto opened = open_live_control(options->scene_path, options->scalar, *live);
-        if (!opened) {
-          fmt::print(stderr, "--control: {}\n", opened.error());
-          set_exit_code(2);
-          return;
-        }
-        live_control = std::move(opened.value());
-        vo.control = live_control.get();
+        setup.control = true;
+        setup.scene_path = options->scene_path;
+        setup.scalar = options->scalar;
         const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
-        vo.control_options.token = !control_token->empty() ? *control_token
-                                   : env != nullptr && *env != '\0' ? std::string(env)
-                                                                     : viewer::random_token();
-        options->live = live.get();
+        setup.viewer.control_options.token = !control_token->empty() ? *control_token
+                                             : env != nullptr && *env != '\0' ? std::string(env)
+                                                                               : viewer::random_token();
+        if (control_token->empty() && (env == nullptr || *env == '\0')) setup.token_note = " (random; set one with --control-token)";
       }
-      auto started = start_viewer(vo, hello);
+      auto started = ServerProcess::start(setup);
       if (!started) {
-        fmt::print(stderr, "{}\n", started.error());
+        if (!started.error().empty()) fmt::print(stderr, "{}\n", started.error());
         set_exit_code(2);
         return;
       }
       server = std::move(started.value());
-      options->sink = server.get();
-      if (*control) {
-        std::string url = server->url();
-        url.replace(0, 4, "ws");  // http://HOST:PORT/ -> ws://HOST:PORT/
-        fmt::print(stderr, "control: {}control, token {}{}\n", url, vo.control_options.token,
-                   control_token->empty() && std::getenv("TOONFORCE_CONTROL_TOKEN") == nullptr ? " (random; set one with --control-token)" : "");
-        std::fflush(stderr);
-      }
+      options->sink = &server->sink();
+      if (*control) options->live = &server->live();
       if (*control_wait) {
         // Before the device opens: a session that never gets its client commands no force at all.
         fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
         std::fflush(stderr);
-        const bool connected = view_stop().load() == 0 && server->wait_for_control(view_stop());
+        const bool connected = command_stop().load() == 0 && server->wait_for_control(command_stop());
         if (!connected) {
-          const int signo = view_stop().load();
+          const int signo = command_stop().load();
+          const std::string gone = server->ended_early();
           fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
-                     signo != 0 ? " (stopped by " + signal_name(signo) + ")" : std::string());
+                     signo != 0       ? " (stopped by " + signal_name(signo) + ")"
+                     : !gone.empty() ? " (the server process " + gone + ")"
+                                     : std::string());
           set_exit_code(2);  // could not start (interfaces.md: exit status)
           return;
         }
       }
     }
 #endif
-#if TOONFORCE_VIEWER
-    if (view->wanted() && view_stop().load() != 0) {  // stopped while the viewer was starting
-      fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(view_stop().load()));
+    if (command_stop().load() != 0) {  // stopped while the scene loaded or the viewer started
+      fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(command_stop().load()));
       set_exit_code(2);  // could not start (exits.md)
       return;
     }
-#endif
     // The hand script's length by check's rule (one shared check: check refused what run took).
     if (options->device == "sim" && !options->hand_script_path.empty()) {
       if (auto script = load_hand_script(options->hand_script_path)) {
@@ -397,9 +391,10 @@ void add_run(CLI::App& app) {
       const int stopped_by = summary->report.stop_signal;
       if (stopped_by != 0 && stopped_by != SIGINT && stopped_by != kStopByUser) {
         fmt::print(stderr, "viewer: the run was stopped by {}; the page closes with it\n", signal_name(stopped_by));
+        server->finish(false);
         return;
       }
-      serve_until_stopped(*server, "the run is over");
+      server->finish(true);  // the server process says "the run is over" and serves until Ctrl-C
     }
 #endif
   });

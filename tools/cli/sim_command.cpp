@@ -124,15 +124,15 @@ void add_sim(CLI::App& app) {
         return;
       }
       server = std::move(started.value());
-      install_view_signals();
+      install_command_stop_signals();
       fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
       std::fflush(stderr);
-      if (!server->wait_for_page(view_stop())) {
-        restore_view_signals();
+      if (!server->wait_for_page(command_stop())) {
+        restore_command_stop_signals();
         set_exit_code(1);
         return;
       }
-      restore_view_signals();
+      restore_command_stop_signals();
       options->sink = server.get();
     }
 #endif

@@ -17,24 +17,6 @@
 
 namespace toonforce::cli {
 
-namespace {
-std::atomic<int> g_view_stop{0};
-// Every stop signal, not SIGINT and SIGTERM alone (issue 27: SIGHUP, SIGQUIT, SIGUSR1, ...
-// ended a `run --control-wait` by their default action): the same stop path as the loop's.
-std::vector<struct sigaction> g_old_actions;
-bool g_installed = false;
-
-extern "C" void on_view_signal(int signal, siginfo_t* info, void* /*context*/) {
-  // The kernel's SIGXFSZ (a file-size limit) is a write error the writer reports, not a stop;
-  // one sent with kill() is a stop like the loop's (realtime_runner.cpp).
-  // (The kernel sends it as if the process had: SI_USER with the process's own pid.)
-  if (signal == SIGXFSZ && info != nullptr &&
-      ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid())) {
-    return;
-  }
-  g_view_stop.store(signal);
-}
-}  // namespace
 
 void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
   flags.view = cmd->add_option("--view", flags.port,
@@ -82,8 +64,8 @@ namespace {
 template <Scalar S>
 class LiveControl final : public viewer::SceneControl {
  public:
-  LiveControl(std::unique_ptr<SceneMailbox<RuntimeScene<S>>> mailbox, SceneEditor<S> editor)
-      : mailbox_(std::move(mailbox)), control_(std::move(editor)) {}
+  LiveControl(std::unique_ptr<SceneMailbox<RuntimeScene<S>>> owned, SceneEditor<S> editor)
+      : owned_(std::move(owned)), control_(std::move(editor)) {}
   Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override { return control_.set(effect, keys); }
   Result<std::uint64_t> add(std::string_view kind, std::string_view keys) override { return control_.add(kind, keys); }
   Result<std::uint64_t> remove(std::string_view effect) override { return control_.remove(effect); }
@@ -97,14 +79,14 @@ class LiveControl final : public viewer::SceneControl {
   std::string scene_json() const override { return control_.scene_json(); }
 
  private:
-  std::unique_ptr<SceneMailbox<RuntimeScene<S>>> mailbox_;  // before the editor that points to it
+  std::unique_ptr<SceneMailbox<RuntimeScene<S>>> owned_;  // before the editor that points to it (null: in shared memory)
   viewer::EditorControl<S> control_;
 };
 
 }  // namespace
 
 Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
-                                                                LiveMailboxes& live) {
+                                                                LiveMailboxes& live, void* place) {
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -112,59 +94,44 @@ Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::strin
   return with_scalar(
       scalar,
       [&]<Scalar S>() -> Result<std::unique_ptr<viewer::SceneControl>> {
-        auto mailbox = std::make_unique<SceneMailbox<RuntimeScene<S>>>();
+        // In `place` (the memory the server process shares with the loop's) or owned here.
+        std::unique_ptr<SceneMailbox<RuntimeScene<S>>> owned;
+        SceneMailbox<RuntimeScene<S>>* mailbox = nullptr;
+        if (place != nullptr) {
+          mailbox = new (place) SceneMailbox<RuntimeScene<S>>();
+        } else {
+          owned = std::make_unique<SceneMailbox<RuntimeScene<S>>>();
+          mailbox = owned.get();
+        }
         auto editor = SceneEditor<S>::open(text.str(), path, *mailbox);
         if (!editor) return Error{editor.error()};
         editor->keep_layout("this run's trace and viewer show the starting scene's effects by column "
                             "(docs/spec/control-protocol.md): move or retune effects instead");
         if constexpr (std::same_as<S, double>) {
-          live.of_double = mailbox.get();
+          live.of_double = mailbox;
         } else if constexpr (std::same_as<S, float>) {
-          live.of_float = mailbox.get();
+          live.of_float = mailbox;
         } else {
-          live.of_q16 = mailbox.get();
+          live.of_q16 = mailbox;
         }
         return std::unique_ptr<viewer::SceneControl>(
-            std::make_unique<LiveControl<S>>(std::move(mailbox), std::move(editor.value())));
+            std::make_unique<LiveControl<S>>(std::move(owned), std::move(editor.value())));
       },
       [](ScalarKind kind) -> Result<std::unique_ptr<viewer::SceneControl>> {
         return Error{fmt::format("--scalar {} is not built here", scalar_kind_name(kind))};
       });
 }
 
-std::atomic<int>& view_stop() { return g_view_stop; }
-
-void install_view_signals() {
-  if (g_installed) return;
-  g_view_stop.store(0);
-  struct sigaction action {};
-  action.sa_sigaction = on_view_signal;
-  // Restarted: a message or a statistics file being written when the signal comes completes.
-  action.sa_flags = SA_SIGINFO | SA_RESTART;
-  sigemptyset(&action.sa_mask);
-  const auto signals = stop_signals();
-  g_old_actions.resize(signals.size());
-  for (std::size_t i = 0; i < signals.size(); ++i) sigaction(signals[i], &action, &g_old_actions[i]);
-  g_installed = true;
-}
-
-void restore_view_signals() {
-  if (!g_installed) return;
-  const auto signals = stop_signals();
-  for (std::size_t i = 0; i < signals.size(); ++i) sigaction(signals[i], &g_old_actions[i], nullptr);
-  g_installed = false;
-}
-
 void serve_until_stopped(const viewer::ViewerServer& server, const char* what) {
-  if (g_installed && g_view_stop.load() != 0) {  // stopped already, while the run went on
-    restore_view_signals();
+  if (command_stop_signals_installed() && command_stop().load() != 0) {  // stopped already, while the run went on
+    restore_command_stop_signals();
     return;
   }
-  if (!g_installed) install_view_signals();
+  if (!command_stop_signals_installed()) install_command_stop_signals();
   fmt::print(stderr, "viewer: {}; the page keeps it at {} until Ctrl-C\n", what, server.url());
   std::fflush(stderr);
-  while (g_view_stop.load() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  restore_view_signals();
+  while (command_stop().load() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  restore_command_stop_signals();
 }
 
 }  // namespace toonforce::cli

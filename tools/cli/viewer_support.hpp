@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "toonforce/run/command_stop.hpp"
 #include "toonforce/run/run.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 #include "toonforce/viewer/hello.hpp"
@@ -45,14 +46,11 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
 /// Live scenes (`run --control`): the editor of the scene file at `path` for the run's scalar,
 /// with its mailbox (set in `live`), for the viewer server's /control. Changes keep the scene's
 /// list of effects (the trace's and the viewer's columns). Owns the mailbox: keep it until the
-/// run and the server are over.
+/// run and the server are over. `place`: construct the mailbox there instead (memory shared
+/// with the loop's process, room for any scalar's mailbox; server_process.hpp), not owned.
 Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
-                                                                LiveMailboxes& live);
+                                                                LiveMailboxes& live, void* place = nullptr);
 
-/// Set by any stop signal (stop_signals()) once install_view_signals() ran.
-std::atomic<int>& view_stop();
-void install_view_signals();
-void restore_view_signals();
 
 /// Keeps serving (the page has the whole recording) until Ctrl-C or another stop signal.
 void serve_until_stopped(const viewer::ViewerServer& server, const char* what);

@@ -170,6 +170,7 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   session.handle_signals = options.handle_signals;
   session.interactive = options.interactive;
   session.messages = options.messages;
+  session.pending_stop = options.early_stop;
   RunConsumer consumer(trace.get(), values.size(), options.messages, options.sink, summary, options.guardian);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;

@@ -86,6 +86,9 @@ struct RunOptions {
   /// The page shared with `toonforce run`'s guardian process (guardian.hpp), when there is one:
   /// the loop's heartbeat, the device's external zero, the frames the writer takes.
   guardian::SharedPage* guardian = nullptr;
+  /// The command's stop flag before the loop (command_stop.hpp): a stop signal that came while
+  /// the device opened stops the loop before its first tick (zero force, the summary).
+  const std::atomic<int>* early_stop = nullptr;
 
   /// q16.16 in a firmware build (TOONFORCE_FIRMWARE=ON), else double.
   static ScalarKind default_run_scalar() noexcept;

@@ -1,0 +1,262 @@
+// `run --view`'s server process (server_process.hpp).
+#include "server_process.hpp"
+
+#include <linux/capability.h>
+#include <signal.h>
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/control/servo_session.hpp"
+#include "viewer_support.hpp"
+
+namespace toonforce::cli {
+
+/// What the two processes share (MAP_SHARED, mapped before the fork). Address-free: atomics,
+/// the frame ring, and the mailbox's bytes (a scene's parameters are fixed arrays: no pointer).
+struct ServerChannel {
+  SpscRing<TelemetryFrame, 2048> frames;   ///< 2 s at 1 kHz before the server must catch up
+  std::atomic<int> state{0};               ///< 0 starting, 1 listening, 2 failed
+  std::atomic<int> control_ready{0};       ///< a control client's hello passed
+  std::atomic<int> run_over{0};            ///< 1: keep serving the recording, 2: close now
+  alignas(64) unsigned char mailbox[1];    ///< the live-scene mailbox (mapped with room for it)
+};
+static_assert(std::atomic<int>::is_always_lock_free);
+
+namespace {
+
+void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+
+/// Room for the largest mailbox of the three scalars (only the run's is placed there).
+constexpr std::size_t kMailboxBytes = std::max({sizeof(SceneMailbox<RuntimeScene<double>>),
+                                                sizeof(SceneMailbox<RuntimeScene<float>>),
+                                                sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
+
+/// No more privilege than a web server needs: no real-time priority, no locked memory, no
+/// capability (a binary given cap_sys_nice/cap_ipc_lock for the loop passes them to a fork).
+void drop_privileges() {
+  const rlimit none{0, 0};
+  setrlimit(RLIMIT_RTPRIO, &none);
+  setrlimit(RLIMIT_MEMLOCK, &none);
+  __user_cap_header_struct header{_LINUX_CAPABILITY_VERSION_3, 0};
+  __user_cap_data_struct data[2] = {};
+  syscall(SYS_capset, &header, data);
+  prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0);
+}
+
+std::string describe_status(int status) {
+  if (WIFSIGNALED(status)) return fmt::format("killed by {}", signal_name(WTERMSIG(status)));
+  return fmt::format("exited with status {}", WEXITSTATUS(status));
+}
+
+/// The server process's life; returns its exit status.
+int serve(ServerChannel& ch, const ServerSetup& setup, pid_t loop) {
+  // During the run, stop signals are the loop's business (a terminal's Ctrl-C reaches this
+  // process too): ignored here until the run is over.
+  for (const int signo : stop_signals()) signal(signo, SIG_IGN);
+  signal(SIGPIPE, SIG_IGN);
+  viewer::ViewerOptions vo = setup.viewer;
+  LiveMailboxes live;
+  std::unique_ptr<viewer::SceneControl> control;
+  if (setup.control) {
+    auto opened = open_live_control(setup.scene_path, setup.scalar, live, ch.mailbox);
+    if (!opened) {
+      fmt::print(stderr, "--control: {}\n", opened.error());
+      ch.state.store(2);
+      return 2;
+    }
+    control = std::move(opened.value());
+    vo.control = control.get();
+  }
+  auto started = start_viewer(vo, setup.hello);
+  if (!started) {
+    fmt::print(stderr, "{}\n", started.error());
+    ch.state.store(2);
+    return 2;
+  }
+  std::unique_ptr<viewer::ViewerServer> server = std::move(started.value());
+  if (setup.control) {
+    std::string url = server->url();
+    url.replace(0, 4, "ws");  // http://HOST:PORT/ -> ws://HOST:PORT/
+    fmt::print(stderr, "control: {}control, token {}{}\n", url, vo.control_options.token, setup.token_note);
+    std::fflush(stderr);
+  }
+  std::atomic<int> done{0};
+  std::thread waiter;
+  if (setup.control) {
+    waiter = std::thread([&] {
+      if (server->wait_for_control(done)) ch.control_ready.store(1);
+    });
+  }
+  ch.state.store(1);
+  TelemetryFrame f;
+  int over = 0;
+  for (;;) {
+    while (ch.frames.pop(f)) server->publish(f);
+    if (over != 0) break;
+    over = ch.run_over.load(std::memory_order_acquire);  // then one more drain
+    if (over == 0) {
+      if (getppid() != loop) break;  // the loop process is gone (PDEATHSIG races its end)
+      sleep_ms(2);
+    }
+  }
+  done.store(1);
+  if (waiter.joinable()) waiter.join();
+  server->finish();
+  if (over == 1) {
+    for (const int signo : stop_signals()) signal(signo, SIG_DFL);
+    serve_until_stopped(*server, "the run is over");
+  }
+  server.reset();
+  return 0;
+}
+
+}  // namespace
+
+class ServerProcess::Sink final : public TelemetrySink {
+ public:
+  explicit Sink(ServerProcess& p) : process_(p) {}
+  void publish(const TelemetryFrame& frame) noexcept override {
+    if (gone_) return;
+    static_cast<void>(process_.channel_->frames.push(frame));  // full: dropped, never waits
+    if ((++count_ & 255U) == 0) check();
+  }
+  void finish() noexcept override {}  // ServerProcess::finish() says how the serving ends
+  /// Whether the server process ended (reaped here, on the writer thread, where the loop never
+  /// waits); says so once.
+  void check() noexcept {
+    int status = 0;
+    if (gone_ || waitpid(process_.pid_, &status, WNOHANG) != process_.pid_) return;
+    gone_ = true;
+    status_ = status;
+    std::fprintf(stderr, "viewer: the server process (pid %d) %s during the run; the loop goes on without the viewer\n",
+                 static_cast<int>(process_.pid_), describe_status(status).c_str());
+    std::fflush(stderr);
+  }
+  std::atomic<bool> gone_{false};
+  int status_ = 0;
+
+ private:
+  ServerProcess& process_;
+  std::uint64_t count_ = 0;
+};
+
+Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& setup) {
+  std::unique_ptr<ServerProcess> p(new ServerProcess());
+  p->channel_bytes_ = sizeof(ServerChannel) + kMailboxBytes;
+  void* memory = mmap(nullptr, p->channel_bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  if (memory == MAP_FAILED) return Error{fmt::format("viewer: cannot map the memory shared with its server: {}", std::strerror(errno))};
+  p->channel_ = new (memory) ServerChannel{};
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t loop = getpid();
+  const pid_t child = fork();
+  if (child < 0) return Error{fmt::format("viewer: cannot start its server process: {}", std::strerror(errno))};
+  if (child == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGKILL);  // it holds nothing that needs an orderly end
+    if (getppid() != loop) _exit(0);
+    drop_privileges();
+    const int status = serve(*p->channel_, setup, loop);
+    std::fflush(stdout);
+    std::fflush(stderr);
+    _exit(status);  // never back into the loop process's code
+  }
+  p->pid_ = child;
+  p->sink_ = std::make_unique<Sink>(*p);
+  while (p->channel_->state.load() == 0) {
+    int status = 0;
+    if (waitpid(child, &status, WNOHANG) == child) {
+      p->pid_ = -1;
+      return Error{fmt::format("viewer: its server process {} before it listened", describe_status(status))};
+    }
+    sleep_ms(2);
+  }
+  if (p->channel_->state.load() == 2) {
+    int status = 0;
+    waitpid(child, &status, 0);
+    p->pid_ = -1;
+    return Error{std::string()};  // it said why
+  }
+  if (setup.control) {
+    void* mailbox = p->channel_->mailbox;
+    with_scalar(
+        setup.scalar,
+        [&]<Scalar S>() {
+          auto* m = static_cast<SceneMailbox<RuntimeScene<S>>*>(mailbox);
+          if constexpr (std::same_as<S, double>) {
+            p->live_.of_double = m;
+          } else if constexpr (std::same_as<S, float>) {
+            p->live_.of_float = m;
+          } else {
+            p->live_.of_q16 = m;
+          }
+          return 0;
+        },
+        [](ScalarKind) { return 0; });
+  }
+  return p;
+}
+
+TelemetrySink& ServerProcess::sink() noexcept { return *sink_; }
+
+bool ServerProcess::wait_for_control(const std::atomic<int>& stop) const {
+  while (stop.load() == 0) {
+    if (channel_->control_ready.load() != 0) return true;
+    sink_->check();
+    if (sink_->gone_) return false;
+    sleep_ms(5);
+  }
+  return false;
+}
+
+void ServerProcess::finish(bool keep_serving) {
+  if (pid_ < 0) return;
+  channel_->run_over.store(keep_serving ? 1 : 2, std::memory_order_release);
+  if (!sink_->gone_) {
+    // Serving the recording: this process's stop signals end it (passed on); a terminal's
+    // Ctrl-C reaches the server itself. A server that does not end 2 s after it was told to
+    // (hung, stopped) is killed: nothing of the run waits on it.
+    install_command_stop_signals();
+    int status = 0;
+    bool told = !keep_serving;  // to end: run_over 2, or SIGTERM below
+    bool killed = false;
+    int waited_ms = 0;          // since it was told
+    while (waitpid(pid_, &status, WNOHANG) != pid_) {
+      if (!told && command_stop().load() != 0) {
+        kill(pid_, SIGTERM);
+        told = true;
+      }
+      if (told && !killed && waited_ms >= 2000) {
+        fmt::print(stderr, "viewer: its server process (pid {}) did not end within 2 s; killed\n", pid_);
+        kill(pid_, SIGKILL);
+        killed = true;
+      }
+      sleep_ms(20);
+      if (told) waited_ms += 20;
+    }
+    restore_command_stop_signals();
+  }
+  pid_ = -1;
+}
+
+std::string ServerProcess::ended_early() const {
+  return sink_ && sink_->gone_ ? describe_status(sink_->status_) : std::string();
+}
+
+ServerProcess::~ServerProcess() {
+  finish(false);
+  if (channel_ != nullptr) munmap(channel_, channel_bytes_);
+}
+
+}  // namespace toonforce::cli
