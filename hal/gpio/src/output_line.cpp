@@ -43,8 +43,8 @@ Result<std::unique_ptr<OutputLine>> OutputLine::open(const LineSpec& spec, const
   const int flags = spec.active_low ? GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW : 0;
   if (gpiod_line_request_output_flags(line, consumer.c_str(), flags, 0) != 0) {
     const int error = errno;
-    const char* consumer = gpiod_line_consumer(line);
-    const std::string user = consumer != nullptr ? consumer : "";  // the line dies with the chip
+    const char* holder = gpiod_line_consumer(line);
+    const std::string user = holder != nullptr ? holder : "";  // the line dies with the chip
     gpiod_chip_close(chip);
     return Error{fmt::format("{}: cannot take {} as an output: {}{}", spec.text, where, std::strerror(error),
                              error == EBUSY && !user.empty() ? fmt::format(" (held by '{}')", user) : "")};
