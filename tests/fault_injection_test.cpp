@@ -1355,7 +1355,9 @@ TEST_P(ServerProcessFault, TheLoopRunsToItsEndWithEveryTick) {
     // (Under ASan a SIGSEGV is the sanitizer's report and exit status 1: the cause is not asserted.)
     EXPECT_NE(said.find(fmt::format("viewer: the server process (pid {}) ", server)), std::string::npos) << said;
     EXPECT_NE(said.find(" during the run; the loop goes on without the viewer"), std::string::npos) << said;
-    if (GetParam() == SIGKILL) EXPECT_NE(said.find("killed by SIGKILL during the run"), std::string::npos) << said;
+    if (GetParam() == SIGKILL) {
+      EXPECT_NE(said.find("killed by SIGKILL during the run"), std::string::npos) << said;
+    }
   } else {
     EXPECT_NE(said.find(fmt::format("viewer: its server process (pid {}) did not end within 2 s; killed", server)),
               std::string::npos)
