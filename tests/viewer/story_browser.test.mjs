@@ -169,7 +169,15 @@ test('the story page asks for the token when it has none, and a wrong one is ref
     await page.waitForSelector('#token-form:not([hidden])');
     await page.fill('#token', 'right');
     await page.click('#token-form button');
-    await page.waitForFunction(() => window.toonforceStory.snapshot().chapter === 'pond');
+    try {
+      await page.waitForFunction(() => window.toonforceStory.snapshot().chapter === 'pond');
+    } catch (e) {
+      // Seen once in about a dozen runs on a loaded machine (no welcome within 30 s): say what
+      // the run and the page saw, for the next one.
+      const snapshot = await page.evaluate(() => window.toonforceStory.snapshot());
+      e.message += `\nrun's standard error:\n${run.output().stderr}\nthe page: ${JSON.stringify(snapshot).slice(0, 2000)}`;
+      throw e;
+    }
     await waitFor(() => /the run is over/.test(run.output().stderr), 20000, 'the run to end');
     run.child.kill('SIGTERM');
     const { code } = await run.exited;
