@@ -26,7 +26,9 @@ namespace toonforce::cli {
 /// What the two processes share (MAP_SHARED, mapped before the fork). Address-free: atomics,
 /// the frame ring, and the mailbox's bytes (a scene's parameters are fixed arrays: no pointer).
 struct ServerChannel {
-  SpscRing<TelemetryFrame, 2048> frames;   ///< 2 s at 1 kHz before the server must catch up
+  /// As large as the run's own telemetry ring (servo_session.hpp): 16 s at 1 kHz before a
+  /// starved server process loses frames (2048 lost the frames of a fall on a loaded CI host).
+  SpscRing<TelemetryFrame, 16384> frames;
   std::atomic<int> state{0};               ///< 0 starting, 1 listening, 2 failed
   std::atomic<int> control_ready{0};       ///< a control client's hello passed
   std::atomic<int> run_over{0};            ///< 1: keep serving the recording, 2: close now

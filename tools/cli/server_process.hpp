@@ -6,7 +6,7 @@
 // memory (RLIMIT_MEMLOCK 0), drops every capability and sets no_new_privs; it dies with the loop
 // process (PR_SET_PDEATHSIG). The two exchange only through memory shared before the fork, which
 // the loop process never waits on:
-//   - telemetry out: the writer thread pushes each frame into a lock-free ring (full: dropped and
+//   - telemetry out: the writer thread pushes each frame into a lock-free ring of 16384 (full: dropped and
 //     counted, as the viewer's own ring did); the server process drains it into the page;
 //   - scene updates in: the control protocol's editor, in the server process, reads and checks
 //     each message and pushes the checked scene into the live-scene mailbox (scene_updates.hpp),
