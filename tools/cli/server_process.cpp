@@ -19,6 +19,7 @@
 #include "commands.hpp"
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/servo_session.hpp"
+#include "toonforce/run/guardian.hpp"
 #include "viewer_support.hpp"
 
 namespace toonforce::cli {
@@ -55,11 +56,6 @@ void drop_privileges() {
   __user_cap_data_struct data[2] = {};
   syscall(SYS_capset, &header, data);
   prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0);
-}
-
-std::string describe_status(int status) {
-  if (WIFSIGNALED(status)) return fmt::format("killed by {}", signal_name(WTERMSIG(status)));
-  return fmt::format("exited with status {}", WEXITSTATUS(status));
 }
 
 /// The server process's life; returns its exit status.
@@ -143,7 +139,7 @@ class ServerProcess::Sink final : public TelemetrySink {
     gone_ = true;
     status_ = status;
     std::fprintf(stderr, "viewer: the server process (pid %d) %s during the run; the loop goes on without the viewer\n",
-                 static_cast<int>(process_.pid_), describe_status(status).c_str());
+                 static_cast<int>(process_.pid_), guardian::describe_wait_status(status).c_str());
     std::fflush(stderr);
   }
   std::atomic<bool> gone_{false};
@@ -180,7 +176,7 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& s
     int status = 0;
     if (waitpid(child, &status, WNOHANG) == child) {
       p->pid_ = -1;
-      return Error{fmt::format("viewer: its server process {} before it listened", describe_status(status))};
+      return Error{fmt::format("viewer: its server process {} before it listened", guardian::describe_wait_status(status))};
     }
     sleep_ms(2);
   }
@@ -253,7 +249,7 @@ void ServerProcess::finish(bool keep_serving) {
 }
 
 std::string ServerProcess::ended_early() const {
-  return sink_ && sink_->gone_ ? describe_status(sink_->status_) : std::string();
+  return sink_ && sink_->gone_ ? guardian::describe_wait_status(sink_->status_) : std::string();
 }
 
 ServerProcess::~ServerProcess() {

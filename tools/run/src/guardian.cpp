@@ -79,7 +79,9 @@ bool usb_zero(const ExternalZero& zero, int fd, std::string& detail) {
   return false;
 }
 
-std::string describe_wait(int status) {
+}  // namespace
+
+std::string describe_wait_status(int status) {
   if (WIFSIGNALED(status)) {
     return fmt::format("killed by {}{}", signal_name(WTERMSIG(status)), WCOREDUMP(status) ? " (core dumped)" : "");
   }
@@ -87,7 +89,6 @@ std::string describe_wait(int status) {
   return fmt::format("ended (wait status {:#x})", status);
 }
 
-}  // namespace
 
 SharedPage* map_shared_page() noexcept {
   void* p = ::mmap(nullptr, sizeof(SharedPage), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
@@ -244,7 +245,7 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
     }
     if (!detail.empty()) out.zero_detail += (out.zero_detail.empty() ? "" : "; ") + detail;
   }
-  if (out.cause.empty()) out.cause = describe_wait(status);
+  if (out.cause.empty()) out.cause = describe_wait_status(status);
   out.have_frame = read_frame(page, out.last_frame);
   if (out.ticks > 0 && page.period_ns > 0) {
     const std::int64_t at = out.zero_ns != 0 ? out.zero_ns : out.death_ns;

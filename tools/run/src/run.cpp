@@ -62,23 +62,7 @@ class RunConsumer final : public FrameConsumer {
       latched_ = f.latched;
     }
     summary_.latched_at_end = f.latched;
-    if (trace_ != nullptr && !write_failed && !write_frame(*trace_, f, values_, true)) {
-      // Said at once; the loop goes on (its force never depends on the trace), unwritten.
-      write_failed = true;
-      if (trace_->size_limit_reached()) {
-        summary_.trace_error = fmt::format("stopped at t = {:.3f} s: it reached --max-output {} (give a larger one, or 0 "
-                                           "for no limit)",
-                                           f.t_s, describe_bytes(trace_limit_bytes));
-        fmt::print(messages_, "t = {:.3f} s: the trace reached --max-output {}: nothing more is written, the run goes on\n",
-                   f.t_s, describe_bytes(trace_limit_bytes));
-      } else {
-        summary_.trace_error =
-            fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
-        fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
-                   f.t_s, std::strerror(errno != 0 ? errno : EIO));
-      }
-      std::fflush(messages_);
-    }
+    if (trace_ != nullptr && !write_failed && !write_frame(*trace_, f, values_, true)) trace_failed(f);
     if (sink_ != nullptr) sink_->publish(f);  // fan-out here, never in the servo thread
     if (page_ != nullptr) {
       guardian::publish_frame(*page_, f);
@@ -86,15 +70,26 @@ class RunConsumer final : public FrameConsumer {
       // dies, the guardian ends the trace after what the file holds (guardian.hpp).
       if (trace_ != nullptr && !write_failed && f.t_s - flushed_t_s_ >= 0.02) {
         flushed_t_s_ = f.t_s;
-        if (!trace_->flush()) write_failed_by_flush(f);
+        if (!trace_->flush()) trace_failed(f);
       }
     }
   }
-  void write_failed_by_flush(const TelemetryFrame& f) {
+  /// A row or a flush failed: said at once; the loop goes on (its force never depends on the
+  /// trace), unwritten.
+  void trace_failed(const TelemetryFrame& f) {
     write_failed = true;
-    summary_.trace_error = fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
-    fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
-               f.t_s, std::strerror(errno != 0 ? errno : EIO));
+    if (trace_->size_limit_reached()) {
+      summary_.trace_error = fmt::format("stopped at t = {:.3f} s: it reached --max-output {} (give a larger one, or 0 "
+                                         "for no limit)",
+                                         f.t_s, describe_bytes(trace_limit_bytes));
+      fmt::print(messages_, "t = {:.3f} s: the trace reached --max-output {}: nothing more is written, the run goes on\n",
+                 f.t_s, describe_bytes(trace_limit_bytes));
+    } else {
+      summary_.trace_error =
+          fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
+      fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
+                 f.t_s, std::strerror(errno != 0 ? errno : EIO));
+    }
     std::fflush(messages_);
   }
   void finish() override {

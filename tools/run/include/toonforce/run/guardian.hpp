@@ -106,6 +106,9 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options);
 /// command's time with zero force (the last frame's position and state). An error in words.
 std::string end_trace(const std::string& path, const GuardOutcome& outcome, std::size_t effect_values);
 
+/// A child's waitpid() status in words: "killed by SIGKILL (core dumped)", "exited with status 2".
+std::string describe_wait_status(int status);
+
 /// What the guardian says on standard error after a death (several lines).
 std::string describe_outcome(const GuardOutcome& outcome, pid_t loop);
 
