@@ -423,11 +423,7 @@ extern "C" void on_stop_signal(int signo, siginfo_t* info, void* /*context*/) {
   // A file-size limit (`ulimit -f`) makes the kernel send SIGXFSZ to the writer: ignored, the
   // write fails with EFBIG and the writer reports it as on a full disk (the run goes on). A
   // SIGXFSZ sent by someone (`kill -XFSZ`) is a stop like any other.
-  // (The kernel sends it as if the process had: SI_USER with the process's own pid.)
-  if (signo == SIGXFSZ && info != nullptr &&
-      ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid())) {
-    return;
-  }
+  if (is_file_size_limit_signal(signo, info)) return;
   if (g_stop == nullptr) return;
   int expected = 0;
   // `toonforce run`'s guardian passes on each stop signal it gets; the first it marks as a
@@ -463,6 +459,11 @@ struct sigaction g_old_stop[std::size(kStopSignals)] {};
 }  // namespace
 
 std::span<const int> stop_signals() noexcept { return kStopSignals; }
+
+bool is_file_size_limit_signal(int signo, const siginfo_t* info) noexcept {
+  return signo == SIGXFSZ && info != nullptr &&
+         ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid());
+}
 
 std::string signal_name(int signo) {
   const char* abbrev = signo > 0 ? sigabbrev_np(signo) : nullptr;

@@ -19,11 +19,7 @@ bool g_installed = false;
 extern "C" void on_command_stop(int signal, siginfo_t* info, void* /*context*/) {
   // The kernel's SIGXFSZ (a file-size limit) is a write error the writer reports, not a stop;
   // one sent with kill() is a stop like the loop's (realtime_runner.cpp).
-  // (The kernel sends it as if the process had: SI_USER with the process's own pid.)
-  if (signal == SIGXFSZ && info != nullptr &&
-      ((info->si_code != SI_USER && info->si_code != SI_QUEUE) || info->si_pid == getpid())) {
-    return;
-  }
+  if (is_file_size_limit_signal(signal, info)) return;
   int expected = 0;
   g_stop.compare_exchange_strong(expected, signal);  // the first one is the reason
 }

@@ -15,6 +15,8 @@
 /// runs the same task from that thread instead (`run_on_device`); `run_on_device` picks
 /// the right one from the device's clocking, so a caller never needs to know the backend.
 
+#include <signal.h>
+
 #include <atomic>
 #include <cstdint>
 #include <span>
@@ -128,6 +130,11 @@ void restore_signals();
 /// died of SIGSEGV with no zero-force command (issue 27): the handler had no stack to run on.
 /// False if it could not be set up (the handler then runs on the thread's own stack).
 bool use_alternate_signal_stack() noexcept;
+/// Whether a SIGXFSZ is the kernel's for a file-size limit (`ulimit -f`), which every stop
+/// handler ignores (the write fails with EFBIG and is reported as a full disk), rather than one
+/// someone sent with kill(), which is a stop. The kernel sends it as if the process had: SI_USER
+/// with the process's own pid. Async-signal-safe.
+bool is_file_size_limit_signal(int signo, const siginfo_t* info) noexcept;
 /// The signals install_signal_handlers() turns into a stop.
 std::span<const int> stop_signals() noexcept;
 /// "SIGHUP", "SIGINT", ... ("signal N" for a number without a name).
