@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/report/staged_outputs.hpp"
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_config.hpp"
@@ -44,6 +45,8 @@ void add_check(CLI::App& app) {
       ->check(CLI::IsMember({"double", "float", "q16.16"}, CLI::ignore_case));
   cmd->add_flag("--allow-empty", o->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_flag("--strict", o->strict, "A plausibility warning (outside the device's limits) is an error");
+  // check writes nothing; a stop signal says so and exits 1 rather than ending it silently.
+  cmd->preparse_callback([](std::size_t) { report::install_report_stop_handlers("check", "it writes nothing"); });
   cmd->callback([o] {
     const auto lower = [](std::string text) {
       for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/report/staged_outputs.hpp"
 #include "toonforce/report/documents.hpp"
 #include "toonforce/report/latency.hpp"
 #include "toonforce/report/paths.hpp"
@@ -324,6 +325,9 @@ void add_all(CLI::App& report) {
 void add_report(CLI::App& app) {
   CLI::App* report = app.add_subcommand("report", "Measure toonforce: latency, precision, stability, microcontroller figures (Markdown)");
   report->require_subcommand(1);
+  // A stop signal ends a report without a cut file (report/staged_outputs.hpp); from the start,
+  // since every step runs for seconds to minutes.
+  report->preparse_callback([](std::size_t) { report::install_report_stop_handlers("report", report::kReportLeaves); });
   add_latency(*report);
   add_precision(*report);
   add_fixed_point(*report);

@@ -9,6 +9,7 @@
 #include "toonforce/control/passivity_bound.hpp"
 #include "toonforce/report/paths.hpp"
 #include "toonforce/report/process.hpp"
+#include "toonforce/report/staged_outputs.hpp"
 
 namespace toonforce::report {
 
@@ -40,17 +41,14 @@ Result<std::string> read_file(const fs::path& path) {
   return text.str();
 }
 
-Result<bool> write_file(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-  out.close();
-  if (!out) return Error{fmt::format("cannot write {}", path.string())};
-  return true;
-}
-
-Result<bool> plot(const std::vector<std::string>& args) {
-  std::vector<std::string> argv{"/usr/bin/python3", plot_report_script()};
-  argv.insert(argv.end(), args.begin(), args.end());
+/// Plots `kind` (tools/plot_report.py) from `csv` (a staged path) into `target`, staged with
+/// the step's other outputs.
+Result<bool> plot(StagedOutputs& outputs, const std::string& kind, const fs::path& csv, const fs::path& target,
+                  const std::vector<std::string>& options = {}) {
+  auto staged = outputs.stage(target);
+  if (!staged) return Error{staged.error()};
+  std::vector<std::string> argv{"/usr/bin/python3", plot_report_script(), kind, csv.string(), staged->string()};
+  argv.insert(argv.end(), options.begin(), options.end());
   auto status = run_process(argv);
   if (!status) return Error{fmt::format("plot: {} (install python3-matplotlib: tools/setup-deps)", status.error())};
   if (status.value() != 0) return Error{fmt::format("plot: `{}` failed with status {}", shell_line(argv), status.value())};
@@ -279,7 +277,6 @@ std::string precision_section(const PrecisionReport& precision, const std::strin
 }  // namespace
 
 Result<std::vector<std::string>> write_stability_documents(const DocumentsOptions& options, const Progress& progress) {
-  std::vector<std::string> written;
   const fs::path out = options.out_dir;
   const fs::path figures = out / "report";
   std::error_code ec;
@@ -288,26 +285,22 @@ Result<std::vector<std::string>> write_stability_documents(const DocumentsOption
   const std::string plot_dir = "report";  // relative to the documents
   auto stability = run_stability(options.stability, progress);
   if (!stability) return Error{stability.error()};
+  StagedOutputs outputs;
   for (const auto& map : stability->maps) {
-    const fs::path csv = figures / (map.name + ".csv");
-    if (auto w = write_file(csv, stability_csv(map)); !w) return Error{w.error()};
-    written.push_back(csv.string());
+    auto csv = outputs.write(figures / (map.name + ".csv"), stability_csv(map));
+    if (!csv) return Error{csv.error()};
     if (options.plot) {
-      std::vector<std::string> args{"stability", csv.string(), (figures / (map.name + ".png")).string(), "--title",
-                                    map.title, "--xlabel", map.x_label, "--ylabel", map.y_label};
+      std::vector<std::string> args{"--title", map.title, "--xlabel", map.x_label, "--ylabel", map.y_label};
       if (!map.log_x) args.emplace_back("--linear-x");
       if (!map.log_y) args.emplace_back("--linear-y");
-      if (auto p = plot(args); !p) return Error{p.error()};
-      written.push_back((figures / (map.name + ".png")).string());
+      if (auto p = plot(outputs, "stability", csv.value(), figures / (map.name + ".png"), args); !p) return Error{p.error()};
     }
   }
-
   const fs::path stability_md = out / "STABILITY.md";
-  if (auto w = write_file(stability_md, stability_document(stability.value(), options.command_line, plot_dir)); !w) {
+  if (auto w = outputs.write(stability_md, stability_document(stability.value(), options.command_line, plot_dir)); !w) {
     return Error{w.error()};
   }
-  written.push_back(stability_md.string());
-  return written;
+  return outputs.commit();
 }
 
 Result<std::vector<std::string>> write_documents(const DocumentsOptions& options, const Progress& progress) {
@@ -335,7 +328,11 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
   std::string text = existing.value();
   if (text.empty()) text = kPerformanceHead;
   const std::string section = performance_section(latency.value(), options.command_line);
-  if (auto w = write_file(performance, merge_generated(text, section)); !w) return Error{w.error()};
+  {
+    StagedOutputs outputs;
+    if (auto w = outputs.write(performance, merge_generated(text, section)); !w) return Error{w.error()};
+    if (auto c = outputs.commit(); !c) return Error{c.error()};
+  }
   written.push_back(performance.string());
   auto precision_written = write_precision_documents(precision.value(), options.out_dir, options.command_line, options.plot);
   if (!precision_written) return Error{precision_written.error()};
@@ -354,45 +351,41 @@ Result<std::vector<std::string>> write_latency_documents(const LatencyReport& la
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();
   if (text.empty()) text = kPerformanceHead;
-  if (auto w = write_file(performance, merge_generated(text, performance_section(latency, command_line))); !w) {
+  StagedOutputs outputs;
+  if (auto w = outputs.write(performance, merge_generated(text, performance_section(latency, command_line))); !w) {
     return Error{w.error()};
   }
-  return std::vector<std::string>{performance.string()};
+  return outputs.commit();
 }
 
 Result<std::vector<std::string>> write_precision_documents(const PrecisionReport& precision, const std::string& out_dir,
                                                            const std::string& command_line, bool with_plots) {
-  std::vector<std::string> written;
   const fs::path out = out_dir;
   const fs::path figures = out / "report";
   std::error_code ec;
   fs::create_directories(figures, ec);
   if (ec) return Error{fmt::format("cannot create {}: {}", figures.string(), ec.message())};
+  StagedOutputs outputs;
   const fs::path precision_csv_path = figures / "precision.csv";
   const fs::path drift_csv_path = figures / "drift.csv";
   const fs::path convergence_csv_path = figures / "convergence.csv";
   const fs::path closed_loop_csv_path = figures / "closed_loop.csv";
+  std::vector<fs::path> staged;
   for (const auto& [path, text] : {std::pair{precision_csv_path, precision_csv(precision)},
                                    std::pair{drift_csv_path, drift_csv(precision)},
                                    std::pair{convergence_csv_path, convergence_csv(precision)},
                                    std::pair{closed_loop_csv_path, closed_loop_csv(precision)}}) {
-    if (auto w = write_file(path, text); !w) return Error{w.error()};
-    written.push_back(path.string());
+    auto w = outputs.write(path, text);
+    if (!w) return Error{w.error()};
+    staged.push_back(w.value());
   }
   if (with_plots) {
-    if (auto p = plot({"work-precision", precision_csv_path.string(), (figures / "work_precision.png").string()}); !p) {
-      return Error{p.error()};
-    }
-    written.push_back((figures / "work_precision.png").string());
+    if (auto p = plot(outputs, "work-precision", staged[0], figures / "work_precision.png"); !p) return Error{p.error()};
     if (!precision.drift.empty()) {
-      if (auto p = plot({"drift", drift_csv_path.string(), (figures / "drift.png").string()}); !p) return Error{p.error()};
-      written.push_back((figures / "drift.png").string());
+      if (auto p = plot(outputs, "drift", staged[1], figures / "drift.png"); !p) return Error{p.error()};
     }
     if (!precision.closed_loop.empty()) {
-      if (auto p = plot({"closed-loop", closed_loop_csv_path.string(), (figures / "closed_loop.png").string()}); !p) {
-        return Error{p.error()};
-      }
-      written.push_back((figures / "closed_loop.png").string());
+      if (auto p = plot(outputs, "closed-loop", staged[3], figures / "closed_loop.png"); !p) return Error{p.error()};
     }
   }
   const fs::path performance = out / "PERFORMANCE.md";
@@ -413,9 +406,8 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   } else {
     text = merge_generated(text, section, kPrecisionBeginMarker, kPrecisionEndMarker);
   }
-  if (auto w = write_file(performance, text); !w) return Error{w.error()};
-  written.push_back(performance.string());
-  return written;
+  if (auto w = outputs.write(performance, text); !w) return Error{w.error()};
+  return outputs.commit();
 }
 
 Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const std::string& out_dir) {
@@ -442,10 +434,11 @@ Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const
     if (!text.empty() && text.back() != '\n') text += '\n';
     text += (text.empty() ? "" : "\n") + std::string("## Microcontroller\n");
   }
-  if (auto w = write_file(performance, merge_generated(text, mcu_markdown(mcu), kMcuBeginMarker, kMcuEndMarker)); !w) {
+  StagedOutputs outputs;
+  if (auto w = outputs.write(performance, merge_generated(text, mcu_markdown(mcu), kMcuBeginMarker, kMcuEndMarker)); !w) {
     return Error{w.error()};
   }
-  return std::vector<std::string>{performance.string()};
+  return outputs.commit();
 }
 
 }  // namespace toonforce::report

@@ -1,4 +1,5 @@
 #include "toonforce/report/process.hpp"
+#include "toonforce/report/staged_outputs.hpp"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -32,6 +33,10 @@ Result<int> spawn_and_wait(const std::vector<std::string>& argv, posix_spawn_fil
   const int spawned = posix_spawnp(&pid, raw[0], &actions, nullptr, raw.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (spawned != 0) return Error{fmt::format("cannot start {}: {}", argv[0], std::strerror(spawned))};
+  set_waited_child(pid);  // a stop signal kills it (staged_outputs.hpp)
+  struct Forget {
+    ~Forget() { set_waited_child(0); }
+  } forget;
   int status = 0;
   if (timeout.count() > 0) {
     // Polled: the programs run here take a fraction of a second to minutes.
