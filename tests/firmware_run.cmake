@@ -53,8 +53,12 @@ execute_process(COMMAND "${BINARY}" --help RESULT_VARIABLE rc OUTPUT_VARIABLE ou
 if(NOT rc EQUAL 0 OR "${out}" MATCHES "\n +view ")
   message(FATAL_ERROR "a firmware build's subcommands must not include view (exit ${rc}): ${out}${err}")
 endif()
+# Nor `report` (it measures the host build's three scalars; CMakeLists.txt of tools/cli).
+if("${out}" MATCHES "\n +report ")
+  message(FATAL_ERROR "a firmware build's subcommands must not include report: ${out}")
+endif()
 execute_process(COMMAND "${BINARY}" run --help RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 if(NOT rc EQUAL 0 OR "${out}" MATCHES "--view")
   message(FATAL_ERROR "a firmware build's `toonforce run` must have no --view option (exit ${rc}): ${out}${err}")
 endif()
-message("firmware build: the servo loop ran ${ticks} ticks in q16.16; no viewer in it")
+message("firmware build: the servo loop ran ${ticks} ticks in q16.16; no viewer and no report in it")

@@ -15,7 +15,9 @@ void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
+#if TOONFORCE_REPORT
 void add_report(CLI::App& app);
+#endif
 void add_bringup(CLI::App& app);
 void add_check(CLI::App& app);
 #if TOONFORCE_VIEWER

@@ -28,7 +28,9 @@ int main(int argc, char** argv) {
   toonforce::cli::add_figures(app);
   toonforce::cli::add_devices(app);
   toonforce::cli::add_falcon(app);
+#if TOONFORCE_REPORT
   toonforce::cli::add_report(app);
+#endif
   toonforce::cli::add_bringup(app);
   toonforce::cli::add_check(app);
 #if TOONFORCE_VIEWER
