@@ -69,15 +69,22 @@ struct Child {
 };
 
 /// `own_group`: the child leads a process group of its own (its pid), for a kill(-pid, ...)
-/// that reaches it and its children as a service manager's or a shell's would.
-Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output, bool own_group = false) {
+/// that reaches it and its children as a service manager's or a shell's would. `errors_fd`:
+/// the child's standard error (closed here afterwards) instead of `output`.
+Child spawn(const std::vector<std::string>& args, const std::filesystem::path& output, bool own_group = false,
+            int errors_fd = -1) {
   std::vector<char*> argv;
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  if (errors_fd >= 0) {
+    posix_spawn_file_actions_adddup2(&actions, errors_fd, STDERR_FILENO);
+    posix_spawn_file_actions_addclose(&actions, errors_fd);
+  } else {
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  }
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
   posix_spawnattr_t attributes;
   posix_spawnattr_init(&attributes);
@@ -89,6 +96,7 @@ Child spawn(const std::vector<std::string>& args, const std::filesystem::path& o
   const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, &attributes, argv.data(), environ);
   posix_spawnattr_destroy(&attributes);
   posix_spawn_file_actions_destroy(&actions);
+  if (errors_fd >= 0) close(errors_fd);
   EXPECT_EQ(rc, 0) << std::strerror(rc);
   if (rc != 0) child.pid = -1;
   return child;
@@ -772,6 +780,9 @@ bool has_viewer() {
   return status == 0 && text.find("--control-wait") != std::string::npos;
 }
 
+/// A firmware-style build has no `report` (tools/cli/CMakeLists.txt).
+bool has_report() { return run_binary({TOONFORCE_BINARY, "report", "--help"}).first == 0; }
+
 /// Waits (no time asserted) until `path` holds `what`; false if the child ended first.
 bool wait_for_text(const Child& c, const std::filesystem::path& path, const std::string& what) {
   for (int i = 0; i < 6000; ++i) {
@@ -870,27 +881,14 @@ TEST(SimCommand, AFileSizeLimitStopsTheTraceWholeAndTheSimulationEndsWithItsSumm
 }
 
 /// The binary with standard error a pipe nobody reads any more, standard output to `output`.
-/// Stopped with SIGINT if it is still running once `give_up_after` polls have passed (a
-/// command that serves a page until Ctrl-C); its exit status.
+/// Stopped with SIGINT if it is still running after 30 s (a command that serves a page until
+/// Ctrl-C); its exit status.
 int run_with_stderr_closed(const std::vector<std::string>& args, const std::filesystem::path& output) {
   int fds[2];
   EXPECT_EQ(pipe(fds), 0);
   close(fds[0]);
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);
-  posix_spawn_file_actions_addclose(&actions, fds[1]);
-  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  Child child;
-  const int rc = posix_spawn(&child.pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  close(fds[1]);
-  EXPECT_EQ(rc, 0) << std::strerror(rc);
-  if (rc != 0) return -1;
+  Child child = spawn(args, output, false, fds[1]);
+  if (!started(child)) return -1;
   for (int i = 0; i < 3000; ++i) {
     int status = 0;
     if (waitpid(child.pid, &status, WNOHANG) == child.pid) {
@@ -1047,6 +1045,7 @@ TEST(Cli, NumericOptionsOutsideTheirRangeAreRefusedAtOnceWithExit2) {
        TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", "/dev/null", "--max-output", "-1"},
   };
   for (const auto& args : bad) {
+    if (args[0] == "report" && !has_report()) continue;
     std::vector<std::string> command{TOONFORCE_BINARY};
     command.insert(command.end(), args.begin(), args.end());
     const auto [status, text] = run_binary(command);
@@ -1428,6 +1427,132 @@ TEST(RunServo, AStopThatCameWhileTheDeviceOpenedStopsTheLoopBeforeItsFirstTick) 
   const auto row = fields(lines[1]);
   EXPECT_EQ(std::hypot(row[7], row[8], row[9]), 0.0);
   std::filesystem::remove(o.trace_path);
+}
+
+// ---- report and check: a stop path, and no cut file (issue 27) ----------------------------------
+
+/// Every file under `dir` whose name starts with '.' (report's staged files).
+std::vector<std::string> hidden_files_under(const std::filesystem::path& dir) {
+  std::vector<std::string> hidden;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir)) {
+    if (entry.path().filename().string().starts_with('.')) hidden.push_back(entry.path().string());
+  }
+  return hidden;
+}
+
+/// Polls until `path` exists (at most 60 s); whether it does.
+bool appears(const std::filesystem::path& path) {
+  for (int i = 0; i < 6000 && !std::filesystem::exists(path); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return std::filesystem::exists(path);
+}
+
+/// `report stability --out DIR` with a plot program that writes half a picture and hangs, on a
+/// DIR a finished report had filled: the plot's hang stands for any moment of a long step.
+struct ReportStoppedInAPlot {
+  std::filesystem::path dir = temp_path("report_stop");
+  std::filesystem::path ready = dir / "plot_started";
+  std::filesystem::path output = dir / "output.txt";
+  Child child;
+
+  ReportStoppedInAPlot() {
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir / "docs" / "report");
+    for (const auto* name : {"STABILITY.md", "report/stiffness_period.csv", "report/stiffness_period.png"}) {
+      std::ofstream(dir / "docs" / name) << "before\n";
+    }
+    const auto plot = dir / "plot.py";
+    std::ofstream(plot) << "import sys, time\n"
+                           "open(sys.argv[3], 'w').write('half a pic')\n"
+                           "open('" << ready.string() << "', 'w').close()\n"
+                           "time.sleep(600)\n";
+    setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
+    child = spawn({TOONFORCE_BINARY, "report", "stability", "--out", (dir / "docs").string(), "--resolution", "2",
+                   "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"},
+                  output);
+    unsetenv("TOONFORCE_PLOT_REPORT_SCRIPT");
+  }
+  ~ReportStoppedInAPlot() { std::filesystem::remove_all(dir); }
+};
+
+// `report` died by default action on a stop signal and could leave a half-written folder: a CSV
+// new, its plot cut, STABILITY.md old. Now every step's files are staged and renamed at its end.
+TEST(ReportCommand, AStopSignalLeavesEveryFileAsItWasOrWholeAndSaysSo) {
+  if (!has_report()) GTEST_SKIP() << "a firmware-style build has no report";
+  for (const int signo : {SIGTERM, SIGINT, SIGHUP}) {
+    ReportStoppedInAPlot report;
+    ASSERT_TRUE(started(report.child));
+    ASSERT_TRUE(appears(report.ready)) << slurp(report.output);
+    kill(report.child.pid, signo);
+    EXPECT_EQ(wait_exit(report.child), 1) << signal_name(signo) << ": " << slurp(report.output);
+    EXPECT_NE(slurp(report.output).find("toonforce report: stopped by " + signal_name(signo) + "; no file was left cut"),
+              std::string::npos)
+        << slurp(report.output);
+    for (const auto* name : {"STABILITY.md", "report/stiffness_period.csv", "report/stiffness_period.png"}) {
+      EXPECT_EQ(slurp(report.dir / "docs" / name), "before\n") << name << " under " << signal_name(signo);
+    }
+    EXPECT_EQ(hidden_files_under(report.dir / "docs"), std::vector<std::string>{}) << signal_name(signo);
+  }
+}
+
+// The same without a signal: a plot that fails leaves the folder as it was (the staged files
+// are removed), and a plot that works puts every file of the step in place.
+TEST(ReportCommand, AFailedStepLeavesTheFolderAsItWasAndAFinishedOneReplacesItsFilesWhole) {
+  if (!has_report()) GTEST_SKIP() << "a firmware-style build has no report";
+  const auto dir = temp_path("report_staged");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "docs" / "report");
+  std::ofstream(dir / "docs" / "STABILITY.md") << "before\n";
+  std::ofstream(dir / "docs" / "report" / "stiffness_period.csv") << "before\n";
+  const auto run_with_plot = [&](const std::string& body) {
+    const auto plot = dir / "plot.py";
+    std::ofstream(plot) << "import sys\n" << body;
+    setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
+    auto result = run_binary({TOONFORCE_BINARY, "report", "stability", "--out", (dir / "docs").string(), "--resolution",
+                              "2", "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"});
+    unsetenv("TOONFORCE_PLOT_REPORT_SCRIPT");
+    return result;
+  };
+  const auto [failed, failed_text] = run_with_plot("open(sys.argv[3], 'w').write('half')\nsys.exit(3)\n");
+  EXPECT_EQ(failed, 1) << failed_text;
+  EXPECT_EQ(slurp(dir / "docs" / "STABILITY.md"), "before\n");
+  EXPECT_EQ(slurp(dir / "docs" / "report" / "stiffness_period.csv"), "before\n");
+  EXPECT_FALSE(std::filesystem::exists(dir / "docs" / "report" / "stiffness_period.png"));
+  EXPECT_EQ(hidden_files_under(dir / "docs"), std::vector<std::string>{});
+
+  const auto [done, done_text] = run_with_plot("open(sys.argv[3], 'w').write('a picture')\n");
+  EXPECT_EQ(done, 0) << done_text;
+  EXPECT_NE(slurp(dir / "docs" / "STABILITY.md").find("stiffness"), std::string::npos);
+  EXPECT_NE(slurp(dir / "docs" / "report" / "stiffness_period.csv"), "before\n");
+  EXPECT_EQ(slurp(dir / "docs" / "report" / "stiffness_period.png"), "a picture");
+  EXPECT_EQ(hidden_files_under(dir / "docs"), std::vector<std::string>{});
+  std::filesystem::remove_all(dir);
+}
+
+// `check` died silently by default action; it writes nothing, and now says so. The scene is a
+// FIFO no one writes, so check is sure to be waiting in its read when the signal comes.
+TEST(CheckCommand, AStopSignalSaysSoAndExits1) {
+  const auto dir = temp_path("check_stop");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const auto fifo = dir / "scene.toml";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  Child child = spawn({TOONFORCE_BINARY, "check", fifo.string()}, dir / "output.txt");
+  ASSERT_TRUE(started(child));
+  int writer = -1;  // opens once check has the FIFO open for reading (its handlers are in by then)
+  for (int i = 0; i < 6000 && writer < 0; ++i) {
+    writer = open(fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (writer < 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_GE(writer, 0) << slurp(dir / "output.txt");
+  kill(child.pid, SIGTERM);
+  EXPECT_EQ(wait_exit(child), 1) << slurp(dir / "output.txt");
+  EXPECT_NE(slurp(dir / "output.txt").find("toonforce check: stopped by SIGTERM; it writes nothing"),
+            std::string::npos)
+      << slurp(dir / "output.txt");
+  close(writer);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
