@@ -55,15 +55,23 @@ def run(tmp_path_factory):
             url, token = parse_announcement(line)
         except ValueError:
             continue
+    if url is None:
+        process.kill()
+        process.wait()
     assert url is not None, "the run never announced its control socket:\n" + "".join(seen)
     assert token == TOKEN
     # Keep reading its standard error so that it never blocks on a full pipe.
     drain = threading.Thread(target=lambda: [seen.append(l) for l in process.stderr], daemon=True)
     drain.start()
-    yield url, token
-    process.terminate()
-    assert process.wait(timeout=30) == 0, "".join(seen)
-    drain.join(timeout=5)
+    try:
+        yield url, token
+        process.terminate()
+        assert process.wait(timeout=30) == 0, "".join(seen)
+    finally:
+        if process.poll() is None:  # never leave a run behind, whatever failed
+            process.kill()
+            process.wait()
+        drain.join(timeout=5)
 
 
 def test_the_announcement_line_gives_url_and_token():
