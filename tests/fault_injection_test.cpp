@@ -1279,6 +1279,27 @@ TEST(Guardian, AStopSignalToTheWholeProcessGroupStopsTheLoopOnceWithItsSummary) 
 }
 
 
+TEST(Guardian, TheSameSignalRepeatedAtOnceByOneSenderIsOneStop) {
+  // What a parent that dies with PR_SET_PDEATHSIG set sends: one SIGTERM per thread as its
+  // threads exit (toonforce.live's runs from a Python script killed outright). The run must stop
+  // once, on its shut-down row with its statistics, not take the copies for a second stop.
+  const auto trace = temp_path("guardian_repeat.csv");
+  const auto stats = temp_path("guardian_repeat.json");
+  const auto output = temp_path("guardian_repeat.txt");
+  Child run = spawn(strike_run(trace, stats), output);
+  ASSERT_TRUE(started(run));
+  ASSERT_GT(loop_process_of(run.pid), 0);
+  ASSERT_TRUE(wait_for_force(run, trace, 1.0, output));
+  for (int i = 0; i < 20; ++i) {  // 1 ms apart, as threads exit: each one delivered, not merged
+    ASSERT_EQ(kill(run.pid, SIGTERM), 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_EQ(wait_exit(run), 0) << slurp(output);
+  expect_whole_rows_ending_at_zero_force(trace);
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": " + std::to_string(SIGTERM)), std::string::npos) << slurp(stats);
+  for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
+}
+
 
 // ---- the server process (issue 28): its failures cannot reach the loop ----------------------
 

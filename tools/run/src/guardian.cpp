@@ -37,6 +37,7 @@ std::int64_t now_ns() noexcept {
 struct Pending {
   int signo;
   bool from_terminal;  ///< the kernel sent it (Ctrl-C): the loop process got it too
+  pid_t sender;        ///< si_pid of a signal sent with kill() (0: none)
 };
 constexpr unsigned kPendingSlots = 16;
 Pending g_pending[kPendingSlots];
@@ -45,7 +46,9 @@ volatile sig_atomic_t g_pending_count = 0;
 extern "C" void on_guardian_signal(int signo, siginfo_t* info, void*) {
   const sig_atomic_t n = g_pending_count;
   if (n >= static_cast<sig_atomic_t>(kPendingSlots)) return;  // a flood: the first ones matter
-  g_pending[n] = Pending{signo, info != nullptr && info->si_code == SI_KERNEL};
+  const bool from_terminal = info != nullptr && info->si_code == SI_KERNEL;
+  const pid_t sender = info != nullptr && info->si_code == SI_USER ? info->si_pid : 0;
+  g_pending[n] = Pending{signo, from_terminal, sender};
   g_pending_count = n + 1;
 }
 
@@ -140,6 +143,14 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
   bool enable_failed = false;
   std::int64_t enable_dropped_ns = 0;  ///< when a stall dropped the line
   int passed_on = 0;
+  // The last signal passed on: the same one from the same sender within kRepeatWindowNs is the
+  // same request, passed on once. A parent that dies with PR_SET_PDEATHSIG set (a Python script
+  // killed outright, toonforce.live) sends it once for each of its threads as they exit, a few
+  // ms apart; the loop's process would take the second copy for a second stop, which exits at
+  // once, without the trace's shut-down row and the statistics (the force zeroed either way).
+  constexpr std::int64_t kRepeatWindowNs = 1'000'000'000;
+  Pending last_passed{0, false, 0};
+  std::int64_t last_passed_ns = 0;
   std::int64_t last_beat = 0;
   std::int64_t last_beat_ns = now_ns();
   int status = 0;
@@ -195,10 +206,17 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
       sigprocmask(SIG_SETMASK, &old, nullptr);
       for (int i = 0; i < n; ++i) {
         if (taken[i].from_terminal) continue;  // the terminal sent it to the loop process too
+        const std::int64_t at = now_ns();
+        if (taken[i].sender != 0 && taken[i].sender == last_passed.sender && taken[i].signo == last_passed.signo &&
+            at - last_passed_ns < kRepeatWindowNs) {
+          continue;  // a repeat (above)
+        }
         sigval value{};
         value.sival_int = passed_on == 0 ? kGuardianFirstCopy : 0;
         ::sigqueue(loop, taken[i].signo, value);
         ++passed_on;
+        last_passed = taken[i];
+        last_passed_ns = at;
       }
     }
     pollfd fd{pidfd, POLLIN, 0};
