@@ -1,0 +1,94 @@
+"""`toonforce study analyze SESSIONS...` (issue 31): a Markdown report with plots. Per session
+and block: a staircase's track and threshold (mean of its last reversals), a constant-stimuli
+block's psychometric fit (maximum likelihood, with lapse) with its threshold and bootstrap
+95 % interval; then per block, the thresholds across participants."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Dict, List, Sequence
+
+import numpy as np
+
+from . import psychometric
+from .session import Session
+
+
+def block_result(session: Session, position: int, index: int, procedure, bootstrap_samples: int = 200) -> Dict[str, Any]:
+    block = session.experiment.blocks[index]
+    result: Dict[str, Any] = {"block": block.name, "index": index, "procedure": block.procedure,
+                              "participant": session.meta["participant"], "trials": len(procedure.answers),
+                              "levels": list(procedure.levels), "answers": list(procedure.answers)}
+    if block.procedure == "constant-stimuli":
+        levels, correct, trials = procedure.counts()
+        if len(levels) >= 3:
+            fit = psychometric.fit(levels, correct, trials, block.options.get("form", "weibull"))
+            lo, hi = psychometric.bootstrap(fit, levels, trials, samples=bootstrap_samples,
+                                            seed=session.meta["seed"] + index)
+            result.update(threshold=fit.threshold, interval=(lo, hi), fit=fit, counts=(levels, correct, trials))
+    else:
+        result.update(threshold=procedure.threshold(), reversal_levels=list(procedure.reversal_levels),
+                      interval=psychometric.staircase_interval(procedure.reversal_levels[procedure.discard:]))
+    return result
+
+
+def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(out_dir, exist_ok=True)
+    sessions = [Session(f) for f in folders]
+    lines: List[str] = [f"# Study report: {sessions[0].experiment.name if sessions else '(no session)'}", ""]
+    lines += ["Sessions: " + ", ".join(f"participant {s.meta['participant']} ({len(s.trials)} trials"
+                                        f"{'' if s.done else ', not finished'})" for s in sessions), ""]
+    per_block: Dict[str, List[float]] = {}
+    for s in sessions:
+        for position, index, procedure in s.procedures():
+            r = block_result(s, position, index, procedure, bootstrap_samples)
+            name = f"p{s.meta['participant']}_block{index + 1}"
+            fig, ax = plt.subplots(figsize=(6, 3.2))
+            if r["procedure"] == "constant-stimuli" and "fit" in r:
+                levels, correct, trials = r["counts"]
+                ax.plot(levels, np.array(correct) / np.array(trials), "o", label="proportion correct")
+                xs = np.linspace(min(levels) * 0.8, max(levels) * 1.1, 200)
+                ax.plot(xs, r["fit"].p(xs), label=f"{r['fit'].form} fit")
+                ax.axvline(r["threshold"], ls="--", color="gray")
+                ax.set_ylabel("proportion correct")
+            else:
+                ax.plot(range(1, len(r["levels"]) + 1), r["levels"], "-", color="gray")
+                ok = np.array(r["answers"], dtype=bool)
+                t = np.arange(1, len(r["levels"]) + 1)
+                ax.plot(t[ok], np.array(r["levels"])[ok], "o", ms=3, label="correct")
+                ax.plot(t[~ok], np.array(r["levels"])[~ok], "x", ms=4, label="wrong")
+                if r["threshold"] is not None:
+                    ax.axhline(r["threshold"], ls="--", color="gray")
+                ax.set_xlabel("trial")
+                ax.set_ylabel("level")
+            ax.set_title(f"participant {s.meta['participant']}: {r['block']}")
+            ax.legend(fontsize=7)
+            fig.tight_layout()
+            fig.savefig(os.path.join(out_dir, name + ".png"), dpi=90, metadata={"Software": None})
+            plt.close(fig)
+            threshold = r.get("threshold")
+            interval = r.get("interval")
+            lines.append(f"## Participant {s.meta['participant']}, {r['block']} ({r['procedure']}, {r['trials']} trials)")
+            lines.append("")
+            if threshold is None:
+                lines.append("No threshold yet (too few reversals or levels).")
+            else:
+                what = ("bootstrap 95 % interval" if r["procedure"] == "constant-stimuli"
+                        else "t interval of its reversals (not calibrated)")
+                lines.append(f"Threshold {threshold:.4g}" + (f", {what} [{interval[0]:.4g}, {interval[1]:.4g}]"
+                                                            if interval else ""))
+                per_block.setdefault(r["block"], []).append(threshold)
+            lines += ["", f"![{name}]({name}.png)", ""]
+    lines += ["## Thresholds across participants", "", "| block | participants | mean | sd |", "|---|---:|---:|---:|"]
+    for block, values in per_block.items():
+        v = np.array(values)
+        lines.append(f"| {block} | {v.size} | {v.mean():.4g} | {v.std(ddof=1) if v.size > 1 else float('nan'):.3g} |")
+    path = os.path.join(out_dir, "report.md")
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+    return path

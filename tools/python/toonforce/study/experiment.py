@@ -1,0 +1,211 @@
+"""Experiment files (TOML) of `toonforce study` (issue 31): conditions as named scene variants,
+the design, and one procedure per block. Checked when read, with file:line: key errors as the
+scene files' are. The keys are in docs/STUDIES.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+PROCEDURES = ("staircase", "weighted-staircase", "constant-stimuli")
+RULES = {"1-up-2-down": (1, 2), "1-up-3-down": (1, 3), "2-up-1-down": (2, 1)}
+
+
+class ExperimentError(ValueError):
+    def __init__(self, path: str, line: int, key: str, message: str):
+        super().__init__(f"{path}:{line}: {key}: {message}" if line else f"{path}: {key}: {message}")
+        self.path, self.line, self.key = path, line, key
+
+
+@dataclass
+class Condition:
+    name: str
+    scene: str  # absolute path
+    vary: str = ""  # the scene key a procedure's level sets, e.g. "surface1.slippery.mu"
+    overrides: Dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Block:
+    name: str
+    procedure: str
+    reference: str
+    test: str
+    options: Dict[str, Any]
+
+
+@dataclass
+class Experiment:
+    path: str
+    text: str
+    name: str
+    seed: Optional[int]
+    order: str  # "latin-square", "fixed", "random"
+    script: str  # the hand script of each interval (absolute path)
+    quantity: str  # the trace's quantity a simulated observer perceives
+    conditions: Dict[str, Condition]
+    blocks: List[Block]
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(self.text.encode("utf-8")).hexdigest()
+
+    def block_order(self, participant: int, rng_seed: int) -> List[int]:
+        """The order of the blocks for a participant: a balanced Latin square's row (Williams
+        design for an even count) by participant number, as given, or shuffled from the seed."""
+        n = len(self.blocks)
+        if self.order == "fixed" or n == 1:
+            return list(range(n))
+        if self.order == "random":
+            import random
+
+            order = list(range(n))
+            random.Random(rng_seed).shuffle(order)
+            return order
+        # Williams: first row 0, 1, n-1, 2, n-2, ...; row r adds r to each (mod n).
+        first, lo, hi = [0], 1, n - 1
+        while len(first) < n:
+            first.append(lo)
+            lo += 1
+            if len(first) < n:
+                first.append(hi)
+                hi -= 1
+        row = participant % n
+        return [(b + row) % n for b in first]
+
+
+def _line_of(text: str, key: str, table: str = "", index: int = 0) -> int:
+    """The line of `key = ` inside the index-th [[table]] (or at the top), 0 if not found."""
+    lines = text.splitlines()
+    start, end, seen = 0, len(lines), -1
+    if table:
+        for i, line in enumerate(lines):
+            if re.match(rf"\s*\[\[\s*{re.escape(table)}\s*\]\]", line):
+                seen += 1
+                if seen == index:
+                    start = i
+                    break
+        else:
+            return 0
+        for j in range(start + 1, len(lines)):
+            if re.match(r"\s*\[", lines[j]):
+                end = j
+                break
+    for i in range(start, end):
+        if re.match(rf"\s*{re.escape(key)}\s*=", lines[i]):
+            return i + 1
+    return start + 1 if table else 0
+
+
+def load(path: str) -> Experiment:
+    path = os.path.abspath(path)
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        match = re.search(r"line (\d+)", str(e))
+        raise ExperimentError(path, int(match.group(1)) if match else 0, "(syntax)", str(e)) from None
+    here = os.path.dirname(path)
+
+    def fail(key, message, table="", index=0):
+        raise ExperimentError(path, _line_of(text, key.split(".")[-1], table, index), key, message)
+
+    known_top = {"name", "seed", "order", "script", "quantity", "condition", "block"}
+    for key in data:
+        if key not in known_top:
+            fail(key, f"unknown key (known: {', '.join(sorted(known_top))})")
+    if not isinstance(data.get("name"), str) or not data["name"]:
+        fail("name", "required: the experiment's name")
+    seed = data.get("seed")
+    if seed is not None and (not isinstance(seed, int) or seed < 0):
+        fail("seed", "a non-negative integer (omitted: one is drawn and recorded)")
+    order = data.get("order", "latin-square")
+    if order not in ("latin-square", "fixed", "random"):
+        fail("order", "one of latin-square, fixed, random")
+    script = data.get("script")
+    if not isinstance(script, str):
+        fail("script", "required: the hand script of each interval (a path)")
+    script = os.path.normpath(os.path.join(here, script))
+    if not os.path.isfile(script):
+        fail("script", f"no such file: {script}")
+    quantity = data.get("quantity", "mean_along_motion_force")
+    if quantity not in QUANTITIES:
+        fail("quantity", f"one of {', '.join(QUANTITIES)}")
+
+    conditions: Dict[str, Condition] = {}
+    for i, c in enumerate(data.get("condition", [])):
+        for key in c:
+            if key not in ("name", "scene", "vary", "overrides"):
+                fail(f"condition[{i + 1}].{key}", "unknown key (known: name, scene, vary, overrides)", "condition", i)
+        name = c.get("name")
+        if not isinstance(name, str) or not name or name in conditions:
+            fail(f"condition[{i + 1}].name", "required, and unique", "condition", i)
+        scene = os.path.normpath(os.path.join(here, str(c.get("scene", ""))))
+        if not os.path.isfile(scene):
+            fail(f"condition[{i + 1}].scene", f"no such file: {scene}", "condition", i)
+        conditions[name] = Condition(name, scene, str(c.get("vary", "")), dict(c.get("overrides", {})))
+    if not conditions:
+        fail("condition", "at least one [[condition]]")
+
+    blocks: List[Block] = []
+    for i, b in enumerate(data.get("block", [])):
+        where = ("block", i)
+        name = b.get("name", f"block {i + 1}")
+        procedure = b.get("procedure")
+        if procedure not in PROCEDURES:
+            fail(f"block[{i + 1}].procedure", f"one of {', '.join(PROCEDURES)}", *where)
+        for role in ("reference", "test"):
+            if b.get(role) not in conditions:
+                fail(f"block[{i + 1}].{role}", f"a condition's name ({', '.join(conditions)})", *where)
+        if not conditions[b["test"]].vary:
+            fail(f"block[{i + 1}].test", f"condition '{b['test']}' has no `vary` key for the level", *where)
+        options = {k: v for k, v in b.items() if k not in ("name", "procedure", "reference", "test")}
+        allowed = {
+            "staircase": {"rule", "start", "step", "min", "max", "reversals", "discard", "max_trials"},
+            "weighted-staircase": {"target", "start", "step", "min", "max", "reversals", "discard", "max_trials"},
+            "constant-stimuli": {"levels", "repetitions", "form"},
+        }[procedure]
+        for key in options:
+            if key not in allowed:
+                fail(f"block[{i + 1}].{key}", f"not a key of {procedure} (known: {', '.join(sorted(allowed))})", *where)
+        if procedure == "staircase" and options.get("rule", "1-up-2-down") not in RULES:
+            fail(f"block[{i + 1}].rule", f"one of {', '.join(RULES)}", *where)
+        if procedure == "constant-stimuli":
+            levels = options.get("levels")
+            if not isinstance(levels, list) or len(levels) < 3 or any(
+                    not isinstance(x, (int, float)) or x <= 0 for x in levels):
+                fail(f"block[{i + 1}].levels", "at least 3 levels, each > 0", *where)
+            if not isinstance(options.get("repetitions"), int) or options["repetitions"] < 1:
+                fail(f"block[{i + 1}].repetitions", "an integer >= 1", *where)
+            if options.get("form", "weibull") not in ("weibull", "logistic"):
+                fail(f"block[{i + 1}].form", "weibull or logistic", *where)
+        else:
+            for key in ("start", "step", "min", "max"):
+                if not isinstance(options.get(key), (int, float)):
+                    fail(f"block[{i + 1}].{key}", "required: a number", *where)
+        blocks.append(Block(name, procedure, b["reference"], b["test"], options))
+    if not blocks:
+        fail("block", "at least one [[block]]")
+    return Experiment(path, text, data["name"], seed, order, script, quantity, conditions, blocks)
+
+
+def _mean_along_motion_force(trace) -> float:
+    """The scene's force along the handle's motion [N], averaged over the ticks that slide in
+    contact (|v| > 2 cm/s): positive pushes (cartoon ice), negative drags (friction)."""
+    import numpy as np
+
+    speed = np.hypot(trace["vx"], trace["vy"])
+    sliding = (speed > 0.02) & (trace["contact"] > 0)
+    if not np.any(sliding):
+        return 0.0
+    along = (trace["scene_fx"] * trace["vx"] + trace["scene_fy"] * trace["vy"]) / np.maximum(speed, 1e-12)
+    return float(np.mean(along[sliding]))
+
+
+QUANTITIES = {"mean_along_motion_force": _mean_along_motion_force}

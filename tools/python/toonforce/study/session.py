@@ -1,0 +1,169 @@
+"""A study session (issue 31): one folder, nothing lost.
+
+    FOLDER/session.json   the experiment file's text and SHA-256, the participant, the seed,
+                          the software's version, the device, the block order, the start time
+    FOLDER/trials.jsonl   one line per trial, appended, flushed and fsync'ed before the next
+                          trial starts
+    FOLDER/done.json      written once the last block ends
+
+A crash, a power cut or Ctrl-C loses at most the trial in progress (a cut last line is
+dropped when the session is opened again), and `resume` goes on from the next trial: the block
+order, each procedure's state (rebuilt by replaying the recorded answers) and the order of
+constant stimuli all come from the recorded seed.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import random
+import secrets
+import tomllib
+from typing import Any, Callable, Dict, List, Optional
+
+from . import experiment as experiments
+from .procedures import ConstantStimuli, TransformedStaircase, WeightedStaircase
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def _write_whole(path: str, data: Dict[str, Any]) -> None:
+    staged = path + ".staged"
+    with open(staged, "w", encoding="utf-8") as f:
+        json.dump(data, f, indent=2)
+        f.write("\n")
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(staged, path)
+
+
+def make_procedure(block: experiments.Block, seed: int, index: int):
+    o = block.options
+    if block.procedure == "constant-stimuli":
+        return ConstantStimuli(o["levels"], o["repetitions"], seed=seed * 1000 + index)
+    common = dict(start=float(o["start"]), step=float(o["step"]), minimum=float(o["min"]), maximum=float(o["max"]),
+                  reversals=int(o.get("reversals", 12)), discard=int(o.get("discard", 4)),
+                  max_trials=int(o.get("max_trials", 200)))
+    if block.procedure == "weighted-staircase":
+        return WeightedStaircase(**common, target=float(o.get("target", 0.75)))
+    up, down = experiments.RULES[o.get("rule", "1-up-2-down")]
+    return TransformedStaircase(**common, up=up, down=down)
+
+
+def scene_with(condition: experiments.Condition, level: Optional[float]) -> Dict[str, Any]:
+    """The condition's scene as a dict, its overrides and the level (at `vary`) set."""
+    with open(condition.scene, "rb") as f:
+        scene = tomllib.load(f)
+    settings = dict(condition.overrides)
+    if level is not None:
+        settings[condition.vary] = level
+    for path, value in settings.items():
+        effect, *keys = path.split(".")
+        kind = effect.rstrip("0123456789")
+        number = int(effect[len(kind):] or 0)
+        if kind not in ("surface", "cliff") or number < 1 or number > len(scene.get(kind, [])):
+            raise ValueError(f"{condition.name}: '{path}': no effect {effect} in {condition.scene}")
+        table = scene[kind][number - 1]
+        for key in keys[:-1]:
+            table = table.setdefault(key, {})
+        table[keys[-1]] = value
+    return scene
+
+
+class Session:
+    def __init__(self, folder: str):
+        self.folder = os.path.abspath(folder)
+        with open(os.path.join(self.folder, "session.json"), encoding="utf-8") as f:
+            self.meta: Dict[str, Any] = json.load(f)
+        self.experiment = experiments.load(self.meta["experiment_file"])
+        if self.experiment.sha256 != self.meta["experiment_sha256"]:
+            raise ValueError(f"{self.meta['experiment_file']} changed since the session started "
+                             f"(SHA-256 {self.experiment.sha256[:12]}..., recorded "
+                             f"{self.meta['experiment_sha256'][:12]}...): restore it to resume")
+        self.trials: List[Dict[str, Any]] = self._read_trials()
+
+    # ---- starting and opening ----------------------------------------------------------
+
+    @staticmethod
+    def start(experiment_file: str, folder: str, participant: int, seed: Optional[int] = None,
+              device: str = "sim", observer: Optional[Dict[str, Any]] = None, version: str = "") -> "Session":
+        exp = experiments.load(experiment_file)
+        if os.path.exists(os.path.join(folder, "session.json")):
+            raise FileExistsError(f"{folder} holds a session already: `resume` it, or choose another folder")
+        os.makedirs(folder, exist_ok=True)
+        seed = seed if seed is not None else (exp.seed if exp.seed is not None else secrets.randbits(31))
+        meta = {
+            "experiment_file": exp.path, "experiment_sha256": exp.sha256, "experiment_text": exp.text,
+            "experiment": exp.name, "participant": participant, "seed": seed, "device": device,
+            "observer": observer, "version": version, "started_utc": _now(),
+            "block_order": exp.block_order(participant, seed),
+        }
+        _write_whole(os.path.join(folder, "session.json"), meta)
+        open(os.path.join(folder, "trials.jsonl"), "a").close()
+        return Session(folder)
+
+    def _read_trials(self) -> List[Dict[str, Any]]:
+        path = os.path.join(self.folder, "trials.jsonl")
+        with open(path, "rb") as f:
+            data = f.read()
+        whole = data[:data.rfind(b"\n") + 1]
+        if len(whole) != len(data):  # the trial in progress when it stopped: not recorded
+            with open(path, "r+b") as f:
+                f.truncate(len(whole))
+                os.fsync(f.fileno())
+        return [json.loads(line) for line in whole.decode("utf-8").splitlines() if line.strip()]
+
+    @property
+    def done(self) -> bool:
+        return os.path.exists(os.path.join(self.folder, "done.json"))
+
+    # ---- running ------------------------------------------------------------------------
+
+    def procedures(self):
+        """Each block's procedure with the recorded answers replayed, in the session's order."""
+        seed = self.meta["seed"]
+        out = []
+        for position, index in enumerate(self.meta["block_order"]):
+            procedure = make_procedure(self.experiment.blocks[index], seed, index)
+            for t in self.trials:
+                if t["block"] == index:
+                    if procedure.next_level() != t["level"]:
+                        raise ValueError(f"trials.jsonl: block {index} trial {t['trial']}: level {t['level']} is not "
+                                         f"what the procedure gives ({procedure.next_level()}): a changed file?")
+                    procedure.record(t["correct"])
+            out.append((position, index, procedure))
+        return out
+
+    def run(self, answer: Callable[[experiments.Block, int, int, float, bool], Dict[str, Any]],
+            progress: Callable[[str], None] = lambda line: None, stop_after: Optional[int] = None) -> None:
+        """Runs the trials left. `answer(block, block_index, trial, level, test_first)` presents
+        one trial and returns at least {"correct": bool}; each trial is on disk before the next.
+        `stop_after`: end after that many new trials (a pause)."""
+        seed = self.meta["seed"]
+        done_now = 0
+        path = os.path.join(self.folder, "trials.jsonl")
+        for position, index, procedure in self.procedures():
+            block = self.experiment.blocks[index]
+            while not procedure.done:
+                if stop_after is not None and done_now >= stop_after:
+                    return
+                trial = len(procedure.answers)
+                level = procedure.next_level()
+                test_first = random.Random(f"{seed}/order/{index}/{trial}").random() < 0.5
+                result = answer(block, index, trial, level, test_first)
+                record = {"block": index, "position": position, "trial": trial, "procedure": block.procedure,
+                          "reference": block.reference, "test": block.test, "level": level, "test_first": test_first,
+                          **result, "utc": _now()}
+                with open(path, "a", encoding="utf-8") as f:
+                    f.write(json.dumps(record) + "\n")
+                    f.flush()
+                    os.fsync(f.fileno())
+                procedure.record(bool(result["correct"]))
+                self.trials.append(record)
+                done_now += 1
+                progress(f"block {position + 1} of {len(self.meta['block_order'])} ({block.name}): "
+                         f"trial {trial + 1}, level {level:g}, {'correct' if result['correct'] else 'wrong'}")
+        _write_whole(os.path.join(self.folder, "done.json"), {"ended_utc": _now(), "trials": len(self.trials)})
