@@ -31,7 +31,7 @@ TRUE_MU = 1.2  # [N s/m] the simulated participants' threshold (F = 1/2: 75 % co
 @pytest.fixture(scope="module")
 def study():
     exp = experiments.load(STUDY)
-    staircase, constant = exp.blocks
+    staircase, constant = exp.blocks[:2]
     participant = SimulatedParticipant.with_threshold(exp, constant, TRUE_MU, lapse=0.02, seed=7)
     return exp, staircase, constant, participant
 
@@ -96,6 +96,12 @@ def test_a_1_up_2_down_staircase_converges_on_the_observers_70_7_percent_point(s
     assert abs(median / truth - 1) < 0.2, (median, truth)
 
 
+def absolute_study_text():
+    """The example study's text with its paths absolute (for a copy elsewhere)."""
+    return open(STUDY).read().replace('"../', f'"{SOURCE_DIR}/scenes/').replace(
+        '"floor.toml"', f'"{SOURCE_DIR}/scenes/studies/floor.toml"')
+
+
 def run_cli(*args, **kwargs):
     return subprocess.run([sys.executable, "-m", "toonforce.study", *args], capture_output=True, text=True,
                           env=os.environ.copy(), timeout=600, **kwargs)
@@ -129,9 +135,7 @@ def test_a_session_killed_mid_trial_resumes_with_nothing_lost_or_repeated(tmp_pa
 
 def test_a_resumed_session_refuses_a_changed_experiment_file(tmp_path):
     changed = tmp_path / "study.toml"
-    text = open(STUDY).read().replace('"../hands/stroke.toml"', f'"{SOURCE_DIR}/scenes/hands/stroke.toml"')
-    text = text.replace('"floor.toml"', f'"{SOURCE_DIR}/scenes/studies/floor.toml"')
-    text = text.replace('"../slippery.toml"', f'"{SOURCE_DIR}/scenes/slippery.toml"')
+    text = absolute_study_text()
     changed.write_text(text)
     session = Session.start(str(changed), str(tmp_path / "s"), participant=1, seed=1)
     changed.write_text(text.replace("repetitions = 20", "repetitions = 21"))
@@ -141,9 +145,7 @@ def test_a_resumed_session_refuses_a_changed_experiment_file(tmp_path):
 
 def test_experiment_file_errors_name_file_line_and_key(tmp_path):
     bad = tmp_path / "bad.toml"
-    text = open(STUDY).read().replace('rule = "1-up-2-down"', 'rule = "1-up-4-down"')
-    bad.write_text(text.replace('"../', f'"{SOURCE_DIR}/scenes/').replace('"floor.toml"',
-                                                                         f'"{SOURCE_DIR}/scenes/studies/floor.toml"'))
+    bad.write_text(absolute_study_text().replace('rule = "1-up-2-down"', 'rule = "1-up-4-down"'))
     with pytest.raises(experiments.ExperimentError) as e:
         experiments.load(str(bad))
     line = next(i + 1 for i, l in enumerate(bad.read_text().splitlines()) if l.startswith("rule ="))
@@ -152,7 +154,7 @@ def test_experiment_file_errors_name_file_line_and_key(tmp_path):
 
 def test_the_block_order_is_a_balanced_latin_square_over_participants():
     exp = experiments.load(STUDY)
-    exp.blocks = exp.blocks * 2  # four blocks: a Williams square balances first-order carry-over
+    assert len(exp.blocks) == 4  # a Williams square balances first-order carry-over
     orders = [exp.block_order(p, 0) for p in range(4)]
     for position in range(4):
         assert sorted(o[position] for o in orders) == [0, 1, 2, 3]
@@ -171,6 +173,38 @@ def test_the_example_study_report(tmp_path):
     report = analyze(folders, str(tmp_path / "report"), bootstrap_samples=50)
     text = open(report).read()
     assert text.count("Threshold ") == 4 and "bootstrap 95 % interval" in text
+    assert "| slippery |" in text and "binomial test against no preference" in text
     for participant in (1, 2):
         for block in (1, 2):
             assert os.path.getsize(tmp_path / "report" / f"p{participant}_block{block}.png") > 1000
+
+
+def test_cartoon_ice_is_rated_and_chosen_as_more_slippery_than_friction_across_participants(tmp_path):
+    # Only the example's paired-comparison and rating blocks, for 8 simulated participants whose
+    # perceived quantity is the surfaces' push along the motion (friction drags, ice pushes).
+    text = absolute_study_text()
+    head, *blocks = text.split("[[block]]")
+    kept = [b for b in blocks if 'procedure = "rating"' in b or 'procedure = "paired-comparison"' in b]
+    kept = [b.split("[[condition]]")[0] for b in kept]  # conditions after a block move to the head
+    conditions = "".join("[[condition]]" + c for b in blocks for c in b.split("[[condition]]")[1:])
+    subset = tmp_path / "subset.toml"
+    subset.write_text(head + conditions + "".join("[[block]]" + b for b in kept))
+    exp = experiments.load(str(subset))
+    assert [b.procedure for b in exp.blocks] == ["paired-comparison", "rating"]
+    folders = []
+    for participant in range(8):
+        session = Session.start(str(subset), str(tmp_path / f"p{participant}"), participant, seed=participant)
+        observer = SimulatedParticipant(exp, study_observer(participant))
+        session.run(observer)
+        folders.append(session.folder)
+    report = open(analyze(folders, str(tmp_path / "report"))).read()
+    row = next(line for line in report.splitlines() if line.startswith("| slippery |"))
+    assert float(row.split("|")[-2]) < 0.01, row  # Wilcoxon across 8 participants: every one rates ice higher
+    chosen = next(line for line in report.splitlines() if "binomial test" in line)
+    assert "cartoon ice chosen 80 of 80" in chosen, chosen
+
+
+def study_observer(seed):
+    from toonforce.study.observer import ModelObserver
+
+    return ModelObserver(noise=0.05, lapse=0.0, seed=seed)

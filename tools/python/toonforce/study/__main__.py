@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     run.add_argument("--out", required=True, help="the session's folder (new)")
     run.add_argument("--seed", type=int)
     run.add_argument("--simulated-threshold", type=float, required=True,
-                     help="a model observer with this threshold on the first block's test condition")
+                     help="a model observer with this threshold on the first level block's test condition")
     run.add_argument("--simulated-lapse", type=float, default=0.0)
     resume = sub.add_parser("resume", help="go on with a session from its next trial")
     resume.add_argument("folder")
@@ -61,7 +61,13 @@ def main(argv=None) -> int:
         if args.command == "run":
             import toonforce
 
-            observer = {"threshold": args.simulated_threshold, "lapse": args.simulated_lapse, "block": 0}
+            from . import experiment as experiments
+
+            exp = experiments.load(args.experiment)
+            first = next((i for i, b in enumerate(exp.blocks) if b.procedure in experiments.LEVEL_PROCEDURES), None)
+            if first is None:
+                raise ValueError("--simulated-threshold needs a block with a level (a staircase or constant stimuli)")
+            observer = {"threshold": args.simulated_threshold, "lapse": args.simulated_lapse, "block": first}
             session = Session.start(args.experiment, args.out, args.participant, args.seed, "sim", observer,
                                     toonforce.__version__)
             return _go(session)

@@ -18,7 +18,21 @@ def block_result(session: Session, position: int, index: int, procedure, bootstr
     block = session.experiment.blocks[index]
     result: Dict[str, Any] = {"block": block.name, "index": index, "procedure": block.procedure,
                               "participant": session.meta["participant"], "trials": len(procedure.answers),
-                              "levels": list(procedure.levels), "answers": list(procedure.answers)}
+                              "levels": list(getattr(procedure, "levels", [])), "answers": list(procedure.answers)}
+    if block.procedure == "rating":
+        table: Dict[str, Dict[str, List[int]]] = {}
+        for spec, res in zip(procedure._order, procedure.results):
+            for item, value in res["ratings"].items():
+                table.setdefault(item, {}).setdefault(spec["condition"], []).append(value)
+        result["ratings"] = table
+        return result
+    if block.procedure == "paired-comparison":
+        wins: Dict[str, int] = {c: 0 for spec in procedure._order for c in (spec["first"], spec["second"])}
+        for spec, res in zip(procedure._order, procedure.results):
+            chosen = spec["first"] if res["chose"] == 1 else spec["second"]
+            wins[chosen] = wins.get(chosen, 0) + 1
+        result["wins"] = wins
+        return result
     if block.procedure == "constant-stimuli":
         levels, correct, trials = procedure.counts()
         if len(levels) >= 3:
@@ -44,10 +58,14 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200) 
     lines += ["Sessions: " + ", ".join(f"participant {s.meta['participant']} ({len(s.trials)} trials"
                                         f"{'' if s.done else ', not finished'})" for s in sessions), ""]
     per_block: Dict[str, List[float]] = {}
+    collected: Dict[str, List[Dict[str, Any]]] = {}  # rating and paired-comparison blocks, per participant
     for s in sessions:
         for position, index, procedure in s.procedures():
             r = block_result(s, position, index, procedure, bootstrap_samples)
             name = f"p{s.meta['participant']}_block{index + 1}"
+            if r["procedure"] in ("rating", "paired-comparison"):
+                collected.setdefault(r["block"], []).append(r)
+                continue
             fig, ax = plt.subplots(figsize=(6, 3.2))
             if r["procedure"] == "constant-stimuli" and "fit" in r:
                 levels, correct, trials = r["counts"]
@@ -88,7 +106,47 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200) 
     for block, values in per_block.items():
         v = np.array(values)
         lines.append(f"| {block} | {v.size} | {v.mean():.4g} | {v.std(ddof=1) if v.size > 1 else float('nan'):.3g} |")
+    lines += _ratings_and_comparisons(collected)
     path = os.path.join(out_dir, "report.md")
     with open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     return path
+
+
+def _ratings_and_comparisons(collected: Dict[str, List[Dict[str, Any]]]) -> List[str]:
+    """Per rating item: each condition's median rating per participant, and between two
+    conditions the Wilcoxon signed-rank test across participants (each participant's median).
+    Per paired comparison: how often each condition was chosen, and a two-sided binomial test
+    against no preference over all answers."""
+    from scipy.stats import binomtest, wilcoxon
+
+    out: List[str] = []
+    for block, results in collected.items():
+        out += [f"## {block} ({results[0]['procedure']}, {len(results)} participants)", ""]
+        if results[0]["procedure"] == "rating":
+            items = sorted({item for r in results for item in r["ratings"]})
+            conditions = sorted({c for r in results for table in r["ratings"].values() for c in table})
+            out += ["| item | " + " | ".join(f"{c}: median (participants' medians)" for c in conditions) + " | Wilcoxon p |",
+                    "|---|" + "---|" * len(conditions) + "---:|"]
+            for item in items:
+                medians = {c: [float(np.median(r["ratings"][item][c])) for r in results] for c in conditions}
+                p_text = "n/a"
+                if len(conditions) == 2 and len(results) >= 2:
+                    a, b = np.array(medians[conditions[0]]), np.array(medians[conditions[1]])
+                    if np.any(a != b):
+                        p_text = f"{wilcoxon(a, b).pvalue:.3g}"
+                cells = [f"{np.median(medians[c]):g} ({', '.join(f'{m:g}' for m in medians[c])})" for c in conditions]
+                out.append(f"| {item} | " + " | ".join(cells) + f" | {p_text} |")
+        else:
+            totals: Dict[str, int] = {}
+            for r in results:
+                for c, n in r["wins"].items():
+                    totals[c] = totals.get(c, 0) + n
+            n = sum(totals.values())
+            names = sorted(totals)
+            top = max(totals.values())
+            p = binomtest(top, n, 0.5).pvalue if len(names) == 2 else float("nan")
+            out.append(", ".join(f"{c} chosen {totals[c]} of {n}" for c in names) +
+                       f" (binomial test against no preference: p = {p:.3g})")
+        out.append("")
+    return out

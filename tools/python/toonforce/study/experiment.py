@@ -12,7 +12,9 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
-PROCEDURES = ("staircase", "weighted-staircase", "constant-stimuli")
+LEVEL_PROCEDURES = ("staircase", "weighted-staircase", "constant-stimuli")
+PROCEDURES = LEVEL_PROCEDURES + ("rating", "paired-comparison")
+SCALES = ("likert", "semantic-differential")
 RULES = {"1-up-2-down": (1, 2), "1-up-3-down": (1, 3), "2-up-1-down": (2, 1)}
 
 
@@ -34,8 +36,8 @@ class Condition:
 class Block:
     name: str
     procedure: str
-    reference: str
-    test: str
+    reference: str  # level procedures: the reference interval's condition ("" otherwise)
+    test: str  # level procedures: the test interval's condition, whose `vary` key takes the level
     options: Dict[str, Any]
 
 
@@ -160,36 +162,65 @@ def load(path: str) -> Experiment:
         procedure = b.get("procedure")
         if procedure not in PROCEDURES:
             fail(f"block[{i + 1}].procedure", f"one of {', '.join(PROCEDURES)}", *where)
-        for role in ("reference", "test"):
-            if b.get(role) not in conditions:
-                fail(f"block[{i + 1}].{role}", f"a condition's name ({', '.join(conditions)})", *where)
-        if not conditions[b["test"]].vary:
-            fail(f"block[{i + 1}].test", f"condition '{b['test']}' has no `vary` key for the level", *where)
         options = {k: v for k, v in b.items() if k not in ("name", "procedure", "reference", "test")}
         allowed = {
             "staircase": {"rule", "start", "step", "min", "max", "reversals", "discard", "max_trials"},
             "weighted-staircase": {"target", "start", "step", "min", "max", "reversals", "discard", "max_trials"},
             "constant-stimuli": {"levels", "repetitions", "form"},
+            "rating": {"conditions", "items", "repetitions"},
+            "paired-comparison": {"pairs", "question", "repetitions"},
         }[procedure]
+        for key in list(b) if procedure not in LEVEL_PROCEDURES else []:
+            if key in ("reference", "test"):
+                fail(f"block[{i + 1}].{key}", f"not a key of {procedure} (its conditions are in its own keys)", *where)
         for key in options:
             if key not in allowed:
                 fail(f"block[{i + 1}].{key}", f"not a key of {procedure} (known: {', '.join(sorted(allowed))})", *where)
+        if procedure in LEVEL_PROCEDURES:
+            for role in ("reference", "test"):
+                if b.get(role) not in conditions:
+                    fail(f"block[{i + 1}].{role}", f"a condition's name ({', '.join(conditions)})", *where)
+            if not conditions[b["test"]].vary:
+                fail(f"block[{i + 1}].test", f"condition '{b['test']}' has no `vary` key for the level", *where)
         if procedure == "staircase" and options.get("rule", "1-up-2-down") not in RULES:
             fail(f"block[{i + 1}].rule", f"one of {', '.join(RULES)}", *where)
+        if procedure in ("constant-stimuli", "rating", "paired-comparison"):
+            if not isinstance(options.get("repetitions"), int) or options["repetitions"] < 1:
+                fail(f"block[{i + 1}].repetitions", "an integer >= 1", *where)
         if procedure == "constant-stimuli":
             levels = options.get("levels")
             if not isinstance(levels, list) or len(levels) < 3 or any(
                     not isinstance(x, (int, float)) or x <= 0 for x in levels):
                 fail(f"block[{i + 1}].levels", "at least 3 levels, each > 0", *where)
-            if not isinstance(options.get("repetitions"), int) or options["repetitions"] < 1:
-                fail(f"block[{i + 1}].repetitions", "an integer >= 1", *where)
             if options.get("form", "weibull") not in ("weibull", "logistic"):
                 fail(f"block[{i + 1}].form", "weibull or logistic", *where)
+        elif procedure == "rating":
+            named = options.get("conditions")
+            if not isinstance(named, list) or len(named) < 2 or any(c not in conditions for c in named):
+                fail(f"block[{i + 1}].conditions", f"two or more conditions' names ({', '.join(conditions)})", *where)
+            items = options.get("items")
+            if not isinstance(items, list) or not items:
+                fail(f"block[{i + 1}].items", "at least one item: {name, scale, points, anchors}", *where)
+            for j, item in enumerate(items):
+                ok = (isinstance(item, dict) and isinstance(item.get("name"), str) and item.get("scale") in SCALES
+                      and isinstance(item.get("points"), int) and 3 <= item["points"] <= 11 and item["points"] % 2 == 1
+                      and isinstance(item.get("anchors"), list) and len(item["anchors"]) == 2)
+                if not ok:
+                    fail(f"block[{i + 1}].items[{j + 1}]", f"name, scale ({' or '.join(SCALES)}), points (odd, 3 to "
+                         "11) and anchors (two words: the scale's ends)", *where)
+        elif procedure == "paired-comparison":
+            pairs = options.get("pairs")
+            if not isinstance(pairs, list) or not pairs or any(
+                    not isinstance(p, list) or len(p) != 2 or p[0] == p[1] or any(c not in conditions for c in p)
+                    for p in pairs):
+                fail(f"block[{i + 1}].pairs", f"pairs of two different conditions ({', '.join(conditions)})", *where)
+            if not isinstance(options.get("question"), str) or not options["question"]:
+                fail(f"block[{i + 1}].question", "the question asked after each pair", *where)
         else:
             for key in ("start", "step", "min", "max"):
                 if not isinstance(options.get(key), (int, float)):
                     fail(f"block[{i + 1}].{key}", "required: a number", *where)
-        blocks.append(Block(name, procedure, b["reference"], b["test"], options))
+        blocks.append(Block(name, procedure, b.get("reference", ""), b.get("test", ""), options))
     if not blocks:
         fail("block", "at least one [[block]]")
     return Experiment(path, text, data["name"], seed, order, script, quantity, conditions, blocks)

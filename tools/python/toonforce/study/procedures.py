@@ -140,3 +140,45 @@ class ConstantStimuli:
         correct = [sum(1 for l, a in zip(self.levels, self.answers) if l == level and a) for level in levels]
         trials = [sum(1 for l in self.levels if l == level) for level in levels]
         return levels, correct, trials
+
+
+@dataclass
+class FixedTrials:
+    """A block whose trials are known in advance (ratings, paired comparisons): `trials` in an
+    order shuffled from the session's seed; `record` keeps each trial's result."""
+
+    trials: Sequence[dict]
+    seed: int
+    results: List[dict] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.trials:
+            raise ValueError("a block needs at least one trial")
+        order = [dict(t) for t in self.trials]
+        random.Random(self.seed).shuffle(order)
+        self._order = order
+
+    @property
+    def done(self) -> bool:
+        return len(self.results) >= len(self._order)
+
+    @property
+    def answers(self) -> List[dict]:
+        return self.results
+
+    def next_trial(self) -> dict:
+        return self._order[len(self.results)]
+
+    def record(self, result: dict) -> None:
+        self.results.append(dict(result))
+
+
+def rating_trials(conditions: Sequence[str], repetitions: int) -> List[dict]:
+    """Each condition `repetitions` times, rated on every item after it."""
+    return [{"condition": c} for c in conditions for _ in range(repetitions)]
+
+
+def pair_trials(pairs: Sequence[Sequence[str]], repetitions: int) -> List[dict]:
+    """Each pair in both orders, `repetitions` times: order effects cancel."""
+    return [{"first": a, "second": b} for a, b in pairs for _ in range(repetitions)] + \
+           [{"first": b, "second": a} for a, b in pairs for _ in range(repetitions)]

@@ -23,7 +23,8 @@ import tomllib
 from typing import Any, Callable, Dict, List, Optional
 
 from . import experiment as experiments
-from .procedures import ConstantStimuli, TransformedStaircase, WeightedStaircase
+from .procedures import (ConstantStimuli, FixedTrials, TransformedStaircase, WeightedStaircase, pair_trials,
+                         rating_trials)
 
 
 def _now() -> str:
@@ -42,6 +43,10 @@ def _write_whole(path: str, data: Dict[str, Any]) -> None:
 
 def make_procedure(block: experiments.Block, seed: int, index: int):
     o = block.options
+    if block.procedure == "rating":
+        return FixedTrials(rating_trials(o["conditions"], o["repetitions"]), seed=seed * 1000 + index)
+    if block.procedure == "paired-comparison":
+        return FixedTrials(pair_trials(o["pairs"], o["repetitions"]), seed=seed * 1000 + index)
     if block.procedure == "constant-stimuli":
         return ConstantStimuli(o["levels"], o["repetitions"], seed=seed * 1000 + index)
     common = dict(start=float(o["start"]), step=float(o["step"]), minimum=float(o["min"]), maximum=float(o["max"]),
@@ -129,41 +134,58 @@ class Session:
         for position, index in enumerate(self.meta["block_order"]):
             procedure = make_procedure(self.experiment.blocks[index], seed, index)
             for t in self.trials:
-                if t["block"] == index:
-                    if procedure.next_level() != t["level"]:
-                        raise ValueError(f"trials.jsonl: block {index} trial {t['trial']}: level {t['level']} is not "
-                                         f"what the procedure gives ({procedure.next_level()}): a changed file?")
-                    procedure.record(t["correct"])
+                if t["block"] != index:
+                    continue
+                if isinstance(procedure, FixedTrials):
+                    procedure.record({k: t[k] for k in ("ratings", "chose") if k in t})
+                    continue
+                if procedure.next_level() != t["level"]:
+                    raise ValueError(f"trials.jsonl: block {index} trial {t['trial']}: level {t['level']} is not "
+                                     f"what the procedure gives ({procedure.next_level()}): a changed file?")
+                procedure.record(t["correct"])
             out.append((position, index, procedure))
         return out
 
-    def run(self, answer: Callable[[experiments.Block, int, int, float, bool], Dict[str, Any]],
-            progress: Callable[[str], None] = lambda line: None, stop_after: Optional[int] = None) -> None:
-        """Runs the trials left. `answer(block, block_index, trial, level, test_first)` presents
-        one trial and returns at least {"correct": bool}; each trial is on disk before the next.
+    def run(self, participant, progress: Callable[[str], None] = lambda line: None,
+            stop_after: Optional[int] = None) -> None:
+        """Runs the trials left with `participant` (SimulatedParticipant's methods:
+        two_interval, rate, compare), each trial on disk before the next starts.
         `stop_after`: end after that many new trials (a pause)."""
         seed = self.meta["seed"]
         done_now = 0
         path = os.path.join(self.folder, "trials.jsonl")
-        for position, index, procedure in self.procedures():
+        blocks = self.procedures()
+        for position, index, procedure in blocks:
             block = self.experiment.blocks[index]
             while not procedure.done:
                 if stop_after is not None and done_now >= stop_after:
                     return
                 trial = len(procedure.answers)
-                level = procedure.next_level()
-                test_first = random.Random(f"{seed}/order/{index}/{trial}").random() < 0.5
-                result = answer(block, index, trial, level, test_first)
-                record = {"block": index, "position": position, "trial": trial, "procedure": block.procedure,
-                          "reference": block.reference, "test": block.test, "level": level, "test_first": test_first,
-                          **result, "utc": _now()}
+                record: Dict[str, Any] = {"block": index, "position": position, "trial": trial,
+                                          "procedure": block.procedure}
+                if isinstance(procedure, FixedTrials):
+                    spec = procedure.next_trial()
+                    if block.procedure == "rating":
+                        result = participant.rate(block, index, trial, spec["condition"])
+                    else:
+                        result = participant.compare(block, index, trial, spec["first"], spec["second"])
+                    record.update(spec)
+                    said = ", ".join(f"{k} {v}" for k, v in result.get("ratings", {}).items()) or \
+                        f"chose {result.get('chose')}"
+                else:
+                    level = procedure.next_level()
+                    test_first = random.Random(f"{seed}/order/{index}/{trial}").random() < 0.5
+                    result = participant.two_interval(block, index, trial, level, test_first)
+                    record.update(reference=block.reference, test=block.test, level=level, test_first=test_first)
+                    said = f"level {level:g}, {'correct' if result['correct'] else 'wrong'}"
+                record.update(result)
+                record["utc"] = _now()
                 with open(path, "a", encoding="utf-8") as f:
                     f.write(json.dumps(record) + "\n")
                     f.flush()
                     os.fsync(f.fileno())
-                procedure.record(bool(result["correct"]))
+                procedure.record(result if isinstance(procedure, FixedTrials) else bool(result["correct"]))
                 self.trials.append(record)
                 done_now += 1
-                progress(f"block {position + 1} of {len(self.meta['block_order'])} ({block.name}): "
-                         f"trial {trial + 1}, level {level:g}, {'correct' if result['correct'] else 'wrong'}")
+                progress(f"block {position + 1} of {len(blocks)} ({block.name}): trial {trial + 1}: {said}")
         _write_whole(os.path.join(self.folder, "done.json"), {"ended_utc": _now(), "trials": len(self.trials)})
