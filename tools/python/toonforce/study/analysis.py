@@ -26,6 +26,13 @@ def block_result(session: Session, position: int, index: int, procedure, bootstr
                 table.setdefault(item, {}).setdefault(spec["condition"], []).append(value)
         result["ratings"] = table
         return result
+    if block.procedure == "task":
+        metrics: Dict[str, Dict[str, List[Any]]] = {}
+        for spec, res in zip(procedure._order, procedure.results):
+            for key, value in res["metrics"].items():
+                metrics.setdefault(spec["condition"], {}).setdefault(key, []).append(value)
+        result["metrics"] = metrics
+        return result
     if block.procedure == "paired-comparison":
         wins: Dict[str, int] = {c: 0 for spec in procedure._order for c in (spec["first"], spec["second"])}
         for spec, res in zip(procedure._order, procedure.results):
@@ -63,7 +70,7 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200) 
         for position, index, procedure in s.procedures():
             r = block_result(s, position, index, procedure, bootstrap_samples)
             name = f"p{s.meta['participant']}_block{index + 1}"
-            if r["procedure"] in ("rating", "paired-comparison"):
+            if r["procedure"] in ("rating", "paired-comparison", "task"):
                 collected.setdefault(r["block"], []).append(r)
                 continue
             fig, ax = plt.subplots(figsize=(6, 3.2))
@@ -123,7 +130,22 @@ def _ratings_and_comparisons(collected: Dict[str, List[Dict[str, Any]]]) -> List
     out: List[str] = []
     for block, results in collected.items():
         out += [f"## {block} ({results[0]['procedure']}, {len(results)} participants)", ""]
-        if results[0]["procedure"] == "rating":
+        if results[0]["procedure"] == "task":
+            conditions = sorted({c for r in results for c in r["metrics"]})
+            keys = sorted({k for r in results for c in r["metrics"].values() for k in c})
+            out += ["| condition | " + " | ".join(keys) + " |", "|---|" + "---:|" * len(keys)]
+            for c in conditions:
+                cells = []
+                for k in keys:
+                    values = [v for r in results for v in r["metrics"].get(c, {}).get(k, [])]
+                    numbers = [float(v) for v in values if v is not None]
+                    if k == "success":
+                        cells.append(f"{sum(bool(v) for v in values)} of {len(values)}")
+                    else:
+                        cells.append(f"{np.mean(numbers):.4g}" if numbers else "n/a")
+                out.append(f"| {c} | " + " | ".join(cells) + " |")
+            out += ["", "Means over every trial of every participant; success as a count."]
+        elif results[0]["procedure"] == "rating":
             items = sorted({item for r in results for item in r["ratings"]})
             conditions = sorted({c for r in results for table in r["ratings"].values() for c in table})
             out += ["| item | " + " | ".join(f"{c}: median (participants' medians)" for c in conditions) + " | Wilcoxon p |",

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
 LEVEL_PROCEDURES = ("staircase", "weighted-staircase", "constant-stimuli")
-PROCEDURES = LEVEL_PROCEDURES + ("rating", "paired-comparison")
+PROCEDURES = LEVEL_PROCEDURES + ("rating", "paired-comparison", "task")
+TASKS = ("hold-still", "strike", "cross")
 SCALES = ("likert", "semantic-differential")
 RULES = {"1-up-2-down": (1, 2), "1-up-3-down": (1, 3), "2-up-1-down": (2, 1)}
 
@@ -169,6 +170,8 @@ def load(path: str) -> Experiment:
             "constant-stimuli": {"levels", "repetitions", "form"},
             "rating": {"conditions", "items", "repetitions"},
             "paired-comparison": {"pairs", "question", "repetitions"},
+            "task": {"conditions", "repetitions", "task", "script", "instructions", "after", "hold", "speed_tolerance",
+                     "fall_depth"},
         }[procedure]
         for key in list(b) if procedure not in LEVEL_PROCEDURES else []:
             if key in ("reference", "test"):
@@ -184,7 +187,7 @@ def load(path: str) -> Experiment:
                 fail(f"block[{i + 1}].test", f"condition '{b['test']}' has no `vary` key for the level", *where)
         if procedure == "staircase" and options.get("rule", "1-up-2-down") not in RULES:
             fail(f"block[{i + 1}].rule", f"one of {', '.join(RULES)}", *where)
-        if procedure in ("constant-stimuli", "rating", "paired-comparison"):
+        if procedure in ("constant-stimuli", "rating", "paired-comparison", "task"):
             if not isinstance(options.get("repetitions"), int) or options["repetitions"] < 1:
                 fail(f"block[{i + 1}].repetitions", "an integer >= 1", *where)
         if procedure == "constant-stimuli":
@@ -208,6 +211,19 @@ def load(path: str) -> Experiment:
                 if not ok:
                     fail(f"block[{i + 1}].items[{j + 1}]", f"name, scale ({' or '.join(SCALES)}), points (odd, 3 to "
                          "11) and anchors (two words: the scale's ends)", *where)
+        elif procedure == "task":
+            named = options.get("conditions")
+            if not isinstance(named, list) or not named or any(c not in conditions for c in named):
+                fail(f"block[{i + 1}].conditions", f"one or more conditions' names ({', '.join(conditions)})", *where)
+            if options.get("task") not in TASKS:
+                fail(f"block[{i + 1}].task", f"one of {', '.join(TASKS)}", *where)
+            if "script" in options:
+                options["script"] = os.path.normpath(os.path.join(here, str(options["script"])))
+                if not os.path.isfile(options["script"]):
+                    fail(f"block[{i + 1}].script", f"no such file: {options['script']}", *where)
+            for key in ("after", "hold", "speed_tolerance", "fall_depth"):
+                if key in options and (not isinstance(options[key], (int, float)) or options[key] < 0):
+                    fail(f"block[{i + 1}].{key}", "a number >= 0", *where)
         elif procedure == "paired-comparison":
             pairs = options.get("pairs")
             if not isinstance(pairs, list) or not pairs or any(
@@ -240,3 +256,43 @@ def _mean_along_motion_force(trace) -> float:
 
 
 QUANTITIES = {"mean_along_motion_force": _mean_along_motion_force}
+
+
+def task_metrics(task: str, trace, options: Dict[str, Any]) -> Dict[str, Any]:
+    """A task's metrics from a trace (SI units): `path_length_m` (the handle's path over the
+    whole trial) and per task:
+      hold-still  from `after` [s] on, the handle must stay under `speed_tolerance` [m/s,
+                  default 0.005] for `hold` [s, default 0.3]: success, time_to_still_s (from
+                  `after`), drift_m (the path after `after`);
+      strike      peak_force_n (the largest commanded force), overshoot_m (the deepest the
+                  handle went below the surface at z = 0), success (it touched);
+      cross       min_z_m, success (never deeper than `fall_depth` [m, default 0.01])."""
+    import numpy as np
+
+    t = np.asarray(trace["t"], dtype=float)
+    p = np.stack([trace["x"], trace["y"], trace["z"]], axis=1)
+    steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    out: Dict[str, Any] = {"path_length_m": float(steps.sum())}
+    if task == "hold-still":
+        after, hold, tol = (float(options.get("after", 0.0)), float(options.get("hold", 0.3)),
+                            float(options.get("speed_tolerance", 0.005)))
+        speed = np.linalg.norm(np.stack([trace["vx"], trace["vy"], trace["vz"]], axis=1), axis=1)
+        start = int(np.searchsorted(t, after))
+        out["drift_m"] = float(steps[start:].sum())
+        still_since = None
+        out["success"], out["time_to_still_s"] = False, None
+        for i in range(start, t.size):
+            if speed[i] < tol:
+                still_since = t[i] if still_since is None else still_since
+                if t[i] - still_since >= hold:
+                    out["success"], out["time_to_still_s"] = True, float(still_since - after)
+                    break
+            else:
+                still_since = None
+    elif task == "strike":
+        force = np.linalg.norm(np.stack([trace["fx"], trace["fy"], trace["fz"]], axis=1), axis=1)
+        out.update(peak_force_n=float(force.max()), overshoot_m=float(max(0.0, -p[:, 2].min())),
+                   success=bool(p[:, 2].min() < 0))
+    else:
+        out.update(min_z_m=float(p[:, 2].min()), success=bool(p[:, 2].min() > -float(options.get("fall_depth", 0.01))))
+    return out

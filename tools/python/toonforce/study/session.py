@@ -43,7 +43,7 @@ def _write_whole(path: str, data: Dict[str, Any]) -> None:
 
 def make_procedure(block: experiments.Block, seed: int, index: int):
     o = block.options
-    if block.procedure == "rating":
+    if block.procedure in ("rating", "task"):
         return FixedTrials(rating_trials(o["conditions"], o["repetitions"]), seed=seed * 1000 + index)
     if block.procedure == "paired-comparison":
         return FixedTrials(pair_trials(o["pairs"], o["repetitions"]), seed=seed * 1000 + index)
@@ -137,7 +137,7 @@ class Session:
                 if t["block"] != index:
                     continue
                 if isinstance(procedure, FixedTrials):
-                    procedure.record({k: t[k] for k in ("ratings", "chose") if k in t})
+                    procedure.record({k: t[k] for k in ("ratings", "chose", "metrics") if k in t})
                     continue
                 if procedure.next_level() != t["level"]:
                     raise ValueError(f"trials.jsonl: block {index} trial {t['trial']}: level {t['level']} is not "
@@ -167,11 +167,14 @@ class Session:
                     spec = procedure.next_trial()
                     if block.procedure == "rating":
                         result = participant.rate(block, index, trial, spec["condition"])
+                    elif block.procedure == "task":
+                        result = participant.perform(block, index, trial, spec["condition"])
                     else:
                         result = participant.compare(block, index, trial, spec["first"], spec["second"])
                     record.update(spec)
-                    said = ", ".join(f"{k} {v}" for k, v in result.get("ratings", {}).items()) or \
-                        f"chose {result.get('chose')}"
+                    said = ", ".join(f"{k} {v}" for k, v in result.get("ratings", {}).items()) or (
+                        f"chose {result['chose']}" if "chose" in result else
+                        ("success" if result["metrics"].get("success") else "no success"))
                 else:
                     level = procedure.next_level()
                     test_first = random.Random(f"{seed}/order/{index}/{trial}").random() < 0.5

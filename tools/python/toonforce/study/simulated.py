@@ -81,6 +81,17 @@ class SimulatedParticipant:
             ratings[item["name"]] = int(min(points, max(1, round(value))))
         return {"ratings": ratings}
 
+    def perform(self, block: experiments.Block, index: int, trial: int, condition: str) -> Dict[str, Any]:
+        """The task by the block's hand script on the condition's scene, the trial's position
+        noise drawn from its seed (0.05 mm: each repetition a little different)."""
+        import toonforce
+
+        c = self.experiment.conditions[condition]
+        trace = toonforce.sim(scene_with(c, None), block.options.get("script", self.experiment.script),
+                              seed=1 + (self.observer.seed * 100003 + index * 1009 + trial) % 2147483647,
+                              sensor_noise_m=5e-5)
+        return {"metrics": experiments.task_metrics(block.options["task"], trace, block.options)}
+
     def compare(self, block: experiments.Block, index: int, trial: int, first: str, second: str) -> Dict[str, Any]:
         """Names the interval whose perceived quantity is larger (1 or 2)."""
         a = self._perceived(first, index, trial, "first")
