@@ -147,10 +147,11 @@ class Session:
         return out
 
     def run(self, participant, progress: Callable[[str], None] = lambda line: None,
-            stop_after: Optional[int] = None) -> None:
-        """Runs the trials left with `participant` (SimulatedParticipant's methods:
-        two_interval, rate, compare), each trial on disk before the next starts.
-        `stop_after`: end after that many new trials (a pause)."""
+            stop_after: Optional[int] = None, before_trial: Callable[[], None] = lambda: None) -> None:
+        """Runs the trials left with `participant` (two_interval, rate, compare, perform: a
+        SimulatedParticipant or a PersonAtDevice), each trial on disk before the next starts.
+        `stop_after`: end after that many new trials; `before_trial`: called before each (the
+        experimenter's pause waits there)."""
         seed = self.meta["seed"]
         done_now = 0
         path = os.path.join(self.folder, "trials.jsonl")
@@ -160,6 +161,7 @@ class Session:
             while not procedure.done:
                 if stop_after is not None and done_now >= stop_after:
                     return
+                before_trial()
                 trial = len(procedure.answers)
                 record: Dict[str, Any] = {"block": index, "position": position, "trial": trial,
                                           "procedure": block.procedure}
@@ -192,3 +194,14 @@ class Session:
                 done_now += 1
                 progress(f"block {position + 1} of {len(blocks)} ({block.name}): trial {trial + 1}: {said}")
         _write_whole(os.path.join(self.folder, "done.json"), {"ended_utc": _now(), "trials": len(self.trials)})
+
+
+def planned_trials(session: "Session") -> int:
+    """The session's trials at most: each fixed block's count, each staircase's max_trials."""
+    total = 0
+    for _, index, procedure in session.procedures():
+        if hasattr(procedure, "_order"):
+            total += len(procedure._order)
+        else:
+            total += procedure.max_trials
+    return total

@@ -1,0 +1,267 @@
+"""A person on a device (issue 31): each interval is the condition's scene loaded into a running
+`toonforce run --control` (toonforce.live) on the Falcon, the Omni or the simulated device, and
+the participant answers on a page served here, http://127.0.0.1:PORT/ (the instructions, each
+trial's prompt and answer by key or click, a break between blocks, and an abort key).
+
+The abort key (Escape, or the page's button) ends the trial at once: the run is stopped through
+the command line's stop path (its last tick commands zero force), the trial in progress is not
+recorded, and the session can be resumed. The run is started with the first condition's scene;
+a scene loaded for an interval must keep its list of effects (toonforce run's rule: its trace's
+columns), which the conditions of one study do.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Any, Dict, Optional
+
+from . import experiment as experiments
+from .session import scene_with
+
+
+class Aborted(Exception):
+    """The participant pressed the abort key: the run was stopped with zero force."""
+
+
+PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>toonforce study</title>
+<style>body{font:22px system-ui;margin:3em;max-width:40em}button{font:inherit;margin:.3em}
+#abort{position:fixed;right:1em;bottom:1em;background:#c33;color:#fff}.k{opacity:.6;font-size:70%}</style></head>
+<body><div id="main">connecting...</div><button id="abort" onclick="post('/abort',{})">Stop (Esc)</button>
+<script>
+let state = {};
+async function post(path, body) { await fetch(path, {method: 'POST', body: JSON.stringify(body)}); }
+function answer(v) { post('/answer', {token: state.token, value: v}); }
+function render() {
+  const m = document.getElementById('main'); const s = state;
+  if (s.phase === 'interval') m.innerHTML = `<h1>Interval ${s.number} of ${s.of}</h1><p>${s.instructions || ''}</p>`;
+  else if (s.phase === 'blank') m.innerHTML = '<h1>...</h1>';
+  else if (s.phase === 'choice') m.innerHTML = `<p>${s.question}</p>` + s.options.map((o, i) =>
+      `<button onclick="answer(${i + 1})">${o} <span class=k>[${i + 1}]</span></button>`).join('');
+  else if (s.phase === 'rating') m.innerHTML = `<p>${s.question}</p>` + s.items.map(it =>
+      `<p>${it.anchors[0]} ` + Array.from({length: it.points}, (_, i) =>
+        `<label><input type=radio name="${it.name}" value=${i + 1}>${i + 1}</label>`).join(' ') +
+      ` ${it.anchors[1]}</p>`).join('') + '<button onclick="rate()">Done</button>';
+  else if (s.phase === 'break') m.innerHTML = `<h1>A break</h1><p>${s.text}</p><button onclick="answer('continue')">Continue [space]</button>`;
+  else if (s.phase === 'message') m.innerHTML = `<h1>${s.text}</h1>`;
+}
+function rate() {
+  const v = {}; for (const it of state.items) { const c = document.querySelector(`input[name="${it.name}"]:checked`);
+    if (!c) return; v[it.name] = Number(c.value); }
+  answer(v);
+}
+document.addEventListener('keydown', e => {
+  if (e.key === 'Escape') post('/abort', {});
+  else if (state.phase === 'choice' && /^[1-9]$/.test(e.key) && Number(e.key) <= state.options.length) answer(Number(e.key));
+  else if (state.phase === 'break' && e.key === ' ') answer('continue');
+});
+async function poll() {
+  try { const r = await fetch('/state'); const s = await r.json(); if (JSON.stringify(s) !== JSON.stringify(state)) { state = s; render(); } }
+  catch (e) {}
+  setTimeout(poll, 100);
+}
+poll();
+</script></body></html>"""
+
+
+class _Page:
+    """The participant's page: a state the page polls, answers it posts."""
+
+    def __init__(self, port: int):
+        self._lock = threading.Lock()
+        self._state: Dict[str, Any] = {"phase": "message", "text": "Please wait"}
+        self._answer: Optional[Any] = None
+        self._token = 0
+        self.aborted = threading.Event()
+        page = self
+
+        class Handler(BaseHTTPRequestHandler):
+            def log_message(self, *args):  # the experimenter's terminal shows progress, not requests
+                pass
+
+            def _send(self, code, body: bytes, kind: str):
+                self.send_response(code)
+                self.send_header("Content-Type", kind)
+                self.send_header("Content-Length", str(len(body)))
+                self.send_header("Cache-Control", "no-store")
+                self.end_headers()
+                self.wfile.write(body)
+
+            def do_GET(self):
+                if self.path == "/":
+                    self._send(200, PAGE.encode(), "text/html; charset=utf-8")
+                elif self.path == "/state":
+                    with page._lock:
+                        body = json.dumps(page._state).encode()
+                    self._send(200, body, "application/json")
+                else:
+                    self._send(404, b"not found", "text/plain")
+
+            def do_POST(self):
+                length = min(int(self.headers.get("Content-Length", 0) or 0), 65536)
+                try:
+                    body = json.loads(self.rfile.read(length) or b"{}")
+                except ValueError:
+                    return self._send(400, b"not JSON", "text/plain")
+                if self.path == "/abort":
+                    page.aborted.set()
+                    return self._send(200, b"{}", "application/json")
+                if self.path == "/answer":
+                    with page._lock:
+                        if body.get("token") == page._token and page._answer is None:
+                            page._answer = body.get("value")
+                    return self._send(200, b"{}", "application/json")
+                self._send(404, b"not found", "text/plain")
+
+        self.server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
+        self.port = self.server.server_address[1]
+        self._thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+        self._thread.start()
+
+    def show(self, **state) -> None:
+        with self._lock:
+            self._token += 1
+            self._answer = None
+            self._state = {**state, "token": self._token}
+
+    def wait_answer(self, valid) -> Any:
+        while True:
+            if self.aborted.is_set():
+                raise Aborted()
+            with self._lock:
+                answer = self._answer
+                if answer is not None and not valid(answer):
+                    self._answer = None  # not an answer to this prompt: wait for one
+                    answer = None
+            if answer is not None:
+                return answer
+            time.sleep(0.01)
+
+    def wait(self, seconds: float) -> None:
+        if self.aborted.wait(seconds):
+            raise Aborted()
+
+    def close(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+
+
+class PersonAtDevice:
+    """The participant: a person at `device`, answering on the page (see the module's text).
+    `interval_s`: each interval's length; `run_options`: toonforce.live.Run's keyword
+    arguments (realtime, script for the simulated device, trace, ...)."""
+
+    def __init__(self, exp: experiments.Experiment, device: str = "sim", port: int = 0, interval_s: float = 3.0,
+                 blank_s: float = 0.5, **run_options):
+        from toonforce import _toonforce
+        from toonforce.live import Run
+
+        self.experiment = exp
+        self.interval_s = interval_s
+        self.blank_s = blank_s
+        self._toml = lambda scene: _toonforce.toml_from_dict(scene)
+        self.page = _Page(port)
+        first = next(iter(exp.conditions.values()))
+        self.run = Run(self._toml(scene_with(first, None)) + "\n", device=device, **run_options)
+        self._last_block: Optional[int] = None
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.page.port}/"
+
+    def close(self) -> None:
+        """Ends the run (zero force through its stop path) and the page."""
+        self.run.stop()
+        self.page.show(phase="message", text="Thank you: the session has ended")
+        time.sleep(0.2)
+        self.page.close()
+
+    # ---- presenting ---------------------------------------------------------------------
+
+    def _present(self, condition: str, level: Optional[float], number: int, of: int, instructions: str) -> None:
+        c = self.experiment.conditions[condition]
+        try:
+            self.run.wait_applied(self.run.load(self._toml(scene_with(c, level if c.vary else None)), condition))
+        except Exception:
+            if self.page.aborted.is_set():
+                raise Aborted()
+            raise
+        self.page.show(phase="interval", number=number, of=of, instructions=instructions)
+        self.page.wait(self.interval_s)
+        self.page.show(phase="blank")
+        self.page.wait(self.blank_s)
+
+    def _block_start(self, block: experiments.Block, index: int) -> None:
+        if self._last_block is not None and self._last_block != index:
+            self.page.show(phase="break", text=f"Next: {block.name}. Press continue when you are ready.")
+            self.page.wait_answer(lambda a: a == "continue")
+        self._last_block = index
+
+    def _guard(self, present):
+        try:
+            return present()
+        except Aborted:
+            self.run.stop()  # zero force now; the session ends without this trial
+            raise
+
+    # ---- the procedures' trials ----------------------------------------------------------
+
+    def two_interval(self, block, index, trial, level, test_first) -> Dict[str, Any]:
+        def present():
+            self._block_start(block, index)
+            order = [block.test, block.reference] if test_first else [block.reference, block.test]
+            for k, condition in enumerate(order):
+                self._present(condition, level if condition == block.test else None, k + 1, 2,
+                              "Stroke across the surface.")
+            started = time.monotonic()
+            self.page.show(phase="choice", question=block.options.get("question", "Which interval pushed your "
+                                                                                   "hand along?"),
+                           options=["the first", "the second"])
+            chose = self.page.wait_answer(lambda a: a in (1, 2))
+            correct = chose == (1 if test_first else 2)
+            return {"correct": correct, "answer": chose, "response_time_s": time.monotonic() - started}
+
+        return self._guard(present)
+
+    def compare(self, block, index, trial, first, second) -> Dict[str, Any]:
+        def present():
+            self._block_start(block, index)
+            for k, condition in enumerate((first, second)):
+                self._present(condition, None, k + 1, 2, "Stroke across the surface.")
+            started = time.monotonic()
+            self.page.show(phase="choice", question=block.options["question"], options=["the first", "the second"])
+            chose = self.page.wait_answer(lambda a: a in (1, 2))
+            return {"chose": chose, "response_time_s": time.monotonic() - started}
+
+        return self._guard(present)
+
+    def rate(self, block, index, trial, condition) -> Dict[str, Any]:
+        items = block.options["items"]
+
+        def valid(a):
+            return isinstance(a, dict) and all(isinstance(a.get(i["name"]), int) and 1 <= a[i["name"]] <= i["points"]
+                                               for i in items)
+
+        def present():
+            self._block_start(block, index)
+            self._present(condition, None, 1, 1, "Explore the surface.")
+            self.page.show(phase="rating", question="How was it?", items=items)
+            ratings = self.page.wait_answer(valid)
+            return {"ratings": {i["name"]: int(ratings[i["name"]]) for i in items}}
+
+        return self._guard(present)
+
+    def perform(self, block, index, trial, condition) -> Dict[str, Any]:
+        def present():
+            self._block_start(block, index)
+            start = self.run.frames_received
+            self._present(condition, None, 1, 1, block.options.get("instructions", ""))
+            frames = self.run.telemetry()
+            taken = {k: v[-(self.run.frames_received - start):] for k, v in frames.items()}
+            if "t" in taken and len(taken["t"]):
+                taken["t"] = taken["t"] - taken["t"][0]
+            return {"metrics": experiments.task_metrics(block.options["task"], taken, block.options)}
+
+        return self._guard(present)
