@@ -107,9 +107,9 @@ def test_a_person_answers_on_the_page_aborts_with_zero_force_and_resumes(tmp_pat
     experiment = tmp_path / "short.toml"
     experiment.write_text(EXPERIMENT)
     folder = tmp_path / "session"
-    common = ["--device", "sim", "--hand", os.path.join(SCENES, "hands", "stroke.toml"), "--allow-non-rt",
-              "--interval", "0.3"]
-    process, url, seen = start(["run", str(experiment), "--participant", "1", "--out", str(folder), *common], "")
+    common = ["--hand", os.path.join(SCENES, "hands", "stroke.toml"), "--allow-non-rt", "--interval", "0.3"]
+    process, url, seen = start(["run", str(experiment), "--participant", "1", "--out", str(folder), "--device", "sim",
+                                *common], "")
     assert get(url + "state")["phase"] in ("message", "interval", "blank", "choice")
     assert b"Stop (Esc)" in urllib.request.urlopen(url, timeout=5).read()  # the page, with its abort key
     play(process, url, str(folder / "trials.jsonl"), stop_at=2)
@@ -117,9 +117,10 @@ def test_a_person_answers_on_the_page_aborts_with_zero_force_and_resumes(tmp_pat
     assert process.returncode == 1 and "aborted by the participant (zero force)" in errors, errors
     kept = [json.loads(l) for l in open(folder / "trials.jsonl")]
     assert len(kept) >= 2 and all(t["answer"] == 2 for t in kept)
+    assert all(t["correct"] == (not t["test_first"]) for t in kept)  # "the second" is right when the test was
     assert last_force(folder / "run-1.csv") == (0.0, 0.0, 0.0), "the abort ends the run on a zero-force tick"
 
-    process, url, seen = start(["resume", str(folder), *common], "")
+    process, url, seen = start(["resume", str(folder), *common], "")  # the device is the session's
     play(process, url, str(folder / "trials.jsonl"))
     _, errors = process.communicate(timeout=120)
     assert process.returncode == 0, errors
