@@ -137,13 +137,17 @@ def test_scene_error_of_a_dict_names_its_key_and_line_in_its_toml():
     assert not report["ok"] and report["errors"] == [str(misspelt.value) + "\n"]
 
 
-def test_scene_error_of_a_bad_hand_script_names_it(tmp_path, root):
+def test_scene_error_of_a_bad_hand_script_is_the_programs(cli, tmp_path, root):
     path = tmp_path / "hand.toml"
-    path.write_text('name = "h"\nstart = [0.0, 0.0, 0.02]\nflavour = 1\n')
+    path.write_text('name = "h"\n[hand]\nstart = [0.0, 0.0, 0.02]\nflavour = 1\n\n[[segment]]\nhold = 0.5\n')
+    program = subprocess.run([cli, "sim", "--scene", str(root / "scenes/wall.toml"), "--script", str(path), "--trace",
+                              str(tmp_path / "t.csv")], capture_output=True, text=True)
+    assert program.returncode == 1
     with pytest.raises(toonforce.SceneError) as caught:
         toonforce.sim(root / "scenes/wall.toml", path)
-    assert caught.value.file == str(path)
-    assert caught.value.line >= 1
+    assert str(caught.value) == program.stderr.rstrip("\n")
+    assert (caught.value.file, caught.value.line) == (str(path), 4)
+    assert caught.value.key == "hand"
 
 
 # (arguments to `toonforce check`, as keywords to toonforce.check)
@@ -193,3 +197,28 @@ def test_figures_writes_the_programs_traces(cli, root, tmp_path):
     assert len(lines) == 1 + len(names)
     for name in names:
         assert (ours / name).read_bytes() == (theirs / name).read_bytes(), name
+
+
+def test_ctrl_c_stops_a_long_sim(root):
+    """Ctrl-C during sim() (which holds no GIL) raises KeyboardInterrupt within moments: the run
+    stops as the program's does on a signal, not after its hour of simulated time."""
+    import os
+    import signal
+    import sys
+    import time
+
+    code = ("import sys, toonforce\n"
+            "print('start', flush=True)\n"
+            f"toonforce.sim({str(root / 'scenes/wall.toml')!r}, {str(root / 'scenes/hands/strike.toml')!r}, "
+            "duration_s=3600)\n"
+            "print('finished', flush=True)\n")
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=dict(os.environ))
+    assert child.stdout.readline() == "start\n"
+    time.sleep(0.5)
+    sent = time.monotonic()
+    child.send_signal(signal.SIGINT)
+    out, err = child.communicate(timeout=30)
+    assert time.monotonic() - sent < 5.0
+    assert "finished" not in out
+    assert "KeyboardInterrupt" in err
