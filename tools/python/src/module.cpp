@@ -11,6 +11,12 @@
 #include <array>
 #include <atomic>
 #include <charconv>
+#include <chrono>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <mutex>
+#include <thread>
 #include <csignal>
 #include <cstdint>
 #include <memory>
@@ -29,10 +35,13 @@
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/replay/motion_csv.hpp"
 #include "toonforce/replay/replay.hpp"
+#include "toonforce/run/run.hpp"
+#include "toonforce/config/scene_editor.hpp"
 #include "toonforce/sim/check.hpp"
 #include "toonforce/sim/figures.hpp"
 #include "toonforce/sim/sim_run.hpp"
 #include "toonforce/sim/sim_trace.hpp"
+#include "toonforce/control/servo_session.hpp"
 
 namespace py = pybind11;
 
@@ -548,6 +557,213 @@ py::list figures(const std::string& out_dir, const std::string& root, const std:
   return py::cast(lines.value());
 }
 
+// ---- a real-time run -------------------------------------------------------------------------
+
+/// The run's telemetry as columns, from the thread that already drains the loop's telemetry
+/// ring (`toonforce run`'s writer thread: the servo thread does no work for it). Python takes
+/// what came so far with take(); the lock is held only to append one row or to swap the
+/// columns out, never while Python copies them.
+class TelemetryColumns final : public TelemetrySink {
+ public:
+  explicit TelemetryColumns(const std::vector<std::string>& value_names)
+      : values_(value_names.size()) {
+    names_.assign(kTraceCoreColumns.begin(), kTraceCoreColumns.end());
+    const std::vector<std::string> extra = telemetry_columns(value_names, false);
+    names_.insert(names_.end(), extra.begin(), extra.end());
+    columns_.assign(names_.size(), {});
+  }
+  void publish(const TelemetryFrame& frame) noexcept override {
+    if (!frame_row(row_, frame, values_, false)) return;
+    const double core[10] = {row_.core.t_s,          row_.core.position_m.x,       row_.core.position_m.y,
+                             row_.core.position_m.z, row_.core.velocity_m_per_s.x, row_.core.velocity_m_per_s.y,
+                             row_.core.velocity_m_per_s.z, row_.core.force_n.x,  row_.core.force_n.y,
+                             row_.core.force_n.z};
+    const std::lock_guard lock(mutex_);
+    try {
+      for (std::size_t i = 0; i < 10; ++i) columns_[i].push_back(core[i]);
+      for (std::size_t i = 0; i < row_.count && 10 + i < columns_.size(); ++i) columns_[10 + i].push_back(row_.values[i]);
+    } catch (...) {
+      ++dropped_;  // out of memory: the frame is lost, the run goes on
+    }
+  }
+  void finish() noexcept override {}
+  /// The rows since the last take (each column as long as the shortest: a row is whole).
+  std::vector<std::vector<double>> take() {
+    std::vector<std::vector<double>> out(names_.size());
+    {
+      const std::lock_guard lock(mutex_);
+      out.swap(columns_);
+    }
+    return out;
+  }
+  const std::vector<std::string>& names() const noexcept { return names_; }
+
+ private:
+  std::size_t values_;
+  std::vector<std::string> names_;
+  TraceRow row_;  ///< the writer thread's
+  std::mutex mutex_;
+  std::vector<std::vector<double>> columns_;
+  std::uint64_t dropped_ = 0;
+};
+
+/// `toonforce run` on a thread of its own (run_servo, the command's library), with the live
+/// scene API (SceneEditor into the loop's mailbox) and telemetry as columns. Stopping it goes
+/// through the session's stop, as a signal stops the command: the loop's shut-down tick
+/// commands zero force.
+class LiveRun {
+ public:
+  LiveRun(const std::string& scene_path, const std::optional<std::string>& scene_text, const std::string& script_path,
+          const std::string& device, double rate_hz, double duration_s, const std::string& sim_device,
+          std::uint64_t seed, const std::string& trace_path, int priority, int cpu, bool lock_memory,
+          bool allow_empty, bool strict) {
+    std::string text;
+    if (scene_text) {
+      text = *scene_text;
+    } else {
+      // The editor needs the text the loop starts with: the file's, read once, for both.
+      std::FILE* in = std::fopen(scene_path.c_str(), "rb");
+      if (in == nullptr) {
+        raise_scene_error(fmt::format("{}: cannot be read: {}", scene_path, std::strerror(errno)), scene_path);
+      }
+      char buffer[4096];
+      for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, in)) > 0;) text.append(buffer, n);
+      std::fclose(in);
+    }
+    // The scene's errors as SceneError before anything opens; run_servo loads the same text.
+    scene_ = load_scene(scene_path, text, ScalarKind::kDouble, allow_empty);
+    const SceneDescription& scene = scene_;
+    if (!script_path.empty()) load_script(script_path, std::nullopt);
+    auto editor = SceneEditor<double>::open(text, scene_path, *mailbox_);
+    if (!editor) raise_scene_error(editor.error(), scene_path);
+    editor_.emplace(std::move(editor.value()));
+    // A trace's columns are the starting scene's effects: changes may not alter that list.
+    editor_->keep_layout("the run's telemetry columns are the starting scene's effects");
+    telemetry_ = std::make_unique<TelemetryColumns>(effect_value_names(make_runtime_scene<double>(scene)));
+    live_.of_double = mailbox_.get();
+
+    options_.device = device;
+    options_.scene_path = scene_path;
+    options_.scene_text = text;
+    options_.hand_script_path = script_path;
+    options_.sim_device = sim_device;
+    options_.seed = seed;
+    options_.rate_hz = rate_hz;
+    options_.duration_s = duration_s;
+    options_.trace_path = trace_path;
+    options_.priority = priority;
+    options_.cpu = cpu;
+    options_.lock_memory = lock_memory;
+    options_.allow_non_realtime = true;
+    options_.allow_empty = allow_empty;
+    options_.strict = strict;
+    options_.scalar = ScalarKind::kDouble;  // the live mailbox is the double scene's
+    options_.handle_signals = false;        // Python's: Ctrl-C is a KeyboardInterrupt, which stops us
+    options_.interactive = false;
+    options_.sink = telemetry_.get();
+    options_.live = &live_;
+    options_.early_stop = &stop_;
+    thread_ = std::thread([this] {
+      Result<RunSummary> result = run_servo(options_);
+      const std::lock_guard lock(result_mutex_);
+      result_.emplace(std::move(result));
+      done_.store(true);
+    });
+  }
+  ~LiveRun() {
+    stop(SIGTERM);
+    if (thread_.joinable()) {
+      py::gil_scoped_release unlocked;
+      thread_.join();
+    }
+  }
+  LiveRun(const LiveRun&) = delete;
+  LiveRun& operator=(const LiveRun&) = delete;
+
+  std::uint64_t set(const std::string& effect, const std::string& keys_toml) { return sent(editor_->set(effect, keys_toml)); }
+  std::uint64_t add(const std::string& key, const std::string& keys_toml) { return sent(editor_->add(key, keys_toml)); }
+  std::uint64_t remove(const std::string& effect) { return sent(editor_->remove(effect)); }
+  std::uint64_t fire(const std::string& effect, const std::string& event, double value) {
+    return sent(editor_->fire(effect, event, value));
+  }
+  std::uint64_t load(const std::string& text, const std::string& source) { return sent(editor_->load(text, source)); }
+  std::uint64_t applied() const noexcept { return editor_->applied(); }
+  bool running() const noexcept { return !done_.load(); }
+  /// The telemetry columns' units (those of the starting scene's effects).
+  py::dict units() const { return units_of(telemetry_->names(), scene_); }
+
+  /// The telemetry since the last call, as arrays.
+  py::dict telemetry() {
+    std::vector<std::vector<double>> columns = telemetry_->take();
+    std::size_t rows = SIZE_MAX;
+    for (const auto& c : columns) rows = std::min(rows, c.size());
+    py::dict out;
+    for (std::size_t i = 0; i < columns.size(); ++i) {
+      columns[i].resize(rows == SIZE_MAX ? 0 : rows);
+      out[py::str(telemetry_->names()[i])] = array_of(std::move(columns[i]));
+    }
+    return out;
+  }
+
+  /// Asks the loop to stop (zero force at its shut-down tick), as the signal `signal` would.
+  void stop(int signal) noexcept {
+    int expected = 0;
+    stop_.compare_exchange_strong(expected, signal);
+    if (!done_.load()) request_session_stop(signal);
+  }
+
+  /// Waits up to `timeout_s` (negative: for ever) for the end; the summary, or None if still running.
+  py::object join(double timeout_s) {
+    {
+      py::gil_scoped_release unlocked;
+      const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+      while (!done_.load() && (timeout_s < 0.0 || std::chrono::steady_clock::now() < until)) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      }
+      if (!done_.load()) return py::none();
+      if (thread_.joinable()) thread_.join();
+    }
+    const std::lock_guard lock(result_mutex_);
+    if (!*result_) raise_value_error(result_->error());
+    const RunSummary& s = result_->value();
+    py::dict d;
+    d["scene_name"] = s.scene_name;
+    d["device_name"] = s.device_name;
+    d["ticks"] = s.report.ticks;
+    d["missed"] = s.report.missed;
+    d["watchdog_trips"] = s.report.watchdog_trips;
+    d["stop_signal"] = s.report.stop_signal;
+    d["fifo"] = s.report.setup.fifo;
+    d["frames_written"] = s.frames_written;
+    d["frames_dropped"] = s.frames_dropped;
+    d["fault_ticks"] = s.fault_ticks;
+    d["fault_bits"] = s.fault_bits;
+    d["peak_force_n"] = s.peak_force_n;
+    d["updates_applied"] = s.updates_applied;
+    d["trace_error"] = s.trace_error;
+    d["text"] = format_run_summary(s, options_);
+    return d;
+  }
+
+ private:
+  std::uint64_t sent(Result<std::uint64_t> sequence) {
+    if (!sequence) raise_value_error(sequence.error());
+    return sequence.value();
+  }
+
+  std::unique_ptr<SceneMailbox<RuntimeScene<double>>> mailbox_ = std::make_unique<SceneMailbox<RuntimeScene<double>>>();
+  LiveMailboxes live_;
+  SceneDescription scene_;  ///< the starting scene
+  std::optional<SceneEditor<double>> editor_;
+  std::unique_ptr<TelemetryColumns> telemetry_;
+  RunOptions options_;
+  std::atomic<int> stop_{0};
+  std::atomic<bool> done_{false};
+  std::mutex result_mutex_;
+  std::optional<Result<RunSummary>> result_;
+  std::thread thread_;
+};
+
 }  // namespace
 }  // namespace toonforce::python
 
@@ -574,6 +790,23 @@ PYBIND11_MODULE(_toonforce, m) {
   m.def("replay", &replay, py::arg("scene_path"), py::arg("scene_text"), py::arg("motion_path"),
         py::arg("motion_text"), py::arg("scalar"), py::arg("sine"), py::arg("allow_empty"), py::arg("output_path"));
   m.def("figures", &figures, py::arg("out_dir"), py::arg("root"), py::arg("format"), py::arg("plot"));
+  py::class_<LiveRun>(m, "LiveRun")
+      .def(py::init<const std::string&, const std::optional<std::string>&, const std::string&, const std::string&, double,
+                    double, const std::string&, std::uint64_t, const std::string&, int, int, bool, bool, bool>(),
+           py::arg("scene_path"), py::arg("scene_text"), py::arg("script_path"), py::arg("device"), py::arg("rate_hz"),
+           py::arg("duration_s"), py::arg("sim_device"), py::arg("seed"), py::arg("trace_path"), py::arg("priority"),
+           py::arg("cpu"), py::arg("lock_memory"), py::arg("allow_empty"), py::arg("strict"))
+      .def("set", &LiveRun::set, py::arg("effect"), py::arg("keys_toml"))
+      .def("add", &LiveRun::add, py::arg("key"), py::arg("keys_toml"))
+      .def("remove", &LiveRun::remove, py::arg("effect"))
+      .def("fire", &LiveRun::fire, py::arg("effect"), py::arg("event"), py::arg("value"))
+      .def("load", &LiveRun::load, py::arg("text"), py::arg("source"))
+      .def("applied", &LiveRun::applied)
+      .def("running", &LiveRun::running)
+      .def("units", &LiveRun::units)
+      .def("telemetry", &LiveRun::telemetry)
+      .def("stop", &LiveRun::stop, py::arg("signal"))
+      .def("join", &LiveRun::join, py::arg("timeout_s"));
   m.attr("version") = TOONFORCE_VERSION;
   m.attr("max_sim_duration_s") = tf::kMaxSimDurationS;
 }

@@ -222,3 +222,51 @@ def test_ctrl_c_stops_a_long_sim(root):
     assert time.monotonic() - sent < 5.0
     assert "finished" not in out
     assert "KeyboardInterrupt" in err
+
+
+def _wait_for(condition, timeout_s=5.0):
+    import time
+
+    end = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.01)
+
+
+def test_live_run_takes_changes_and_streams_telemetry(root):
+    """`toonforce run --device sim` from Python: telemetry while it runs, set/fire through the
+    live-scene editor (refused whole when wrong), and the end of the block stopping the loop with
+    zero force at its shut-down tick."""
+    import signal
+    import time
+
+    with toonforce.run(root / "scenes/cartoon_wall.toml", root / "scenes/hands/strike.toml") as r:
+        _wait_for(lambda: r.applied == 0 and r.running)
+        time.sleep(0.3)
+        first = r.telemetry()
+        assert list(first)[:10] == ["t", "x", "y", "z", "vx", "vy", "vz", "fx", "fy", "fz"]
+        assert first.rows > 50 and r.units["fz"] == "N"
+        stiffer = r.set("surface1", {"stiffness": 800.0})
+        fired = r.fire("surface1", "impact", 0.3)
+        assert fired > stiffer > 0
+        _wait_for(lambda: r.applied >= fired)
+        with pytest.raises(ValueError, match="stiffnes"):
+            r.set("surface1", "stiffnes = 1.0")
+        time.sleep(0.2)
+        second = r.telemetry()
+        assert second.rows > 50 and second["t"][0] > first["t"][-1]
+    assert r.summary["updates_applied"] == 2
+    assert r.summary["stop_signal"] == signal.SIGINT
+    last = r.telemetry()
+    assert last.rows >= 1 and (last["fx"][-1], last["fy"][-1], last["fz"][-1]) == (0.0, 0.0, 0.0)
+
+
+def test_an_exception_in_the_block_stops_the_run_with_zero_force(root):
+    run = toonforce.run(root / "scenes/wall.toml", root / "scenes/hands/strike.toml")
+    with pytest.raises(KeyboardInterrupt):
+        with run:
+            _wait_for(lambda: run.telemetry().rows > 0)
+            raise KeyboardInterrupt
+    assert not run.running and run.summary is not None
+    last = run.telemetry()
+    assert last.rows >= 1 and (last["fx"][-1], last["fy"][-1], last["fz"][-1]) == (0.0, 0.0, 0.0)

@@ -21,8 +21,8 @@ from . import _toonforce
 from ._toonforce import SceneError
 from ._trace import Trace
 
-__all__ = ["SceneError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "check", "sim", "replay",
-           "figures", "__version__"]
+__all__ = ["SceneError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim", "replay",
+           "figures", "run", "__version__"]
 __version__: str = _toonforce.version
 
 SceneError.__module__ = __name__
@@ -188,3 +188,111 @@ def figures(out_dir: Union[str, "os.PathLike[str]"] = "docs/figures", root: Opti
     through the real servo loop. root: the directory holding scenes/ (default as the command's).
     Returns the lines the command prints (where the scenes came from, one line per figure)."""
     return _toonforce.figures(os.fspath(out_dir), "" if root is None else os.fspath(root), format, plot)
+
+
+def _keys_text(keys: Union[str, Mapping[str, Any]]) -> str:
+    return keys if isinstance(keys, str) else _toonforce.toml_from_dict(dict(keys))
+
+
+class Run:
+    """``toonforce run``: the servo loop in real time on its own thread (never holding the GIL),
+    with live scene changes and telemetry read while it runs. Use as a context manager::
+
+        with toonforce.run("scenes/wall.toml", "scenes/hands/strike.toml") as r:
+            r.set("surface1", {"stiffness": 800.0})   # or the TOML text "stiffness = 800"
+            r.fire("surface1", "impact", 0.3)          # v_i [m/s]
+            fz = r.telemetry()["fz"]                   # the frames since the last call
+        print(r.summary["text"])
+
+    Leaving the block, by its end, an exception or Ctrl-C (KeyboardInterrupt), stops the loop
+    through the session's stop (as a signal stops the command): its shut-down tick commands
+    zero force. Changes are checked by the same reader as scene files and refused whole
+    (ValueError with its message); they reach the loop at the start of a tick. The run's scalar
+    is double (the live scene's); the list of effects must stay that of the starting scene.
+    """
+
+    def __init__(self, scene: SceneLike, script: Optional[ScriptLike] = None, device: str = "sim",
+                 rate_hz: float = 1000.0, duration_s: float = 0.0, sim_device: str = "falcon", seed: int = 1,
+                 trace_path: Optional[str] = None, priority: int = 80, cpu: int = -1, lock_memory: bool = False,
+                 allow_empty: bool = False, strict: bool = False) -> None:
+        """device: "sim", "falcon" or "omni"; rate_hz: 500 to 10000 Hz; duration_s: 0 runs until
+        stopped; script: the simulated hand's script (device "sim"; default: it holds still);
+        sim_device: "falcon" or "omni" (the simulated device's model); trace_path: also the
+        trace CSV; priority: SCHED_FIFO priority 1-99, normal priority if refused; cpu: pin the
+        servo thread (-1: no); lock_memory: mlockall (off by default in a Python process)."""
+        scene_path, scene_text = _source(scene, Scene)
+        if script is None:
+            script_path = ""
+        elif isinstance(script, (str, os.PathLike)):
+            script_path = os.fspath(script)
+        elif isinstance(script, HandScript) and script.text is None:
+            script_path = script.source
+        else:
+            raise TypeError("a run's hand script is a file (as toonforce run --script takes it)")
+        self._run = _toonforce.LiveRun(scene_path, scene_text, script_path, device, float(rate_hz), float(duration_s),
+                                       sim_device, int(seed), "" if trace_path is None else os.fspath(trace_path),
+                                       int(priority), int(cpu), lock_memory, allow_empty, strict)
+        self.units: Dict[str, str] = self._run.units()  #: the telemetry columns' SI units
+        self.summary: Optional[Dict[str, Any]] = None  #: what the run did, once it ended
+
+    def set(self, effect: str, keys: Union[str, Mapping[str, Any]]) -> int:
+        """Replaces keys of `effect` ("surface1": the first [[surface]]); returns the change's sequence."""
+        return self._run.set(effect, _keys_text(keys))
+
+    def add(self, kind: str, keys: Union[str, Mapping[str, Any]]) -> int:
+        """Adds an effect of `kind` ("surface", "cliff") (refused while the run keeps its effect list)."""
+        return self._run.add(kind, _keys_text(keys))
+
+    def remove(self, effect: str) -> int:
+        return self._run.remove(effect)
+
+    def fire(self, effect: str, event: str, value: float) -> int:
+        """A one-shot event, e.g. fire("surface1", "impact", 0.3): a transient as at 0.3 m/s."""
+        return self._run.fire(effect, event, float(value))
+
+    def load(self, scene: SceneLike) -> int:
+        """Switches to another scene, whole (its effects' list must match the starting scene's)."""
+        path, text = _source(scene, Scene)
+        if text is None:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        return self._run.load(text, path)
+
+    @property
+    def applied(self) -> int:
+        """The sequence of the last change the loop applied (0: none yet)."""
+        return self._run.applied()
+
+    @property
+    def running(self) -> bool:
+        return self._run.running()
+
+    def telemetry(self) -> Trace:
+        """The frames since the last call, as a Trace (columns as `toonforce run --trace`'s)."""
+        return Trace(self._run.telemetry(), self.units, {}, [])
+
+    def stop(self, signal: int = 2) -> Dict[str, Any]:
+        """Stops the loop (zero force at its shut-down tick) and waits for it; the summary."""
+        self._run.stop(signal)
+        return self.join()
+
+    def join(self, timeout_s: Optional[float] = None) -> Optional[Dict[str, Any]]:
+        """Waits for the end (a duration_s run); the summary, or None after timeout_s [s]."""
+        summary = self._run.join(-1.0 if timeout_s is None else float(timeout_s))
+        if summary is not None:
+            self.summary = summary
+        return summary
+
+    def __enter__(self) -> "Run":
+        return self
+
+    def __exit__(self, kind, value, traceback) -> bool:
+        # The block's end, an exception and Ctrl-C alike: the session's stop, as SIGINT stops
+        # `toonforce run` (a run of duration_s that ended already is only joined).
+        self.stop()
+        return False
+
+
+def run(scene: SceneLike, script: Optional[ScriptLike] = None, **options: Any) -> Run:
+    """Starts ``toonforce run`` (see ``Run``) and returns it; use it in a ``with`` block."""
+    return Run(scene, script, **options)
