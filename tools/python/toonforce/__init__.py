@@ -25,8 +25,6 @@ __all__ = ["SceneError", "PlausibilityWarning", "Scene", "HandScript", "Trace", 
            "figures", "run", "__version__"]
 __version__: str = _toonforce.version
 
-SceneError.__module__ = __name__
-
 
 class PlausibilityWarning(UserWarning):
     """What ``toonforce sim`` prints as ``toonforce: warning: ...`` (the scene outside the device's
@@ -34,8 +32,6 @@ class PlausibilityWarning(UserWarning):
 
 
 class _Source:
-    _what = "file"
-
     def __init__(self, source: str, text: Optional[str]) -> None:
         self.source: str = source  #: the file, or the name standing for it in messages
         self.text: Optional[str] = text  #: the TOML text, or None for a file read when used
