@@ -84,4 +84,22 @@ foreach(backend IN LISTS TOONFORCE_BACKEND_COMPONENTS)
       "COMPONENTS ${backend}) and pkg-config toonforce-${backend}.")
 endforeach()
 
+# The Python module (issue 30, TOONFORCE_PYTHON): python3-toonforce, into Debian's python3
+# (tools/python/CMakeLists.txt installs it under lib/python3/dist-packages).
+if(TOONFORCE_PYTHON)
+  list(APPEND CPACK_COMPONENTS_ALL python)
+  set(CPACK_DEBIAN_PYTHON_PACKAGE_NAME python3-toonforce)
+  set(CPACK_DEBIAN_PYTHON_PACKAGE_SECTION python)
+  set(CPACK_DEBIAN_PYTHON_PACKAGE_SHLIBDEPS ON)
+  # The module's ABI is that of the python3 it was built for (e.g. 3.11: >= 3.11, << 3.12).
+  math(EXPR _toonforce_python_next_minor "${Python_VERSION_MINOR} + 1")
+  set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS
+      "python3 (>= ${Python_VERSION_MAJOR}.${Python_VERSION_MINOR}), python3 (<< ${Python_VERSION_MAJOR}.${_toonforce_python_next_minor}), python3-numpy")
+  string(CONCAT CPACK_COMPONENT_PYTHON_DESCRIPTION
+      "toonforce from Python: import toonforce\n"
+      "The toonforce controller's scene loader and checks, closed-loop simulation, replay and the\n"
+      "paper's figures from Python 3, through the same C++ code as the toonforce program, with\n"
+      "traces as numpy arrays.")
+endif()
+
 include(CPack)

@@ -22,6 +22,15 @@ void sleep_ms(int ms) noexcept {
 
 std::atomic<int> g_stop{0};
 
+}  // namespace
+
+void request_session_stop(int signal) noexcept {
+  int expected = 0;
+  g_stop.compare_exchange_strong(expected, signal);
+}
+
+namespace {
+
 /// One frame to the consumer. A message it cannot write (standard error a closed pipe: fmt
 /// throws) must not end the process from this thread (std::terminate): the frame's message is
 /// lost, the run and the trace go on.

@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "toonforce/sim/check.hpp"
+
 namespace toonforce::cli {
 
 void add_replay(CLI::App& app);
@@ -38,9 +40,9 @@ CLI::Validator max_output_range();
 /// same path by name. Empty names are skipped.
 std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs);
 
-/// "" or why `check` and `run --script` refuse a hand script lasting `length_s` (one shared
-/// rule: over one day; `sim` takes such a script only with a shorter --duration).
-std::string hand_script_length_problem(const std::string& path, double length_s);
+/// "" or why `check` and `run --script` refuse a hand script lasting `length_s` (the sim
+/// library's, shared with the Python module).
+using toonforce::hand_script_length_problem;
 
 /// The exit status the subcommand that ran asked for.
 int exit_code();

@@ -64,12 +64,6 @@ CLI::Validator max_output_range() {
       "SIZE");
 }
 
-std::string hand_script_length_problem(const std::string& path, double length_s) {
-  if (!(length_s > kMaxSimDurationS)) return {};
-  return fmt::format("{}: the hand script lasts {:g} s, over the maximum of {:g} s simulated (one day)", path, length_s,
-                     kMaxSimDurationS);
-}
-
 std::string input_overwritten_by(const std::string& output, std::initializer_list<std::string> inputs) {
   if (output.empty() || output == "-") return {};
   struct stat out {};

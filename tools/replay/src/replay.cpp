@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iterator>
+#include <limits>
 #include <utility>
 #include <memory>
 
@@ -104,9 +105,20 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   std::string header = "t,fx,fy,fz,faults,limits,scene_fx,scene_fy,scene_fz,contact";
   for (const std::string& n : names) header += "," + n;
   RowWriter w{out, options.output_path, summary.output_error, {}};
-  fmt::format_to(std::back_inserter(w.row), "{}\n", header);
-  w.end_row();
+  if (out != nullptr) {
+    fmt::format_to(std::back_inserter(w.row), "{}\n", header);
+    w.end_row();
+  }
   std::vector<double> values(names.size());
+  // The caller's numbers: the row's fields as the file has them, NaN for the empty ones.
+  std::vector<double> numbers;
+  if (options.rows != nullptr) {
+    std::vector<std::string> columns_named{"t", "fx", "fy", "fz", "faults", "limits", "scene_fx", "scene_fy",
+                                           "scene_fz", "contact"};
+    columns_named.insert(columns_named.end(), names.begin(), names.end());
+    numbers.reserve(columns_named.size());
+    options.rows->begin(columns_named, motion.rows.size());
+  }
   std::vector<double> previous_cliff(columns.cliff_states.size(), 0.0);
   for (; row < motion.rows.size(); ++row) {
     if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed) != 0) {
@@ -118,15 +130,33 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     const Vec3<double> f = to_double(loop.force());
     const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
     const Vec3<double> scene_f = counted ? to_double(loop.scene_force()) : Vec3<double>{};
-    fmt::format_to(std::back_inserter(w.row), "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(), status.limits, scene_f.x,
-               scene_f.y, scene_f.z);
+    if (out != nullptr) {
+      fmt::format_to(std::back_inserter(w.row), "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(),
+                     status.limits, scene_f.x, scene_f.y, scene_f.z);
+    }
+    if (options.rows != nullptr) {
+      numbers.assign({r.t_s, f.x, f.y, f.z, static_cast<double>(status.faults.bits()),
+                      static_cast<double>(status.limits), scene_f.x, scene_f.y, scene_f.z});
+    }
     if (!counted) {
-      fmt::format_to(std::back_inserter(w.row), ",{:,>{}}\n", "", names.size());  // effect states did not advance: nothing to report
+      // effect states did not advance: nothing to report
+      if (out != nullptr) fmt::format_to(std::back_inserter(w.row), ",{:,>{}}\n", "", names.size());
+      if (options.rows != nullptr) {
+        numbers.resize(numbers.size() + 1 + names.size(), std::numeric_limits<double>::quiet_NaN());
+        options.rows->row(numbers);
+      }
     } else {
       const bool contact = loop.describe(values.data());
-      fmt::format_to(std::back_inserter(w.row), ",{}", contact ? 1 : 0);
-      for (const double v : values) fmt::format_to(std::back_inserter(w.row), ",{}", v);
-      w.row += '\n';
+      if (out != nullptr) {
+        fmt::format_to(std::back_inserter(w.row), ",{}", contact ? 1 : 0);
+        for (const double v : values) fmt::format_to(std::back_inserter(w.row), ",{}", v);
+        w.row += '\n';
+      }
+      if (options.rows != nullptr) {
+        numbers.push_back(contact ? 1.0 : 0.0);
+        numbers.insert(numbers.end(), values.begin(), values.end());
+        options.rows->row(numbers);
+      }
       if (contact) ++summary.ticks_in_contact;
       for (const std::size_t i : columns.impact_times) summary.impacts += values[i] == 0.0 ? 1U : 0U;
       for (std::size_t c = 0; c < columns.cliff_states.size(); ++c) {
@@ -135,7 +165,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
         previous_cliff[c] = state;
       }
     }
-    w.end_row();
+    if (out != nullptr) w.end_row();
     const double magnitude = std::sqrt(dot(f, f));
     if (magnitude > summary.peak_force_n) {
       summary.peak_force_n = magnitude;
@@ -148,7 +178,7 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     summary.fault_bits |= status.faults.bits();
   }
   summary.rows_done = row;
-  if (summary.output_error.empty() && std::fflush(out) != 0) w.fail();
+  if (out != nullptr && summary.output_error.empty() && std::fflush(out) != 0) w.fail();
   return summary;
 }
 
@@ -162,7 +192,8 @@ bool same_file(const std::string& a, const std::string& b) {
 }  // namespace
 
 Result<ReplaySummary> run_replay(const ReplayOptions& options) {
-  auto scene = load_scene_file(options.scene_path, options.scalar);
+  auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
+                                  : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
   if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
@@ -172,12 +203,13 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   }
   // Before anything is opened for writing: an output must never replace an input.
   for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.input_path, "the motion"}}) {
-    if (same_file(options.output_path, input)) {
+    if (!options.output_path.empty() && same_file(options.output_path, input)) {
       return Error{fmt::format("--output {} is {} ({}): it would be overwritten; choose another file",
                                options.output_path, what, input)};
     }
   }
-  auto motion = read_motion_csv(options.input_path);
+  auto motion = options.input_text ? parse_motion_csv(*options.input_text, options.input_path)
+                                   : read_motion_csv(options.input_path);
   if (!motion) return Error{motion.error()};
   // The rows' stamps are replay's rate: each 1/dt must pass the Q16.16 rate rule (a gap after a
   // skipped row only lowers the rate the loop sees, hip_sensor.hpp). The rule applies to the
@@ -196,8 +228,11 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
     }
   }
 
-  File out(options.output_path == "-" ? stdout : std::fopen(options.output_path.c_str(), "wb"));
-  if (!out) return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};
+  // No output file when the rows go only to the caller's sink (empty output_path).
+  File out(options.output_path.empty() ? nullptr
+           : options.output_path == "-" ? stdout
+                                        : std::fopen(options.output_path.c_str(), "wb"));
+  if (!out && !options.output_path.empty()) return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};
   if (options.sine) override_sine(scene.value(), *options.sine);
   Result<ReplaySummary> summary = with_scalar(
       options.scalar,
@@ -205,7 +240,7 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
       [](ScalarKind kind) -> Result<ReplaySummary> {
         return Error{fmt::format("--scalar {}: this build has no replay for it", scalar_kind_name(kind))};
       });
-  if (summary && summary->output_error.empty() && out.get() != stdout && std::fclose(out.release()) != 0) {
+  if (summary && summary->output_error.empty() && out && out.get() != stdout && std::fclose(out.release()) != 0) {
     summary->output_error = fmt::format("{}: closing failed: {}", options.output_path, std::strerror(errno));
   }
   return summary;

@@ -270,7 +270,8 @@ Result<RunSummary> run_servo(const RunOptions& options) {
       }
     }
   }
-  auto scene = load_scene_file(options.scene_path, options.scalar);
+  auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
+                                  : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
   if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};

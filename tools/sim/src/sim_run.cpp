@@ -94,9 +94,22 @@ Result<SimSummary> run_sim(const SimOptions& options) {
     if (ext != ".png" && ext != ".svg") {
       return Error{fmt::format("--plot {}: the plot is written as .png or .svg (got '{}')", options.plot_path, ext)};
     }
-    if (options.trace_path == "-") return Error{"--plot needs the trace in a file, not on standard output"};
+    if (options.trace_path == "-" || options.trace_path.empty()) {
+      return Error{"--plot needs the trace in a file, not on standard output"};
+    }
   }
-  auto scene = load_scene_file(options.scene_path, options.scalar);
+  // A warning goes to standard error, or to the caller's list (the Python module's warnings).
+  const auto warn = [&options](std::string message) {
+    if (options.warnings == nullptr) {
+      // The plausibility report's warnings are one line each; the trace's room warning ends in its own.
+      std::fputs(fmt::format("toonforce: warning: {}{}", message, message.ends_with('\n') ? "" : "\n").c_str(), stderr);
+      return;
+    }
+    while (!message.empty() && message.back() == '\n') message.pop_back();
+    options.warnings->push_back(std::move(message));
+  };
+  auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
+                                  : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
   if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
@@ -109,14 +122,15 @@ Result<SimSummary> run_sim(const SimOptions& options) {
       std::string text;
       for (const std::string& w : plausible.warnings) text += fmt::format("toonforce: warning: {}\n", w);
       if (options.strict) return Error{text + "--strict: the simulation does not start with a warning"};
-      std::fputs(text.c_str(), stderr);
+      for (const std::string& w : plausible.warnings) warn(w);
     }
   }
   if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
     return Error{fmt::format("--rate {}", bad)};  // `toonforce sim` refuses it earlier, exit 2
   }
   if (options.sine) override_sine(scene.value(), *options.sine);
-  auto hand = load_hand_script(options.script_path);
+  auto hand = options.script_text ? parse_hand_script(*options.script_text, options.script_path)
+                                  : load_hand_script(options.script_path);
   if (!hand) return Error{hand.error()};
   auto session = SimSession::create(scene.value(), hand.value(), sim_config(options));
   if (!session) return Error{session.error()};
@@ -132,16 +146,21 @@ Result<SimSummary> run_sim(const SimOptions& options) {
     return Error{fmt::format("nothing to simulate: {} s is less than one tick at {} Hz (give --duration)", duration_s,
                              options.rate_hz)};
   }
-  auto trace = TraceWriter::open(options.trace_path, sim_trace_columns(session->value_names()));
-  if (!trace) return Error{trace.error()};
-  trace.value()->limit_size(options.max_output_bytes);
-  const std::size_t values = session->value_names().size();
-  {
+  // The trace file, unless the rows go only to the caller's sink (empty trace_path).
+  std::unique_ptr<TraceWriter> trace;
+  const std::vector<std::string> extra_columns = sim_trace_columns(session->value_names());
+  if (!options.trace_path.empty()) {
+    auto opened = TraceWriter::open(options.trace_path, extra_columns);
+    if (!opened) return Error{opened.error()};
+    trace = std::move(opened.value());
+    trace->limit_size(options.max_output_bytes);
     // About 8 bytes a value (shortest round-trip text, many columns repeat a short value).
-    const std::uint64_t expected = static_cast<std::uint64_t>(ticks) * trace.value()->columns().size() * 8U;
+    const std::uint64_t expected = static_cast<std::uint64_t>(ticks) * trace->columns().size() * 8U;
     const std::string room = trace_room_warning(options.trace_path, expected, options.max_output_bytes);
-    if (!room.empty()) std::fputs(fmt::format("toonforce: warning: {}", room).c_str(), stderr);
+    if (!room.empty()) warn(room);
   }
+  if (options.rows != nullptr) options.rows->begin(extra_columns, ticks);
+  const std::size_t values = session->value_names().size();
   const SummaryColumns columns = SummaryColumns::of(session->value_names());
 
   SimSummary summary;
@@ -160,10 +179,14 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
   const auto stopped = [&options] { return options.stop != nullptr && options.stop->load() != 0; };
   std::int64_t k = 0;
+  // One row's numbers, for the file and the sink alike (the sink's arrays are the file's doubles).
+  TraceRow row;
   const auto write = [&](const SimRecord& record) {
-    if (!summary.trace_error.empty() || write_sim_record(*trace.value(), record, values)) return;
+    const bool fits = sim_record_row(row, record, values);  // a sim row always fits (13 columns of its own)
+    if (options.rows != nullptr && fits) options.rows->row(row);
+    if (!trace || !summary.trace_error.empty() || (fits && trace->write(row.core, row.extras()))) return;
     summary.trace_error =
-        trace.value()->size_limit_reached()
+        trace->size_limit_reached()
             ? fmt::format("stopped at t = {:.6g} s: it reached --max-output {} (give a larger one, or 0 for no limit)",
                           record.frame.t_s, describe_bytes(options.max_output_bytes))
             : fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s, std::strerror(errno != 0 ? errno : EIO));
@@ -203,7 +226,7 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   summary.duration_s = static_cast<double>(k) * session->config().plant.period_s;
   summary.final_position_m = session->device().plant().position_m();
   summary.device_work_j = session->device().plant().device_work_j();
-  if (!trace.value()->close() && summary.trace_error.empty()) {
+  if (trace && !trace->close() && summary.trace_error.empty()) {
     summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
   }
 

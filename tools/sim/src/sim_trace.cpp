@@ -18,14 +18,19 @@ std::vector<std::string> sim_trace_columns(const std::vector<std::string>& value
   return columns;
 }
 
-bool write_sim_record(TraceWriter& writer, const SimRecord& r, std::size_t values) {
+bool sim_record_row(TraceRow& row, const SimRecord& r, std::size_t values) {
   const auto& tx = r.true_position_m;
   const auto& tv = r.true_velocity_m_per_s;
   const auto& h = r.hand_target_m;
   const auto& df = r.device_force_n;
   const std::array<double, kSimColumns.size()> more{tx.x, tx.y, tx.z, tv.x, tv.y, tv.z, h.x,
                                                     h.y,  h.z,  df.x, df.y, df.z, static_cast<double>(r.segment)};
-  return write_frame(writer, r.frame, values, false, more);
+  return frame_row(row, r.frame, values, false, more);
+}
+
+bool write_sim_record(TraceWriter& writer, const SimRecord& r, std::size_t values) {
+  TraceRow row;
+  return sim_record_row(row, r, values) && writer.write(row.core, row.extras());
 }
 
 }  // namespace toonforce

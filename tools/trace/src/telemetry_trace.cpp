@@ -10,8 +10,8 @@ constexpr std::array<const char*, 18> kLoopColumns{
     "state",    "contact",  "max_force", "temperature", "observed_energy", "episode_energy", "gain", "tick", nullptr};
 constexpr std::size_t kLoopCount = kLoopColumns.size() - 1;
 constexpr std::array<const char*, 4> kTimingColumns{"wake_latency_us", "compute_us", "slack_us", "missed"};
-/// The most values a row has: loop, effects, timing, and a producer's own.
-constexpr std::size_t kMaxRowValues = kLoopCount + kMaxEffectValues + kTimingColumns.size() + 64;
+static_assert(kMaxTraceRowValues == kLoopCount + kMaxEffectValues + kTimingColumns.size() + 64,
+              "kMaxTraceRowValues counts the loop's, the effects', the timing's and 64 of a producer's own");
 }  // namespace
 
 std::vector<std::string> telemetry_columns(const std::vector<std::string>& effect_values, bool with_timing) {
@@ -27,9 +27,9 @@ std::size_t telemetry_extra_count(std::size_t effect_values, bool with_timing) {
   return kLoopCount + std::min(effect_values, kMaxEffectValues) + (with_timing ? kTimingColumns.size() : 0);
 }
 
-bool write_frame(TraceWriter& writer, const TelemetryFrame& f, std::size_t effect_values, bool with_timing,
-                 std::span<const double> more) {
-  std::array<double, kMaxRowValues> row{};
+bool frame_row(TraceRow& out, const TelemetryFrame& f, std::size_t effect_values, bool with_timing,
+               std::span<const double> more) {
+  std::array<double, kMaxTraceRowValues>& row = out.values;
   std::size_t n = 0;
   for (const double v : {f.scene_force_n.x, f.scene_force_n.y, f.scene_force_n.z, f.damping_n.x, f.damping_n.y,
                          f.damping_n.z, static_cast<double>(f.faults), static_cast<double>(f.latched),
@@ -52,7 +52,15 @@ bool write_frame(TraceWriter& writer, const TelemetryFrame& f, std::size_t effec
   }
   if (more.size() > row.size() - n) return false;
   for (const double v : more) row[n++] = v;
-  return writer.write({f.t_s, f.position_m, f.velocity_m_per_s, f.force_n}, std::span<const double>(row.data(), n));
+  out.count = n;
+  out.core = {f.t_s, f.position_m, f.velocity_m_per_s, f.force_n};
+  return true;
+}
+
+bool write_frame(TraceWriter& writer, const TelemetryFrame& f, std::size_t effect_values, bool with_timing,
+                 std::span<const double> more) {
+  TraceRow row;
+  return frame_row(row, f, effect_values, with_timing, more) && writer.write(row.core, row.extras());
 }
 
 SummaryColumns SummaryColumns::of(const std::vector<std::string>& names) {

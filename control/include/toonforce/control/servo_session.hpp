@@ -52,6 +52,12 @@ struct SessionReport {
 /// The stop value of a 'q' typed on the terminal (signals use their own numbers).
 inline constexpr int kStopByUser = 1000;
 
+/// Stops the running session as its stop signals do (`signal` is reported as the one that
+/// stopped it; the first stop wins): from another thread of a program that handles its signals
+/// itself, e.g. the Python module on Ctrl-C or an exception (handle_signals false). Together
+/// with `pending_stop`, which covers a stop asked before the session starts.
+void request_session_stop(int signal) noexcept;
+
 /// 16384 frames: 1.6 s of telemetry at 10 kHz, 16 s at 1 kHz, before the writer must catch up.
 using TelemetryRing = SpscRing<TelemetryFrame, 16384>;
 

@@ -7,18 +7,35 @@
 #include <atomic>
 #include <cstdio>
 #include <optional>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/scene_file.hpp"
 
 namespace toonforce {
 
+/// Where run_replay hands every output row as numbers, besides the output file or (with an
+/// empty output_path) instead of it: the Python module keeps them as arrays. A field the file
+/// leaves empty (a tick whose input was not finite: its effects did not advance) is NaN.
+class ReplayRowSink {
+ public:
+  virtual ~ReplayRowSink() = default;
+  /// Before the first row: the output's columns (its header) and the rows to come.
+  virtual void begin(const std::vector<std::string>& columns, std::size_t rows) = 0;
+  virtual void row(std::span<const double> values) = 0;
+};
+
 struct ReplayOptions {
   std::string scene_path;
+  /// Set: the scene is this TOML text, not the file's; scene_path names it in messages.
+  std::optional<std::string> scene_text;
   bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
   std::string input_path;
-  std::string output_path;  ///< "-" writes to standard output
+  std::optional<std::string> input_text;  ///< set: the motion is this CSV text (as scene_text)
+  std::string output_path;  ///< "-" writes to standard output; empty: no file (with `rows`)
+  ReplayRowSink* rows = nullptr;  ///< also (or, without output_path, only) every row as numbers
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;  ///< overrides the scene's sine method
   /// Non-null and set (to a signal's number): stop after the row under way; the output ends on

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -66,6 +67,9 @@ struct RunOptions {
   OmniOptions omni;                   ///< --device omni: which device, where libHD is
   gpio::GpioOptions gpio;             ///< tick pin, e-stop, enable, lights (none: no GPIO code runs)
   std::string scene_path;
+  /// Set: the scene is this TOML text, not the file's; scene_path names it in messages (the
+  /// Python module's runs of a scene given as a string or a dict).
+  std::optional<std::string> scene_text;
   double rate_hz = 1000.0;          ///< 500 .. 10000
   double duration_s = 0.0;          ///< 0: until SIGINT/SIGTERM (or 'q' on a terminal)
   std::string trace_path;           ///< empty: no trace

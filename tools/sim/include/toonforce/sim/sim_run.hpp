@@ -6,8 +6,10 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "toonforce/sim/closed_loop.hpp"
+#include "toonforce/sim/sim_trace.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
@@ -16,14 +18,34 @@ namespace toonforce {
 /// The longest simulation `sim` runs (one simulated day: 86.4 million ticks at 1 kHz).
 inline constexpr double kMaxSimDurationS = 86400.0;
 
+/// Where run_sim hands every trace row as numbers, besides the trace file or (with an empty
+/// trace_path) instead of it: the Python module keeps them as arrays. Called from run_sim's
+/// thread, once per row, in order.
+class SimRowSink {
+ public:
+  virtual ~SimRowSink() = default;
+  /// Before the first row: the columns after the core ten (sim_trace_columns) and the number of
+  /// ticks to come (one more row if a stop ends the run early: the shut-down tick).
+  virtual void begin(const std::vector<std::string>& extra_columns, std::int64_t ticks) = 0;
+  virtual void row(const TraceRow& row) = 0;
+};
+
 struct SimOptions {
   std::string scene_path;
+  /// Set: the scene is this TOML text, not the file's, and scene_path stands for it in messages
+  /// (the Python module's scenes from a string or a dict, through the same loader and checks).
+  std::optional<std::string> scene_text;
   bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
   bool strict = false;       ///< a plausibility warning refuses the start (--strict)
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   std::string script_path;
+  std::optional<std::string> script_text;  ///< set: the hand script is this text (as scene_text)
   std::optional<double> duration_s;  ///< default: the hand script's length
-  std::string trace_path;            ///< "-" writes to standard output
+  std::string trace_path;            ///< "-" writes to standard output; empty: no file (with `rows`)
+  SimRowSink* rows = nullptr;        ///< also (or, without trace_path, only) every row as numbers
+  /// Non-null: the warnings run_sim would print on standard error (the plausibility report's,
+  /// the trace's room) go here instead, one message each, for a caller that shows them its own way.
+  std::vector<std::string>* warnings = nullptr;
   std::string plot_path;             ///< empty: no plot; .png or .svg
   std::string plot_kind = "auto";
   std::string plot_title;

@@ -13,12 +13,17 @@
 #include <vector>
 
 #include "toonforce/sim/closed_loop.hpp"
+#include "toonforce/trace/telemetry_trace.hpp"
 #include "toonforce/trace/trace_writer.hpp"
 
 namespace toonforce {
 
 /// The columns after the core ten, for a scene whose effects show `value_names`.
 std::vector<std::string> sim_trace_columns(const std::vector<std::string>& value_names);
+
+/// One record's row as numbers (a scene with `values` effect values): what write_sim_record()
+/// writes, and what the Python module's arrays hold. False if it does not fit a TraceRow.
+bool sim_record_row(TraceRow& row, const SimRecord& record, std::size_t values);
 
 /// Writes one record (a scene with `values` effect values); false once a write failed.
 bool write_sim_record(TraceWriter& writer, const SimRecord& record, std::size_t values);

@@ -4,6 +4,8 @@
 /// tick, then what the scene's effects show (one column per value, named after the effect:
 /// "surface1.impact_t", "cliff1.state"), then, in `run`, the runner's timing.
 
+#include <array>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,25 @@ namespace toonforce {
 std::vector<std::string> telemetry_columns(const std::vector<std::string>& effect_values, bool with_timing);
 /// How many values write_frame() writes after the core ten.
 std::size_t telemetry_extra_count(std::size_t effect_values, bool with_timing);
+
+/// The most values a trace row has after the core ten: the loop's, the effects', the timing's,
+/// and up to 64 of a producer's own.
+inline constexpr std::size_t kMaxTraceRowValues = 17 + kMaxEffectValues + 4 + 64;
+
+/// One trace row as numbers, before any text: what write_frame() hands the TraceWriter, and
+/// what a caller that keeps rows as numbers (the Python module's arrays) takes instead, so both
+/// hold the same doubles.
+struct TraceRow {
+  TraceCore core;
+  std::array<double, kMaxTraceRowValues> values{};  ///< the columns after the core ten
+  std::size_t count = 0;                            ///< how many of `values` are used
+  std::span<const double> extras() const noexcept { return {values.data(), count}; }
+};
+
+/// Fills `row` with one frame's numbers, in the order of telemetry_columns(), then `more`;
+/// false (and `row` unusable) if `more` does not fit.
+bool frame_row(TraceRow& row, const TelemetryFrame& frame, std::size_t effect_values, bool with_timing,
+               std::span<const double> more = {});
 
 /// Writes one frame as a trace row: telemetry_columns(), then `more` (a producer's own columns).
 bool write_frame(TraceWriter& writer, const TelemetryFrame& frame, std::size_t effect_values, bool with_timing,

@@ -1,0 +1,294 @@
+"""toonforce from Python: the C++ controller's scene loader, checks, closed-loop simulation,
+replay and figures, through the same code as the ``toonforce`` program (issue 30).
+
+    import toonforce
+    trace = toonforce.sim("scenes/cartoon_wall.toml", "scenes/hands/strike.toml")
+    trace["fx"], trace.units["fx"]          # numpy float64 array, "N"
+
+Scenes and hand scripts are a file path (str or os.PathLike), a ``Scene``/``HandScript`` (from a
+file, a TOML string or a dict), or a dict. A dict is written as TOML text and read by the same
+loader as a file, so it gets the same checks and messages. Errors in them raise ``SceneError``
+(a ValueError) with ``file``, ``line`` (0: the whole file) and ``key`` ("" when none), and as its
+text the message ``toonforce`` prints. SI units throughout: metres, seconds, newtons, hertz.
+"""
+from __future__ import annotations
+
+import os
+import warnings as _warnings
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
+
+from . import _toonforce
+from ._toonforce import SceneError
+from ._trace import Trace
+
+__all__ = ["SceneError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim", "replay",
+           "figures", "run", "__version__"]
+__version__: str = _toonforce.version
+
+
+class PlausibilityWarning(UserWarning):
+    """What ``toonforce sim`` prints as ``toonforce: warning: ...`` (the scene outside the device's
+    limits, a trace larger than its limit): the run goes on."""
+
+
+class _Source:
+    def __init__(self, source: str, text: Optional[str]) -> None:
+        self.source: str = source  #: the file, or the name standing for it in messages
+        self.text: Optional[str] = text  #: the TOML text, or None for a file read when used
+
+    @classmethod
+    def from_file(cls, path: Union[str, "os.PathLike[str]"]):
+        """From a TOML file."""
+        return cls(os.fspath(path), None)
+
+    @classmethod
+    def from_toml(cls, text: str, name: str = "<string>"):
+        """From TOML text; ``name`` stands for the file in messages."""
+        return cls(name, text)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], name: str = "<dict>"):
+        """From a dict (nested dicts are tables, lists of dicts arrays of tables), written as TOML
+        text and read by the same loader as a file. ``SceneError.line`` is a line of ``.text``."""
+        return cls(name, _toonforce.toml_from_dict(dict(data)))
+
+    def __repr__(self) -> str:
+        return f"<toonforce.{type(self).__name__} {self.source}>"
+
+
+class Scene(_Source):
+    """A scene (docs/spec/interfaces.md "Scene files"). Loaded and checked (for the double scalar)
+    when made, and again, for the run's scalar, by each use."""
+
+    def __init__(self, source: str, text: Optional[str] = None) -> None:
+        super().__init__(source, text)
+        info = _toonforce.scene_info(source, text, "double", True)
+        self.name: str = info["name"]  #: the scene's `name`, or the file's stem
+        self.values: List[str] = info["values"]  #: its effect values' trace columns
+
+class HandScript(_Source):
+    """A hand script of the simulated hand (docs/HAND_SCRIPTS.md), loaded and checked when made."""
+
+    def __init__(self, source: str, text: Optional[str] = None) -> None:
+        super().__init__(source, text)
+        info = _toonforce.script_info(source, text)
+        self.name: str = info["name"]
+        self.duration_s: float = info["duration_s"]  #: the script's length [s]
+
+
+SceneLike = Union[Scene, str, "os.PathLike[str]", Mapping[str, Any]]
+ScriptLike = Union[HandScript, str, "os.PathLike[str]", Mapping[str, Any]]
+
+
+def _source(value: Any, kind: type) -> Tuple[str, Optional[str]]:
+    """(name, text or None) of a scene or hand script given in any of the accepted ways."""
+    if isinstance(value, _Source):
+        return value.source, value.text
+    if isinstance(value, Mapping):
+        return "<dict>", _toonforce.toml_from_dict(dict(value))
+    if isinstance(value, (str, os.PathLike)):
+        return os.fspath(value), None
+    raise TypeError(f"a {kind.__name__.lower()} is a path, a dict or a toonforce.{kind.__name__}, "
+                    f"not {type(value).__name__}")
+
+
+def check(scene: SceneLike, script: Optional[ScriptLike] = None, device: str = "falcon", rate_hz: float = 1000.0,
+          scalar: str = "double", allow_empty: bool = False, strict: bool = False) -> Dict[str, Any]:
+    """What ``toonforce check SCENE [SCRIPT]`` checks and reports, as data (nothing runs).
+
+    Returns a dict: ``ok`` (bool), ``exit_code`` (what the command exits with: 0, 1, or 2 for a
+    rate Q16.16 cannot hold), ``errors`` (each as printed; one file's errors are one entry),
+    ``notes`` and ``warnings`` (the plausibility report's), ``rate_error`` ("" or the message)
+    and ``text`` (exactly what the command prints). device: "falcon" or "omni"; rate_hz: the
+    servo rate [Hz], 10 to 100000; scalar: "double", "float" or "q16.16".
+    """
+    scene_path, scene_text = _source(scene, Scene)
+    script_path, script_text = ("", None) if script is None else _source(script, HandScript)
+    return _toonforce.check(scene_path, scene_text, script_path, script_text, device, float(rate_hz), scalar,
+                            allow_empty, strict)
+
+
+def _warn(messages: List[str]) -> None:
+    for message in messages:
+        _warnings.warn(message, PlausibilityWarning, stacklevel=3)
+
+
+def sim(scene: SceneLike, script: ScriptLike, rate_hz: float = 1000.0, scalar: str = "double",
+        duration_s: Optional[float] = None, device: str = "falcon", integrator: str = "rk4", substeps: int = 4,
+        seed: int = 1, sensor_noise_m: Optional[float] = None, sine: Optional[str] = None,
+        allow_empty: bool = False, strict: bool = False, trace_path: Optional[str] = None) -> Trace:
+    """``toonforce sim``: the scene, the hand script and the simulated device in closed loop, in
+    simulated time. Returns the trace as a ``Trace`` of numpy arrays holding the same doubles as
+    the CSV ``toonforce sim --trace`` writes for the same arguments.
+
+    rate_hz: servo rate [Hz], 10 to 100000; scalar: "double", "float" or "q16.16";
+    duration_s: simulated seconds (default: the hand script's length, at most 86400);
+    device: "falcon" or "omni"; integrator: "semi-implicit-euler", "velocity-verlet", "rk4" or
+    "exact"; substeps: integrator sub-steps per tick, 1 to 1000; seed: sensor noise seed;
+    sensor_noise_m: position noise standard deviation [m] (default: the device's, 0);
+    sine: "library", "polynomial" or "table" (overrides the scene's impact sine method);
+    trace_path: also write the CSV there. Runs without the GIL; Ctrl-C stops it
+    (KeyboardInterrupt). Plausibility warnings are PlausibilityWarning; strict makes them errors.
+    """
+    scene_path, scene_text = _source(scene, Scene)
+    script_path, script_text = _source(script, HandScript)
+    columns, units, summary, warned = _toonforce.sim(
+        scene_path, scene_text, script_path, script_text, float(rate_hz), scalar,
+        None if duration_s is None else float(duration_s), device, integrator, int(substeps), int(seed),
+        None if sensor_noise_m is None else float(sensor_noise_m), sine, allow_empty, strict,
+        "" if trace_path is None else os.fspath(trace_path))
+    _warn(warned)
+    return Trace(columns, units, summary, warned)
+
+
+def _motion_text(motion: Mapping[str, Any]) -> str:
+    """Arrays t, x, y, z [, vx, vy, vz] as the motion CSV replay reads (17 significant digits:
+    every double reads back as itself), so they pass the same reader and checks as a file."""
+    import io
+
+    import numpy as np
+
+    names = [n for n in ("t", "x", "y", "z", "vx", "vy", "vz") if n in motion]
+    data = np.column_stack([np.asarray(motion[n], dtype=np.float64) for n in names])
+    out = io.StringIO()
+    out.write(",".join(names) + "\n")
+    np.savetxt(out, data, delimiter=",", fmt="%.17g")
+    return out.getvalue()
+
+
+def replay(scene: SceneLike, motion: Union[str, "os.PathLike[str]", Mapping[str, Any]], scalar: str = "double",
+           sine: Optional[str] = None, allow_empty: bool = False, output_path: Optional[str] = None) -> Trace:
+    """``toonforce replay``: the forces for a given motion, open loop, one row per servo tick.
+
+    motion: a motion CSV file (t,x,y,z[,vx,vy,vz] in s, m, m/s) or a dict of arrays with those
+    keys (written as that CSV, read by the same reader). scalar: "double", "float" or "q16.16";
+    sine: "library", "polynomial" or "table"; output_path: also write the CSV there. Returns a
+    ``Trace`` with the output CSV's columns (t, fx, ..., contact, effect values), NaN where the
+    CSV leaves a field empty (a tick whose input was not finite). Motion errors raise SceneError.
+    """
+    scene_path, scene_text = _source(scene, Scene)
+    if isinstance(motion, Mapping):
+        motion_path, motion_text = "<motion>", _motion_text(motion)
+    else:
+        motion_path, motion_text = os.fspath(motion), None
+    columns, units, summary = _toonforce.replay(scene_path, scene_text, motion_path, motion_text, scalar, sine,
+                                                allow_empty, "" if output_path is None else os.fspath(output_path))
+    warned = [summary["input_note"]] if summary["input_note"] else []
+    _warn(warned)
+    return Trace(columns, units, summary, warned)
+
+
+def figures(out_dir: Union[str, "os.PathLike[str]"] = "docs/figures", root: Optional[str] = None,
+            format: str = "png", plot: bool = True) -> List[str]:
+    """``toonforce figures``: the paper's figures 1-4 (NAME.csv and NAME.png or .svg) in out_dir,
+    through the real servo loop. root: the directory holding scenes/ (default as the command's).
+    Returns the lines the command prints (where the scenes came from, one line per figure)."""
+    return _toonforce.figures(os.fspath(out_dir), "" if root is None else os.fspath(root), format, plot)
+
+
+def _keys_text(keys: Union[str, Mapping[str, Any]]) -> str:
+    return keys if isinstance(keys, str) else _toonforce.toml_from_dict(dict(keys))
+
+
+class Run:
+    """``toonforce run``: the servo loop in real time on its own thread (never holding the GIL),
+    with live scene changes and telemetry read while it runs. Use as a context manager::
+
+        with toonforce.run("scenes/wall.toml", "scenes/hands/strike.toml") as r:
+            r.set("surface1", {"stiffness": 800.0})   # or the TOML text "stiffness = 800"
+            r.fire("surface1", "impact", 0.3)          # v_i [m/s]
+            fz = r.telemetry()["fz"]                   # the frames since the last call
+        print(r.summary["text"])
+
+    Leaving the block, by its end, an exception or Ctrl-C (KeyboardInterrupt), stops the loop
+    through the session's stop (as a signal stops the command): its shut-down tick commands
+    zero force. Changes are checked by the same reader as scene files and refused whole
+    (ValueError with its message); they reach the loop at the start of a tick. The run's scalar
+    is double (the live scene's); the list of effects must stay that of the starting scene.
+    """
+
+    def __init__(self, scene: SceneLike, script: Optional[ScriptLike] = None, device: str = "sim",
+                 rate_hz: float = 1000.0, duration_s: float = 0.0, sim_device: str = "falcon", seed: int = 1,
+                 trace_path: Optional[str] = None, priority: int = 80, cpu: int = -1, lock_memory: bool = False,
+                 allow_empty: bool = False, strict: bool = False) -> None:
+        """device: "sim", "falcon" or "omni"; rate_hz: 500 to 10000 Hz; duration_s: 0 runs until
+        stopped; script: the simulated hand's script (device "sim"; default: it holds still);
+        sim_device: "falcon" or "omni" (the simulated device's model); trace_path: also the
+        trace CSV; priority: SCHED_FIFO priority 1-99, normal priority if refused; cpu: pin the
+        servo thread (-1: no); lock_memory: mlockall (off by default in a Python process)."""
+        scene_path, scene_text = _source(scene, Scene)
+        if script is None:
+            script_path = ""
+        elif isinstance(script, (str, os.PathLike)):
+            script_path = os.fspath(script)
+        elif isinstance(script, HandScript) and script.text is None:
+            script_path = script.source
+        else:
+            raise TypeError("a run's hand script is a file (as toonforce run --script takes it)")
+        self._run = _toonforce.LiveRun(scene_path, scene_text, script_path, device, float(rate_hz), float(duration_s),
+                                       sim_device, int(seed), "" if trace_path is None else os.fspath(trace_path),
+                                       int(priority), int(cpu), lock_memory, allow_empty, strict)
+        self.units: Dict[str, str] = self._run.units()  #: the telemetry columns' SI units
+        self.summary: Optional[Dict[str, Any]] = None  #: what the run did, once it ended
+
+    def set(self, effect: str, keys: Union[str, Mapping[str, Any]]) -> int:
+        """Replaces keys of `effect` ("surface1": the first [[surface]]); returns the change's sequence."""
+        return self._run.set(effect, _keys_text(keys))
+
+    def add(self, kind: str, keys: Union[str, Mapping[str, Any]]) -> int:
+        """Adds an effect of `kind` ("surface", "cliff") (refused while the run keeps its effect list)."""
+        return self._run.add(kind, _keys_text(keys))
+
+    def remove(self, effect: str) -> int:
+        return self._run.remove(effect)
+
+    def fire(self, effect: str, event: str, value: float) -> int:
+        """A one-shot event, e.g. fire("surface1", "impact", 0.3): a transient as at 0.3 m/s."""
+        return self._run.fire(effect, event, float(value))
+
+    def load(self, scene: SceneLike) -> int:
+        """Switches to another scene, whole (its effects' list must match the starting scene's)."""
+        path, text = _source(scene, Scene)
+        if text is None:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        return self._run.load(text, path)
+
+    @property
+    def applied(self) -> int:
+        """The sequence of the last change the loop applied (0: none yet)."""
+        return self._run.applied()
+
+    @property
+    def running(self) -> bool:
+        return self._run.running()
+
+    def telemetry(self) -> Trace:
+        """The frames since the last call, as a Trace (columns as `toonforce run --trace`'s)."""
+        return Trace(self._run.telemetry(), self.units, {}, [])
+
+    def stop(self, signal: int = 2) -> Dict[str, Any]:
+        """Stops the loop (zero force at its shut-down tick) and waits for it; the summary."""
+        self._run.stop(signal)
+        return self.join()
+
+    def join(self, timeout_s: Optional[float] = None) -> Optional[Dict[str, Any]]:
+        """Waits for the end (a duration_s run); the summary, or None after timeout_s [s]."""
+        summary = self._run.join(-1.0 if timeout_s is None else float(timeout_s))
+        if summary is not None:
+            self.summary = summary
+        return summary
+
+    def __enter__(self) -> "Run":
+        return self
+
+    def __exit__(self, kind, value, traceback) -> bool:
+        # The block's end, an exception and Ctrl-C alike: the session's stop, as SIGINT stops
+        # `toonforce run` (a run of duration_s that ended already is only joined).
+        self.stop()
+        return False
+
+
+def run(scene: SceneLike, script: Optional[ScriptLike] = None, **options: Any) -> Run:
+    """Starts ``toonforce run`` (see ``Run``) and returns it; use it in a ``with`` block."""
+    return Run(scene, script, **options)
