@@ -21,6 +21,9 @@ void add_falcon(CLI::App& app);
 void add_report(CLI::App& app);
 #endif
 void add_bringup(CLI::App& app);
+#if TOONFORCE_STUDY
+void add_study(CLI::App& app);
+#endif
 void add_check(CLI::App& app);
 #if TOONFORCE_VIEWER
 void add_view(CLI::App& app);

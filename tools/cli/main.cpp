@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
   toonforce::cli::add_report(app);
 #endif
   toonforce::cli::add_bringup(app);
+#if TOONFORCE_STUDY
+  toonforce::cli::add_study(app);
+#endif
   toonforce::cli::add_check(app);
 #if TOONFORCE_VIEWER
   toonforce::cli::add_view(app);
