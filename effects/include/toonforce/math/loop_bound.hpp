@@ -6,7 +6,9 @@
 /// the worst-case analyser (tools/mcu/wcet, issue 29) finds it and bounds the innermost loop of
 /// the linked image that holds that address. It emits no instruction; on any other target, and
 /// in constant evaluation, it is nothing. A loop the compiler unrolls completely leaves an
-/// annotation that no loop holds: the analyser ignores it.
+/// annotation that no loop holds: the analyser ignores it. The pair's section is linked to the
+/// code's (SHF_LINK_ORDER, flag "o"), so --gc-sections drops it with a function it drops, and
+/// keeps it without keeping that function.
 
 #include <cstdint>
 #include <type_traits>
@@ -15,8 +17,9 @@
 #define TOONFORCE_LOOP_BOUND(n)                                                              \
   do {                                                                                       \
     if (!std::is_constant_evaluated()) {                                                     \
-      asm volatile("1:\n\t.pushsection .toonforce.loop_bounds,\"\",%%progbits\n\t"            \
-                   ".word 1b, %c0\n\t.popsection" ::"i"(                                     \
+      asm volatile(".Ltoonforce_loop%=:\n\t"                                                  \
+                   ".pushsection .toonforce.loop_bounds,\"o\",%%progbits,.Ltoonforce_loop%=\n\t" \
+                   ".word .Ltoonforce_loop%=, %c0\n\t.popsection" ::"i"(                     \
                        std::integral_constant<std::uint32_t, static_cast<std::uint32_t>(n)>::value)); \
     }                                                                                        \
   } while (false)
