@@ -86,7 +86,7 @@ def main() -> int:
         worst = m[key]
         ok = worst <= instructions + CALL_SITE
         failed = failed or not ok
-        print(f"{'ok:  ' if ok else 'over:'} {key[0]} {key[1]}: measured {worst} <= bound {instructions} "
+        print(f"{'ok:  ' if ok else 'over:'} {key[0]} {key[1]}: measured {worst} {'<=' if ok else '>'} bound {instructions} "
               f"(+{CALL_SITE} call site) instructions; bound {cycles} cycles")
         rows.append({"scene": key[0], "variant": key[1], "measured_max": worst,
                      "bound_instructions": instructions, "bound_cycles": cycles})
