@@ -3,10 +3,9 @@
 compiled here and linked with the images' linker script, whose longest paths are known exactly
 (each file's comment derives its figures), and on what it must refuse.
 
-    test_wcet.py SOURCE_DIR WORK_DIR   (CTest: mcu_m3_wcet_analyser)
+    test_wcet.py   (CTest: mcu_m3_wcet_analyser; WCET_TEST_DIR: where the test images go)
 """
 import os
-import re
 import subprocess
 import sys
 import unittest

@@ -59,7 +59,6 @@ class Function:
     insns: list = field(default_factory=list)
 
 
-_INSN = re.compile(r"^\s*([0-9a-f]+):\s+((?:[0-9a-f]{4}\s?)+)\s+(\S+)\s*(.*)$")
 _FUNC = re.compile(r"^([0-9a-f]+) <(.+)>:$")
 _CONDS = ("eq", "ne", "cs", "cc", "hs", "lo", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le")
 
@@ -486,9 +485,12 @@ def solve_ipet(cfg: Cfg, block_cost: dict, taken_cost: dict, bounds: dict, glpso
         for s, taken in blk.succs:
             edges.append((b, s, taken))
     name = {e: f"e{k}" for k, e in enumerate(edges)}
-    lines = ["Maximize", " cost: " + (" + ".join(
+    # A block's cost rides on each edge out of it (a block runs as often as it is left); a taken
+    # branch's pipeline refill on the taken edge only.
+    lines = ["Maximize", " cost: " + " + ".join(
         f"{block_cost[src] + (taken_cost[src] if taken else 0)} {name[(src, dst, taken)]}"
-        for src, dst, taken in edges) or "0 dummy"), "Subject To"]
+        for src, dst, taken in edges), "Subject To"]
+
     def row(coeffs: dict, sense: str, rhs: int) -> str:
         terms = " ".join(f"{'+' if v >= 0 else '-'} {abs(v)} {k}" for k, v in coeffs.items() if v != 0)
         return f" c{len(lines)}: {terms or '0 e0'} {sense} {rhs}"
