@@ -92,6 +92,9 @@ class Refuses(unittest.TestCase):
     def test_recursion(self):
         self.refused("recursion.s", r"recursion: entry -> entry")
 
+    def test_call_into_a_function(self):
+        self.refused("mid_call.s", r"call to an address that starts no function at 0x[0-9a-f]+ in entry")
+
     def test_jump_table(self):
         self.refused("jump_table.s", r"indirect branch or call `tbb")
 

@@ -309,15 +309,16 @@ class Cfg:
             nxt = insns[k + 1].addr if k + 1 < len(insns) else None
             last = k + 1 == len(insns) or insns[k + 1].addr in leaders
             if kind == "call":
-                if target is None or image.function_at(target) is None:
-                    raise Refusal(f"call to an unknown address at {image.where(insn.addr)}")
+                if target is None or target not in image.functions:
+                    raise Refusal(f"call to an address that starts no function at {image.where(insn.addr)}")
                 current.calls.append(target)
             if kind == "jump":
                 if target in index:
                     current.succs.append((target, True))
                 else:  # a tail call: the callee, then its return is this function's
-                    if image.function_at(target) is None:
-                        raise Refusal(f"jump to an unknown address at {image.where(insn.addr)}")
+                    if target not in image.functions:
+                        raise Refusal(f"jump out of {func.name} to an address that starts no function at "
+                                      f"{image.where(insn.addr)}")
                     current.calls.append(target)
                     current.succs.append(("exit", True))
                     current.returns = True  # if the callee does (checked)
