@@ -75,6 +75,18 @@ class Exact(unittest.TestCase):
         self.assertEqual(r.stdout.split("\t")[1:3], ["5", "18"])
 
 
+class Budget(unittest.TestCase):
+    """--budget fails (exit 1) when a bound passes it, in instructions or in cycles."""
+
+    def test_budget(self):
+        elf = build("straight.s")  # 5 instructions, 8 cycles
+        self.assertEqual(analyse(elf, "--budget", "t=5,8").returncode, 0)
+        over = analyse(elf, "--budget", "t=4")
+        self.assertEqual(over.returncode, 1)
+        self.assertRegex(over.stderr, r"over budget: t entry could take 5 instructions > 4")
+        self.assertEqual(analyse(elf, "--budget", "t=5,7").returncode, 1)
+
+
 class Refuses(unittest.TestCase):
     """What cannot be bounded: exit status 2 and the reason, with where."""
 

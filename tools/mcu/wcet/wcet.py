@@ -665,6 +665,8 @@ def main(argv=None) -> int:
     p.add_argument("--glpsol", default="glpsol")
     p.add_argument("--json", help="write the bounds here as JSON")
     p.add_argument("--verbose", action="store_true", help="every function's bound and loops")
+    p.add_argument("--budget", action="append", default=[], metavar="LABEL=INSTRUCTIONS[,CYCLES]",
+                   help="exit 1 when a bound of LABEL's functions passes this budget")
     args = p.parse_args(argv)
     image = Image(args.elf, args.objdump)
     analysis = Analysis(image, args.wait_states, args.glpsol)
@@ -691,7 +693,19 @@ def main(argv=None) -> int:
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"elf": args.elf, "wait_states": args.wait_states, "bounds": results}, f, indent=1)
-    return 0
+    over = False
+    for spec in args.budget:
+        label, _, limits = spec.partition("=")
+        instructions, _, cycles = limits.partition(",")
+        for r in results:
+            if r["label"] != label:
+                continue
+            for what, limit in (("instructions", instructions), ("cycles", cycles)):
+                if limit and r[what] > int(limit):
+                    over = True
+                    print(f"wcet: {os.path.basename(args.elf)}: over budget: {label} {r['function']} could take "
+                          f"{r[what]} {what} > {limit}", file=sys.stderr)
+    return 1 if over else 0
 
 
 if __name__ == "__main__":
