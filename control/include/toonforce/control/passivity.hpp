@@ -33,6 +33,7 @@
 
 #include "toonforce/control/hip_sensor.hpp"
 #include "toonforce/effects/tick.hpp"
+#include "toonforce/math/loop_bound.hpp"
 #include "toonforce/math/wide.hpp"
 
 namespace toonforce {
@@ -81,6 +82,7 @@ class PassivityController {
   /// of the wanted force that reached the device, 0..1), moved the HIP by `displacement_m`.
   constexpr void account(const Vec3<S>& displacement_m, S applied, std::size_t slots) noexcept {
     for (std::size_t i = 0; i < slots; ++i) {
+      TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
       Slot& s = slots_[i];
       if (!s.in_episode) continue;
       s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m * applied);
@@ -105,6 +107,7 @@ class PassivityController {
     bool speed_known = false;
     Vec3<S> total{};
     for (std::size_t i = 0; i < slots; ++i) {
+      TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
       Slot& s = slots_[i];
       const ActiveForce<S>& f = forces[i];
       if (!f.in_episode) {  // no episode: nothing to book (account() skips the slot)
@@ -155,6 +158,7 @@ class PassivityController {
   constexpr Wide<S> max_episode_energy(std::size_t slots) const noexcept {
     Wide<S> most{};
     for (std::size_t i = 0; i < slots; ++i) {
+      TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
       if (slots_[i].in_episode && slots_[i].energy > most) most = slots_[i].energy;
     }
     return most;

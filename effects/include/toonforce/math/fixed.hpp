@@ -22,6 +22,8 @@
 #include <limits>
 #include <type_traits>
 
+#include "toonforce/math/loop_bound.hpp"
+
 namespace toonforce {
 
 /// Where the sticky flag lives. On a host it is per thread (one servo loop per thread, and
@@ -208,6 +210,7 @@ constexpr U isqrt_round_bitwise(U v) noexcept {
   // down from the top (up to 31 extra rounds of 64-bit shifts on a 32-bit core).
   U bit = U{1} << ((std::numeric_limits<U>::digits - 1 - std::countl_zero(v)) & ~1);
   while (bit != 0) {
+    TOONFORCE_LOOP_BOUND(std::numeric_limits<U>::digits / 2);  // bit: a power of four, shifted by 2
     if (v >= result + bit) {
       v -= result + bit;
       result = (result >> 1) + bit;
@@ -241,12 +244,21 @@ constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
   const auto high = static_cast<std::uint32_t>(v >> 32);  // nonzero here
   const int leading = std::countl_zero(high) & ~1;        // whole pairs of leading zeros
   std::uint32_t word = high << leading;
-  for (int pairs = 16 - leading / 2; pairs > 0; --pairs, word <<= 2) step(word >> 30);
+  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
+  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
+  for (int pairs = kWordPairs - leading / 2; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs);
+    step(word >> 30);
+  }
   word = static_cast<std::uint32_t>(v);
-  for (int pairs = 13; pairs > 0; --pairs, word <<= 2) step(word >> 30);
+  for (int pairs = kWordPairs - kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs - kWidePairs);
+    step(word >> 30);
+  }
   std::uint64_t q_wide = q;
   std::uint64_t r_wide = r;
-  for (int pairs = 3; pairs > 0; --pairs, word <<= 2) {
+  for (int pairs = kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWidePairs);
     r_wide = (r_wide << 2) | (word >> 30);
     const std::uint64_t t = (q_wide << 2) | 1U;
     q_wide <<= 1;

@@ -20,6 +20,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "toonforce/math/loop_bound.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
@@ -155,6 +156,7 @@ class Decay {
     Decay result = one();
     Decay base = *this;
     while (n > 0) {
+      TOONFORCE_LOOP_BOUND(std::numeric_limits<std::int64_t>::digits);  // n loses a bit each round
       if ((n & 1) != 0) result = result.times(base);
       n >>= 1;
       if (n > 0) base = base.times(base);

@@ -1,0 +1,102 @@
+#!/usr/bin/python3
+"""Gate (issue 29): every tick an image measured under QEMU stays within the static bound.
+
+For IMAGE.elf, wcet.py bounds each scene's three counted functions (replay's loop tick
+`spec_tick`, the every-stage tick `full_tick`, the effects plus safety `effects_and_safety`);
+the image's run (firmware/main.cpp's "count SCENE MOTION TICKS loop SUM MAX every SUM MAX
+effects SUM MAX" lines in COUNTS) gives the dearest tick measured for each. The counted window
+holds, besides the function, the caller's argument loads, the call and the store of the result
+(7 instructions around spec_tick in wall.elf): CALL_SITE below allows for them. Deterministic
+counts only; fails (exit 1) when a measured tick passes its bound, and when the analyser
+refuses the image (exit 2: what it cannot bound).
+
+    check_bound.py IMAGE.elf COUNTS [--json OUT] [--wait-states N]
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+CALL_SITE = 16  # instructions of the count's window outside the counted function, at most
+VARIANTS = {"loop": "spec_tick", "every": "full_tick", "effects": "effects_and_safety"}
+
+
+def scene_of(function: str) -> str:
+    """wall from Run<toonforce::mcu::image::WallScene>::spec_tick(...)."""
+    m = re.search(r"Run<toonforce::mcu::image::(\w+)Scene>::", function)
+    if not m:
+        raise SystemExit(f"check_bound: no scene in {function}")
+    return re.sub(r"(?<!^)([A-Z])", r"_\1", m.group(1)).lower()
+
+
+def bounds(elf: str, wait: int) -> dict:
+    args = [sys.executable, os.path.join(HERE, "wcet.py"), elf, "--wait-states", str(wait)]
+    for label, fn in VARIANTS.items():
+        args += ["--entry", f"{label}=::{fn}\\("]
+    r = subprocess.run(args, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.stderr.write(r.stderr)
+        raise SystemExit(r.returncode)
+    out = {}
+    for line in r.stdout.splitlines():
+        label, instructions, cycles, function = line.split("\t")
+        out[(scene_of(function), label)] = (int(instructions), int(cycles))
+    return out
+
+
+def measured(counts: str) -> dict:
+    worst = {}
+    pattern = re.compile(r"^count (\S+) (\S+) (\d+) loop \d+ (\d+) every \d+ (\d+) effects \d+ (\d+)$")
+    with open(counts) as f:
+        for line in f:
+            m = pattern.match(line.strip())
+            if not m:
+                continue
+            scene = m.group(1)
+            for label, value in zip(VARIANTS, m.group(4, 5, 6)):
+                worst[(scene, label)] = max(worst.get((scene, label), 0), int(value))
+    return worst
+
+
+def main() -> int:
+    p = argparse.ArgumentParser()
+    p.add_argument("elf")
+    p.add_argument("counts")
+    p.add_argument("--json")
+    p.add_argument("--wait-states", type=int, default=0)
+    a = p.parse_args()
+    if not os.path.exists(a.counts):
+        print(f"check_bound: {a.counts}: no output of the image (its run test failed or did not run)", file=sys.stderr)
+        return 1
+    b = bounds(a.elf, a.wait_states)
+    m = measured(a.counts)
+    if not m:
+        print(f"check_bound: {a.counts}: no count lines", file=sys.stderr)
+        return 1
+    failed = False
+    rows = []
+    for key in sorted(m):
+        if key not in b:
+            print(f"check_bound: no bound for {key[0]} {key[1]} in {a.elf}", file=sys.stderr)
+            return 1
+        instructions, cycles = b[key]
+        worst = m[key]
+        ok = worst <= instructions + CALL_SITE
+        failed = failed or not ok
+        print(f"{'ok:  ' if ok else 'over:'} {key[0]} {key[1]}: measured {worst} {'<=' if ok else '>'} bound {instructions} "
+              f"(+{CALL_SITE} call site) instructions; bound {cycles} cycles")
+        rows.append({"scene": key[0], "variant": key[1], "measured_max": worst,
+                     "bound_instructions": instructions, "bound_cycles": cycles})
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump({"elf": a.elf, "wait_states": a.wait_states, "rows": rows}, f, indent=1)
+    if failed:
+        print("check_bound: a measured tick passes its static bound: the analysis is unsound", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,130 @@
+#!/usr/bin/python3
+"""Tests of the worst-case analyser (wcet.py) on small functions for the Cortex-M3, assembled or
+compiled here and linked with the images' linker script, whose longest paths are known exactly
+(each file's comment derives its figures), and on what it must refuse.
+
+    test_wcet.py   (CTest: mcu_m3_wcet_analyser; WCET_TEST_DIR: where the test images go)
+"""
+import os
+import subprocess
+import sys
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import wcet  # noqa: E402
+
+SOURCE_DIR = os.path.abspath(os.path.join(HERE, "..", "..", ".."))
+WORK = os.environ.get("WCET_TEST_DIR", "/tmp/wcet-tests")
+CXX = "arm-none-eabi-g++"
+CPU = ["-mcpu=cortex-m3", "-mthumb"]
+
+
+def build(name: str) -> str:
+    os.makedirs(WORK, exist_ok=True)
+    src = os.path.join(HERE, "tests", name)
+    elf = os.path.join(WORK, os.path.splitext(name)[0] + ".elf")
+    flags = CPU + ["-nostdlib", "-nostartfiles", "-Wl,-e,entry", "-Wl,--gc-sections",
+                   "-T", os.path.join(SOURCE_DIR, "tools/mcu/firmware/mps2.ld"), "-o", elf]
+    if name.endswith(".cpp"):
+        flags += ["-std=c++20", "-O2", "-ffunction-sections", "-fdata-sections", "-fno-exceptions", "-fno-rtti",
+                  "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Werror",
+                  "-I", os.path.join(SOURCE_DIR, "effects/include")]
+    subprocess.run([CXX, *flags, src], check=True)
+    return elf
+
+
+def analyse(elf: str, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, os.path.join(HERE, "wcet.py"), elf, "--entry", "t=^entry$", *extra],
+                          capture_output=True, text=True)
+
+
+def bound(name: str) -> tuple:
+    r = analyse(build(name))
+    if r.returncode != 0:
+        raise AssertionError(f"{name}: exit {r.returncode}: {r.stderr}")
+    label, instructions, cycles, function = r.stdout.splitlines()[0].split("\t")
+    return int(instructions), int(cycles)
+
+
+class Exact(unittest.TestCase):
+    """Bounds equal to the longest path worked out by hand (in each file's comment)."""
+
+    def test_straight(self):
+        self.assertEqual(bound("straight.s"), (5, 8))
+
+    def test_diamond_longest_path_differs_per_cost(self):
+        self.assertEqual(bound("diamond.s"), (7, 21))
+
+    def test_annotated_loop(self):
+        self.assertEqual(bound("loop.s"), (27, 51))
+
+    def test_nested_loops(self):
+        self.assertEqual(bound("nested.s"), (38, 74))
+
+    def test_calls(self):
+        self.assertEqual(bound("call.s"), (8, 27))
+
+    def test_exclusive_retry_runs_once(self):
+        self.assertEqual(bound("exclusive.s"), (6, 11))
+
+    def test_wait_states_add_per_fetch_and_per_word(self):
+        # straight.s with 2 wait states: 5 fetches x 2 more, no data access: 8 + 10.
+        r = analyse(build("straight.s"), "--wait-states", "2")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(r.stdout.split("\t")[1:3], ["5", "18"])
+
+
+class Budget(unittest.TestCase):
+    """--budget fails (exit 1) when a bound passes it, in instructions or in cycles."""
+
+    def test_budget(self):
+        elf = build("straight.s")  # 5 instructions, 8 cycles
+        self.assertEqual(analyse(elf, "--budget", "t=5,8").returncode, 0)
+        over = analyse(elf, "--budget", "t=4")
+        self.assertEqual(over.returncode, 1)
+        self.assertRegex(over.stderr, r"over budget: t entry could take 5 instructions > 4")
+        self.assertEqual(analyse(elf, "--budget", "t=5,7").returncode, 1)
+
+
+class Refuses(unittest.TestCase):
+    """What cannot be bounded: exit status 2 and the reason, with where."""
+
+    def refused(self, name: str, pattern: str):
+        r = analyse(build(name))
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertRegex(r.stderr, pattern)
+
+    def test_unannotated_loop(self):
+        self.refused("unbounded.s", r"loop without a bound: header 0x[0-9a-f]+ in entry")
+
+    def test_indirect_call(self):
+        self.refused("indirect.s", r"indirect branch or call `blx r3` at 0x[0-9a-f]+ in entry")
+
+    def test_recursion(self):
+        self.refused("recursion.s", r"recursion: entry -> entry")
+
+    def test_call_into_a_function(self):
+        self.refused("mid_call.s", r"call to an address that starts no function at 0x[0-9a-f]+ in entry")
+
+    def test_jump_table(self):
+        self.refused("jump_table.s", r"indirect branch or call `tbb")
+
+
+class Macro(unittest.TestCase):
+    """TOONFORCE_LOOP_BOUND through the compiler and the images' linker script: the bounds come
+    from the code's constants, and a function --gc-sections drops takes its pair with it."""
+
+    def test_generated_bounds(self):
+        elf = build("annotated.cpp")
+        r = analyse(elf, "--verbose")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertRegex(r.stderr, r"sum<12u?l?>.*loops 0x[0-9a-f]+<=12\b")
+        image = wcet.Image(elf, "arm-none-eabi-objdump")
+        self.assertNotIn("unused", " ".join(f.name for f in image.functions.values()))
+        # the dropped function's pair went with it; the two others are there
+        self.assertEqual(sorted(n for _, n in image.bounds), [12, 12])
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)

@@ -1,0 +1,712 @@
+#!/usr/bin/python3
+"""Worst case by construction (issue 29): a static bound on a function of a linked Cortex-M3 image.
+
+From the ELF (arm-none-eabi-objdump's disassembly and symbol table), for each entry function:
+the control-flow graph of it and of everything it calls (libgcc's helpers included), its loops
+(natural loops of the dominator tree; an irreducible cycle is refused), each loop bounded by an
+annotation the build generated (section .toonforce.loop_bounds: pairs of words, an address inside
+the loop's body and the most times that body runs per entry into the loop, emitted by
+TOONFORCE_LOOP_BOUND from a constant expression; effects/include/toonforce/math/loop_bound.hpp),
+and the longest path by implicit path enumeration: an integer program over the number of times
+each edge is taken (flow conservation, one entry, each loop's back edges at most its bound times
+its entries), solved by GLPK's glpsol, once for instructions and once for cycles. A callee's own
+bound is a constant cost of its call site (context-insensitive: sound, maybe loose).
+
+Cycles: the Cortex-M3 Technical Reference Manual's instruction timings (r2p1, table 3-1 "Cortex-M3
+instruction set summary"), worst case of each range (UMULL 5, UDIV/SDIV 12, a taken branch or a
+write of the PC 1 + 3 for the pipeline refill), plus WAIT cycles for every instruction fetch and
+every data word moved (a pessimistic model of wait states; 0 for the AN385's SRAM). No
+interrupt is assumed inside the function.
+
+It refuses (exit status 2, naming the function and address) what it cannot bound: a loop without
+annotation, an irreducible cycle, an indirect branch or call, a jump table, recursion, a call to
+an address outside any function.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+
+LOOP_SECTION = ".toonforce.loop_bounds"
+
+
+class Refusal(Exception):
+    """What the analysis cannot bound, with where."""
+
+
+# ---- the image --------------------------------------------------------------------------------
+
+@dataclass
+class Insn:
+    addr: int
+    size: int
+    mnemonic: str   # as objdump prints it, condition and width suffix included ("bne.n", "ldr.w")
+    operands: str
+    text: str
+
+
+@dataclass
+class Function:
+    name: str       # demangled
+    start: int
+    end: int
+    insns: list = field(default_factory=list)
+
+
+_FUNC = re.compile(r"^([0-9a-f]+) <(.+)>:$")
+_CONDS = ("eq", "ne", "cs", "cc", "hs", "lo", "mi", "pl", "vs", "vc", "hi", "ls", "ge", "lt", "gt", "le")
+
+
+class Image:
+    def __init__(self, elf: str, objdump: str):
+        self.elf = elf
+        self.objdump = objdump
+        self.functions: dict[int, Function] = {}
+        self.by_name: dict[str, Function] = {}
+        self._read_symbols()
+        self._read_code()
+        self.bounds = self._read_bounds()
+
+    def _run(self, *args: str) -> str:
+        return subprocess.run([self.objdump, *args, self.elf], check=True, capture_output=True, text=True).stdout
+
+    def _read_symbols(self) -> None:
+        # objdump -t -C: "ADDR l/g  F .text  SIZE NAME"
+        sizes: dict[int, tuple[int, str]] = {}
+        for line in self._run("-t", "-C").splitlines():
+            m = re.match(r"^([0-9a-f]{8}) (.{7}) (\S+)\s+([0-9a-f]{8}) (.*)$", line)
+            if not m or "F" not in m.group(2):
+                continue
+            addr = int(m.group(1), 16) & ~1
+            size = int(m.group(4), 16)
+            name = m.group(5).strip()
+            if addr not in sizes or size > sizes[addr][0]:
+                sizes[addr] = (size, name)
+        self._sizes = sizes
+
+    def _read_code(self) -> None:
+        current = None
+        for line in self._run("-d", "-C", "--no-show-raw-insn").splitlines():
+            fm = _FUNC.match(line)
+            if fm:
+                addr = int(fm.group(1), 16)
+                size, name = self._sizes.get(addr, (0, fm.group(2)))
+                current = Function(name, addr, addr + size)
+                self.functions[addr] = current
+                self.by_name.setdefault(name, current)
+                continue
+            m = re.match(r"^\s*([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
+            if m and current is not None:
+                addr = int(m.group(1), 16)
+                mnemonic = m.group(2)
+                operands = re.sub(r"\s*[;@].*$", "", m.group(3)).strip()
+                if mnemonic.startswith("."):  # literal pool words ($d), not instructions
+                    continue
+                current.insns.append(Insn(addr, 0, mnemonic, operands, line.strip()))
+        for f in self.functions.values():
+            for i, insn in enumerate(f.insns):
+                nxt = f.insns[i + 1].addr if i + 1 < len(f.insns) else None
+                insn.size = 4 if (".w" in insn.mnemonic or (nxt is not None and nxt - insn.addr == 4)) else 2
+            if f.end <= f.start and f.insns:  # no size in the symbol table: up to its last instruction
+                f.end = f.insns[-1].addr + f.insns[-1].size
+
+    def _read_bounds(self) -> list[tuple[int, int]]:
+        out = subprocess.run([self.objdump, "-s", "-j", LOOP_SECTION, self.elf], capture_output=True, text=True)
+        if out.returncode != 0 or "Contents of section" not in out.stdout:
+            return []
+        data = bytearray()
+        for line in out.stdout.splitlines():
+            m = re.match(r"^ ([0-9a-f]{4,8}) ((?:[0-9a-f]{2,8} ){1,4})", line)
+            if m:
+                data += bytes.fromhex(m.group(2).replace(" ", ""))
+        words = [int.from_bytes(data[i:i + 4], "little") for i in range(0, len(data) - 3, 4)]
+        return [(words[i] & ~1, words[i + 1]) for i in range(0, len(words) - 1, 2) if words[i] != 0]
+
+    def function_at(self, addr: int):
+        for f in self.functions.values():
+            if f.start <= addr < f.end:
+                return f
+        return None
+
+    def where(self, addr: int) -> str:
+        f = self.function_at(addr)
+        line = ""
+        addr2line = self.objdump.replace("objdump", "addr2line")
+        try:
+            r = subprocess.run([addr2line, "-e", self.elf, hex(addr)], capture_output=True, text=True, timeout=30)
+            if r.returncode == 0 and not r.stdout.startswith("??"):
+                line = " (" + os.path.relpath(r.stdout.strip()) + ")" if r.stdout.strip() else ""
+        except OSError:
+            pass
+        return f"{addr:#x} in {f.name if f else '?'}{line}"
+
+
+# ---- instruction classes and the TRM's timings -------------------------------------------------
+
+def split_mnemonic(mnemonic: str) -> tuple[str, str]:
+    """(base, condition) of objdump's mnemonic: "bne.n" -> ("b", "ne"), "popeq" -> ("pop", "eq")."""
+    base = mnemonic.split(".")[0]
+    for c in _CONDS:
+        if base.endswith(c) and len(base) > len(c):
+            stem = base[: -len(c)]
+            # "bls", "bhi", "teq", "bics", "vmls" and "mls" must not split wrongly: stems that are
+            # instructions with a condition. Known ambiguous stems resolved by the list below.
+            if stem in _BASES:
+                return stem, c
+    return base, ""
+
+
+_BASES = {
+    "b", "bl", "bx", "blx", "pop", "push", "ldm", "ldmia", "ldmfd", "ldr", "ldrb", "ldrh", "ldrsb", "ldrsh", "ldrd",
+    "str", "strb", "strh", "strd", "stm", "stmia", "stmdb", "ldmdb", "mov", "movs", "movw", "movt", "mvn", "mvns",
+    "add", "adds", "adc", "adcs", "sub", "subs", "sbc", "sbcs", "rsb", "rsbs", "and", "ands", "orr", "orrs", "orn",
+    "orns", "eor", "eors", "bic", "bics", "lsl", "lsls", "lsr", "lsrs", "asr", "asrs", "ror", "rors", "rrx", "rrxs",
+    "cmp", "cmn", "tst", "teq", "mul", "muls", "mla", "mls", "umull", "smull", "umlal", "smlal", "udiv", "sdiv",
+    "clz", "rbit", "rev", "rev16", "revsh", "sxth", "sxtb", "uxth", "uxtb", "ubfx", "sbfx", "bfi", "bfc", "ssat",
+    "usat", "neg", "negs", "nop", "adr", "ldrex", "strex", "ldrexb", "strexb", "ldrexh", "strexh",
+}
+
+
+def reg_list_len(operands: str) -> int:
+    m = re.search(r"\{([^}]*)\}", operands)
+    if not m:
+        return 1
+    n = 0
+    for part in m.group(1).split(","):
+        part = part.strip()
+        r = re.match(r"r(\d+)-r(\d+)", part)
+        n += int(r.group(2)) - int(r.group(1)) + 1 if r else 1
+    return n
+
+
+PIPELINE_REFILL = 3  # P: 1 to 3 cycles to refill the pipeline after a taken branch (TRM), worst
+
+
+def writes_pc(base: str, operands: str) -> bool:
+    if base in ("pop", "ldm", "ldmia", "ldmfd", "ldmdb"):
+        return "pc" in operands
+    first = operands.split(",")[0].strip()
+    return first == "pc" and base not in ("str", "strb", "strh", "strd", "cmp", "cmn", "tst", "teq", "push", "stm")
+
+
+def cycles(insn: Insn, wait: int) -> tuple[int, int]:
+    """(cycles when it does not branch, extra cycles when it does) for one instruction."""
+    base, _ = split_mnemonic(insn.mnemonic)
+    ops = insn.operands
+    fetch = wait  # each instruction fetched once (pessimistic: two 16-bit ones share a word)
+    if base in ("umull", "smull"):
+        c = 5
+    elif base in ("umlal", "smlal"):
+        c = 7
+    elif base in ("udiv", "sdiv"):
+        c = 12
+    elif base in ("mla", "mls"):
+        c = 2
+    elif base in ("ldr", "ldrb", "ldrh", "ldrsb", "ldrsh", "str", "strb", "strh") or base.startswith(("ldrex", "strex")):
+        c = 2 + wait
+    elif base in ("ldrd", "strd"):
+        c = 3 + 2 * wait
+    elif base in ("push", "pop", "ldm", "ldmia", "ldmfd", "ldmdb", "stm", "stmia", "stmdb"):
+        n = reg_list_len(ops)
+        c = 1 + n + n * wait
+    else:
+        c = 1
+    taken = 0
+    if base in ("b", "bl", "bx", "blx", "cbz", "cbnz") or writes_pc(base, ops):
+        taken = PIPELINE_REFILL
+    return c + fetch, taken
+
+
+# ---- control-flow graph of one function --------------------------------------------------------
+
+@dataclass
+class Block:
+    start: int
+    insns: list
+    succs: list = field(default_factory=list)   # (target block start or "exit", taken: bool)
+    calls: list = field(default_factory=list)   # callee start addresses, in order
+    falls_off: bool = False
+    noreturn_call: int | None = None
+    tail_call: int | None = None
+    returns: bool = False  # ends in a return (or a tail call), not a halt
+
+
+def _target(operands: str) -> int | None:
+    m = re.match(r"^([0-9a-f]+)\b", operands.strip())
+    return int(m.group(1), 16) if m else None
+
+
+def _classify(insn: Insn) -> tuple[str, int | None]:
+    """kind, target: "call", "jump", "cjump" (conditional), "return", "creturn", "indirect", "halt",
+    "plain" (falls through)."""
+    base, cond = split_mnemonic(insn.mnemonic)
+    ops = insn.operands
+    if base in ("cbz", "cbnz"):
+        return "cjump", _target(ops.split(",")[1])
+    if base == "b":
+        if not cond and _target(ops) == insn.addr:
+            return "halt", None  # `b .`: the core spins here for good (a trap's end), the run is over
+        return ("cjump" if cond else "jump"), _target(ops)
+    if base == "bl":
+        if cond:
+            raise Refusal(f"conditional call at {insn.addr:#x}")
+        return "call", _target(ops)
+    if base == "bx":
+        if ops == "lr":
+            return ("creturn" if cond else "return"), None
+        return "indirect", None
+    if base == "blx" or base in ("tbb", "tbh"):
+        return "indirect", None
+    if writes_pc(base, ops):
+        if base in ("pop", "ldm", "ldmia", "ldmfd") and ("sp!" in ops or base == "pop"):
+            return ("creturn" if cond else "return"), None
+        if base == "ldr" and re.match(r"^pc,\s*\[sp\],\s*#4$", ops):
+            return ("creturn" if cond else "return"), None
+        return "indirect", None
+    if base in ("udf", "bkpt"):
+        return "halt", None
+    return "plain", None
+
+
+class Cfg:
+    def __init__(self, image: Image, func: Function):
+        self.image = image
+        self.func = func
+        insns = func.insns
+        if not insns:
+            raise Refusal(f"{func.name} at {func.start:#x}: no instructions")
+        index = {i.addr: k for k, i in enumerate(insns)}
+        leaders = {insns[0].addr}
+        kinds = []
+        for k, insn in enumerate(insns):
+            kind, target = _classify(insn)
+            if kind == "indirect":
+                raise Refusal(f"indirect branch or call `{insn.mnemonic} {insn.operands}` at {image.where(insn.addr)}")
+            kinds.append((kind, target))
+            if kind in ("jump", "cjump"):
+                if target is None:
+                    raise Refusal(f"branch without a target at {image.where(insn.addr)}")
+                if target in index:
+                    leaders.add(target)
+                elif kind == "cjump":
+                    raise Refusal(f"conditional branch out of {func.name} at {image.where(insn.addr)}")
+            if kind in ("jump", "cjump", "return", "creturn", "halt") and k + 1 < len(insns):
+                leaders.add(insns[k + 1].addr)
+        self.blocks: dict[int, Block] = {}
+        current = None
+        for k, insn in enumerate(insns):
+            if insn.addr in leaders:
+                current = Block(insn.addr, [])
+                self.blocks[insn.addr] = current
+            current.insns.append(insn)
+            kind, target = kinds[k]
+            nxt = insns[k + 1].addr if k + 1 < len(insns) else None
+            last = k + 1 == len(insns) or insns[k + 1].addr in leaders
+            if kind == "call":
+                if target is None or target not in image.functions:
+                    raise Refusal(f"call to an address that starts no function at {image.where(insn.addr)}")
+                current.calls.append(target)
+            if kind == "jump":
+                if target in index:
+                    current.succs.append((target, True))
+                else:  # a tail call: the callee, then its return is this function's
+                    if target not in image.functions:
+                        raise Refusal(f"jump out of {func.name} to an address that starts no function at "
+                                      f"{image.where(insn.addr)}")
+                    current.calls.append(target)
+                    current.succs.append(("exit", True))
+                    current.returns = True  # if the callee does (checked)
+                    current.tail_call = target
+            elif kind == "cjump":
+                current.succs.append((target, True))
+                if nxt is not None:
+                    current.succs.append((nxt, False))
+            elif kind == "return":
+                current.succs.append(("exit", True))
+                current.returns = True
+            elif kind == "creturn":
+                current.succs.append(("exit", True))
+                current.returns = True
+                if nxt is not None:
+                    current.succs.append((nxt, False))
+            elif kind == "halt":
+                current.succs.append(("exit", False))  # the run stops here
+            elif last:
+                if nxt is None and kind == "call":  # a call that must not return (checked)
+                    current.succs.append(("exit", False))
+                    current.noreturn_call = target
+                elif nxt is None:  # padding before a literal pool, unless reached
+                    current.falls_off = True
+                else:
+                    current.succs.append((nxt, False))
+            if last:
+                continue
+        self.entry = insns[0].addr
+        self._reachable()
+        self._loops()
+
+    def _reachable(self) -> None:
+        seen, stack = set(), [self.entry]
+        while stack:
+            b = stack.pop()
+            if b in seen:
+                continue
+            seen.add(b)
+            if self.blocks[b].falls_off:
+                raise Refusal(f"{self.func.name} runs off its end at {self.blocks[b].insns[-1].addr:#x}")
+            stack.extend(s for s, _ in self.blocks[b].succs if s != "exit")
+        self.blocks = {a: b for a, b in self.blocks.items() if a in seen}
+
+    def _loops(self) -> None:
+        order = []  # reverse postorder
+        seen = set()
+
+        def dfs(b):
+            stack = [(b, iter([s for s, _ in self.blocks[b].succs if s != "exit"]))]
+            seen.add(b)
+            while stack:
+                node, it = stack[-1]
+                for s in it:
+                    if s not in seen:
+                        seen.add(s)
+                        stack.append((s, iter([t for t, _ in self.blocks[s].succs if t != "exit"])))
+                        break
+                else:
+                    order.append(node)
+                    stack.pop()
+        dfs(self.entry)
+        order.reverse()
+        rpo = {b: k for k, b in enumerate(order)}
+        preds = {b: [] for b in self.blocks}
+        for b, blk in self.blocks.items():
+            for s, _ in blk.succs:
+                if s != "exit":
+                    preds[s].append(b)
+        # dominators (Cooper, Harvey, Kennedy)
+        idom = {self.entry: self.entry}
+
+        def intersect(a, b):
+            while a != b:
+                while rpo[a] > rpo[b]:
+                    a = idom[a]
+                while rpo[b] > rpo[a]:
+                    b = idom[b]
+            return a
+        changed = True
+        while changed:
+            changed = False
+            for b in order[1:]:
+                ps = [p for p in preds[b] if p in idom]
+                new = ps[0]
+                for p in ps[1:]:
+                    new = intersect(p, new)
+                if idom.get(b) != new:
+                    idom[b] = new
+                    changed = True
+
+        def dominates(a, b):
+            while True:
+                if a == b:
+                    return True
+                if b == self.entry:
+                    return False
+                b = idom[b]
+        self.preds = preds
+        self.loops: dict[int, set] = {}   # header -> body blocks
+        for b in self.blocks:
+            for s, _ in self.blocks[b].succs:
+                if s == "exit":
+                    continue
+                if rpo[s] <= rpo[b]:  # a retreating edge
+                    if not dominates(s, b):
+                        raise Refusal(f"irreducible cycle: edge {b:#x} -> {s:#x} in {self.func.name}")
+                    body = self.loops.setdefault(s, {s})
+                    stack = [b]
+                    while stack:
+                        n = stack.pop()
+                        if n not in body:
+                            body.add(n)
+                            stack.extend(preds[n])
+
+    def block_of(self, addr: int):
+        for b in self.blocks.values():
+            if b.insns[0].addr <= addr <= b.insns[-1].addr:
+                return b.start
+        return None
+
+    def _exclusive_retry(self, h: int) -> bool:
+        """The loop is one block: LDREX*, STREX*, a test of the store's status and a branch back."""
+        body = self.loops[h]
+        if len(body) != 1:
+            return False
+        bases = [split_mnemonic(i.mnemonic)[0] for i in self.blocks[h].insns]
+        return (len(bases) <= 5 and bases[0].startswith("ldrex") and any(b.startswith("strex") for b in bases)
+                and bases[-1] in ("b", "cbnz"))
+
+    def loop_bounds(self) -> dict[int, tuple[int, list]]:
+        """Each loop's bound from the image's annotations: header -> (bound, the blocks holding
+        its annotations). An annotation bounds the innermost loop holding its address."""
+        found: dict[int, tuple[int, list]] = {}
+        for addr, bound in self.image.bounds:
+            b = self.block_of(addr)
+            if b is None:
+                continue
+            inner = [h for h, body in self.loops.items() if b in body]
+            if not inner:
+                continue  # a loop the compiler unrolled completely
+            h = min(inner, key=lambda h: len(self.loops[h]))
+            if h in found and found[h][0] != bound:
+                raise Refusal(f"loop at {self.image.where(h)} has two different bounds, {found[h][0]} and {bound}")
+            found.setdefault(h, (bound, []))[1].append(b)
+        for h in sorted(self.loops):
+            if h not in found and self._exclusive_retry(h):
+                # An LDREX/STREX retry (std::atomic's exchange): the store fails only when the
+                # exclusive monitor was cleared between the two, which on a single Cortex-M3 takes
+                # an exception entry or return (TRM, "Synchronization primitives"); with no
+                # interrupt inside the tick (the analysis's assumption) the body runs once.
+                found[h] = (1, [h])
+            if h not in found:
+                raise Refusal(f"loop without a bound: header {self.image.where(h)} "
+                              f"(blocks {', '.join(hex(b) for b in sorted(self.loops[h]))})")
+        return found
+
+
+# ---- IPET -----------------------------------------------------------------------------------
+
+def solve_ipet(cfg: Cfg, block_cost: dict, taken_cost: dict, bounds: dict, glpsol: str) -> tuple[int, dict]:
+    """Longest path: maximise sum(cost * count) over the edges' counts. Returns (value, block counts)."""
+    edges = []  # (src, dst, taken)
+    for b, blk in cfg.blocks.items():
+        for s, taken in blk.succs:
+            edges.append((b, s, taken))
+    name = {e: f"e{k}" for k, e in enumerate(edges)}
+    # A block's cost rides on each edge out of it (a block runs as often as it is left); a taken
+    # branch's pipeline refill on the taken edge only.
+    lines = ["Maximize", " cost: " + " + ".join(
+        f"{block_cost[src] + (taken_cost[src] if taken else 0)} {name[(src, dst, taken)]}"
+        for src, dst, taken in edges), "Subject To"]
+
+    def row(coeffs: dict, sense: str, rhs: int) -> str:
+        terms = " ".join(f"{'+' if v >= 0 else '-'} {abs(v)} {k}" for k, v in coeffs.items() if v != 0)
+        return f" c{len(lines)}: {terms or '0 e0'} {sense} {rhs}"
+
+    for b in cfg.blocks:  # flow: out of a block = into it (+1 at the entry)
+        coeffs: dict = {}
+        for e in edges:
+            if e[0] == b:
+                coeffs[name[e]] = coeffs.get(name[e], 0) + 1
+            if e[1] == b:
+                coeffs[name[e]] = coeffs.get(name[e], 0) - 1
+        lines.append(row(coeffs, "=", 1 if b == cfg.entry else 0))
+    for h, body in cfg.loops.items():
+        entry = [name[e] for e in edges if e[1] == h and e[0] not in body]
+        outside = 0
+        n, marked = bounds[h]
+        if h == cfg.entry:  # the function's own entry is one more entry into the loop
+            outside = n
+        # Each iteration but the last takes one back edge; the annotated point runs once per
+        # iteration at most (the first keeps every loop bounded, the second makes it tight).
+        back = {name[e]: 1 for e in edges if e[1] == h and e[0] in body}
+        for x in entry:
+            back[x] = back.get(x, 0) - n
+        lines.append(row(back, "<=", outside))
+        for b in sorted(set(marked)):
+            coeffs = {name[e]: 1 for e in edges if e[0] == b}
+            for x in entry:
+                coeffs[x] = coeffs.get(x, 0) - n
+            lines.append(row(coeffs, "<=", outside))
+    lines.append("General")
+    lines.extend(f" {name[e]}" for e in edges)
+    lines.append("End")
+    with tempfile.TemporaryDirectory() as tmp:
+        lp = os.path.join(tmp, "p.lp")
+        sol = os.path.join(tmp, "p.sol")
+        with open(lp, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        # The LP relaxation first: its optimum bounds the integer one from above (sound), and
+        # is the integer optimum when its solution is integral (the usual case: flow problems).
+        # When it is not, the integer program itself with a time limit; if that does not
+        # finish, the relaxation's value, rounded down (the costs are integers), stays a bound.
+        run_glpsol(glpsol, lp, sol, cfg, "--nomip")
+        with open(sol) as f:
+            objective, counts, integral = _parse_solution(f.read().splitlines(), len(edges))
+        if not integral:
+            run_glpsol(glpsol, lp, sol, cfg, "--tmlim", str(MIP_SECONDS))
+            with open(sol) as f:
+                try:
+                    objective, counts, _ = _parse_solution(f.read().splitlines(), len(edges))
+                except Refusal:
+                    objective = int(objective + 1e-6)
+    flows = {b: 0 for b in cfg.blocks}
+    for k, e in enumerate(edges):
+        flows[e[0]] += counts[k]
+    return int(objective), flows
+
+
+MIP_SECONDS = 20
+
+
+def run_glpsol(glpsol: str, lp: str, sol: str, cfg, *options: str) -> None:
+    r = subprocess.run([glpsol, "--lp", lp, *options, "--write", sol], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise Refusal(f"glpsol failed on {cfg.func.name}: {r.stdout[-500:]}{r.stderr[-500:]}")
+
+
+def _parse_solution(lines: list, n_cols: int) -> tuple:
+    """glpsol --write's raw format (GLPK 5): "s bas ROWS COLS PRIMAL DUAL OBJ" (LP) or
+    "s mip ROWS COLS STATUS OBJ", then "j COL [STATUS] VALUE [DUAL]" per column."""
+    obj = None
+    kind = None
+    cols = [0.0] * n_cols
+    for line in lines:
+        f = line.split()
+        if len(f) >= 7 and f[0] == "s" and f[1] == "bas":
+            kind = "bas"
+            if f[4] != "f" or f[5] != "f":
+                raise Refusal(f"the longest-path program has no optimum (primal {f[4]}, dual {f[5]}): "
+                              "some cycle is unbounded")
+            obj = float(f[6])
+        elif len(f) >= 6 and f[0] == "s" and f[1] == "mip":
+            kind = "mip"
+            if f[4] != "o":
+                raise Refusal(f"the integer program was not solved to optimality (status {f[4]})")
+            obj = float(f[5])
+        elif len(f) >= 3 and f[0] == "j":
+            cols[int(f[1]) - 1] = float(f[3] if kind == "bas" else f[2])
+    if obj is None:
+        raise Refusal("glpsol wrote no solution")
+    integral = all(abs(v - round(v)) < 1e-6 for v in cols) and abs(obj - round(obj)) < 1e-6
+    if kind == "mip" or integral:
+        return round(obj), [round(v) for v in cols], True
+    return obj, cols, False
+
+
+# ---- whole analysis ----------------------------------------------------------------------------
+
+@dataclass
+class Bound:
+    instructions: int
+    cycles: int
+    loops: list          # (header address, bound) of this function's own loops
+    callees: list        # names
+    returns: bool        # some path returns (else every path ends in a halt: a trap)
+
+
+class Analysis:
+    def __init__(self, image: Image, wait: int, glpsol: str):
+        self.image = image
+        self.wait = wait
+        self.glpsol = glpsol
+        self.done: dict[int, Bound] = {}
+        self.active: list[int] = []
+
+    def bound(self, start: int) -> Bound:
+        if start in self.done:
+            return self.done[start]
+        func = self.image.functions.get(start) or self.image.function_at(start)
+        if func is None:
+            raise Refusal(f"no function at {start:#x}")
+        if func.start in self.active:
+            chain = " -> ".join(self.image.functions[a].name for a in self.active[self.active.index(func.start):])
+            raise Refusal(f"recursion: {chain} -> {func.name}")
+        self.active.append(func.start)
+        try:
+            cfg = Cfg(self.image, func)
+            bounds = cfg.loop_bounds()
+            instr_cost, cycle_cost, taken_cost = {}, {}, {}
+            callees = []
+            for b, blk in cfg.blocks.items():
+                n = len(blk.insns)
+                cyc = 0
+                for insn in blk.insns:
+                    cyc += cycles(insn, self.wait)[0]
+                last = blk.insns[-1]
+                taken_cost[b] = cycles(last, self.wait)[1]
+                # a call's branch and its return's refill are both taken branches
+                for callee in blk.calls:
+                    cb = self.bound(self.image.function_at(callee).start)
+                    n += cb.instructions
+                    cyc += cb.cycles + PIPELINE_REFILL
+                    callees.append(self.image.function_at(callee).name)
+                instr_cost[b] = n
+                cycle_cost[b] = cyc
+            zero = {b: 0 for b in cfg.blocks}
+            instructions, _ = solve_ipet(cfg, instr_cost, zero, bounds, self.glpsol)
+            cyc, _ = solve_ipet(cfg, cycle_cost, taken_cost, bounds, self.glpsol)
+            returns = False
+            for blk in cfg.blocks.values():
+                if blk.noreturn_call is not None and self.done[self.image.function_at(blk.noreturn_call).start].returns:
+                    raise Refusal(f"{func.name} runs off its end after calling "
+                                  f"{self.image.function_at(blk.noreturn_call).name}, which returns")
+                if blk.tail_call is not None:
+                    returns = returns or self.done[self.image.function_at(blk.tail_call).start].returns
+                elif blk.returns:
+                    returns = True
+            result = Bound(instructions, cyc, sorted((h, n) for h, (n, _) in bounds.items()), sorted(set(callees)), returns)
+        finally:
+            self.active.pop()
+        self.done[func.start] = result
+        return result
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("elf")
+    p.add_argument("--entry", action="append", required=True, metavar="LABEL=REGEX",
+                   help="a function to bound: LABEL=REGEX on demangled names (each match is bounded)")
+    p.add_argument("--wait-states", type=int, default=0)
+    p.add_argument("--objdump", default="arm-none-eabi-objdump")
+    p.add_argument("--glpsol", default="glpsol")
+    p.add_argument("--json", help="write the bounds here as JSON")
+    p.add_argument("--verbose", action="store_true", help="every function's bound and loops")
+    p.add_argument("--budget", action="append", default=[], metavar="LABEL=INSTRUCTIONS[,CYCLES]",
+                   help="exit 1 when a bound of LABEL's functions passes this budget")
+    args = p.parse_args(argv)
+    image = Image(args.elf, args.objdump)
+    analysis = Analysis(image, args.wait_states, args.glpsol)
+    results = []
+    try:
+        for spec in args.entry:
+            label, _, regex = spec.partition("=")
+            matches = [f for f in image.functions.values() if re.search(regex, f.name)]
+            if not matches:
+                raise Refusal(f"no function matches {regex!r} ({label})")
+            for f in sorted(matches, key=lambda f: f.name):
+                b = analysis.bound(f.start)
+                results.append({"label": label, "function": f.name, "address": f.start,
+                                "instructions": b.instructions, "cycles": b.cycles})
+                print(f"{label}\t{b.instructions}\t{b.cycles}\t{f.name}")
+    except Refusal as e:
+        print(f"wcet: {os.path.basename(args.elf)}: cannot bound: {e}", file=sys.stderr)
+        return 2
+    if args.verbose:
+        for start, b in sorted(analysis.done.items()):
+            f = image.functions[start]
+            loops = ", ".join(f"{h:#x}<={n}" for h, n in b.loops)
+            print(f"  {b.instructions:6d} {b.cycles:6d}  {f.name}{'  loops ' + loops if loops else ''}", file=sys.stderr)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"elf": args.elf, "wait_states": args.wait_states, "bounds": results}, f, indent=1)
+    over = False
+    for spec in args.budget:
+        label, _, limits = spec.partition("=")
+        instructions, _, cycles = limits.partition(",")
+        for r in results:
+            if r["label"] != label:
+                continue
+            for what, limit in (("instructions", instructions), ("cycles", cycles)):
+                if limit and r[what] > int(limit):
+                    over = True
+                    print(f"wcet: {os.path.basename(args.elf)}: over budget: {label} {r['function']} could take "
+                          f"{r[what]} {what} > {limit}", file=sys.stderr)
+    return 1 if over else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
