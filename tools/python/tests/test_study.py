@@ -50,8 +50,8 @@ def test_constant_stimuli_fits_cover_the_known_threshold_in_at_least_90_of_100_s
     exp, _, constant, participant = study
     levels = constant.options["levels"]
     q = participant.quantity("ice")
-    truth = threshold_level(participant.observer, levels, [q(x) for x in levels], 0.0)
-    assert abs(truth - TRUE_MU) < 1e-9
+    truth = TRUE_MU  # by construction: its quantity difference is the observer's threshold difference
+    assert abs(q(TRUE_MU) - participant.observer.threshold_difference) < 1e-12
     covered, estimates = 0, []
     for session in range(100):
         procedure = ConstantStimuli(levels, constant.options["repetitions"], seed=session)
@@ -217,9 +217,9 @@ def test_the_stop_task_measures_that_cartoon_ice_carries_the_handle_on_after_the
     block = next(b for b in exp.blocks if b.procedure == "task")
     ice = participant.perform(block, 4, 0, "cartoon ice")["metrics"]
     friction = participant.perform(block, 4, 0, "friction")["metrics"]
-    # The ice's law pushes along the motion (effects.md): after the stroke it carries the handle
-    # farther than friction, which drags it to rest.
-    assert ice["drift_m"] > friction["drift_m"], (ice, friction)
+    # The ice's law pushes along the motion (effects.md): it carries the handle past the point the
+    # hand stops at, where friction, which drags against the hand, stops it short.
+    assert ice["overshoot_m"] > 0.001 > 0 > friction["overshoot_m"], (ice, friction)
     assert friction["success"] and friction["time_to_still_s"] is not None
 
 

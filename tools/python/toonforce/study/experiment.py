@@ -171,7 +171,7 @@ def load(path: str) -> Experiment:
             "rating": {"conditions", "items", "repetitions"},
             "paired-comparison": {"pairs", "question", "repetitions"},
             "task": {"conditions", "repetitions", "task", "script", "instructions", "after", "hold", "speed_tolerance",
-                     "fall_depth"},
+                     "fall_depth", "target", "direction", "until"},
         }[procedure]
         for key in list(b) if procedure not in LEVEL_PROCEDURES else []:
             if key in ("reference", "test"):
@@ -221,9 +221,13 @@ def load(path: str) -> Experiment:
                 options["script"] = os.path.normpath(os.path.join(here, str(options["script"])))
                 if not os.path.isfile(options["script"]):
                     fail(f"block[{i + 1}].script", f"no such file: {options['script']}", *where)
-            for key in ("after", "hold", "speed_tolerance", "fall_depth"):
+            for key in ("after", "until", "hold", "speed_tolerance", "fall_depth"):
                 if key in options and (not isinstance(options[key], (int, float)) or options[key] < 0):
                     fail(f"block[{i + 1}].{key}", "a number >= 0", *where)
+            for key in ("target", "direction"):
+                if key in options and (not isinstance(options[key], list) or len(options[key]) != 3 or any(
+                        not isinstance(x, (int, float)) for x in options[key])):
+                    fail(f"block[{i + 1}].{key}", "three numbers [x, y, z] (m; a direction need not be a unit)", *where)
         elif procedure == "paired-comparison":
             pairs = options.get("pairs")
             if not isinstance(pairs, list) or not pairs or any(
@@ -259,17 +263,23 @@ QUANTITIES = {"mean_along_motion_force": _mean_along_motion_force}
 
 
 def task_metrics(task: str, trace, options: Dict[str, Any]) -> Dict[str, Any]:
-    """A task's metrics from a trace (SI units): `path_length_m` (the handle's path over the
-    whole trial) and per task:
+    """A task's metrics from a trace (SI units), up to `until` [s] if given: `path_length_m`
+    (the handle's path) and per task:
       hold-still  from `after` [s] on, the handle must stay under `speed_tolerance` [m/s,
                   default 0.005] for `hold` [s, default 0.3]: success, time_to_still_s (from
-                  `after`), drift_m (the path after `after`);
+                  `after`), drift_m (the path after `after`), and with `target` (the point the
+                  hand stops at, m) overshoot_m: how far past it the handle went along
+                  `direction` (default +x) from `after` on (negative: it stopped short);
       strike      peak_force_n (the largest commanded force), overshoot_m (the deepest the
                   handle went below the surface at z = 0), success (it touched);
       cross       min_z_m, success (never deeper than `fall_depth` [m, default 0.01])."""
     import numpy as np
 
     t = np.asarray(trace["t"], dtype=float)
+    if "until" in options:  # the task's window ends there (before the hand lets go, say)
+        keep = t <= float(options["until"])
+        trace = {k: np.asarray(v)[keep] for k, v in trace.items() if np.ndim(v) == 1 and len(v) == len(keep)}
+        t = t[keep]
     p = np.stack([trace["x"], trace["y"], trace["z"]], axis=1)
     steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
     out: Dict[str, Any] = {"path_length_m": float(steps.sum())}
@@ -279,6 +289,11 @@ def task_metrics(task: str, trace, options: Dict[str, Any]) -> Dict[str, Any]:
         speed = np.linalg.norm(np.stack([trace["vx"], trace["vy"], trace["vz"]], axis=1), axis=1)
         start = int(np.searchsorted(t, after))
         out["drift_m"] = float(steps[start:].sum())
+        if "target" in options:
+            direction = np.asarray(options.get("direction", [1.0, 0.0, 0.0]), dtype=float)
+            direction = direction / np.linalg.norm(direction)
+            past = (p[start:] - np.asarray(options["target"], dtype=float)) @ direction
+            out["overshoot_m"] = float(past.max()) if past.size else None
         still_since = None
         out["success"], out["time_to_still_s"] = False, None
         for i in range(start, t.size):

@@ -82,14 +82,12 @@ class SimulatedParticipant:
         return {"ratings": ratings}
 
     def perform(self, block: experiments.Block, index: int, trial: int, condition: str) -> Dict[str, Any]:
-        """The task by the block's hand script on the condition's scene, the trial's position
-        noise drawn from its seed (0.05 mm: each repetition a little different)."""
+        """The task by the block's hand script on the condition's scene: a scripted hand, so every
+        repetition is the same run (the simulation is deterministic)."""
         import toonforce
 
         c = self.experiment.conditions[condition]
-        trace = toonforce.sim(scene_with(c, None), block.options.get("script", self.experiment.script),
-                              seed=1 + (self.observer.seed * 100003 + index * 1009 + trial) % 2147483647,
-                              sensor_noise_m=5e-5)
+        trace = toonforce.sim(scene_with(c, None), block.options.get("script", self.experiment.script))
         return {"metrics": experiments.task_metrics(block.options["task"], trace, block.options)}
 
     def compare(self, block: experiments.Block, index: int, trial: int, first: str, second: str) -> Dict[str, Any]:
