@@ -80,6 +80,7 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200) 
                 xs = np.linspace(min(levels) * 0.8, max(levels) * 1.1, 200)
                 ax.plot(xs, r["fit"].p(xs), label=f"{r['fit'].form} fit")
                 ax.axvline(r["threshold"], ls="--", color="gray")
+                ax.set_xlabel("level")
                 ax.set_ylabel("proportion correct")
             else:
                 ax.plot(range(1, len(r["levels"]) + 1), r["levels"], "-", color="gray")
