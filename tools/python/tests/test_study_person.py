@@ -118,6 +118,9 @@ def test_a_person_answers_on_the_page_aborts_with_zero_force_and_resumes(tmp_pat
     kept = [json.loads(l) for l in open(folder / "trials.jsonl")]
     assert len(kept) >= 2 and all(t["answer"] == 2 for t in kept)
     assert all(t["correct"] == (not t["test_first"]) for t in kept)  # "the second" is right when the test was
+    frames = [t["trace"]["frames"] for t in kept]  # each trial's part of the run's trace, in order
+    assert all(t["trace"]["file"] == "run-1.csv" for t in kept)
+    assert all(a < b <= c for (a, b), (c, _) in zip(frames, frames[1:] + [(10**9, 0)]))
     assert last_force(folder / "run-1.csv") == (0.0, 0.0, 0.0), "the abort ends the run on a zero-force tick"
 
     process, url, seen = start(["resume", str(folder), *common], "")  # the device is the session's

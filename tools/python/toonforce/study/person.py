@@ -13,6 +13,7 @@ columns), which the conditions of one study do.
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -165,6 +166,7 @@ class PersonAtDevice:
         self.page = _Page(port)
         first = next(iter(exp.conditions.values()))
         self.run = Run(self._toml(scene_with(first, None)) + "\n", device=device, **run_options)
+        self._trace = os.path.basename(run_options["trace"]) if run_options.get("trace") else None
         self._last_block: Optional[int] = None
 
     @property
@@ -200,8 +202,15 @@ class PersonAtDevice:
         self._last_block = index
 
     def _guard(self, present):
+        """Presents a trial; its result names the part of the run's trace it was (the frames'
+        sequence numbers: one per tick the loop ran, so the trace's data rows), or stops the run
+        with zero force if the participant aborts."""
+        first = self.run.frames_received
         try:
-            return present()
+            result = present()
+            if self._trace:
+                result["trace"] = {"file": self._trace, "frames": [first, self.run.frames_received]}
+            return result
         except Aborted:
             self.run.stop()  # zero force now; the session ends without this trial
             raise
