@@ -36,12 +36,11 @@ from typing import Dict, List, Optional, Sequence, Union
 import numpy as np
 import websockets
 
-from .control import Client
+from .control import Client, parse_announcement
 
 __all__ = ["Run", "RunError", "find_binary"]
 
 _VIEWER = re.compile(r"viewer: (http://[^/\s]+)/")
-_CONTROL = re.compile(r"control: (ws://\S+/control), token (\S+)")
 _PR_SET_PDEATHSIG = 1
 _BATCH_HEADER = 4  # kind (1 live, 2 history), stride, first sequence number, count
 
@@ -230,8 +229,10 @@ class Run:
             self._output.append(line)
             if (m := _VIEWER.search(line)) is not None:
                 viewer = m.group(1)
-            if (m := _CONTROL.search(line)) is not None:
-                control = m.group(1)
+            try:
+                control, _ = parse_announcement(line)  # the token is ours (--control-token)
+            except ValueError:
+                pass
         if viewer is None or control is None:
             raise RunError(f"`{' '.join(self.command)}` did not start", "".join(self._output))
         return viewer, control
