@@ -42,6 +42,70 @@ namespace detail {
 TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 }  // namespace detail
 
+namespace detail {
+/// floor(n / d) for 0 < d < 2^32, exactly, when the quotient fits 32 bits; 2^32 when it does not
+/// (every caller saturates such a quotient). On a 32-bit core a 64-bit division is a library
+/// call of about a hundred instructions (__aeabi_uldivmod); this is two 32-bit divisions (UDIV
+/// on a Cortex-M3) of 16-bit digits, each estimate corrected at most twice, and no loop (the
+/// tick's bound is its structure, issue 29): Hacker's Delight's divlu (Warren, 2nd ed., 9-4).
+constexpr std::uint64_t div_u64_u32(std::uint64_t n, std::uint32_t d) noexcept {
+  const auto hi = static_cast<std::uint32_t>(n >> 32);
+  const auto lo = static_cast<std::uint32_t>(n);
+  if (hi >= d) return std::uint64_t{1} << 32;
+  constexpr std::uint32_t kDigit = std::uint32_t{1} << 16;
+  const int s = std::countl_zero(d);  // normalise d: its top bit set
+  const std::uint32_t v = d << s;
+  const std::uint32_t vn1 = v >> 16;
+  const std::uint32_t vn0 = v & 0xFFFFU;
+  const std::uint32_t un32 = (hi << s) | (s == 0 ? 0U : lo >> (32 - s));  // hi < d: no bit lost
+  const std::uint32_t un10 = lo << s;
+  // One quotient digit of (un, next) / v: the estimate from vn1 alone is at most 2 too large.
+  const auto digit = [vn1, vn0](std::uint32_t un, std::uint32_t next) {
+    std::uint32_t q = un / vn1;
+    std::uint32_t rhat = un - q * vn1;
+    const auto too_large = [&] { return q >= kDigit || q * vn0 > ((rhat << 16) | next); };
+    if (too_large()) {
+      --q;
+      rhat += vn1;
+      if (rhat < kDigit && too_large()) --q;
+    }
+    return q;
+  };
+  const std::uint32_t q1 = digit(un32, un10 >> 16);
+  const std::uint32_t un21 = (un32 << 16) + (un10 >> 16) - q1 * v;  // the remainder, < v (mod 2^32)
+  const std::uint32_t q0 = digit(un21, un10 & 0xFFFFU);
+  return (std::uint64_t{q1} << 16) + q0;
+}
+
+/// floor(u / v) for v > 0 when the quotient fits 32 bits (always so for v >= 2^32); 2^32 when
+/// it does not. A divisor of 2^32 or more: divided by its top 32 bits, normalised, the
+/// estimate is at most one too large or too small after the step down (Hacker's Delight
+/// 9-5, divdu), again without a loop or the library.
+constexpr std::uint64_t div_u64(std::uint64_t u, std::uint64_t v) noexcept {
+  const auto vh = static_cast<std::uint32_t>(v >> 32);
+  if (vh == 0) return div_u64_u32(u, static_cast<std::uint32_t>(v));
+  const int s = std::countl_zero(vh);
+  const auto vl = static_cast<std::uint32_t>(v);
+  const std::uint32_t v1 = (vh << s) | (s == 0 ? 0U : vl >> (32 - s));  // v's top 32 bits
+  const auto q1 = static_cast<std::uint32_t>(div_u64_u32(u >> 1, v1));   // (u / 2) >> 32 < v1
+  std::uint64_t q = q1 >> (31 - s);
+  if (q != 0) --q;
+  if (u - q * v >= v) ++q;
+  return q;
+}
+
+/// (n + d / 2) / d for n >= 0, d > 0 and n + d / 2 < 2^63 (a magnitude rounded half up);
+/// 2^32 when the quotient does not fit 32 bits (every caller saturates it).
+constexpr std::int64_t div_round(std::int64_t n, std::int64_t d) noexcept {
+  const auto half = static_cast<std::uint64_t>(d / 2);
+  return static_cast<std::int64_t>(div_u64(static_cast<std::uint64_t>(n) + half, static_cast<std::uint64_t>(d)));
+}
+/// The same for a divisor known to fit 32 bits (no test of its high word).
+constexpr std::int64_t div_round_u32(std::int64_t n, std::uint32_t d) noexcept {
+  return static_cast<std::int64_t>(div_u64_u32(static_cast<std::uint64_t>(n) + d / 2, d));
+}
+}  // namespace detail
+
 /// True if any fixed-point operation on this thread saturated since the last clear.
 inline bool fixed_saturated() noexcept { return detail::fixed_saturated_flag; }
 /// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
@@ -108,7 +172,7 @@ class Fixed {
     if (num <= -kLimit) return saturated(false);
     const Wide scaled = num * kOneRaw;
     const Wide magnitude = scaled < 0 ? -scaled : scaled;
-    const Wide q = (magnitude + den / 2) / den;  // < 2^63: both terms < 2^62
+    const Wide q = detail::div_round(magnitude, den);  // magnitude + den / 2 < 2^63: both < 2^62
     return from_wide(scaled < 0 ? -q : q);
   }
   /// Whether num / den <= this value, exactly (den > 0, |num| < 2^(62 - FracBits), den < 2^31).
@@ -153,7 +217,7 @@ class Fixed {
     const Wide den = b.raw_;
     const Wide num_abs = num < 0 ? -num : num;
     const Wide den_abs = den < 0 ? -den : den;
-    const Wide q_abs = (num_abs + den_abs / 2) / den_abs;
+    const Wide q_abs = detail::div_round_u32(num_abs, static_cast<std::uint32_t>(den_abs));  // den_abs <= 2^31
     const Wide q = ((num < 0) != (den < 0)) ? -q_abs : q_abs;
     return from_wide(q);
   }
