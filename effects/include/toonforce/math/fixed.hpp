@@ -264,85 +264,68 @@ constexpr bool is_finite(Fixed<I, F>) noexcept {
 }
 
 namespace detail {
-/// floor(sqrt(v) + 0.5) by the bitwise method, one round per two bits of v, in the unsigned
-/// type U of v (32 or 64 bits).
-template <class U>
-constexpr U isqrt_round_bitwise(U v) noexcept {
-  if (v == 0) return 0;
-  U result = 0;
-  // Start at the largest power of four <= v: found from the leading zeros, not by shifting
-  // down from the top (up to 31 extra rounds of 64-bit shifts on a 32-bit core).
-  U bit = U{1} << ((std::numeric_limits<U>::digits - 1 - std::countl_zero(v)) & ~1);
-  while (bit != 0) {
-    TOONFORCE_LOOP_BOUND(std::numeric_limits<U>::digits / 2);  // bit: a power of four, shifted by 2
-    if (v >= result + bit) {
-      v -= result + bit;
-      result = (result >> 1) + bit;
-    } else {
-      result >>= 1;
-    }
-    bit >>= 2;
-  }
-  // v now holds the remainder r = n - result^2; round up when r > result (n > (result+1/2)^2).
-  return v > result ? result + 1 : result;
-}
-
-/// floor(sqrt(v) + 0.5) for a 64-bit value of 2^32 or more, by the digit-by-digit method
-/// (one root bit per two bits of v, from the top): after each step q is the root of the bits
-/// taken so far and r = those bits - q^2 <= 2q. The high word's steps leave q < 2^16, and
-/// while q < 2^29 r fits 32 bits, so all but the last three steps run in 32-bit arithmetic
-/// (and no step shifts a 64-bit value by a variable amount, a library call on a 32-bit core).
-/// The same result as isqrt_round_bitwise.
-constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
-  std::uint32_t q = 0;
-  std::uint32_t r = 0;
+/// floor(sqrt(v) + 0.5) for a 64-bit value, by the digit-by-digit method (one root bit per two
+/// bits of v, from the top): after each step q is the root of the bits taken so far and
+/// r = those bits - q^2 <= 2q. Two fixed costs, each a straight run of steps with no branch on
+/// the data (issue 29: a bound by structure): a value under 2^32 (the norm of a velocity in
+/// m/s, or of a force under 1 N, in Q16.16) takes its 16 steps, any other all 32. It used to
+/// start at v's leading bit and take a branch in every step, so its cost depended on v and the
+/// bound paid for the dearest path; one path of 32 steps for every value cost the scenes'
+/// small roots so much that the cliff's measured means passed issue 18's budgets. While
+/// q < 2^29, r fits 32 bits, so all but the last three steps run in 32-bit arithmetic (a
+/// 64-bit step is two to four instructions on a 32-bit core), and no step shifts a 64-bit
+/// value by a variable amount (a library call there).
+constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
+  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
+  const auto high = static_cast<std::uint32_t>(v >> 32);
+  const auto low = static_cast<std::uint32_t>(v);
+  std::uint32_t word = high != 0 ? high : low;  // the first 16 steps: the top nonzero word
+  // The first step, q = 0: a root bit of 1 unless the top pair is 0 (written so, the compiler
+  // does not branch on it).
+  std::uint32_t r = word >> 30;
+  std::uint32_t q = (r + 3U) >> 2;
+  r -= q;
+  word <<= 2;
+  // take: a conditional select (IT blocks on Thumb-2), not a branch.
   const auto step = [&q, &r](std::uint32_t two_bits) {
     r = (r << 2) | two_bits;
     const std::uint32_t t = (q << 2) | 1U;
-    q <<= 1;
-    if (r >= t) {
-      r -= t;
-      q |= 1U;
-    }
+    const bool take = r >= t;
+    q = q + q + (take ? 1U : 0U);
+    r = take ? r - t : r;
   };
-  const auto high = static_cast<std::uint32_t>(v >> 32);  // nonzero here
-  const int leading = std::countl_zero(high) & ~1;        // whole pairs of leading zeros
-  std::uint32_t word = high << leading;
-  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
-  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
-  for (int pairs = kWordPairs - leading / 2; pairs > 0; --pairs, word <<= 2) {
-    TOONFORCE_LOOP_BOUND(kWordPairs);
+  // Unrolled (a fixed count): the loop's own counting and back branch were a third of a step,
+  // and at constant positions each pair of bits is one extract.
+#pragma GCC unroll 16
+  for (int pairs = kWordPairs - 1; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs - 1);
     step(word >> 30);
   }
-  word = static_cast<std::uint32_t>(v);
+  // v < 2^32: done (r = v - q^2 <= 2q < 2^17); round up when r > q (v > (q + 1/2)^2).
+  if (high == 0) return q + (r > q ? 1U : 0U);
+  word = low;
+#pragma GCC unroll 16
   for (int pairs = kWordPairs - kWidePairs; pairs > 0; --pairs, word <<= 2) {
     TOONFORCE_LOOP_BOUND(kWordPairs - kWidePairs);
     step(word >> 30);
   }
+  // r and t < 2^63 here, so r < t is the sign of r - t: the comparison as arithmetic (a 64-bit
+  // comparison is a branch on a 32-bit core).
   std::uint64_t q_wide = q;
   std::uint64_t r_wide = r;
+#pragma GCC unroll 16
   for (int pairs = kWidePairs; pairs > 0; --pairs, word <<= 2) {
     TOONFORCE_LOOP_BOUND(kWidePairs);
     r_wide = (r_wide << 2) | (word >> 30);
     const std::uint64_t t = (q_wide << 2) | 1U;
-    q_wide <<= 1;
-    if (r_wide >= t) {
-      r_wide -= t;
-      q_wide |= 1U;
-    }
+    const std::uint64_t diff = r_wide - t;
+    const std::uint64_t borrow = diff >> 63;  // r < t
+    q_wide = (q_wide << 1) + (borrow ^ 1U);
+    r_wide = diff + (t & (0ULL - borrow));
   }
-  // r = v - q^2; round up when r > q (v > (q + 1/2)^2).
-  return r_wide > q_wide ? q_wide + 1 : q_wide;
-}
-
-/// floor(sqrt(v) + 0.5) for a 64-bit unsigned value. On a 32-bit core 64-bit steps cost two
-/// to four instructions each, so a value that fits 32 bits (the norm of a velocity in m/s, or
-/// of a force under 1 N, in Q16.16) takes the bitwise method in 32-bit arithmetic, and a
-/// larger one the digit-by-digit method, mostly in 32 bits: the same result, for a fraction of
-/// the instructions on a Cortex-M3 (tools/mcu; docs/PERFORMANCE.md "Microcontroller").
-constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
-  if (v <= std::numeric_limits<std::uint32_t>::max()) return isqrt_round_bitwise(static_cast<std::uint32_t>(v));
-  return isqrt_round_wide(v);
+  // r = v - q^2; round up when r > q.
+  return q_wide + ((q_wide - r_wide) >> 63);
 }
 }  // namespace detail
 
