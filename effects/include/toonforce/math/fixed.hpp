@@ -43,12 +43,18 @@ TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 }  // namespace detail
 
 namespace detail {
+/// Whether the target divides 64-bit integers in hardware (a 64-bit host: one instruction).
+/// There the exact quotient and root take the target's cheapest methods; the routines below
+/// without loop or library call are for a 32-bit core (tools/mcu), whose tick is bounded by
+/// its structure (issue 29). Both give the same results, exactly (math_test checks each).
+inline constexpr bool kWideHardware = sizeof(void*) >= 8;
+
 /// floor(n / d) for 0 < d < 2^32, exactly, when the quotient fits 32 bits; 2^32 when it does not
 /// (every caller saturates such a quotient). On a 32-bit core a 64-bit division is a library
 /// call of about a hundred instructions (__aeabi_uldivmod); this is two 32-bit divisions (UDIV
 /// on a Cortex-M3) of 16-bit digits, each estimate corrected at most twice, and no loop (the
 /// tick's bound is its structure, issue 29): Hacker's Delight's divlu (Warren, 2nd ed., 9-4).
-constexpr std::uint64_t div_u64_u32(std::uint64_t n, std::uint32_t d) noexcept {
+constexpr std::uint64_t div_u64_u32_digits(std::uint64_t n, std::uint32_t d) noexcept {
   const auto hi = static_cast<std::uint32_t>(n >> 32);
   const auto lo = static_cast<std::uint32_t>(n);
   if (hi >= d) return std::uint64_t{1} << 32;
@@ -81,17 +87,35 @@ constexpr std::uint64_t div_u64_u32(std::uint64_t n, std::uint32_t d) noexcept {
 /// it does not. A divisor of 2^32 or more: divided by its top 32 bits, normalised, the
 /// estimate is at most one too large or too small after the step down (Hacker's Delight
 /// 9-5, divdu), again without a loop or the library.
-constexpr std::uint64_t div_u64(std::uint64_t u, std::uint64_t v) noexcept {
+constexpr std::uint64_t div_u64_digits(std::uint64_t u, std::uint64_t v) noexcept {
   const auto vh = static_cast<std::uint32_t>(v >> 32);
-  if (vh == 0) return div_u64_u32(u, static_cast<std::uint32_t>(v));
+  if (vh == 0) return div_u64_u32_digits(u, static_cast<std::uint32_t>(v));
   const int s = std::countl_zero(vh);
   const auto vl = static_cast<std::uint32_t>(v);
   const std::uint32_t v1 = (vh << s) | (s == 0 ? 0U : vl >> (32 - s));  // v's top 32 bits
-  const auto q1 = static_cast<std::uint32_t>(div_u64_u32(u >> 1, v1));   // (u / 2) >> 32 < v1
+  const auto q1 = static_cast<std::uint32_t>(div_u64_u32_digits(u >> 1, v1));  // (u / 2) >> 32 < v1
   std::uint64_t q = q1 >> (31 - s);
   if (q != 0) --q;
   if (u - q * v >= v) ++q;
   return q;
+}
+
+/// floor(u / v) for v > 0, capped at 2^32: the hardware's division on a 64-bit host, the
+/// routines above on a 32-bit core.
+constexpr std::uint64_t div_u64(std::uint64_t u, std::uint64_t v) noexcept {
+  if constexpr (kWideHardware) {
+    const std::uint64_t q = u / v;
+    return q < (std::uint64_t{1} << 32) ? q : std::uint64_t{1} << 32;
+  } else {
+    return div_u64_digits(u, v);
+  }
+}
+constexpr std::uint64_t div_u64_u32(std::uint64_t n, std::uint32_t d) noexcept {
+  if constexpr (kWideHardware) {
+    return div_u64(n, d);
+  } else {
+    return div_u64_u32_digits(n, d);
+  }
 }
 
 /// (n + d / 2) / d for n >= 0, d > 0 and n + d / 2 < 2^63 (a magnitude rounded half up);
@@ -275,7 +299,7 @@ namespace detail {
 /// q < 2^29, r fits 32 bits, so all but the last three steps run in 32-bit arithmetic (a
 /// 64-bit step is two to four instructions on a 32-bit core), and no step shifts a 64-bit
 /// value by a variable amount (a library call there).
-constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+constexpr std::uint64_t isqrt_round_steps(std::uint64_t v) noexcept {
   constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
   constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
   const auto high = static_cast<std::uint32_t>(v >> 32);
@@ -326,6 +350,94 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
   }
   // r = v - q^2; round up when r > q.
   return q_wide + ((q_wide - r_wide) >> 63);
+}
+/// floor(sqrt(v) + 0.5) by the bitwise method, one round per two bits of v, in the unsigned
+/// type U of v (32 or 64 bits).
+template <class U>
+constexpr U isqrt_round_bitwise(U v) noexcept {
+  if (v == 0) return 0;
+  U result = 0;
+  // Start at the largest power of four <= v: found from the leading zeros, not by shifting
+  // down from the top (up to 31 extra rounds of 64-bit shifts on a 32-bit core).
+  U bit = U{1} << ((std::numeric_limits<U>::digits - 1 - std::countl_zero(v)) & ~1);
+  while (bit != 0) {
+    TOONFORCE_LOOP_BOUND(std::numeric_limits<U>::digits / 2);  // bit: a power of four, shifted by 2
+    if (v >= result + bit) {
+      v -= result + bit;
+      result = (result >> 1) + bit;
+    } else {
+      result >>= 1;
+    }
+    bit >>= 2;
+  }
+  // v now holds the remainder r = n - result^2; round up when r > result (n > (result+1/2)^2).
+  return v > result ? result + 1 : result;
+}
+
+/// floor(sqrt(v) + 0.5) for a 64-bit value of 2^32 or more, by the digit-by-digit method
+/// (one root bit per two bits of v, from the top): after each step q is the root of the bits
+/// taken so far and r = those bits - q^2 <= 2q. The high word's steps leave q < 2^16, and
+/// while q < 2^29 r fits 32 bits, so all but the last three steps run in 32-bit arithmetic
+/// (and no step shifts a 64-bit value by a variable amount, a library call on a 32-bit core).
+/// The same result as isqrt_round_bitwise.
+constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
+  std::uint32_t q = 0;
+  std::uint32_t r = 0;
+  const auto step = [&q, &r](std::uint32_t two_bits) {
+    r = (r << 2) | two_bits;
+    const std::uint32_t t = (q << 2) | 1U;
+    q <<= 1;
+    if (r >= t) {
+      r -= t;
+      q |= 1U;
+    }
+  };
+  const auto high = static_cast<std::uint32_t>(v >> 32);  // nonzero here
+  const int leading = std::countl_zero(high) & ~1;        // whole pairs of leading zeros
+  std::uint32_t word = high << leading;
+  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
+  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
+  for (int pairs = kWordPairs - leading / 2; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs);
+    step(word >> 30);
+  }
+  word = static_cast<std::uint32_t>(v);
+  for (int pairs = kWordPairs - kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs - kWidePairs);
+    step(word >> 30);
+  }
+  std::uint64_t q_wide = q;
+  std::uint64_t r_wide = r;
+  for (int pairs = kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWidePairs);
+    r_wide = (r_wide << 2) | (word >> 30);
+    const std::uint64_t t = (q_wide << 2) | 1U;
+    q_wide <<= 1;
+    if (r_wide >= t) {
+      r_wide -= t;
+      q_wide |= 1U;
+    }
+  }
+  // r = v - q^2; round up when r > q (v > (q + 1/2)^2).
+  return r_wide > q_wide ? q_wide + 1 : q_wide;
+}
+
+/// The leading-bit method, the 32-bit one for a value that fits 32 bits (the method before
+/// issue 29): fewer rounds for small values, and a branch in each. A 64-bit host's root.
+constexpr std::uint64_t isqrt_round_leading(std::uint64_t v) noexcept {
+  if (v <= std::numeric_limits<std::uint32_t>::max()) return isqrt_round_bitwise(static_cast<std::uint32_t>(v));
+  return isqrt_round_wide(v);
+}
+
+/// floor(sqrt(v) + 0.5) for a 64-bit value: on a 32-bit core the fixed steps (its bound is its
+/// cost), on a 64-bit host the leading-bit method (cheaper there on the small values a tick
+/// mostly has; the same root).
+constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+  if constexpr (kWideHardware) {
+    return isqrt_round_leading(v);
+  } else {
+    return isqrt_round_steps(v);
+  }
 }
 }  // namespace detail
 
