@@ -135,10 +135,48 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   std::mt19937_64 random(18);
   for (int i = 0; i < 200000; ++i) values.push_back(random() >> (random() % 64));
   for (const std::uint64_t v : values) {
+    // Both methods (a 32-bit core's fixed steps, a 64-bit host's leading-bit one), and this target's.
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_steps(v))) << v << " gave " << detail::isqrt_round_steps(v);
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_leading(v))) << v << " gave " << detail::isqrt_round_leading(v);
     ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round(v))) << v << " gave " << detail::isqrt_round(v);
   }
   static_assert(detail::isqrt_round(0) == 0 && detail::isqrt_round(2) == 1 && detail::isqrt_round(3) == 2);
   static_assert(detail::isqrt_round(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL);
+  static_assert(detail::isqrt_round_steps(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_steps(3) == 2);
+}
+
+TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
+  // detail::div_u64 replaces the 64-bit division (a library call on a 32-bit core) in every
+  // Q quotient: the same quotient whenever it fits 32 bits, 2^32 (saturating) when not. Values
+  // where the digit estimates need their corrections: divisors just over a power of two, at
+  // the 32-bit boundary, dividends at multiples and one below, and at random.
+  const auto check = [](std::uint64_t u, std::uint64_t v) {
+    const std::uint64_t quotient = u / v;
+    const std::uint64_t expected = quotient < (std::uint64_t{1} << 32) ? quotient : std::uint64_t{1} << 32;
+    // The routine a 32-bit core runs, and what this target runs (the hardware's on a 64-bit host).
+    ASSERT_EQ(detail::div_u64_digits(u, v), expected) << u << " / " << v;
+    ASSERT_EQ(detail::div_u64(u, v), expected) << u << " / " << v;
+    if (v <= UINT32_MAX) {
+      ASSERT_EQ(detail::div_u64_u32_digits(u, static_cast<std::uint32_t>(v)), expected) << u << " / " << v;
+    }
+  };
+  std::vector<std::uint64_t> divisors = {1, 2, 3, 0x8000ULL, 0xFFFFULL, 0x10000ULL, 0x10001ULL, 0x7FFF'FFFFULL,
+                                         0x8000'0000ULL, 0x8000'0001ULL, 0xFFFF'FFFFULL, 0x1'0000'0000ULL,
+                                         0x1'0000'0001ULL, 0x1'FFFF'FFFFULL, 0xFFFF'FFFF'FFFF'FFFFULL, 1'000'000'000ULL};
+  std::mt19937_64 random(29);
+  for (int i = 0; i < 2000; ++i) divisors.push_back((random() >> (random() % 64)) | 1U);
+  for (const std::uint64_t v : divisors) {
+    for (const std::uint64_t q : {0ULL, 1ULL, 2ULL, 0xFFFFULL, 0x10000ULL, 0xFFFF'FFFEULL, 0xFFFF'FFFFULL}) {
+      if (q != 0 && v > UINT64_MAX / q) continue;
+      check(q * v, v);
+      if (q * v != 0) check(q * v - 1, v);
+      if (q * v + v - 1 >= q * v) check(q * v + v - 1, v);
+    }
+    for (int i = 0; i < 100; ++i) check(random() >> (random() % 64), v);
+  }
+  static_assert(detail::div_u64_digits(0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFFULL) == std::uint64_t{1} << 32);  // 2^32 + 1: capped
+  static_assert(detail::div_u64_digits(0xFFFF'FFFE'FFFF'FFFFULL, 0xFFFF'FFFFULL) == 0xFFFF'FFFFULL);
+  static_assert(detail::div_round(std::int64_t{5}, std::int64_t{2}) == 3 && detail::div_round_u32(7, 3U) == 2);
 }
 
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {

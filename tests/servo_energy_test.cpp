@@ -47,6 +47,45 @@ TYPED_TEST(ServoEnergy, ThermalCoolingOverSkippedTicksIsTheSameExponential) {
   EXPECT_NEAR(model.temperature().to_double(), std::exp(-static_cast<double>(ticks) * kPeriodS / 30.0), kThetaTol<TypeParam>);
 }
 
+TYPED_TEST(ServoEnergy, ThermalGapsUpToTheTableAreTheExactExponential) {
+  // The fixed-point build takes r^n from a table made at configuration time (no power in the
+  // tick): each gap's factor is the closed form's, to the Q0.32 factor's rounding.
+  using M = ThermalModel<TypeParam>;
+  for (std::int64_t gap = 1; gap <= M::kTabulatedGaps; ++gap) {
+    M model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
+    model.set_temperature(Wide<TypeParam>::from_double(1.0));
+    model.advance(Vec3<TypeParam>{}, gap);
+    EXPECT_NEAR(model.temperature().to_double(), std::exp(-static_cast<double>(gap) * kPeriodS / 30.0), 1e-8) << gap;
+  }
+}
+
+TYPED_TEST(ServoEnergy, ThermalOverALongGapNeverUnderestimatesTheTemperature) {
+  // Past the table the fixed-point build over-estimates (the derating never weaker than the
+  // exact model's); the floating-point builds stay exact.
+  using M = ThermalModel<TypeParam>;
+  const std::int64_t gap = 5 * M::kTabulatedGaps;
+  const double decay = std::exp(-static_cast<double>(gap) * kPeriodS / 30.0);
+  const double tol = kIsFixed<TypeParam> ? 1e-8 : 1e-12;
+
+  M cooling(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
+  cooling.set_temperature(Wide<TypeParam>::from_double(1.0));
+  cooling.advance(Vec3<TypeParam>{}, gap);
+  const double cooled = cooling.temperature().to_double();
+  EXPECT_GE(cooled, decay - tol);
+  EXPECT_LE(cooled, 1.0);
+
+  M heating(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
+  const Vec3<TypeParam> force = vec_cast<TypeParam>({0.0, 0.0, 3.0});  // u = 0.5625
+  heating.advance(force, gap);
+  const double heated = heating.temperature().to_double();
+  EXPECT_GE(heated, 0.5625 * (1.0 - decay) - tol);
+  EXPECT_LE(heated, 0.5625 + tol);
+  if constexpr (!kIsFixed<TypeParam>) {
+    EXPECT_NEAR(cooled, decay, tol);
+    EXPECT_NEAR(heated, 0.5625 * (1.0 - decay), tol);
+  }
+}
+
 TYPED_TEST(ServoEnergy, DeratingIsLinearFromDerateStartToTheContinuousForce) {
   ThermalModel<TypeParam> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
   const double tol = kIsFixed<TypeParam> ? 1e-3 : 1e-12;

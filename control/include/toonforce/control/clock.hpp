@@ -84,6 +84,8 @@ class BasicLoopClock {
   }
   constexpr const Instant& last() const noexcept { return last_; }
   constexpr double period_s() const noexcept { return period_s_; }
+  /// [ns] the configured period, rounded once.
+  constexpr std::int64_t period_ns() const noexcept { return period_ns_; }
 
  private:
   double period_s_;

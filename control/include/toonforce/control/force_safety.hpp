@@ -55,16 +55,16 @@ class ForceSafety {
     if (has_max_force_rate_) {
       const Vec3<S> step = out.force_n - previous_n_;
       if (dot(step, step) > max_step * max_step) {
-        const S step_size = norm(step);
-        if (step_size > max_step) {
+        const NormOf<S> step_size = norm_of(step);
+        if (step_size.value > max_step) {
           out.force_n = previous_n_ + scale_to_norm(step, max_step, step_size);
           out.limits = out.limits | Limit::kRateLimited;
         }
       }
     }
     if (has_max_force_ && dot(out.force_n, out.force_n) > max_force_n_ * max_force_n_) {
-      const S magnitude = norm(out.force_n);
-      if (magnitude > max_force_n_) {
+      const NormOf<S> magnitude = norm_of(out.force_n);
+      if (magnitude.value > max_force_n_) {
         out.force_n = scale_to_norm(out.force_n, max_force_n_, magnitude);
         out.limits = out.limits | Limit::kClamped;
       }

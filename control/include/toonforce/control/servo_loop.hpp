@@ -345,11 +345,35 @@ class ServoLoop {
   /// once, on a regular tick).
   S max_step_of(const TickTime& time) const noexcept {
     if constexpr (kIsFixed<S>) {  // integer time: 1e9 / dt_ns
-      if (time.gap == 1 && time.period_ns > 0) return period_max_step_;
+      if (time.period_ns > 0) {
+        // A fixed period: gap periods' step, no division in the tick (issue 29). Past the
+        // largest gap that fits it saturates, with the flag, as the division did.
+        if (time.gap == 1) return period_max_step_;
+        if (time.gap > max_step_gaps_) return S::from_wide(std::int64_t{std::numeric_limits<std::int32_t>::max()} + 1);
+        return S::from_wide(period_max_step_.raw() * time.gap);
+      }
+      // Stamps: a dt of the configured period takes the step computed once, as below.
+      if (time.dt_ns == clock_.period_ns()) return stamped_period_max_step_;
       return safety_.max_step_for(S::from_ratio(kNsPerS, time.dt_ns));
     } else {
       if (time.gap == 1 && time.period_s > 0.0) return period_max_step_;
       return safety_.max_step_for(scalar_cast<S>(1.0 / time.dt_s()));
+    }
+  }
+
+  static constexpr std::int64_t largest_step_gap(S period_step) noexcept {
+    if constexpr (kIsFixed<S>) {
+      return period_step.raw() > 0 ? std::numeric_limits<std::int32_t>::max() / period_step.raw()
+                                   : std::numeric_limits<std::int64_t>::max();
+    } else {
+      return 0;
+    }
+  }
+  static constexpr S stamped_step(const ForceSafety<S>& safety, std::int64_t period_ns) noexcept {
+    if constexpr (kIsFixed<S>) {
+      return safety.max_step_for(S::from_ratio(kNsPerS, period_ns));
+    } else {
+      return S{};
     }
   }
 
@@ -400,6 +424,10 @@ class ServoLoop {
   HipSensor<S, kMayEstimate> sensor_;
   S max_force_n_;  ///< the configured clamp (the thermal model derates below it)
   S period_max_step_ = safety_.max_step_for(scalar_cast<S>(1.0 / clock_.period_s()));
+  /// Fixed point: the largest gap whose step gap * period_max_step_ fits the format.
+  std::int64_t max_step_gaps_ = largest_step_gap(period_max_step_);
+  /// Fixed point, stamps: the step of a dt of one configured period, as the tick would compute it.
+  S stamped_period_max_step_ = stamped_step(safety_, clock_.period_ns());
   std::int64_t fade_ticks_;  ///< live: the update fade, in ticks
   Mailbox* mailbox_ = nullptr;
   std::uint64_t updates_applied_ = 0;

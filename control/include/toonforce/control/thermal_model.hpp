@@ -15,9 +15,21 @@
 /// pushing hard forever ends at the continuous force instead of burning the motors. The servo
 /// loop gives the allowed force to the clamp (ForceSafety::set_max_force), which stays last.
 /// With F_c >= max_force there is nothing to derate.
+///
+/// Cost per tick (issue 29, a bound by construction): in the fixed-point build no tick raises
+/// r to a power. r^n for the gaps a running loop has (1, a late tick, a few missed ones, up to
+/// kTabulatedGaps) is a table computed at configuration time; a longer gap (past the
+/// supervisor's default watchdog of 30 periods, which latches a fault) takes a factor that
+/// over-estimates the temperature: r^kTabulatedGaps when cooling (less cooling than
+/// r^n), 0 when heating (all the way to the target u, above u + (theta - u) r^n). So the
+/// derating is never weaker than the exact model's. The floating-point builds keep r^n by
+/// repeated squaring (their results unchanged; no bound is taken of them).
 
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <type_traits>
 
 #include "toonforce/math/wide.hpp"
 
@@ -41,15 +53,22 @@ class ThermalModel {
         inverse_continuous_n_(scalar_cast<S>(enabled_ ? 1.0 / config.continuous_force_n : 0.0)),
         derate_start_(scalar_cast<S>(config.derate_start)),
         derate_span_inverse_(scalar_cast<S>(1.0 / (1.0 - config.derate_start))),
-        decay_per_tick_(Decay<S>::from_double(std::exp(-period_s / config.time_constant_s))) {}
+        decay_per_tick_(Decay<S>::from_double(std::exp(-period_s / config.time_constant_s))) {
+    if constexpr (kIsFixed<S>) {
+      // r^n rounded once from the exact exponential (the first entry is decay_per_tick_).
+      for (std::size_t i = 0; i < decay_by_gap_.size(); ++i) {
+        const double ticks = static_cast<double>(i + 1);
+        decay_by_gap_[i] = Decay<S>::from_double(std::exp(-ticks * period_s / config.time_constant_s));
+      }
+    }
+  }
 
   /// The force `held_force_n` acted over the last `ticks` periods: heat or cool toward it.
   constexpr void advance(const Vec3<S>& held_force_n, std::int64_t ticks) noexcept {
     if (!enabled_ || ticks <= 0) return;
     const Vec3<S> relative = held_force_n * inverse_continuous_n_;
     const Wide<S> target = Wide<S>::dot(relative, relative);  // u = (|F| / F_c)^2
-    // One period, the usual case: r itself, no repeated squaring.
-    temperature_ = target + (temperature_ - target) * (ticks == 1 ? decay_per_tick_ : decay_per_tick_.power(ticks));
+    temperature_ = target + (temperature_ - target) * decay_over(ticks, target);
   }
 
   /// The clamp the temperature allows now [N].
@@ -68,7 +87,25 @@ class ThermalModel {
   /// Starts from a known temperature (tests; a warm restart).
   constexpr void set_temperature(Wide<S> theta) noexcept { temperature_ = theta; }
 
+ /// Gaps [periods] whose r^n the fixed-point build tabulates: the supervisor's default
+  /// watchdog (30) and a little more.
+  static constexpr std::int64_t kTabulatedGaps = 32;
+
  private:
+  /// r^ticks (fixed point: from the table, or the conservative factor past it; see above).
+  constexpr Decay<S> decay_over(std::int64_t ticks, Wide<S> target) const noexcept {
+    if constexpr (kIsFixed<S>) {
+      if (ticks <= kTabulatedGaps) return decay_by_gap_[static_cast<std::size_t>(ticks - 1)];
+      return target > temperature_ ? Decay<S>{} : decay_by_gap_.back();
+    } else {
+      // One period, the usual case: r itself, no repeated squaring.
+      return ticks == 1 ? decay_per_tick_ : decay_per_tick_.power(ticks);
+    }
+  }
+
+  struct NoTable {};
+  using GapTable = std::conditional_t<kIsFixed<S>, std::array<Decay<S>, static_cast<std::size_t>(kTabulatedGaps)>, NoTable>;
+
   bool enabled_;
   S max_force_n_;
   S continuous_force_n_;
@@ -76,6 +113,7 @@ class ThermalModel {
   S derate_start_;
   S derate_span_inverse_;
   Decay<S> decay_per_tick_;
+  [[no_unique_address]] GapTable decay_by_gap_{};
   Wide<S> temperature_{};
 };
 

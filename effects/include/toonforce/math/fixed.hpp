@@ -42,6 +42,94 @@ namespace detail {
 TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 }  // namespace detail
 
+namespace detail {
+/// Whether the target divides 64-bit integers in hardware (a 64-bit host: one instruction).
+/// There the exact quotient and root take the target's cheapest methods; the routines below
+/// without loop or library call are for a 32-bit core (tools/mcu), whose tick is bounded by
+/// its structure (issue 29). Both give the same results, exactly (math_test checks each).
+inline constexpr bool kWideHardware = sizeof(void*) >= 8;
+
+/// floor(n / d) for 0 < d < 2^32, exactly, when the quotient fits 32 bits; 2^32 when it does not
+/// (every caller saturates such a quotient). On a 32-bit core a 64-bit division is a library
+/// call of about a hundred instructions (__aeabi_uldivmod); this is two 32-bit divisions (UDIV
+/// on a Cortex-M3) of 16-bit digits, each estimate corrected at most twice, and no loop (the
+/// tick's bound is its structure, issue 29): Hacker's Delight's divlu (Warren, 2nd ed., 9-4).
+constexpr std::uint64_t div_u64_u32_digits(std::uint64_t n, std::uint32_t d) noexcept {
+  const auto hi = static_cast<std::uint32_t>(n >> 32);
+  const auto lo = static_cast<std::uint32_t>(n);
+  if (hi >= d) return std::uint64_t{1} << 32;
+  constexpr std::uint32_t kDigit = std::uint32_t{1} << 16;
+  const int s = std::countl_zero(d);  // normalise d: its top bit set
+  const std::uint32_t v = d << s;
+  const std::uint32_t vn1 = v >> 16;
+  const std::uint32_t vn0 = v & 0xFFFFU;
+  const std::uint32_t un32 = (hi << s) | (s == 0 ? 0U : lo >> (32 - s));  // hi < d: no bit lost
+  const std::uint32_t un10 = lo << s;
+  // One quotient digit of (un, next) / v: the estimate from vn1 alone is at most 2 too large.
+  const auto digit = [vn1, vn0](std::uint32_t un, std::uint32_t next) {
+    std::uint32_t q = un / vn1;
+    std::uint32_t rhat = un - q * vn1;
+    const auto too_large = [&] { return q >= kDigit || q * vn0 > ((rhat << 16) | next); };
+    if (too_large()) {
+      --q;
+      rhat += vn1;
+      if (rhat < kDigit && too_large()) --q;
+    }
+    return q;
+  };
+  const std::uint32_t q1 = digit(un32, un10 >> 16);
+  const std::uint32_t un21 = (un32 << 16) + (un10 >> 16) - q1 * v;  // the remainder, < v (mod 2^32)
+  const std::uint32_t q0 = digit(un21, un10 & 0xFFFFU);
+  return (std::uint64_t{q1} << 16) + q0;
+}
+
+/// floor(u / v) for v > 0 when the quotient fits 32 bits (always so for v >= 2^32); 2^32 when
+/// it does not. A divisor of 2^32 or more: divided by its top 32 bits, normalised, the
+/// estimate is at most one too large or too small after the step down (Hacker's Delight
+/// 9-5, divdu), again without a loop or the library.
+constexpr std::uint64_t div_u64_digits(std::uint64_t u, std::uint64_t v) noexcept {
+  const auto vh = static_cast<std::uint32_t>(v >> 32);
+  if (vh == 0) return div_u64_u32_digits(u, static_cast<std::uint32_t>(v));
+  const int s = std::countl_zero(vh);
+  const auto vl = static_cast<std::uint32_t>(v);
+  const std::uint32_t v1 = (vh << s) | (s == 0 ? 0U : vl >> (32 - s));  // v's top 32 bits
+  const auto q1 = static_cast<std::uint32_t>(div_u64_u32_digits(u >> 1, v1));  // (u / 2) >> 32 < v1
+  std::uint64_t q = q1 >> (31 - s);
+  if (q != 0) --q;
+  if (u - q * v >= v) ++q;
+  return q;
+}
+
+/// floor(u / v) for v > 0, capped at 2^32: the hardware's division on a 64-bit host, the
+/// routines above on a 32-bit core.
+constexpr std::uint64_t div_u64(std::uint64_t u, std::uint64_t v) noexcept {
+  if constexpr (kWideHardware) {
+    const std::uint64_t q = u / v;
+    return q < (std::uint64_t{1} << 32) ? q : std::uint64_t{1} << 32;
+  } else {
+    return div_u64_digits(u, v);
+  }
+}
+constexpr std::uint64_t div_u64_u32(std::uint64_t n, std::uint32_t d) noexcept {
+  if constexpr (kWideHardware) {
+    return div_u64(n, d);
+  } else {
+    return div_u64_u32_digits(n, d);
+  }
+}
+
+/// (n + d / 2) / d for n >= 0, d > 0 and n + d / 2 < 2^63 (a magnitude rounded half up);
+/// 2^32 when the quotient does not fit 32 bits (every caller saturates it).
+constexpr std::int64_t div_round(std::int64_t n, std::int64_t d) noexcept {
+  const auto half = static_cast<std::uint64_t>(d / 2);
+  return static_cast<std::int64_t>(div_u64(static_cast<std::uint64_t>(n) + half, static_cast<std::uint64_t>(d)));
+}
+/// The same for a divisor known to fit 32 bits (no test of its high word).
+constexpr std::int64_t div_round_u32(std::int64_t n, std::uint32_t d) noexcept {
+  return static_cast<std::int64_t>(div_u64_u32(static_cast<std::uint64_t>(n) + d / 2, d));
+}
+}  // namespace detail
+
 /// True if any fixed-point operation on this thread saturated since the last clear.
 inline bool fixed_saturated() noexcept { return detail::fixed_saturated_flag; }
 /// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
@@ -108,7 +196,7 @@ class Fixed {
     if (num <= -kLimit) return saturated(false);
     const Wide scaled = num * kOneRaw;
     const Wide magnitude = scaled < 0 ? -scaled : scaled;
-    const Wide q = (magnitude + den / 2) / den;  // < 2^63: both terms < 2^62
+    const Wide q = detail::div_round(magnitude, den);  // magnitude + den / 2 < 2^63: both < 2^62
     return from_wide(scaled < 0 ? -q : q);
   }
   /// Whether num / den <= this value, exactly (den > 0, |num| < 2^(62 - FracBits), den < 2^31).
@@ -153,7 +241,7 @@ class Fixed {
     const Wide den = b.raw_;
     const Wide num_abs = num < 0 ? -num : num;
     const Wide den_abs = den < 0 ? -den : den;
-    const Wide q_abs = (num_abs + den_abs / 2) / den_abs;
+    const Wide q_abs = detail::div_round_u32(num_abs, static_cast<std::uint32_t>(den_abs));  // den_abs <= 2^31
     const Wide q = ((num < 0) != (den < 0)) ? -q_abs : q_abs;
     return from_wide(q);
   }
@@ -200,6 +288,69 @@ constexpr bool is_finite(Fixed<I, F>) noexcept {
 }
 
 namespace detail {
+/// floor(sqrt(v) + 0.5) for a 64-bit value, by the digit-by-digit method (one root bit per two
+/// bits of v, from the top): after each step q is the root of the bits taken so far and
+/// r = those bits - q^2 <= 2q. Two fixed costs, each a straight run of steps with no branch on
+/// the data (issue 29: a bound by structure): a value under 2^32 (the norm of a velocity in
+/// m/s, or of a force under 1 N, in Q16.16) takes its 16 steps, any other all 32. It used to
+/// start at v's leading bit and take a branch in every step, so its cost depended on v and the
+/// bound paid for the dearest path; one path of 32 steps for every value cost the scenes'
+/// small roots so much that the cliff's measured means passed issue 18's budgets. While
+/// q < 2^29, r fits 32 bits, so all but the last three steps run in 32-bit arithmetic (a
+/// 64-bit step is two to four instructions on a 32-bit core), and no step shifts a 64-bit
+/// value by a variable amount (a library call there).
+constexpr std::uint64_t isqrt_round_steps(std::uint64_t v) noexcept {
+  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
+  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
+  const auto high = static_cast<std::uint32_t>(v >> 32);
+  const auto low = static_cast<std::uint32_t>(v);
+  std::uint32_t word = high != 0 ? high : low;  // the first 16 steps: the top nonzero word
+  // The first step, q = 0: a root bit of 1 unless the top pair is 0 (written so, the compiler
+  // does not branch on it).
+  std::uint32_t r = word >> 30;
+  std::uint32_t q = (r + 3U) >> 2;
+  r -= q;
+  word <<= 2;
+  // take: a conditional select (IT blocks on Thumb-2), not a branch.
+  const auto step = [&q, &r](std::uint32_t two_bits) {
+    r = (r << 2) | two_bits;
+    const std::uint32_t t = (q << 2) | 1U;
+    const bool take = r >= t;
+    q = q + q + (take ? 1U : 0U);
+    r = take ? r - t : r;
+  };
+  // Unrolled (a fixed count): the loop's own counting and back branch were a third of a step,
+  // and at constant positions each pair of bits is one extract.
+#pragma GCC unroll 16
+  for (int pairs = kWordPairs - 1; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs - 1);
+    step(word >> 30);
+  }
+  // v < 2^32: done (r = v - q^2 <= 2q < 2^17); round up when r > q (v > (q + 1/2)^2).
+  if (high == 0) return q + (r > q ? 1U : 0U);
+  word = low;
+#pragma GCC unroll 16
+  for (int pairs = kWordPairs - kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWordPairs - kWidePairs);
+    step(word >> 30);
+  }
+  // r and t < 2^63 here, so r < t is the sign of r - t: the comparison as arithmetic (a 64-bit
+  // comparison is a branch on a 32-bit core).
+  std::uint64_t q_wide = q;
+  std::uint64_t r_wide = r;
+#pragma GCC unroll 16
+  for (int pairs = kWidePairs; pairs > 0; --pairs, word <<= 2) {
+    TOONFORCE_LOOP_BOUND(kWidePairs);
+    r_wide = (r_wide << 2) | (word >> 30);
+    const std::uint64_t t = (q_wide << 2) | 1U;
+    const std::uint64_t diff = r_wide - t;
+    const std::uint64_t borrow = diff >> 63;  // r < t
+    q_wide = (q_wide << 1) + (borrow ^ 1U);
+    r_wide = diff + (t & (0ULL - borrow));
+  }
+  // r = v - q^2; round up when r > q.
+  return q_wide + ((q_wide - r_wide) >> 63);
+}
 /// floor(sqrt(v) + 0.5) by the bitwise method, one round per two bits of v, in the unsigned
 /// type U of v (32 or 64 bits).
 template <class U>
@@ -271,14 +422,22 @@ constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
   return r_wide > q_wide ? q_wide + 1 : q_wide;
 }
 
-/// floor(sqrt(v) + 0.5) for a 64-bit unsigned value. On a 32-bit core 64-bit steps cost two
-/// to four instructions each, so a value that fits 32 bits (the norm of a velocity in m/s, or
-/// of a force under 1 N, in Q16.16) takes the bitwise method in 32-bit arithmetic, and a
-/// larger one the digit-by-digit method, mostly in 32 bits: the same result, for a fraction of
-/// the instructions on a Cortex-M3 (tools/mcu; docs/PERFORMANCE.md "Microcontroller").
-constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+/// The leading-bit method, the 32-bit one for a value that fits 32 bits (the method before
+/// issue 29): fewer rounds for small values, and a branch in each. A 64-bit host's root.
+constexpr std::uint64_t isqrt_round_leading(std::uint64_t v) noexcept {
   if (v <= std::numeric_limits<std::uint32_t>::max()) return isqrt_round_bitwise(static_cast<std::uint32_t>(v));
   return isqrt_round_wide(v);
+}
+
+/// floor(sqrt(v) + 0.5) for a 64-bit value: on a 32-bit core the fixed steps (its bound is its
+/// cost), on a 64-bit host the leading-bit method (cheaper there on the small values a tick
+/// mostly has; the same root).
+constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
+  if constexpr (kWideHardware) {
+    return isqrt_round_leading(v);
+  } else {
+    return isqrt_round_steps(v);
+  }
 }
 }  // namespace detail
 

@@ -4,6 +4,7 @@
 /// once, so a norm is never built from saturated squares (spec §7).
 
 #include <cstdint>
+#include <type_traits>
 
 #include "toonforce/math/scalar.hpp"
 
@@ -58,8 +59,18 @@ constexpr S dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
   }
 }
 
+/// A norm and what scaling to it divides by. In a Q format the norm of a vector whose
+/// components are near the largest value exceeds it (up to sqrt(3) times) and `value`
+/// saturates; `root` is the true norm in raw units (< 2^32), so a scaling divides by it and
+/// never takes the root again.
 template <Scalar S>
-constexpr S norm(const Vec3<S>& v) noexcept {
+struct NormOf {
+  S value;
+  std::conditional_t<kIsFixed<S>, std::uint32_t, S> root;
+};
+
+template <Scalar S>
+constexpr NormOf<S> norm_of(const Vec3<S>& v) noexcept {
   if constexpr (kIsFixed<S>) {
     // Raw squares in unsigned 64 bits: each < 2^62, three of them < 2^64. The root of a value
     // in units of 2^-2F is the norm in units of 2^-F, which is the raw result.
@@ -67,11 +78,18 @@ constexpr S norm(const Vec3<S>& v) noexcept {
       const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
       return m * m;
     };
-    const std::uint64_t sum = sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw());
-    return S::from_wide(static_cast<std::int64_t>(detail::isqrt_round(sum)));
+    const std::uint64_t root = detail::isqrt_round(sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw()));
+    // root <= sqrt(3) 2^31 < 2^32
+    return {S::from_wide(static_cast<std::int64_t>(root)), static_cast<std::uint32_t>(root)};
   } else {
-    return sqrt(dot(v, v));
+    const S n = sqrt(dot(v, v));
+    return {n, n};
   }
+}
+
+template <Scalar S>
+constexpr S norm(const Vec3<S>& v) noexcept {
+  return norm_of(v).value;
 }
 
 template <Scalar S>
@@ -97,8 +115,7 @@ constexpr Vec3<S> scale_by_ratio(const Vec3<S>& v, S numerator, S denominator) n
     using W = typename S::Wide;
     const auto scale = [&](S c) {
       const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
-      const W den = denominator.raw();
-      const W magnitude = ((product < 0 ? -product : product) + den / 2) / den;
+      const W magnitude = detail::div_round_u32(product < 0 ? -product : product, static_cast<std::uint32_t>(denominator.raw()));
       return S::from_wide(product < 0 ? -magnitude : magnitude);
     };
     return {scale(v.x), scale(v.y), scale(v.z)};
@@ -107,30 +124,22 @@ constexpr Vec3<S> scale_by_ratio(const Vec3<S>& v, S numerator, S denominator) n
   }
 }
 
-/// `v` times numerator / |v|, `magnitude` being norm(v). In a Q format the norm of a vector
-/// whose components are near the largest value exceeds it (up to sqrt(3) times) and norm()
-/// saturates: then the ratio is taken with the true norm, in 64 bits, or the result would be
-/// up to sqrt(3) too long (tick_fuzz found (8, 8, 8) out of an 8 N clamp). Only in that case:
-/// the usual path is scale_by_ratio's.
+/// `v` times numerator / |v|, `magnitude` being norm_of(v). In a Q format each component is
+/// (v * numerator) / |v| in 64 bits rounded once, divided by the true norm (tick_fuzz found
+/// (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to sqrt(3) too long).
 template <Scalar S>
-constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, S magnitude) noexcept {
+constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& magnitude) noexcept {
   if constexpr (kIsFixed<S>) {
-    if (magnitude == S::max()) {
-      using W = typename S::Wide;
-      const auto sq = [](typename S::Raw r) {
-        const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
-        return m * m;
-      };
-      const W den = static_cast<W>(detail::isqrt_round(sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw())));
-      const auto scale = [&](S c) {
-        const W product = W{c.raw()} * numerator.raw();
-        const W m = ((product < 0 ? -product : product) + den / 2) / den;
-        return S::from_wide(product < 0 ? -m : m);
-      };
-      return {scale(v.x), scale(v.y), scale(v.z)};
-    }
+    using W = typename S::Wide;
+    const auto scale = [&](S c) {
+      const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
+      const W m = detail::div_round_u32(product < 0 ? -product : product, magnitude.root);
+      return S::from_wide(product < 0 ? -m : m);
+    };
+    return {scale(v.x), scale(v.y), scale(v.z)};
+  } else {
+    return v * (numerator / magnitude.value);
   }
-  return scale_by_ratio(v, numerator, magnitude);
 }
 
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
@@ -138,8 +147,8 @@ template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
   // Squares first: the norm (a square root) only when the limit may bite.
   if (!(dot(v, v) > max_magnitude * max_magnitude)) return v;
-  const S magnitude = norm(v);
-  if (magnitude <= max_magnitude) return v;
+  const NormOf<S> magnitude = norm_of(v);
+  if (magnitude.value <= max_magnitude) return v;
   return scale_to_norm(v, max_magnitude, magnitude);
 }
 
