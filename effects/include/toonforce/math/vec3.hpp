@@ -105,28 +105,12 @@ constexpr bool is_finite(const Vec3<S>& v) noexcept {
   }
 }
 
-/// v * (numerator / denominator), denominator > 0. For Q types each component is formed as
-/// (v * numerator) / denominator in 64 bits and rounded once: the ratio alone, rounded to an
-/// LSB, would be a coarse factor when it is small (a 13 N step out of a 30000 N request is a
-/// ratio of 29 LSB, 2% off), and safety limits scale by exactly such ratios.
-template <Scalar S>
-constexpr Vec3<S> scale_by_ratio(const Vec3<S>& v, S numerator, S denominator) noexcept {
-  if constexpr (kIsFixed<S>) {
-    using W = typename S::Wide;
-    const auto scale = [&](S c) {
-      const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
-      const W magnitude = detail::div_round_u32(product < 0 ? -product : product, static_cast<std::uint32_t>(denominator.raw()));
-      return S::from_wide(product < 0 ? -magnitude : magnitude);
-    };
-    return {scale(v.x), scale(v.y), scale(v.z)};
-  } else {
-    return v * (numerator / denominator);
-  }
-}
-
 /// `v` times numerator / |v|, `magnitude` being norm_of(v). In a Q format each component is
-/// (v * numerator) / |v| in 64 bits rounded once, divided by the true norm (tick_fuzz found
-/// (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to sqrt(3) too long).
+/// (v * numerator) / |v| in 64 bits rounded once: the ratio alone, rounded to an LSB, would be
+/// a coarse factor when it is small (a 13 N step out of a 30000 N request is a ratio of 29
+/// LSB, 2% off), and safety limits scale by exactly such ratios. It divides by the true norm
+/// (tick_fuzz found (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to
+/// sqrt(3) too long).
 template <Scalar S>
 constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& magnitude) noexcept {
   if constexpr (kIsFixed<S>) {
