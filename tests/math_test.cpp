@@ -132,17 +132,23 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   for (const std::uint64_t r : {1ULL, 2ULL, 65535ULL, 65536ULL, 65537ULL, 0xFFFF'FFFEULL, 3037000499ULL}) {
     values.insert(values.end(), {r * r - 1, r * r, r * r + r, r * r + r + 1});
   }
+  // The divided root's seeds: each top byte of a normalised high word (64..255), at its ends,
+  // with and without a low word.
+  for (std::uint64_t byte = 64; byte <= 256; ++byte) {
+    const std::uint64_t h = byte << 24;
+    values.insert(values.end(), {h - 1, h, (h - 1) << 32 | 0xFFFF'FFFFULL, h << 32, (h << 32) | 0x8000'0000ULL});
+  }
   std::mt19937_64 random(18);
   for (int i = 0; i < 200000; ++i) values.push_back(random() >> (random() % 64));
   for (const std::uint64_t v : values) {
-    // Both methods (a 32-bit core's fixed steps, a 64-bit host's leading-bit one), and this target's.
-    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_steps(v))) << v << " gave " << detail::isqrt_round_steps(v);
+    // Both methods (a 32-bit core's divided root, a 64-bit host's leading-bit one), and this target's.
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_divided(v))) << v << " gave " << detail::isqrt_round_divided(v);
     ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_leading(v))) << v << " gave " << detail::isqrt_round_leading(v);
     ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round(v))) << v << " gave " << detail::isqrt_round(v);
   }
   static_assert(detail::isqrt_round(0) == 0 && detail::isqrt_round(2) == 1 && detail::isqrt_round(3) == 2);
   static_assert(detail::isqrt_round(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL);
-  static_assert(detail::isqrt_round_steps(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_steps(3) == 2);
+  static_assert(detail::isqrt_round_divided(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_divided(3) == 2);
 }
 
 TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {

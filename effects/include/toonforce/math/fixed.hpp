@@ -16,6 +16,7 @@
 /// Scaling and overflow: a product or quotient is formed in 64 bits, rounded to nearest
 /// (half away from zero) and saturated to [lowest(), max()]. Sums saturate the same way.
 
+#include <array>
 #include <bit>
 #include <compare>
 #include <cstdint>
@@ -288,69 +289,6 @@ constexpr bool is_finite(Fixed<I, F>) noexcept {
 }
 
 namespace detail {
-/// floor(sqrt(v) + 0.5) for a 64-bit value, by the digit-by-digit method (one root bit per two
-/// bits of v, from the top): after each step q is the root of the bits taken so far and
-/// r = those bits - q^2 <= 2q. Two fixed costs, each a straight run of steps with no branch on
-/// the data (issue 29: a bound by structure): a value under 2^32 (the norm of a velocity in
-/// m/s, or of a force under 1 N, in Q16.16) takes its 16 steps, any other all 32. It used to
-/// start at v's leading bit and take a branch in every step, so its cost depended on v and the
-/// bound paid for the dearest path; one path of 32 steps for every value cost the scenes'
-/// small roots so much that the cliff's measured means passed issue 18's budgets. While
-/// q < 2^29, r fits 32 bits, so all but the last three steps run in 32-bit arithmetic (a
-/// 64-bit step is two to four instructions on a 32-bit core), and no step shifts a 64-bit
-/// value by a variable amount (a library call there).
-constexpr std::uint64_t isqrt_round_steps(std::uint64_t v) noexcept {
-  constexpr int kWordPairs = std::numeric_limits<std::uint32_t>::digits / 2;
-  constexpr int kWidePairs = 3;  // the low word's last pairs, where r may pass 32 bits
-  const auto high = static_cast<std::uint32_t>(v >> 32);
-  const auto low = static_cast<std::uint32_t>(v);
-  std::uint32_t word = high != 0 ? high : low;  // the first 16 steps: the top nonzero word
-  // The first step, q = 0: a root bit of 1 unless the top pair is 0 (written so, the compiler
-  // does not branch on it).
-  std::uint32_t r = word >> 30;
-  std::uint32_t q = (r + 3U) >> 2;
-  r -= q;
-  word <<= 2;
-  // take: a conditional select (IT blocks on Thumb-2), not a branch.
-  const auto step = [&q, &r](std::uint32_t two_bits) {
-    r = (r << 2) | two_bits;
-    const std::uint32_t t = (q << 2) | 1U;
-    const bool take = r >= t;
-    q = q + q + (take ? 1U : 0U);
-    r = take ? r - t : r;
-  };
-  // Unrolled (a fixed count): the loop's own counting and back branch were a third of a step,
-  // and at constant positions each pair of bits is one extract.
-#pragma GCC unroll 16
-  for (int pairs = kWordPairs - 1; pairs > 0; --pairs, word <<= 2) {
-    TOONFORCE_LOOP_BOUND(kWordPairs - 1);
-    step(word >> 30);
-  }
-  // v < 2^32: done (r = v - q^2 <= 2q < 2^17); round up when r > q (v > (q + 1/2)^2).
-  if (high == 0) return q + (r > q ? 1U : 0U);
-  word = low;
-#pragma GCC unroll 16
-  for (int pairs = kWordPairs - kWidePairs; pairs > 0; --pairs, word <<= 2) {
-    TOONFORCE_LOOP_BOUND(kWordPairs - kWidePairs);
-    step(word >> 30);
-  }
-  // r and t < 2^63 here, so r < t is the sign of r - t: the comparison as arithmetic (a 64-bit
-  // comparison is a branch on a 32-bit core).
-  std::uint64_t q_wide = q;
-  std::uint64_t r_wide = r;
-#pragma GCC unroll 16
-  for (int pairs = kWidePairs; pairs > 0; --pairs, word <<= 2) {
-    TOONFORCE_LOOP_BOUND(kWidePairs);
-    r_wide = (r_wide << 2) | (word >> 30);
-    const std::uint64_t t = (q_wide << 2) | 1U;
-    const std::uint64_t diff = r_wide - t;
-    const std::uint64_t borrow = diff >> 63;  // r < t
-    q_wide = (q_wide << 1) + (borrow ^ 1U);
-    r_wide = diff + (t & (0ULL - borrow));
-  }
-  // r = v - q^2; round up when r > q.
-  return q_wide + ((q_wide - r_wide) >> 63);
-}
 /// floor(sqrt(v) + 0.5) by the bitwise method, one round per two bits of v, in the unsigned
 /// type U of v (32 or 64 bits).
 template <class U>
@@ -422,6 +360,69 @@ constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
   return r_wide > q_wide ? q_wide + 1 : q_wide;
 }
 
+/// floor(sqrt(v) + 0.5) for a 64-bit value, from two 32-bit divisions and no loop (issue 29: a
+/// bound by structure; one path for every v but 0). The digit-by-digit method it replaces took
+/// 16 or 32 steps, 330 instructions in the bound for any force's norm. Here v is first
+/// normalised to m = v 4^k with its top two bits not both 0, so that m's high word H is in
+/// [2^30, 2^32); then
+///  1. floor(sqrt(H)) from a seed of H's top byte (the root of its midpoint, table below) and
+///     one Newton step: the step never lands under the root (the arithmetic-geometric mean
+///     inequality survives the integer floors) and, the seed being within 129 of it while the
+///     root is at least 2^15, lands at most one above (the error is (seed - root)^2 / (2 seed)
+///     < 1/3), which a comparison takes back;
+///  2. one step of Zimmermann's Karatsuba square root (Algorithm SqrtRem, INRIA RR-3805, 1999)
+///     with base 2^16 gives floor(sqrt(m)) and its remainder, with at most one correction;
+///  3. the root of v is that of m shifted by k, rounded from the bits shifted out (or, when
+///     k = 0, from the remainder).
+/// math_test checks it against the digit-by-digit method over the whole 64-bit range.
+inline constexpr auto kRootSeeds = [] {
+  // Entry i: the root of (i + 64 + 1/2) 2^24, rounded; a normalised H has a top byte of 64..255.
+  std::array<std::uint16_t, 192> seeds{};
+  for (std::uint32_t i = 0; i < seeds.size(); ++i) {
+    seeds[i] = static_cast<std::uint16_t>(isqrt_round_bitwise(std::uint64_t{2 * (i + 64) + 1} << 23));
+  }
+  return seeds;
+}();
+constexpr std::uint64_t isqrt_round_divided(std::uint64_t v) noexcept {
+  if (v == 0) return 0;
+  auto high = static_cast<std::uint32_t>(v >> 32);
+  auto low = static_cast<std::uint32_t>(v);
+  // Normalise in 32-bit words (a 64-bit shift by a variable amount is a library call on a
+  // 32-bit core): k pairs of zero bits shifted in.
+  std::uint32_t k = 0;
+  if (high == 0) {
+    high = low;
+    low = 0;
+    k = 16;
+  }
+  const int c = std::countl_zero(high) & ~1;  // whole pairs
+  high = (high << c) | (c == 0 ? 0U : low >> (32 - c));
+  low <<= c;
+  k += static_cast<std::uint32_t>(c) / 2;
+  // 1. s1 = floor(sqrt(H)), e = H - s1^2 <= 2 s1.
+  const std::uint32_t seed = kRootSeeds[(high >> 24) - 64];  // >= 2^15: no quotient passes 2^17
+  std::uint32_t s1 = (seed + high / seed) >> 1;               // floor(sqrt(H)) or one more
+  s1 -= std::uint64_t{s1} * s1 > high ? 1U : 0U;               // s1 <= 2^16 before this
+  const std::uint32_t e = high - s1 * s1;
+  // 2. m = H 2^32 + a1 2^16 + a0. (q, u) = divmod(e 2^16 + a1, 2 s1), a 33-bit dividend: halved
+  // with the divisor (floor((x + 1/2) / s1) = floor(x / s1) for integers x, s1).
+  const std::uint32_t a1 = low >> 16;
+  const std::uint32_t a0 = low & 0xFFFFU;
+  const std::uint32_t x = (e << 15) | (a1 >> 1);  // e < 2^17: fits
+  const std::uint32_t q = x / s1;                  // <= 2^16
+  const std::uint32_t u = ((x - q * s1) << 1) | (a1 & 1U);
+  std::uint64_t s = (std::uint64_t{s1} << 16) + q;
+  std::int64_t r = (std::int64_t{u} << 16) + a0 - static_cast<std::int64_t>(std::uint64_t{q} * q);
+  const bool over = r < 0;  // s one too large: r + 2 s - 1 is the remainder of s - 1
+  r += over ? static_cast<std::int64_t>(2 * s - 1) : 0;
+  s -= over ? 1U : 0U;
+  // 3. s = floor(sqrt(v) 2^k) < 2^32, r = m - s^2 <= 2 s. For k >= 1, floor(sqrt(v) + 1/2) =
+  // floor((s + 2^(k-1)) / 2^k): s's bit k - 1 is the carry into bit k.
+  const auto s32 = static_cast<std::uint32_t>(s);
+  if (k == 0) return s + (r > static_cast<std::int64_t>(s) ? 1U : 0U);
+  return std::uint64_t{s32 >> k} + ((s32 >> (k - 1)) & 1U);
+}
+
 /// The leading-bit method, the 32-bit one for a value that fits 32 bits (the method before
 /// issue 29): fewer rounds for small values, and a branch in each. A 64-bit host's root.
 constexpr std::uint64_t isqrt_round_leading(std::uint64_t v) noexcept {
@@ -429,14 +430,14 @@ constexpr std::uint64_t isqrt_round_leading(std::uint64_t v) noexcept {
   return isqrt_round_wide(v);
 }
 
-/// floor(sqrt(v) + 0.5) for a 64-bit value: on a 32-bit core the fixed steps (its bound is its
+/// floor(sqrt(v) + 0.5) for a 64-bit value: on a 32-bit core the divided root (its bound is its
 /// cost), on a 64-bit host the leading-bit method (cheaper there on the small values a tick
 /// mostly has; the same root).
 constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
   if constexpr (kWideHardware) {
     return isqrt_round_leading(v);
   } else {
-    return isqrt_round_steps(v);
+    return isqrt_round_divided(v);
   }
 }
 }  // namespace detail
