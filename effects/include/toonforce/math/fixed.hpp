@@ -374,7 +374,7 @@ constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
 ///     with base 2^16 gives floor(sqrt(m)) and its remainder, with at most one correction;
 ///  3. the root of v is that of m shifted by k, rounded from the bits shifted out (or, when
 ///     k = 0, from the remainder).
-/// math_test checks it against the digit-by-digit method over the whole 64-bit range.
+/// math_test checks it over the whole 64-bit range against the definition of the rounded root.
 inline constexpr auto kRootSeeds = [] {
   // Entry i: the root of (i + 64 + 1/2) 2^24, rounded; a normalised H has a top byte of 64..255.
   std::array<std::uint16_t, 192> seeds{};
