@@ -20,11 +20,11 @@ CXX = "arm-none-eabi-g++"
 CPU = ["-mcpu=cortex-m3", "-mthumb"]
 
 
-def build(name: str) -> str:
+def build(name: str, *extra: str) -> str:
     os.makedirs(WORK, exist_ok=True)
     src = os.path.join(HERE, "tests", name)
-    elf = os.path.join(WORK, os.path.splitext(name)[0] + ".elf")
-    flags = CPU + ["-nostdlib", "-nostartfiles", "-Wl,-e,entry", "-Wl,--gc-sections",
+    elf = os.path.join(WORK, os.path.splitext(name)[0] + ("-g" if extra else "") + ".elf")
+    flags = CPU + list(extra) + ["-nostdlib", "-nostartfiles", "-Wl,-e,entry", "-Wl,--gc-sections",
                    "-T", os.path.join(SOURCE_DIR, "tools/mcu/firmware/mps2.ld"), "-o", elf]
     if name.endswith(".cpp"):
         flags += ["-std=c++20", "-O2", "-ffunction-sections", "-fdata-sections", "-fno-exceptions", "-fno-rtti",
@@ -73,6 +73,42 @@ class Exact(unittest.TestCase):
         r = analyse(build("straight.s"), "--wait-states", "2")
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(r.stdout.split("\t")[1:3], ["5", "18"])
+
+
+class Path(unittest.TestCase):
+    """--path: where the bound goes, per source line, adding up to the bound."""
+
+    def test_diamond_path_is_the_longer_arm(self):
+        r = analyse(build("diamond.s", "-g"), "--path", "t")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        lines = r.stdout.splitlines()
+        self.assertEqual(lines[1], "path t entry: 7 instructions")
+        per_line = {}
+        for line in lines[2:]:
+            count, where, _ = line.split(None, 2)
+            per_line[where] = int(count)
+        # diamond.s: cmp (line 10), beq, the three adds, b, bx (17) once each; not the udiv (16).
+        self.assertEqual(per_line, {f"{os.path.relpath(os.path.join(HERE, 'tests', 'diamond.s'))}:{n}": 1
+                                    for n in (10, 11, 12, 13, 14, 15, 17)})
+
+    def test_calls_count_their_callee_path(self):
+        r = analyse(build("call.s", "-g"), "--path", "t")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        lines = r.stdout.splitlines()
+        self.assertEqual(lines[1], "path t entry: 8 instructions")
+        per_line = {line.split()[1].rsplit(":", 1)[1]: int(line.split()[0]) for line in lines[2:]}
+        # call.s: push, bl, bl, pop (lines 9-12) once; the leaf's adds and bx (16, 17) once per call.
+        self.assertEqual(per_line, {"9": 1, "10": 1, "11": 1, "12": 1, "16": 2, "17": 2})
+
+
+    def test_a_callee_in_a_loop_counts_once_per_iteration(self):
+        r = analyse(build("loop_call.s", "-g"), "--path", "t")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        lines = r.stdout.splitlines()
+        self.assertEqual(lines[1], "path t entry: 23 instructions")
+        per_line = {line.split()[1].rsplit(":", 1)[1]: int(line.split()[0]) for line in lines[2:]}
+        # loop_call.s: push, movs, pop (9, 10, 14) once; bl, subs, bne (11-13) and the leaf (21, 22) 4 times.
+        self.assertEqual(per_line, {"9": 1, "10": 1, "11": 4, "12": 4, "13": 4, "14": 1, "21": 4, "22": 4})
 
 
 class Budget(unittest.TestCase):

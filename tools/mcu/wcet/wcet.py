@@ -18,6 +18,11 @@ write of the PC 1 + 3 for the pipeline refill), plus WAIT cycles for every instr
 every data word moved (a pessimistic model of wait states; 0 for the AN385's SRAM). No
 interrupt is assumed inside the function.
 
+--path LABEL says where a bound goes: the longest path (in instructions) that the bound counts,
+as instructions per source line (addr2line: the innermost inlined function's line), adding up to
+the bound; callees on their own longest paths, so it is the bound's path, which no single input
+need take (context-insensitive), and where a witness input would start.
+
 It refuses (exit status 2, naming the function and address) what it cannot bound: a loop without
 annotation, an irreducible cycle, an indirect branch or call, a jump table, recursion, a call to
 an address outside any function.
@@ -605,6 +610,7 @@ class Analysis:
         self.glpsol = glpsol
         self.done: dict[int, Bound] = {}
         self.active: list[int] = []
+        self.paths: dict[int, tuple] = {}  # function start: (cfg, block counts of its longest path in instructions)
 
     def bound(self, start: int) -> Bound:
         if start in self.done:
@@ -637,7 +643,8 @@ class Analysis:
                 instr_cost[b] = n
                 cycle_cost[b] = cyc
             zero = {b: 0 for b in cfg.blocks}
-            instructions, _ = solve_ipet(cfg, instr_cost, zero, bounds, self.glpsol)
+            instructions, counts = solve_ipet(cfg, instr_cost, zero, bounds, self.glpsol)
+            self.paths[func.start] = (cfg, counts)
             cyc, _ = solve_ipet(cfg, cycle_cost, taken_cost, bounds, self.glpsol)
             returns = False
             for blk in cfg.blocks.values():
@@ -654,6 +661,55 @@ class Analysis:
         self.done[func.start] = result
         return result
 
+    def path(self, start: int, times: int = 1, into: dict | None = None) -> dict:
+        """Instructions of the longest path (in instructions) per address: each block's count on
+        that path times its instructions, and each call's callee on its own longest path (the
+        bound is context-insensitive, so this is the path the bound counts, not necessarily one
+        a single input takes). The values add up to the bound."""
+        into = {} if into is None else into
+        cfg, counts = self.paths[start]
+        for b, blk in cfg.blocks.items():
+            n = counts.get(b, 0) * times
+            if n == 0:
+                continue
+            for insn in blk.insns:
+                into[insn.addr] = into.get(insn.addr, 0) + n
+            for callee in blk.calls:
+                self.path(self.image.function_at(callee).start, n, into)
+        return into
+
+
+def source_lines(image: Image, weights: dict) -> list:
+    """(instructions, function, file:line) per source line of the addresses in `weights`, the
+    innermost inlined function's line (addr2line), largest first."""
+    addresses = sorted(weights)
+    addr2line = image.objdump.replace("objdump", "addr2line")
+    r = subprocess.run([addr2line, "-e", image.elf, "-f", "-C", *[hex(a) for a in addresses]],
+                       capture_output=True, text=True)
+    out = r.stdout.splitlines() if r.returncode == 0 else []
+    per_line: dict = {}
+    for k, a in enumerate(addresses):
+        fn, where = (out[2 * k], out[2 * k + 1]) if 2 * k + 1 < len(out) else ("??", "??:0")
+        where = re.sub(r" \(discriminator \d+\)$", "", where)
+        if where.startswith("/"):
+            where = os.path.relpath(where)
+        key = (short_name(fn), where)
+        per_line[key] = per_line.get(key, 0) + weights[a]
+    return sorted(((n, fn, where) for (fn, where), n in per_line.items()), key=lambda t: (-t[0], t[2]))
+
+
+def short_name(name: str) -> str:
+    """A demangled name without its template arguments and parameters, for a table."""
+    out, depth = "", 0
+    for ch in name:
+        if ch in "<(":
+            depth += 1
+        elif ch in ">)":
+            depth = max(0, depth - 1)
+        elif depth == 0:
+            out += ch
+    return out.replace("toonforce::", "").strip()
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -665,6 +721,8 @@ def main(argv=None) -> int:
     p.add_argument("--glpsol", default="glpsol")
     p.add_argument("--json", help="write the bounds here as JSON")
     p.add_argument("--verbose", action="store_true", help="every function's bound and loops")
+    p.add_argument("--path", action="append", default=[], metavar="LABEL",
+                   help="where the bound of LABEL's functions goes: the longest path's instructions per source line")
     p.add_argument("--budget", action="append", default=[], metavar="LABEL=INSTRUCTIONS[,CYCLES]",
                    help="exit 1 when a bound of LABEL's functions passes this budget")
     args = p.parse_args(argv)
@@ -690,6 +748,19 @@ def main(argv=None) -> int:
             f = image.functions[start]
             loops = ", ".join(f"{h:#x}<={n}" for h, n in b.loops)
             print(f"  {b.instructions:6d} {b.cycles:6d}  {f.name}{'  loops ' + loops if loops else ''}", file=sys.stderr)
+    for label in args.path:
+        for r in results:
+            if r["label"] != label:
+                continue
+            weights = analysis.path(r["address"])
+            total = sum(weights.values())
+            if total != r["instructions"]:  # the path and the bound come from the same solution
+                print(f"wcet: path of {r['function']}: {total} instructions against a bound of {r['instructions']}",
+                      file=sys.stderr)
+                return 2
+            print(f"path {label} {short_name(r['function'])}: {total} instructions")
+            for n, fn, where in source_lines(image, weights):
+                print(f"{n:8d}  {where}  {fn}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"elf": args.elf, "wait_states": args.wait_states, "bounds": results}, f, indent=1)
