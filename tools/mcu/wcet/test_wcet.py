@@ -78,37 +78,40 @@ class Exact(unittest.TestCase):
 class Path(unittest.TestCase):
     """--path: where the bound goes, per source line, adding up to the bound."""
 
-    def test_diamond_path_is_the_longer_arm(self):
-        r = analyse(build("diamond.s", "-g"), "--path", "t")
+    def path(self, name: str) -> tuple:
+        """--path's heading and {file:line: instructions} for tests/NAME built with line info."""
+        r = analyse(build(name, "-g"), "--path", "t")
         self.assertEqual(r.returncode, 0, r.stderr)
         lines = r.stdout.splitlines()
-        self.assertEqual(lines[1], "path t entry: 7 instructions")
         per_line = {}
         for line in lines[2:]:
             count, where, _ = line.split(None, 2)
             per_line[where] = int(count)
+        return lines[1], per_line
+
+    @staticmethod
+    def at(name: str, counts: dict) -> dict:
+        """{file:line: instructions} of tests/NAME from {line: instructions}."""
+        source = os.path.relpath(os.path.join(HERE, "tests", name))
+        return {f"{source}:{n}": c for n, c in counts.items()}
+
+    def test_diamond_path_is_the_longer_arm(self):
+        heading, per_line = self.path("diamond.s")
+        self.assertEqual(heading, "path t entry: 7 instructions")
         # diamond.s: cmp (line 10), beq, the three adds, b, bx (17) once each; not the udiv (16).
-        self.assertEqual(per_line, {f"{os.path.relpath(os.path.join(HERE, 'tests', 'diamond.s'))}:{n}": 1
-                                    for n in (10, 11, 12, 13, 14, 15, 17)})
+        self.assertEqual(per_line, self.at("diamond.s", {n: 1 for n in (10, 11, 12, 13, 14, 15, 17)}))
 
     def test_calls_count_their_callee_path(self):
-        r = analyse(build("call.s", "-g"), "--path", "t")
-        self.assertEqual(r.returncode, 0, r.stderr)
-        lines = r.stdout.splitlines()
-        self.assertEqual(lines[1], "path t entry: 8 instructions")
-        per_line = {line.split()[1].rsplit(":", 1)[1]: int(line.split()[0]) for line in lines[2:]}
+        heading, per_line = self.path("call.s")
+        self.assertEqual(heading, "path t entry: 8 instructions")
         # call.s: push, bl, bl, pop (lines 9-12) once; the leaf's adds and bx (16, 17) once per call.
-        self.assertEqual(per_line, {"9": 1, "10": 1, "11": 1, "12": 1, "16": 2, "17": 2})
-
+        self.assertEqual(per_line, self.at("call.s", {9: 1, 10: 1, 11: 1, 12: 1, 16: 2, 17: 2}))
 
     def test_a_callee_in_a_loop_counts_once_per_iteration(self):
-        r = analyse(build("loop_call.s", "-g"), "--path", "t")
-        self.assertEqual(r.returncode, 0, r.stderr)
-        lines = r.stdout.splitlines()
-        self.assertEqual(lines[1], "path t entry: 23 instructions")
-        per_line = {line.split()[1].rsplit(":", 1)[1]: int(line.split()[0]) for line in lines[2:]}
+        heading, per_line = self.path("loop_call.s")
+        self.assertEqual(heading, "path t entry: 23 instructions")
         # loop_call.s: push, movs, pop (9, 10, 14) once; bl, subs, bne (11-13) and the leaf (21, 22) 4 times.
-        self.assertEqual(per_line, {"9": 1, "10": 1, "11": 4, "12": 4, "13": 4, "14": 1, "21": 4, "22": 4})
+        self.assertEqual(per_line, self.at("loop_call.s", {9: 1, 10: 1, 11: 4, 12: 4, 13: 4, 14: 1, 21: 4, 22: 4}))
 
 
 class Budget(unittest.TestCase):

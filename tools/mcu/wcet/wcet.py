@@ -139,16 +139,30 @@ class Image:
                 return f
         return None
 
-    def where(self, addr: int) -> str:
-        f = self.function_at(addr)
-        line = ""
+    def lines(self, addresses: list) -> list:
+        """(function, file:line) of each address, by one addr2line run: the innermost inlined
+        function's name and line; ("??", "??:0") where the image has no line for it, or for all
+        when addr2line cannot run."""
+        unknown = [("??", "??:0")] * len(addresses)
         addr2line = self.objdump.replace("objdump", "addr2line")
         try:
-            r = subprocess.run([addr2line, "-e", self.elf, hex(addr)], capture_output=True, text=True, timeout=30)
-            if r.returncode == 0 and not r.stdout.startswith("??"):
-                line = " (" + os.path.relpath(r.stdout.strip()) + ")" if r.stdout.strip() else ""
-        except OSError:
-            pass
+            r = subprocess.run([addr2line, "-e", self.elf, "-f", "-C", *[hex(a) for a in addresses]],
+                               capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.TimeoutExpired):
+            return unknown
+        out = r.stdout.splitlines()
+        if r.returncode != 0 or len(out) != 2 * len(addresses):
+            return unknown
+        found = []
+        for fn, where in zip(out[0::2], out[1::2]):
+            where = re.sub(r" \(discriminator \d+\)$", "", where)
+            found.append((fn, os.path.relpath(where) if where.startswith("/") else where))
+        return found
+
+    def where(self, addr: int) -> str:
+        f = self.function_at(addr)
+        _, source = self.lines([addr])[0]
+        line = "" if source.startswith("??") else f" ({source})"
         return f"{addr:#x} in {f.name if f else '?'}{line}"
 
 
@@ -683,16 +697,8 @@ def source_lines(image: Image, weights: dict) -> list:
     """(instructions, function, file:line) per source line of the addresses in `weights`, the
     innermost inlined function's line (addr2line), largest first."""
     addresses = sorted(weights)
-    addr2line = image.objdump.replace("objdump", "addr2line")
-    r = subprocess.run([addr2line, "-e", image.elf, "-f", "-C", *[hex(a) for a in addresses]],
-                       capture_output=True, text=True)
-    out = r.stdout.splitlines() if r.returncode == 0 else []
     per_line: dict = {}
-    for k, a in enumerate(addresses):
-        fn, where = (out[2 * k], out[2 * k + 1]) if 2 * k + 1 < len(out) else ("??", "??:0")
-        where = re.sub(r" \(discriminator \d+\)$", "", where)
-        if where.startswith("/"):
-            where = os.path.relpath(where)
+    for a, (fn, where) in zip(addresses, image.lines(addresses)):
         key = (short_name(fn), where)
         per_line[key] = per_line.get(key, 0) + weights[a]
     return sorted(((n, fn, where) for (fn, where), n in per_line.items()), key=lambda t: (-t[0], t[2]))
