@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -76,6 +77,56 @@ TEST(Fixed, RatiosOfIntegersRoundOnceAsTheExactQuotientWould) {
   const Q d = Q::from_raw(6554);
   EXPECT_TRUE(d.ratio_at_most(100'006'103, 1'000'000'000));
   EXPECT_FALSE(d.ratio_at_most(100'006'104, 1'000'000'000));
+}
+
+TEST(Fixed, ARateTimesNanosecondsIsTheExactProductRoundedTowardZero) {
+  // The rate limit's step, max_force_rate * dt, from integer time: checked against the exact
+  // product in 128 bits, for rates from one LSB to the format's largest and dt from 1 ns past
+  // 2^32 ns (where the whole seconds are split off) to where the step saturates.
+  // The exact step, clamped into int64 (C++ division truncates toward zero).
+  const auto exact = [](std::int32_t raw, std::int64_t ns) -> std::int64_t {
+    __extension__ using Int128 = __int128;
+    const Int128 q = Int128{raw} * ns / 1'000'000'000;
+    const Int128 lo = std::numeric_limits<std::int64_t>::min();
+    const Int128 hi = std::numeric_limits<std::int64_t>::max();
+    return static_cast<std::int64_t>(q < lo ? lo : (q > hi ? hi : q));
+  };
+  static_cast<void>(take_fixed_saturated());
+  for (const std::int32_t raw : {1, 3, 65536, 131072000, 2'000 * 65536 + 7, std::numeric_limits<std::int32_t>::max(),
+                                 -65536 * 5 - 3, std::numeric_limits<std::int32_t>::min()}) {
+    for (const std::int64_t ns : {0LL, 1LL, 10'000LL, 30'517LL, 999'999LL, 1'000'000LL, 333'333LL, 999'999'999LL,
+                                  1'000'000'000LL, 4'294'967'295LL, 4'294'967'296LL, 7'500'000'001LL}) {
+      const std::int64_t want = exact(raw, ns);
+      const Q got = Q::from_raw(raw).times_ns(ns);
+      if (want > std::numeric_limits<std::int32_t>::max() || want < std::numeric_limits<std::int32_t>::min()) {
+        EXPECT_EQ(got, want > 0 ? Q::max() : Q::lowest()) << raw << " " << ns;
+        EXPECT_TRUE(take_fixed_saturated()) << raw << " " << ns;
+      } else {
+        EXPECT_EQ(got.raw(), want) << raw << " " << ns;
+        EXPECT_FALSE(take_fixed_saturated()) << raw << " " << ns;
+      }
+    }
+  }
+  // 2,000 N/s over 10 us is 0.02 N: 1,310.72 LSB, down to 1,310. Through 1/dt (100 kHz, past
+  // Q16.16's 32,767) the step would have been 2000 / 32768 N, three times too large.
+  EXPECT_EQ(Q::from_double(2000.0).times_ns(10'000).raw(), 1310);
+  EXPECT_EQ(Q::from_raw(1).times_ns(std::numeric_limits<std::int64_t>::max()), Q::max()) << "seconds past 2^32";
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_EQ(Q::lowest().times_ns(std::numeric_limits<std::int64_t>::max()), Q::lowest()) << "2^31 LSB times 2^32 s";
+  EXPECT_TRUE(take_fixed_saturated());
+  std::mt19937_64 random(29);
+  for (int i = 0; i < 100000; ++i) {
+    const auto raw = static_cast<std::int32_t>(random());
+    const auto ns = static_cast<std::int64_t>(random() >> (1 + random() % 63));
+    const std::int64_t want = exact(raw, ns);
+    const Q got = Q::from_raw(raw).times_ns(ns);
+    if (want <= std::numeric_limits<std::int32_t>::max() && want >= std::numeric_limits<std::int32_t>::min()) {
+      ASSERT_EQ(got.raw(), want) << raw << " " << ns;
+    } else {
+      ASSERT_EQ(got, want > 0 ? Q::max() : Q::lowest()) << raw << " " << ns;
+    }
+  }
+  static_cast<void>(take_fixed_saturated());
 }
 
 TEST(Fixed, MultiplicationAgreesWithLibfixmath) {

@@ -228,6 +228,40 @@ TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
   EXPECT_GE(second.force_n.z.to_double(), 20.0 - 2 * kLsb);
 }
 
+TEST(ForceSafety, Q16RateLimitHoldsOnTicksShorterThanItsRateCanHold) {
+  // Found by tests/fuzz/tick_fuzz.cpp: stamps 10 us apart are 100 kHz, which Q16.16 cannot
+  // hold (32,767 is its largest value). The step max_force_rate / rate_hz used the saturated
+  // rate, 2000 / 32768 = 0.061 N where 0.02 N is allowed; when that step was computed once at
+  // construction (the configured period) the step's saturation raised no fault either. The
+  // step comes from the integer dt instead: 2000 N/s * 10 us, rounded down.
+  const auto scene = parse_scene("[device]\nmax_force = 8\nmax_force_rate = 2000\n[[surface]]\npoint = [0, 0, 0]\n"
+                                 "normal = [0, 0, 1]\nstiffness = 1000\n",
+                                 "fast.toml", ScalarKind::kQ16_16);
+  ASSERT_TRUE(scene) << scene.error();
+  constexpr std::int64_t kStepNs = 10'000;
+  constexpr double kAllowed = 2000.0 * 1e-5;
+  for (const std::int64_t configured_ns : {kStepNs, std::int64_t{1'000'000}}) {  // the period's step, and any dt's
+    SpecLoop ctl(make_runtime_scene<Q16_16>(scene.value()),
+                 replay_config(scene.value(), static_cast<double>(configured_ns) / 1e9));
+    double previous = 0.0;
+    for (std::int64_t k = 0; k < 20; ++k) {
+      Sample s = sample(k, {0, 0, -0.005});  // asks for 5 N
+      s.has_velocity = true;
+      const auto r = ctl.tick(s, k * kStepNs);
+      const double f = r.force_n.z.to_double();
+      if (k == 0) {  // the first tick's dt is the configured period
+        previous = f;
+        continue;
+      }
+      // 1/dt itself saturates (replay refuses such rows: fixed_point::check_rate); the limit holds even so.
+      EXPECT_TRUE(r.faults.has(Fault::kFixedSaturation)) << configured_ns << " tick " << k;
+      EXPECT_LE(f - previous, kAllowed) << configured_ns << " tick " << k;
+      EXPECT_GE(f - previous, kAllowed - 2.0 / 65536.0) << configured_ns << " tick " << k;  // and it is used
+      previous = f;
+    }
+  }
+}
+
 TEST(ForceSafety, Q16ClampHoldsWhenTheForcesNormIsBeyondTheQ16Range) {
   // Found by tests/fuzz/tick_fuzz.cpp (CI, 2026-11-23): a force of 32767 N on every axis has a
   // norm of 56755 N, which a Q16.16 norm saturates at 32768; scaled by 8 / 32768 each axis gave

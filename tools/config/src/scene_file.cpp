@@ -292,7 +292,7 @@ RateLimit max_rate(const SceneSettings& settings, const std::vector<CartoonCliff
   // The loop holds 1/dt itself (TickInput::rate_hz, hip_sensor.hpp); it fits below kMaxValue,
   // and the guard keeps the whole-unit headroom of every product. The passivity controller's
   // power X rate has X <= 1 J (PassivityController::kMaxExcessJ), so it fits when the rate does;
-  // the rate limit's max_force_rate / rate only shrinks.
+  // the rate limit's step comes from the integer dt, not the rate (ForceSafety::max_step_for_ns).
   RateLimit limit{kMaxProduct, fmt::format("1/dt itself must fit Q16.16, whose largest value is {:.10g}", kMaxValue)};
   // velocity_estimator.hpp: a = 1 / (1 + rate tau_c), tau_c = 1 / (2 pi f_c).
   const double tau_c_s = 1.0 / (2.0 * 3.14159265358979323846 * settings.velocity_cutoff_hz);

@@ -204,10 +204,15 @@ struct Run {
   }
 
   /// The effects plus the safety stage on one tick's inputs.
-  [[gnu::noinline]] static Vec3<S> effects_and_safety(const TickInput<S>& in, typename SceneT::State& state,
-                                                      ForceSafety<S>& safety) noexcept {
+  /// (`dt_ns` is the tick's: a fixed-point loop sizes its rate limit's step from it.)
+  [[gnu::noinline]] static Vec3<S> effects_and_safety(const TickInput<S>& in, std::int64_t dt_ns,
+                                                      typename SceneT::State& state, ForceSafety<S>& safety) noexcept {
     const Vec3<S> f = kScene.force(in, state, active);
-    return safety.limit(f, in.rate_hz).force_n;
+    if constexpr (kIsFixed<S>) {
+      return safety.limit_step(f, safety.max_step_for_ns(dt_ns)).force_n;
+    } else {
+      return safety.limit(f, in.rate_hz).force_n;
+    }
   }
 
   static bool play(const Motion& motion) noexcept {
@@ -252,10 +257,11 @@ struct Run {
       TickInput<S> in{};
       in.position_m = motion.rows[row].position_m;
       in.velocity_m_per_s = again.velocity();
-      in.rate_hz = rate_of(motion, row);
+      const std::int64_t dt_ns = dt_ns_of(motion, row);
+      in.rate_hz = rate_of(dt_ns);
       in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_ns};
       Vec3<S> f{};
-      effects.add(count([&] { f = effects_and_safety(in, state, safety); }));
+      effects.add(count([&] { f = effects_and_safety(in, dt_ns, state, safety); }));
       agree = agree && f == again.force();  // the shadow is the loop's own computation
     }
     out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
@@ -266,10 +272,13 @@ struct Run {
     return agree;
   }
 
-  /// 1/dt as the loop computes it with stamps: the first tick's dt is the recording's period
-  /// (every motion here has whole rows, so the last tick that counted is the row before).
-  static S rate_of(const Motion& motion, std::size_t k) noexcept {
-    const std::int64_t dt_ns = k == 0 ? ns_from_seconds(image::kMotionPeriodS) : motion.rows[k].t_ns - motion.rows[k - 1].t_ns;
+  /// dt as the loop takes it with stamps: the first tick's is the recording's period (every
+  /// motion here has whole rows, so the last tick that counted is the row before).
+  static std::int64_t dt_ns_of(const Motion& motion, std::size_t k) noexcept {
+    return k == 0 ? ns_from_seconds(image::kMotionPeriodS) : motion.rows[k].t_ns - motion.rows[k - 1].t_ns;
+  }
+  /// 1/dt as the loop computes it.
+  static S rate_of(std::int64_t dt_ns) noexcept {
     if constexpr (kIsFixed<S>) {
       return S::from_ratio(kNsPerS, dt_ns);
     } else {

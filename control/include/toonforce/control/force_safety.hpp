@@ -11,6 +11,7 @@
 #include <cstdint>
 
 #include "toonforce/control/faults.hpp"
+#include "toonforce/effects/tick.hpp"
 #include "toonforce/math/vec3.hpp"
 
 namespace toonforce {
@@ -83,6 +84,17 @@ class ForceSafety {
   /// max_force_rate * dt for a tick at `rate_hz` (0 without a rate limit).
   constexpr S max_step_for(S rate_hz) const noexcept {
     return has_max_force_rate_ ? max_force_rate_n_per_s_ / rate_hz : S{};
+  }
+  /// The same for a tick `dt_ns` long. Fixed point: from the integer time without its
+  /// reciprocal (Q16.16 cannot hold 1/dt above 32,767 Hz: a 10 us tick's step would be the
+  /// saturated rate's, three times too large), rounded down: the step never exceeds
+  /// max_force_rate * dt. Floating point: through the rate, as the loop computes it.
+  constexpr S max_step_for_ns(std::int64_t dt_ns) const noexcept {
+    if constexpr (kIsFixed<S>) {
+      return has_max_force_rate_ ? max_force_rate_n_per_s_.times_ns(dt_ns) : S{};
+    } else {
+      return max_step_for(scalar_cast<S>(1.0 / (static_cast<double>(dt_ns) / static_cast<double>(kNsPerS))));
+    }
   }
   constexpr bool has_max_force() const noexcept { return has_max_force_; }
   constexpr const Vec3<S>& previous_output() const noexcept { return previous_n_; }

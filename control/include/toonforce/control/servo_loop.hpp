@@ -352,9 +352,9 @@ class ServoLoop {
         if (time.gap > max_step_gaps_) return S::from_wide(std::int64_t{std::numeric_limits<std::int32_t>::max()} + 1);
         return S::from_wide(period_max_step_.raw() * time.gap);
       }
-      // Stamps: a dt of the configured period takes the step computed once, as below.
-      if (time.dt_ns == clock_.period_ns()) return stamped_period_max_step_;
-      return safety_.max_step_for(S::from_ratio(kNsPerS, time.dt_ns));
+      // Stamps: a dt of the configured period takes the step computed once.
+      if (time.dt_ns == clock_.period_ns()) return period_max_step_;
+      return safety_.max_step_for_ns(time.dt_ns);
     } else {
       if (time.gap == 1 && time.period_s > 0.0) return period_max_step_;
       return safety_.max_step_for(scalar_cast<S>(1.0 / time.dt_s()));
@@ -369,11 +369,12 @@ class ServoLoop {
       return 0;
     }
   }
-  static constexpr S stamped_step(const ForceSafety<S>& safety, std::int64_t period_ns) noexcept {
+  /// max_force_rate * period: fixed point from the integer period, as a stamped tick computes it.
+  static constexpr S period_step(const ForceSafety<S>& safety, const Clock& clock) noexcept {
     if constexpr (kIsFixed<S>) {
-      return safety.max_step_for(S::from_ratio(kNsPerS, period_ns));
+      return safety.max_step_for_ns(clock.period_ns());
     } else {
-      return S{};
+      return safety.max_step_for(scalar_cast<S>(1.0 / clock.period_s()));
     }
   }
 
@@ -423,11 +424,9 @@ class ServoLoop {
   ForceSafety<S> safety_;
   HipSensor<S, kMayEstimate> sensor_;
   S max_force_n_;  ///< the configured clamp (the thermal model derates below it)
-  S period_max_step_ = safety_.max_step_for(scalar_cast<S>(1.0 / clock_.period_s()));
+  S period_max_step_ = period_step(safety_, clock_);
   /// Fixed point: the largest gap whose step gap * period_max_step_ fits the format.
   std::int64_t max_step_gaps_ = largest_step_gap(period_max_step_);
-  /// Fixed point, stamps: the step of a dt of one configured period, as the tick would compute it.
-  S stamped_period_max_step_ = stamped_step(safety_, clock_.period_ns());
   std::int64_t fade_ticks_;  ///< live: the update fade, in ticks
   Mailbox* mailbox_ = nullptr;
   std::uint64_t updates_applied_ = 0;

@@ -200,6 +200,23 @@ class Fixed {
     const Wide q = detail::div_round(magnitude, den);  // magnitude + den / 2 < 2^63: both < 2^62
     return from_wide(scaled < 0 ? -q : q);
   }
+  /// This value (a rate, per second) times `ns` nanoseconds: rounded toward zero, so a limit
+  /// it sizes is never exceeded, and saturating with the flag. `ns` >= 0, any size: whole
+  /// seconds and the rest are multiplied apart, each product exact in 64 bits. No reciprocal:
+  /// 1e9 / ns itself would not fit Q16.16 above 32,767 Hz.
+  constexpr Fixed times_ns(std::int64_t ns) const noexcept {
+    constexpr std::uint32_t kNsPerSecond = 1'000'000'000;
+    const auto ns_u = static_cast<std::uint64_t>(ns < 0 ? 0 : ns);
+    const std::uint64_t seconds = detail::div_u64_u32(ns_u, kNsPerSecond);  // 2^32 when it does not fit
+    const Wide sign = raw_ < 0 ? -1 : 1;
+    const auto magnitude = static_cast<std::uint64_t>(raw_ < 0 ? -Wide{raw_} : Wide{raw_});  // <= 2^31
+    if (magnitude == 0) return Fixed{};
+    if (seconds >= (std::uint64_t{1} << 31)) return saturated(raw_ > 0);  // past any raw value
+    const std::uint64_t rest_ns = ns_u - seconds * kNsPerSecond;  // < 1e9 < 2^30
+    // magnitude * seconds < 2^62, magnitude * rest_ns < 2^61: neither overflows.
+    const std::uint64_t whole = magnitude * seconds + detail::div_u64_u32(magnitude * rest_ns, kNsPerSecond);
+    return from_wide(sign * static_cast<Wide>(whole));
+  }
   /// Whether num / den <= this value, exactly (den > 0, |num| < 2^(62 - FracBits), den < 2^31).
   constexpr bool ratio_at_most(Wide num, Wide den) const noexcept {
     return num * kOneRaw <= Wide{raw_} * den;
