@@ -129,6 +129,57 @@ TEST(Fixed, ARateTimesNanosecondsIsTheExactProductRoundedTowardZero) {
   static_cast<void>(take_fixed_saturated());
 }
 
+TEST(Fixed, WideValuesRoundHalfAwayFromZeroAndSaturateIntoRange) {
+  // round_shift and from_wide end every product, dot and conversion: against the exact rational
+  // rounding (in 128 bits) at the ties, around zero, at the 64-bit limits and at random, for
+  // every shift the code uses and more.
+  __extension__ using Int128 = __int128;
+  const auto rounded = [](std::int64_t w, int shift) {
+    const Int128 d = Int128{1} << shift;
+    const Int128 m = w < 0 ? -Int128{w} : Int128{w};
+    const Int128 q = (m + d / 2) / d;  // half away from zero, on the magnitude
+    return static_cast<std::int64_t>(w < 0 ? -q : q);
+  };
+  std::vector<std::int64_t> values = {0, 1, -1, std::numeric_limits<std::int64_t>::max(),
+                                      std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min() + 1};
+  for (int shift = 1; shift < 63; ++shift) {
+    const std::int64_t half = std::int64_t{1} << (shift - 1);
+    for (const std::int64_t k : {0LL, 1LL, 2LL, 3LL, 12345LL}) {
+      for (const std::int64_t off : {-1LL, 0LL, 1LL}) {
+        if (k > (std::numeric_limits<std::int64_t>::max() >> shift) - 1) continue;
+        const std::int64_t w = (k << shift) + half + off;  // a tie and either side of it
+        values.push_back(w);
+        values.push_back(-w);
+      }
+    }
+  }
+  std::mt19937_64 random(16);
+  for (int i = 0; i < 20000; ++i) values.push_back(static_cast<std::int64_t>(random()) >> (random() % 64));
+  for (int shift = 1; shift < 63; ++shift) {
+    for (const std::int64_t w : values) ASSERT_EQ(Q::round_shift(w, shift), rounded(w, shift)) << w << " >> " << shift;
+  }
+  static_cast<void>(take_fixed_saturated());
+  for (const std::int64_t w : values) {
+    const Q got = Q::from_wide(w);
+    if (w > std::numeric_limits<std::int32_t>::max()) {
+      EXPECT_EQ(got, Q::max()) << w;
+      EXPECT_TRUE(take_fixed_saturated()) << w;
+    } else if (w < std::numeric_limits<std::int32_t>::min()) {
+      EXPECT_EQ(got, Q::lowest()) << w;
+      EXPECT_TRUE(take_fixed_saturated()) << w;
+    } else {
+      EXPECT_EQ(got.raw(), w);
+      EXPECT_FALSE(take_fixed_saturated()) << w;
+    }
+  }
+  for (const std::int64_t w : {std::int64_t{INT32_MAX}, std::int64_t{INT32_MAX} + 1, std::int64_t{INT32_MIN},
+                               std::int64_t{INT32_MIN} - 1, std::int64_t{1} << 32, -(std::int64_t{1} << 32)}) {
+    EXPECT_EQ(Q::from_wide(w), w > INT32_MAX ? Q::max() : (w < INT32_MIN ? Q::lowest() : Q::from_raw(static_cast<std::int32_t>(w))))
+        << w;
+  }
+  static_cast<void>(take_fixed_saturated());
+}
+
 TEST(Fixed, MultiplicationAgreesWithLibfixmath) {
   // libfixmath (Debian's libfixmath-dev) as an independent oracle: it rounds to nearest too;
   // the two may differ by one LSB only on exact ties, which they round differently.
@@ -215,6 +266,10 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
     ASSERT_EQ(detail::div_u64(u, v), expected) << u << " / " << v;
     if (v <= UINT32_MAX) {
       ASSERT_EQ(detail::div_u64_u32_digits(u, static_cast<std::uint32_t>(v)), expected) << u << " / " << v;
+      // By the reciprocal of an invariant divisor (scale_to_norm's root, the rate limit's 1e9).
+      const detail::Divisor d = detail::divisor_of(static_cast<std::uint32_t>(v));
+      ASSERT_EQ(detail::div_u64_by_digits(u, d), expected) << u << " / " << v;
+      ASSERT_EQ(detail::div_u64_by(u, d), expected) << u << " / " << v;
     }
   };
   std::vector<std::uint64_t> divisors = {1, 2, 3, 0x8000ULL, 0xFFFFULL, 0x10000ULL, 0x10001ULL, 0x7FFF'FFFFULL,
@@ -234,6 +289,8 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
   static_assert(detail::div_u64_digits(0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFFULL) == std::uint64_t{1} << 32);  // 2^32 + 1: capped
   static_assert(detail::div_u64_digits(0xFFFF'FFFE'FFFF'FFFFULL, 0xFFFF'FFFFULL) == 0xFFFF'FFFFULL);
   static_assert(detail::div_round(std::int64_t{5}, std::int64_t{2}) == 3 && detail::div_round_u32(7, 3U) == 2);
+  static_assert(detail::div_u64_by_digits(0xFFFF'FFFE'FFFF'FFFFULL, detail::divisor_of(0xFFFF'FFFFU)) == 0xFFFF'FFFFULL);
+  static_assert(detail::div_u64_by_digits(0xFFFF'FFFFULL << 32, detail::divisor_of(0xFFFF'FFFFU)) == std::uint64_t{1} << 32);
 }
 
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {

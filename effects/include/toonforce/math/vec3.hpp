@@ -115,9 +115,13 @@ template <Scalar S>
 constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& magnitude) noexcept {
   if constexpr (kIsFixed<S>) {
     using W = typename S::Wide;
+    if (magnitude.root == 0) return {};  // a zero vector: nothing to scale (callers never ask)
+    // Three quotients by one divisor: its reciprocal once (one division, not three).
+    const detail::Divisor root = detail::divisor_of(magnitude.root);
     const auto scale = [&](S c) {
       const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
-      const W m = detail::div_round_u32(product < 0 ? -product : product, magnitude.root);
+      const auto rounded = static_cast<std::uint64_t>(product < 0 ? -product : product) + magnitude.root / 2;
+      const auto m = static_cast<W>(detail::div_u64_by(rounded, root));
       return S::from_wide(product < 0 ? -m : m);
     };
     return {scale(v.x), scale(v.y), scale(v.z)};
