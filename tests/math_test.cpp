@@ -300,6 +300,17 @@ TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {
   EXPECT_FALSE(take_fixed_saturated());
 }
 
+TEST(Vec3Fixed, ScaleToNormRoundsEachComponentToNearest) {
+  // (3, 4, 0) LSB has norm 5 LSB exactly; scaled to 2 LSB it is (1.2, 1.6, 0): (1, 2, 0) rounded
+  // to nearest, where truncation would give (1, 1, 0). The same with the signs.
+  for (const std::int32_t sign : {1, -1}) {
+    const Vec3<Q> v{Q::from_raw(3 * sign), Q::from_raw(4 * sign), Q{}};
+    const NormOf<Q> magnitude = norm_of(v);
+    ASSERT_EQ(magnitude.root, 5U);
+    EXPECT_EQ(scale_to_norm(v, Q::from_raw(2), magnitude), (Vec3<Q>{Q::from_raw(sign), Q::from_raw(2 * sign), Q{}}));
+  }
+}
+
 TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {
   const Vec3<Q> a{Q::from_double(300.0), Q::from_double(300.0), Q::from_double(0.001)};
   const Vec3<Q> b{Q::from_double(300.0), Q::from_double(-300.0), Q::from_double(0.001)};

@@ -173,6 +173,10 @@ constexpr std::uint64_t div_u64_by(std::uint64_t n, const Divisor& d) noexcept {
     return div_u64_by_digits(n, d);
   }
 }
+/// (n + d / 2) / d, rounded half up as div_round_u32, by a prepared divisor.
+constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept {
+  return div_u64_by(n + d.d / 2, d);
+}
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.

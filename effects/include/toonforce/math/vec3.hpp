@@ -120,8 +120,7 @@ constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& 
     const detail::Divisor root = detail::divisor_of(magnitude.root);
     const auto scale = [&](S c) {
       const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
-      const auto rounded = static_cast<std::uint64_t>(product < 0 ? -product : product) + magnitude.root / 2;
-      const auto m = static_cast<W>(detail::div_u64_by(rounded, root));
+      const auto m = static_cast<W>(detail::div_round_by(static_cast<std::uint64_t>(product < 0 ? -product : product), root));
       return S::from_wide(product < 0 ? -m : m);
     };
     return {scale(v.x), scale(v.y), scale(v.z)};
