@@ -69,15 +69,19 @@ std::vector<double> fields(const std::string& line) {
 
 struct CountingTask final : PeriodicTask {
   std::vector<std::int64_t> ticks;
-  std::int64_t publishes = 0;
+  std::atomic<std::int64_t> publishes{0};  ///< read by a stopper thread while the loop runs
   std::int64_t shutdowns = 0;
   std::int64_t shutdown_at = -1;
-  std::int64_t stall_at = -1;  ///< this tick sleeps 100 ms
+  std::int64_t stall_at = -1;  ///< the first tick from this one on sleeps 100 ms
+  std::int64_t stalled = -1;   ///< the tick that slept (a late deadline may skip stall_at itself)
   void tick(std::int64_t k) noexcept override {
     ticks.push_back(k);  // reserved beforehand: no allocation here
-    if (k == stall_at) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (stall_at >= 0 && stalled < 0 && k >= stall_at) {
+      stalled = k;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
   }
-  void publish(std::int64_t, const TickTiming&) noexcept override { ++publishes; }
+  void publish(std::int64_t, const TickTiming&) noexcept override { publishes.fetch_add(1); }
   void shutdown(std::int64_t k) noexcept override {
     ++shutdowns;
     shutdown_at = k;
@@ -101,7 +105,7 @@ TEST(RealtimeRunner, EveryDeadlineIsEitherTickedOrCountedAsMissedAndTimeOnlyMove
   ASSERT_TRUE(report) << report.error();
   EXPECT_EQ(report->ticks + report->missed, 600);
   EXPECT_EQ(static_cast<std::int64_t>(task.ticks.size()), report->ticks);
-  EXPECT_EQ(task.publishes, report->ticks);
+  EXPECT_EQ(task.publishes.load(), report->ticks);
   EXPECT_EQ(task.shutdowns, 1);
   EXPECT_EQ(task.shutdown_at, 600);
   for (std::size_t i = 1; i < task.ticks.size(); ++i) ASSERT_GT(task.ticks[i], task.ticks[i - 1]);
@@ -124,9 +128,11 @@ TEST(RealtimeRunner, AStalledTickIsSkippedNotBurstedAndTripsTheHeartbeatWatchdog
   ASSERT_TRUE(report) << report.error();
   EXPECT_EQ(report->ticks + report->missed, 600);
   EXPECT_GE(report->missed, 199) << "100 ms at 2 kHz is 200 periods";
-  const auto after = std::find(task.ticks.begin(), task.ticks.end(), 100);
+  ASSERT_GE(task.stalled, 100);
+  const auto after = std::find(task.ticks.begin(), task.ticks.end(), task.stalled);
+  ASSERT_NE(after, task.ticks.end());
   ASSERT_NE(after + 1, task.ticks.end());
-  EXPECT_GE(*(after + 1) - 100, 200) << "the next tick runs at the latest passed deadline";
+  EXPECT_GE(*(after + 1) - task.stalled, 200) << "the next tick runs at the latest passed deadline";
   EXPECT_GE(report->watchdog_trips, 1);
   EXPECT_GE(g_emergency_calls.load(), 1);
 }
@@ -211,8 +217,11 @@ TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {
   CountingTask task;
   task.ticks.reserve(100000);
   std::atomic<int> stop{0};
-  std::thread stopper([&stop] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // The stop comes once the loop has ticked (a fixed 50 ms could pass before a loaded host
+  // started the loop's thread).
+  std::thread stopper([&stop, &task] {
+    for (int i = 0; i < 60000 && task.publishes.load() == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
     stop.store(SIGTERM);
   });
   const auto report = run_realtime(task, quick(0), EmergencyZero{}, stop);

@@ -279,7 +279,11 @@ TEST_F(FalconUsb, ProbeDetectsLoadedFirmwareThroughLibusb) {
 
 TEST_F(FalconUsb, HomingThenHundredsOfTicksWithForcesAndNoAllocation) {
   bed_->add_falcon(with_firmware());
-  auto d = open();
+  // Every transfer is a round trip through umockdev's thread: on a loaded host one late wake-up
+  // passes the real device's 4 ms (this test is about the exchange, not its timing).
+  FalconOptions patient;
+  patient.io_timeout_ms = 1000;
+  auto d = open(patient);
   ASSERT_NE(d, nullptr);
   DeviceReading r;
   EXPECT_EQ(tick(*d, r, {0, 0, 1}), DeviceStatus::kNotReady);
@@ -467,7 +471,7 @@ TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
       "--report " + base.string());
   EXPECT_EQ(r.status, 0) << r.output;
   for (const char* line : {"[pass] Found and may be opened: found at usb 001/005", "[pass] Firmware: firmware runs",
-                           "[pass] Homing: all three axes report homed", "[pass] USB round trip at 1 kHz: 300 replies to 300 commands",
+                           "[pass] Homing: all three axes report homed", " replies to 300 commands",
                            "no step failed: report written to"}) {
     EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
   }
@@ -476,7 +480,10 @@ TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
   EXPECT_NE(json.find("\"id\": \"motors\", \"title\": \"Motor direction\", \"outcome\": \"skipped\""), std::string::npos) << json;
   const std::string md = read_text(base.string() + ".md");
   EXPECT_NE(md.find("| USB round trip at 1 kHz | pass |"), std::string::npos) << md;
-  EXPECT_NE(md.find("299 samples"), std::string::npos) << "the histogram of the round trips: " << md;
+  // The step passes with up to 1 % of replies lost (a loaded host's late wake-up in umockdev's
+  // thread), so the exact counts are not asserted here; the step's own tests pin them.
+  EXPECT_NE(r.output.find("[pass] USB round trip at 1 kHz: "), std::string::npos) << r.output;
+  EXPECT_NE(md.find(" samples"), std::string::npos) << "the histogram of the round trips: " << md;
   EXPECT_GT(bed_->ioctls(0), 0u) << "the child process went through the emulated usbfs";
 }
 

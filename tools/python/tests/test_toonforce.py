@@ -219,7 +219,7 @@ def test_ctrl_c_stops_a_long_sim(root):
     sent = time.monotonic()
     child.send_signal(signal.SIGINT)
     out, err = child.communicate(timeout=30)
-    assert time.monotonic() - sent < 5.0
+    assert time.monotonic() - sent < 15.0  # promptly, with room for a loaded host
     assert "finished" not in out
     assert "KeyboardInterrupt" in err
 
@@ -242,19 +242,23 @@ def test_live_run_takes_changes_and_streams_telemetry(root):
 
     with toonforce.run(root / "scenes/cartoon_wall.toml", root / "scenes/hands/strike.toml") as r:
         _wait_for(lambda: r.applied == 0 and r.running)
-        time.sleep(0.3)
-        first = r.telemetry()
+        # Rows as they come, until there are 50 (waiting, not sleeping: a loaded host's loop
+        # may miss deadlines, so a fixed time need not hold 50 rows).
+        parts = []
+        _wait_for(lambda: parts.append(r.telemetry()) or sum(p.rows for p in parts) > 50, 60.0)
+        first = parts[-1]
         assert list(first)[:10] == ["t", "x", "y", "z", "vx", "vy", "vz", "fx", "fy", "fz"]
-        assert first.rows > 50 and r.units["fz"] == "N"
+        assert r.units["fz"] == "N"
         stiffer = r.set("surface1", {"stiffness": 800.0})
         fired = r.fire("surface1", "impact", 0.3)
         assert fired > stiffer > 0
         _wait_for(lambda: r.applied >= fired)
         with pytest.raises(ValueError, match="stiffnes"):
             r.set("surface1", "stiffnes = 1.0")
-        time.sleep(0.2)
-        second = r.telemetry()
-        assert second.rows > 50 and second["t"][0] > first["t"][-1]
+        parts = []
+        _wait_for(lambda: parts.append(r.telemetry()) or sum(p.rows for p in parts) > 50, 60.0)
+        second = next(p for p in parts if p.rows > 0)
+        assert second["t"][0] > first["t"][-1]
     assert r.summary["updates_applied"] == 2
     assert r.summary["stop_signal"] == signal.SIGINT
     last = r.telemetry()
