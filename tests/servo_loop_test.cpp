@@ -140,6 +140,25 @@ TYPED_TEST(ServoSafety, ForceIsOffAboveMaxVelocityAndComesBackThroughTheRamp) {
   EXPECT_NEAR(rig.force().z, 2.0, kForceTol<TypeParam>);
 }
 
+// Q16.16 compared rounded squares: a 0.01 m/s limit's square is 6.5 LSB, so up to 0.0107 m/s
+// passed it. Speeds from 5 LSB under the limit to 60 over, along an axis and a diagonal: an
+// overspeed exactly when the speed is over.
+TEST(MotionLimits, Q16OverspeedComparesTheSquaresExactly) {
+  MotionLimitsConfig config;
+  config.max_velocity_m_per_s = 0.01;
+  const MotionLimits<Q16_16> limits(config);
+  const std::int64_t limit_raw = scalar_cast<Q16_16>(0.01).raw();
+  for (const Vec3<double> direction : {Vec3<double>{0, 0, -1}, Vec3<double>{0.6, -0.48, 0.64}}) {
+    for (std::int64_t over = -5; over <= 60; ++over) {
+      const Vec3<Q16_16> v = vec_cast<Q16_16>(direction * (static_cast<double>(limit_raw + over) / 65536.0));
+      const std::int64_t squares = std::int64_t{v.x.raw()} * v.x.raw() + std::int64_t{v.y.raw()} * v.y.raw() +
+                                   std::int64_t{v.z.raw()} * v.z.raw();
+      EXPECT_EQ(limits.check(Vec3<Q16_16>{}, v).has(Fault::kOverspeed), squares > limit_raw * limit_raw)
+          << over << " LSB over";
+    }
+  }
+}
+
 TYPED_TEST(ServoSafety, VelocityLimitAlsoWorksOnTheEstimateWhenTheDeviceGivesNone) {
   ServoConfig c = bare_config();
   c.safety.has_max_velocity = true;

@@ -288,6 +288,51 @@ TEST(ForceSafety, Q16ClampHoldsWhenTheForcesNormIsBeyondTheQ16Range) {
   EXPECT_LE(std::sqrt(dot(h, h)), 3.0 + 2 * kLsb);
 }
 
+TEST(ForceSafety, Q16LimitsCompareTheSquaresExactly) {
+  // The limits compared Q16.16 squares, rounded to 2^-16: a 0.02 N step's square is 26 LSB, so
+  // steps up to 6 LSB (0.5 %) over a 0.02 N rate limit passed unlimited, and up to 38 % over a
+  // 0.002 N one (2 N/s at 1 kHz); a square above 32,768 N^2 saturated, so a 200 N clamp let
+  // 250 N out (with a saturation fault, after the write). Every step from 10 LSB under the
+  // limit to 60 over, along an axis and a diagonal: limited exactly when its norm is over.
+  constexpr double kLsb = 1.0 / 65536.0;
+  ForceLimits rate_only;
+  rate_only.has_max_force_rate = true;
+  rate_only.max_force_rate_n_per_s = 1.0;  // any: the step is given
+  for (const double limit_n : {0.02, 0.002}) {
+    const Q16_16 max_step = scalar_cast<Q16_16>(limit_n);
+    for (const Vec3<double> direction : {Vec3<double>{1, 0, 0}, Vec3<double>{0.6, -0.48, 0.64}}) {
+      for (std::int32_t over = -10; over <= 60; ++over) {
+        ForceSafety<Q16_16> safety(rate_only);
+        const Vec3<Q16_16> wanted = vec_cast<Q16_16>(direction * ((max_step.raw() + over) * kLsb));
+        const Vec3<double> w = to_double(wanted);
+        const double wanted_n = std::sqrt(dot(w, w));
+        static_cast<void>(take_fixed_saturated());
+        const auto out = safety.limit_step(wanted, max_step);
+        const Vec3<double> f = to_double(out.force_n);
+        const bool over_limit = wanted_n > max_step.to_double();
+        EXPECT_EQ(has(out.limits, Limit::kRateLimited), over_limit) << limit_n << " N, " << over << " LSB over";
+        EXPECT_LE(std::sqrt(dot(f, f)), max_step.to_double() + kLsb) << limit_n << " N, " << over << " LSB over";
+        if (!over_limit) {
+          EXPECT_EQ(out.force_n, wanted);
+        }
+        EXPECT_FALSE(take_fixed_saturated());
+      }
+    }
+  }
+  ForceLimits clamp_only;
+  clamp_only.has_max_force = true;
+  clamp_only.max_force_n = 200.0;
+  ForceSafety<Q16_16> clamp(clamp_only);
+  static_cast<void>(take_fixed_saturated());
+  const auto out = clamp.limit_step(vec_cast<Q16_16>(Vec3<double>{150.0, -120.0, 160.0}), Q16_16{});  // 250 N
+  const Vec3<double> f = to_double(out.force_n);
+  EXPECT_TRUE(has(out.limits, Limit::kClamped));
+  EXPECT_LE(std::sqrt(dot(f, f)), 200.0 + 2 * kLsb);
+  EXPECT_GE(std::sqrt(dot(f, f)), 200.0 - 2 * kLsb);
+  EXPECT_NEAR(f.x, 120.0, 2 * kLsb) << "direction kept";
+  EXPECT_FALSE(take_fixed_saturated()) << "250 N is well inside Q16.16";
+}
+
 /// A tick of every bundled scene, in every scalar type, allocates nothing.
 template <Scalar S>
 void expect_no_allocation(const std::string& name, ScalarKind kind) {

@@ -4,6 +4,7 @@
 /// once, so a norm is never built from saturated squares (spec §7).
 
 #include <cstdint>
+#include <optional>
 #include <type_traits>
 
 #include "toonforce/math/scalar.hpp"
@@ -69,18 +70,36 @@ struct NormOf {
   std::conditional_t<kIsFixed<S>, std::uint32_t, S> root;
 };
 
+namespace detail {
+/// |v|^2 of a Q-format vector, exact: its raw squares in unsigned 64 bits (each < 2^62, three
+/// of them < 2^64), in units of 2^-2F.
+template <Scalar S>
+constexpr std::uint64_t raw_squares(const Vec3<S>& v) noexcept {
+  const auto sq = [](typename S::Raw r) {
+    const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
+    return m * m;
+  };
+  return sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw());
+}
+/// limit^2 in the units of raw_squares, exact (a negative limit counts as 0).
+template <Scalar S>
+constexpr std::uint64_t raw_square(S limit) noexcept {
+  const auto m = static_cast<std::uint64_t>(limit.raw() < 0 ? 0 : limit.raw());
+  return m * m;
+}
+/// The norm whose exact square is `squares` (raw_squares): the root of a value in units of
+/// 2^-2F is the norm in units of 2^-F, which is the raw result (<= sqrt(3) 2^31 < 2^32).
+template <Scalar S>
+constexpr NormOf<S> norm_from_raw_squares(std::uint64_t squares) noexcept {
+  const std::uint64_t root = isqrt_round(squares);
+  return {S::from_wide(static_cast<std::int64_t>(root)), static_cast<std::uint32_t>(root)};
+}
+}  // namespace detail
+
 template <Scalar S>
 constexpr NormOf<S> norm_of(const Vec3<S>& v) noexcept {
   if constexpr (kIsFixed<S>) {
-    // Raw squares in unsigned 64 bits: each < 2^62, three of them < 2^64. The root of a value
-    // in units of 2^-2F is the norm in units of 2^-F, which is the raw result.
-    const auto sq = [](typename S::Raw r) {
-      const auto m = static_cast<std::uint64_t>(r < 0 ? -static_cast<std::int64_t>(r) : r);
-      return m * m;
-    };
-    const std::uint64_t root = detail::isqrt_round(sq(v.x.raw()) + sq(v.y.raw()) + sq(v.z.raw()));
-    // root <= sqrt(3) 2^31 < 2^32
-    return {S::from_wide(static_cast<std::int64_t>(root)), static_cast<std::uint32_t>(root)};
+    return detail::norm_from_raw_squares<S>(detail::raw_squares(v));
   } else {
     const S n = sqrt(dot(v, v));
     return {n, n};
@@ -90,6 +109,35 @@ constexpr NormOf<S> norm_of(const Vec3<S>& v) noexcept {
 template <Scalar S>
 constexpr S norm(const Vec3<S>& v) noexcept {
   return norm_of(v).value;
+}
+
+/// Whether |v| > `limit` (>= 0), as its square (exactly in a Q format, as norm_if_above).
+template <Scalar S>
+constexpr bool norm_exceeds(const Vec3<S>& v, S limit) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return detail::raw_squares(v) > detail::raw_square(limit);
+  } else {
+    return dot(v, v) > limit * limit;
+  }
+}
+
+/// |v| when it exceeds `limit` (>= 0), else nothing: the test of every magnitude limit, with
+/// the norm (a square root) only when the limit bites. In a Q format the squares are compared
+/// exactly, raw in 64 bits. Compared as Q16.16 values they were rounded to 2^-16: a 0.02 N
+/// step's square is 26 LSB, so steps up to 0.5 % over a 0.02 N rate limit passed it (38 % over
+/// a 0.002 N one), and squares above 32,768 saturated, so a clamp above 181 N never bit.
+template <Scalar S>
+constexpr std::optional<NormOf<S>> norm_if_above(const Vec3<S>& v, S limit) noexcept {
+  if constexpr (kIsFixed<S>) {
+    const std::uint64_t squares = detail::raw_squares(v);
+    if (squares <= detail::raw_square(limit)) return std::nullopt;
+    return detail::norm_from_raw_squares<S>(squares);
+  } else {
+    if (!(dot(v, v) > limit * limit)) return std::nullopt;
+    const NormOf<S> magnitude = norm_of(v);
+    if (!(magnitude.value > limit)) return std::nullopt;
+    return magnitude;
+  }
 }
 
 template <Scalar S>
@@ -132,11 +180,8 @@ constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& 
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
-  // Squares first: the norm (a square root) only when the limit may bite.
-  if (!(dot(v, v) > max_magnitude * max_magnitude)) return v;
-  const NormOf<S> magnitude = norm_of(v);
-  if (magnitude.value <= max_magnitude) return v;
-  return scale_to_norm(v, max_magnitude, magnitude);
+  const auto magnitude = norm_if_above(v, max_magnitude);
+  return magnitude ? scale_to_norm(v, max_magnitude, *magnitude) : v;
 }
 
 /// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
