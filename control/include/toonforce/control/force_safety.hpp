@@ -52,18 +52,38 @@ class ForceSafety {
   /// period computes it once: max_step_for()).
   constexpr Output limit_step(const Vec3<S>& scene_force_n, S max_step) noexcept {
     Output out{scene_force_n, 0};
-    // Each limit compares squares first (exactly in a Q format): the norm only when it bites.
-    if (has_max_force_rate_) {
-      const Vec3<S> step = out.force_n - previous_n_;
-      if (const auto step_size = norm_if_above(step, max_step)) {
-        out.force_n = previous_n_ + scale_to_norm(step, max_step, *step_size);
-        out.limits = out.limits | Limit::kRateLimited;
+    // Each limit compares squares first: the norm (a square root) only when the limit bites.
+    if constexpr (kIsFixed<S>) {  // exactly, in 64 bits (norm_if_above says why)
+      if (has_max_force_rate_) {
+        const Vec3<S> step = out.force_n - previous_n_;
+        if (const auto step_size = norm_if_above(step, max_step)) {
+          out.force_n = previous_n_ + scale_to_norm(step, max_step, *step_size);
+          out.limits = out.limits | Limit::kRateLimited;
+        }
       }
-    }
-    if (has_max_force_) {
-      if (const auto magnitude = norm_if_above(out.force_n, max_force_n_)) {
-        out.force_n = scale_to_norm(out.force_n, max_force_n_, *magnitude);
-        out.limits = out.limits | Limit::kClamped;
+      if (has_max_force_) {
+        if (const auto magnitude = norm_if_above(out.force_n, max_force_n_)) {
+          out.force_n = scale_to_norm(out.force_n, max_force_n_, *magnitude);
+          out.limits = out.limits | Limit::kClamped;
+        }
+      }
+    } else {  // the same tests, written out: the double loop's 600-instruction mean has no room
+      if (has_max_force_rate_) {
+        const Vec3<S> step = out.force_n - previous_n_;
+        if (dot(step, step) > max_step * max_step) {
+          const NormOf<S> step_size = norm_of(step);
+          if (step_size.value > max_step) {
+            out.force_n = previous_n_ + scale_to_norm(step, max_step, step_size);
+            out.limits = out.limits | Limit::kRateLimited;
+          }
+        }
+      }
+      if (has_max_force_ && dot(out.force_n, out.force_n) > max_force_n_ * max_force_n_) {
+        const NormOf<S> magnitude = norm_of(out.force_n);
+        if (magnitude.value > max_force_n_) {
+          out.force_n = scale_to_norm(out.force_n, max_force_n_, magnitude);
+          out.limits = out.limits | Limit::kClamped;
+        }
       }
     }
     previous_n_ = out.force_n;

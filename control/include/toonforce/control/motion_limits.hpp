@@ -21,7 +21,7 @@ template <Scalar S>
 class MotionLimits {
  public:
   constexpr explicit MotionLimits(const MotionLimitsConfig& c) noexcept
-      : max_speed_m_per_s_(scalar_cast<S>(c.has_max_velocity ? c.max_velocity_m_per_s : 0.0)),
+      : max_speed_squared_(squared_limit<S>(c.has_max_velocity ? c.max_velocity_m_per_s : 0.0)),
         min_m_(vec_cast<S>(c.workspace_min_m)),
         max_m_(vec_cast<S>(c.workspace_max_m)),
         has_max_velocity_(c.has_max_velocity),
@@ -31,7 +31,7 @@ class MotionLimits {
   FaultSet check(const Vec3<S>& position_m, const Vec3<S>& velocity_m_per_s) const noexcept {
     // |v| > v_max as |v|^2 > v_max^2: no square root on every tick (and exact in Q16.16,
     // whose rounded squares let 0.0107 m/s pass a 0.01 m/s limit).
-    const bool overspeed = has_max_velocity_ && norm_exceeds(velocity_m_per_s, max_speed_m_per_s_);
+    const bool overspeed = has_max_velocity_ && norm_exceeds(velocity_m_per_s, max_speed_squared_);
     const bool outside = has_workspace_ && !inside(position_m);
     return FaultSet((overspeed ? static_cast<std::uint32_t>(Fault::kOverspeed) : 0U) |
                     (outside ? static_cast<std::uint32_t>(Fault::kOutsideWorkspace) : 0U));
@@ -47,7 +47,7 @@ class MotionLimits {
                              static_cast<int>(min_m_.y <= x.y) & static_cast<int>(x.y <= max_m_.y) &
                              static_cast<int>(min_m_.z <= x.z) & static_cast<int>(x.z <= max_m_.z));
   }
-  S max_speed_m_per_s_;
+  SquaredLimit<S> max_speed_squared_;  ///< [m^2/s^2]
   Vec3<S> min_m_;
   Vec3<S> max_m_;
   bool has_max_velocity_;

@@ -111,13 +111,27 @@ constexpr S norm(const Vec3<S>& v) noexcept {
   return norm_of(v).value;
 }
 
-/// Whether |v| > `limit` (>= 0), as its square (exactly in a Q format, as norm_if_above).
+/// A limit's square, computed once for a limit that does not change (exact in a Q format: raw,
+/// in the units of its raw squares).
 template <Scalar S>
-constexpr bool norm_exceeds(const Vec3<S>& v, S limit) noexcept {
+struct SquaredLimit {
+  std::conditional_t<kIsFixed<S>, std::uint64_t, S> value{};
+};
+template <Scalar S>
+constexpr SquaredLimit<S> squared_limit(double limit) noexcept {
   if constexpr (kIsFixed<S>) {
-    return detail::raw_squares(v) > detail::raw_square(limit);
+    return {detail::raw_square(scalar_cast<S>(limit))};
   } else {
-    return dot(v, v) > limit * limit;
+    return {scalar_cast<S>(limit * limit)};  // squared in double, then rounded once
+  }
+}
+/// Whether |v| exceeds the limit, as its square (exactly in a Q format, as norm_if_above).
+template <Scalar S>
+constexpr bool norm_exceeds(const Vec3<S>& v, SquaredLimit<S> limit) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return detail::raw_squares(v) > limit.value;
+  } else {
+    return dot(v, v) > limit.value;
   }
 }
 
