@@ -785,9 +785,12 @@ bool has_viewer() {
 bool has_report() { return run_binary({TOONFORCE_BINARY, "report", "--help"}).first == 0; }
 
 /// Waits (no time asserted) until `path` holds `what`; false if the child ended first.
-bool wait_for_text(const Child& c, const std::filesystem::path& path, const std::string& what) {
+/// Polls (at most 60 s) until `holds` is true of the text of the file at `path`; false if not
+/// or if the child ended first.
+template <class Holds>
+bool wait_for_file(const Child& c, const std::filesystem::path& path, Holds holds) {
   for (int i = 0; i < 6000; ++i) {
-    if (slurp(path).find(what) != std::string::npos) return true;
+    if (holds(slurp(path))) return true;
     int status = 0;
     if (waitpid(c.pid, &status, WNOHANG) != 0) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -795,17 +798,15 @@ bool wait_for_text(const Child& c, const std::filesystem::path& path, const std:
   return false;
 }
 
-/// Polls (at most 60 s) until the file at `path` holds at least `count` lines; false if not
-/// or if the child ended first.
+bool wait_for_text(const Child& c, const std::filesystem::path& path, const std::string& what) {
+  return wait_for_file(c, path, [&](const std::string& text) { return text.find(what) != std::string::npos; });
+}
+
+/// The same until the file holds at least `count` lines.
 bool wait_for_lines(const Child& c, const std::filesystem::path& path, std::size_t count) {
-  for (int i = 0; i < 6000; ++i) {
-    const std::string text = slurp(path);
-    if (static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) >= count) return true;
-    int status = 0;
-    if (waitpid(c.pid, &status, WNOHANG) != 0) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return false;
+  return wait_for_file(c, path, [count](const std::string& text) {
+    return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) >= count;
+  });
 }
 
 class ControlWaitStopSignal : public ::testing::TestWithParam<int> {};

@@ -233,6 +233,15 @@ def _wait_for(condition, timeout_s=5.0):
         time.sleep(0.01)
 
 
+def _telemetry_until(run, rows):
+    """The live run's telemetry as it comes, until more than `rows` rows (waiting, not sleeping:
+    a loaded host's loop may miss deadlines, so a fixed time need not hold them). The last part
+    has rows."""
+    parts = []
+    _wait_for(lambda: parts.append(run.telemetry()) or sum(p.rows for p in parts) > rows, 60.0)
+    return parts
+
+
 def test_live_run_takes_changes_and_streams_telemetry(root):
     """`toonforce run --device sim` from Python: telemetry while it runs, set/fire through the
     live-scene editor (refused whole when wrong), and the end of the block stopping the loop with
@@ -242,11 +251,7 @@ def test_live_run_takes_changes_and_streams_telemetry(root):
 
     with toonforce.run(root / "scenes/cartoon_wall.toml", root / "scenes/hands/strike.toml") as r:
         _wait_for(lambda: r.applied == 0 and r.running)
-        # Rows as they come, until there are 50 (waiting, not sleeping: a loaded host's loop
-        # may miss deadlines, so a fixed time need not hold 50 rows).
-        parts = []
-        _wait_for(lambda: parts.append(r.telemetry()) or sum(p.rows for p in parts) > 50, 60.0)
-        first = parts[-1]
+        first = _telemetry_until(r, 50)[-1]
         assert list(first)[:10] == ["t", "x", "y", "z", "vx", "vy", "vz", "fx", "fy", "fz"]
         assert r.units["fz"] == "N"
         stiffer = r.set("surface1", {"stiffness": 800.0})
@@ -255,9 +260,7 @@ def test_live_run_takes_changes_and_streams_telemetry(root):
         _wait_for(lambda: r.applied >= fired)
         with pytest.raises(ValueError, match="stiffnes"):
             r.set("surface1", "stiffnes = 1.0")
-        parts = []
-        _wait_for(lambda: parts.append(r.telemetry()) or sum(p.rows for p in parts) > 50, 60.0)
-        second = next(p for p in parts if p.rows > 0)
+        second = next(p for p in _telemetry_until(r, 50) if p.rows > 0)
         assert second["t"][0] > first["t"][-1]
     assert r.summary["updates_applied"] == 2
     assert r.summary["stop_signal"] == signal.SIGINT
