@@ -274,7 +274,10 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
   }
   if (usb_fd >= 0) ::close(usb_fd);
   if (pidfd >= 0) ::close(pidfd);
-  for (const int signo : stop_signals()) signal(signo, SIG_DFL);
+  // The loop's process has ended: a stop signal from now on (the rest of a burst of copies, as a
+  // dying parent sends one per thread) finds nothing to stop, and by its default action it would
+  // end this process before it says how the run ended and writes the trace's last row.
+  for (const int signo : stop_signals()) signal(signo, SIG_IGN);
   return out;
 }
 
