@@ -202,6 +202,61 @@ TEST(Fixed, MultiplicationAgreesWithLibfixmath) {
   static_cast<void>(take_fixed_saturated());
 }
 
+TEST(Fixed, ProductsRoundTiesAwayFromZeroAndSaturateExactlyPastTheRange) {
+  // Where libfixmath cannot say (ties, the range's edges): the exact product's magnitude
+  // rounded half up, the sign put back, and the flag exactly when that leaves the range.
+  const auto expected = [](std::int32_t a, std::int32_t b, bool& saturates) {
+    const std::int64_t product = std::int64_t{a} * b;
+    const std::uint64_t magnitude = static_cast<std::uint64_t>(product < 0 ? -product : product);
+    const auto rounded = static_cast<std::int64_t>((magnitude + 0x8000U) >> 16);
+    const std::int64_t value = product < 0 ? -rounded : rounded;
+    saturates = value > INT32_MAX || value < INT32_MIN;
+    return static_cast<std::int32_t>(value > INT32_MAX ? INT32_MAX : value < INT32_MIN ? INT32_MIN : value);
+  };
+  std::mt19937_64 rng(29);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  std::uniform_int_distribution<std::int32_t> odd_half(-(1 << 14), 1 << 14);
+  std::vector<std::pair<std::int32_t, std::int32_t>> cases = {
+      {1, 0x8000}, {-1, 0x8000}, {3, 0x8000}, {-3, 0x8000}, {1, 0x7FFF}, {-1, 0x7FFF}, {1, 0x8001}, {-1, 0x8001},
+      {INT32_MAX, 1 << 16}, {INT32_MIN, 1 << 16}, {INT32_MIN, -(1 << 16)}, {INT32_MAX, -(1 << 16)},
+      {INT32_MIN, INT32_MIN}, {INT32_MAX, INT32_MIN}, {INT32_MAX, (1 << 16) + 1}, {INT32_MIN, (1 << 16) + 1}};
+  for (int i = 0; i < 100000; ++i) {
+    cases.emplace_back(any(rng), any(rng));                        // mostly saturating
+    cases.emplace_back(any(rng) >> 16, any(rng) >> 15);            // near the range's edge
+    cases.emplace_back(2 * odd_half(rng) + 1, 0x8000 * (2 * odd_half(rng) + 1));  // exact ties
+  }
+  for (const auto& [a, b] : cases) {
+    static_cast<void>(take_fixed_saturated());
+    bool saturates = false;
+    const std::int32_t want = expected(a, b, saturates);
+    ASSERT_EQ((Q::from_raw(a) * Q::from_raw(b)).raw(), want) << a << " * " << b;
+    ASSERT_EQ(take_fixed_saturated(), saturates) << a << " * " << b;
+  }
+}
+
+TEST(Fixed, SumsDifferencesAndNegationsSaturateExactlyPastTheRange) {
+  std::mt19937_64 rng(30);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  std::vector<std::pair<std::int32_t, std::int32_t>> cases = {
+      {INT32_MAX, 1}, {INT32_MAX, 0}, {INT32_MIN, -1}, {INT32_MIN, 0}, {INT32_MIN, INT32_MIN},
+      {INT32_MAX, INT32_MAX}, {INT32_MAX, INT32_MIN}, {0, INT32_MIN}, {-1, INT32_MIN}, {0, 0}};
+  for (int i = 0; i < 100000; ++i) cases.emplace_back(any(rng), any(rng));
+  const auto clamp = [](std::int64_t v, bool& saturates) {
+    saturates = v > INT32_MAX || v < INT32_MIN;
+    return static_cast<std::int32_t>(v > INT32_MAX ? INT32_MAX : v < INT32_MIN ? INT32_MIN : v);
+  };
+  for (const auto& [a, b] : cases) {
+    bool saturates = false;
+    static_cast<void>(take_fixed_saturated());
+    ASSERT_EQ((Q::from_raw(a) + Q::from_raw(b)).raw(), clamp(std::int64_t{a} + b, saturates)) << a << " + " << b;
+    ASSERT_EQ(take_fixed_saturated(), saturates) << a << " + " << b;
+    ASSERT_EQ((Q::from_raw(a) - Q::from_raw(b)).raw(), clamp(std::int64_t{a} - b, saturates)) << a << " - " << b;
+    ASSERT_EQ(take_fixed_saturated(), saturates) << a << " - " << b;
+    ASSERT_EQ((-Q::from_raw(b)).raw(), clamp(-std::int64_t{b}, saturates)) << "-" << b;
+    ASSERT_EQ(take_fixed_saturated(), saturates) << "-" << b;
+  }
+}
+
 TEST(Fixed, SquareRootIsWithinHalfAnLsbAndAgreesWithLibfixmath) {
   for (const double v : {0.0, 1e-4, 0.25, 2.0, 1234.5678, 32767.0}) {
     const Q q = Q::from_double(v);

@@ -272,33 +272,47 @@ class Fixed {
   }
 
   /// Saturates a wide intermediate into range, setting the flag when it had to.
-  /// (Every operation of the tick ends here. Testing the low word sign-extended against the
-  /// value and picking the limit from the sign bounds at fewer cycles but more instructions on
-  /// the Cortex-M3: 3,340 against 3,227 for the wall's every-stage tick, issue 29.)
+  /// (Every operation of the tick ends here, so its worst path is what the tick's static bound
+  /// counts most often, issue 29: the test is one comparison of the high word with the low
+  /// word's sign, and the limit is picked from the high word's sign without a branch.)
   static constexpr Fixed from_wide(Wide wide) noexcept {
-    if (wide > std::numeric_limits<Raw>::max()) return saturated(true);
-    if (wide < std::numeric_limits<Raw>::min()) return saturated(false);
-    return from_raw(static_cast<Raw>(wide));
+    const auto low = static_cast<Raw>(wide);
+    if (low != wide) return saturated_toward(static_cast<Raw>(wide >> 32));
+    return from_raw(low);
   }
-  /// Rounds a wide value carrying `shift` extra fraction bits to nearest, half away from zero.
-  /// (Written without adding half first, so values near the 64-bit limits cannot overflow. A
-  /// branch-free form, floor plus a test of the remainder, bounds at more instructions on the
-  /// Cortex-M3: 814 against 599 in the cartoon wall's every-stage tick.)
+  /// Rounds a wide value carrying `shift` (>= 1) extra fraction bits to nearest, half away
+  /// from zero, for any 64-bit value: the floor plus one when the remainder passes half (or
+  /// reaches it, for a value >= 0). The remainder's test is a few 32-bit steps; nothing is
+  /// added to the whole value, so nothing overflows, and no branch on the sign.
   static constexpr Wide round_shift(Wide wide, int shift) noexcept {
-    const auto up = [shift](Wide w) { return (w >> shift) + ((w >> (shift - 1)) & 1); };
-    return wide >= 0 ? up(wide) : -up(wide == INT64_MIN ? INT64_MAX : -wide);
+    const Wide remainder = wide & ((Wide{1} << shift) - 1);
+    const Wide up = (remainder + (Wide{1} << (shift - 1)) + (wide >> 63)) >> shift;  // 0 or 1
+    return (wide >> shift) + up;
+  }
+  /// A product of two raw values (|product| <= 2^62) back to this format: round_shift by
+  /// FracBits in fewer steps, because half can be added to it without overflow. Half away from
+  /// zero is floor((p + half - 1) / 2^F) for p < 0 and floor((p + half) / 2^F) otherwise.
+  static constexpr Fixed from_product(Wide product) noexcept {
+    return from_wide((product + ((Wide{1} << (FracBits - 1)) + (product >> 63))) >> FracBits);
   }
 
+  // Sums and differences overflow only past the 32-bit range, toward the first operand's sign.
   friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
-    return from_wide(Wide{a.raw_} + b.raw_);
+    Raw sum = 0;
+    if (__builtin_add_overflow(a.raw_, b.raw_, &sum)) return saturated_toward(a.raw_);
+    return from_raw(sum);
   }
   friend constexpr Fixed operator-(Fixed a, Fixed b) noexcept {
-    return from_wide(Wide{a.raw_} - b.raw_);
+    Raw difference = 0;
+    if (__builtin_sub_overflow(a.raw_, b.raw_, &difference)) return saturated_toward(a.raw_);
+    return from_raw(difference);
   }
-  friend constexpr Fixed operator-(Fixed a) noexcept { return from_wide(-Wide{a.raw_}); }
-  friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept {
-    return from_wide(round_shift(Wide{a.raw_} * b.raw_, FracBits));
+  friend constexpr Fixed operator-(Fixed a) noexcept {
+    Raw negated = 0;
+    if (__builtin_sub_overflow(Raw{0}, a.raw_, &negated)) return saturated_toward(0);  // -lowest()
+    return from_raw(negated);
   }
+  friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept { return from_product(Wide{a.raw_} * b.raw_); }
   /// Division by zero saturates toward the sign of the dividend (0/0 gives 0), with the flag.
   friend constexpr Fixed operator/(Fixed a, Fixed b) noexcept {
     if (b.raw_ == 0) {
@@ -331,6 +345,11 @@ class Fixed {
  private:
   static constexpr void flag_saturation() noexcept {
     if (!std::is_constant_evaluated()) detail::fixed_saturated_flag = true;
+  }
+  /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
+  static constexpr Fixed saturated_toward(Raw sign) noexcept {
+    flag_saturation();
+    return from_raw((sign >> 31) ^ std::numeric_limits<Raw>::max());
   }
   static constexpr Fixed saturated(bool positive) noexcept {
     flag_saturation();
