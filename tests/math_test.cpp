@@ -366,6 +366,45 @@ TEST(Vec3Fixed, ScaleToNormRoundsEachComponentToNearest) {
   }
 }
 
+__extension__ typedef __int128 I128;  // exact products of products (g++)
+
+TEST(Vec3Fixed, ScaleToNormIsTheRoundedQuotientExceptWithinAHairOfATie) {
+  // Each component against c numerator / |v| exactly (128-bit), rounded half away from zero:
+  // equal, or one LSB off where the quotient is within |c| 2^-32 LSB of a tie (the factor is a
+  // 32-bit fraction). Signs kept, nothing saturates, a numerator past |v| gives v back.
+  std::mt19937_64 rng(31);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  for (int i = 0; i < 200000; ++i) {
+    const int shift = static_cast<int>(rng() % 31);
+    Vec3<Q> v{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
+    if (i == 0) v = {Q::lowest(), Q::lowest(), Q::lowest()};
+    const NormOf<Q> magnitude = norm_of(v);
+    if (magnitude.root == 0) continue;
+    const auto numerator = static_cast<std::int32_t>(rng() % (std::min<std::uint64_t>(magnitude.root, INT32_MAX) + 1));
+    static_cast<void>(take_fixed_saturated());
+    const Vec3<Q> scaled = scale_to_norm(v, Q::from_raw(numerator), magnitude);
+    ASSERT_FALSE(take_fixed_saturated());
+    for (const auto& [c, got] : {std::pair{v.x, scaled.x}, std::pair{v.y, scaled.y}, std::pair{v.z, scaled.z}}) {
+      const I128 product = static_cast<I128>(c.raw()) * numerator;
+      const I128 magnitude_product = product < 0 ? -product : product;
+      const I128 root = magnitude.root;
+      const I128 rounded = (2 * magnitude_product + root) / (2 * root);
+      const I128 exact = product < 0 ? -rounded : rounded;
+      if (got.raw() == exact) continue;
+      ASSERT_EQ(std::abs(static_cast<long long>(got.raw() - exact)), 1) << c.raw() << " * " << numerator << " / " << magnitude.root;
+      const I128 twice_remainder = 2 * (magnitude_product % root);
+      const I128 from_tie = twice_remainder > root ? twice_remainder - root : root - twice_remainder;
+      ASSERT_LE(from_tie * (I128{1} << 32), 2 * root * (c.raw() < 0 ? -I128{c.raw()} : c.raw()))
+          << c.raw() << " * " << numerator << " / " << magnitude.root << " is not near a tie";
+    }
+  }
+  const Vec3<Q> v{Q::from_double(3.0), Q::from_double(-4.0), Q::from_double(12.0)};
+  EXPECT_EQ(scale_to_norm(v, Q::from_double(13.0), norm_of(v)), v);
+  EXPECT_EQ(scale_to_norm(v, Q::from_double(100.0), norm_of(v)), v);
+  EXPECT_EQ(scale_to_norm(v, Q{}, norm_of(v)), Vec3<Q>{});
+  EXPECT_EQ(scale_to_norm(v, Q::from_double(-1.0), norm_of(v)), Vec3<Q>{});
+}
+
 TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {
   const Vec3<Q> a{Q::from_double(300.0), Q::from_double(300.0), Q::from_double(0.001)};
   const Vec3<Q> b{Q::from_double(300.0), Q::from_double(-300.0), Q::from_double(0.001)};

@@ -167,23 +167,31 @@ constexpr bool is_finite(const Vec3<S>& v) noexcept {
   }
 }
 
-/// `v` times numerator / |v|, `magnitude` being norm_of(v). In a Q format each component is
-/// (v * numerator) / |v| in 64 bits rounded once: the ratio alone, rounded to an LSB, would be
-/// a coarse factor when it is small (a 13 N step out of a 30000 N request is a ratio of 29
-/// LSB, 2% off), and safety limits scale by exactly such ratios. It divides by the true norm
-/// (tick_fuzz found (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to
-/// sqrt(3) too long).
+/// `v` scaled down to `numerator` (0 <= numerator <= |v|: a limit that bites), direction kept,
+/// `magnitude` being norm_of(v). A numerator past |v| leaves v as it is; a negative one gives 0.
+/// In a Q format the factor numerator / |v| is a 32-bit fraction, one division, and each
+/// component is |c| times it, rounded to nearest with the sign put back: nothing can saturate,
+/// and no division per component (the tick's static bound counts each one, issue 29). The
+/// factor is within 2^-32 of the ratio, so a component is off the exactly rounded quotient only
+/// within |c| 2^-32 LSB of a tie. The ratio rounded to an LSB instead would be a coarse factor
+/// when it is small (a 13 N step out of a 30000 N request is a ratio of 29 LSB, 2% off), and
+/// safety limits scale by exactly such ratios. It divides by the true norm (tick_fuzz found
+/// (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to sqrt(3) too long).
 template <Scalar S>
 constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& magnitude) noexcept {
   if constexpr (kIsFixed<S>) {
-    using W = typename S::Wide;
-    if (magnitude.root == 0) return {};  // a zero vector: nothing to scale (callers never ask)
-    // Three quotients by one divisor: its reciprocal once (one division, not three).
-    const detail::Divisor root = detail::divisor_of(magnitude.root);
-    const auto scale = [&](S c) {
-      const W product = W{c.raw()} * numerator.raw();  // |.| < 2^62
-      const auto m = static_cast<W>(detail::div_round_by(static_cast<std::uint64_t>(product < 0 ? -product : product), root));
-      return S::from_wide(product < 0 ? -m : m);
+    using Raw = typename S::Raw;
+    if (magnitude.root == 0 || numerator.raw() <= 0) return {};  // nothing to scale, or to nothing
+    // numerator 2^32 / |v| < 2^32 when numerator < |v|; capped at 1 - 2^-32 otherwise, which
+    // gives every component back as it is (|c| (2^32 - 1) / 2^32 rounds to |c|).
+    const std::uint64_t quotient =
+        detail::div_u64_u32(std::uint64_t{static_cast<std::uint32_t>(numerator.raw())} << 32, magnitude.root);
+    const auto factor = static_cast<std::uint32_t>(quotient > 0xFFFF'FFFFU ? 0xFFFF'FFFFU : quotient);
+    const auto scale = [factor](S c) {
+      const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
+      const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
+      const auto scaled = static_cast<std::uint32_t>((std::uint64_t{m} * factor + (1U << 31)) >> 32);  // <= |c|
+      return S::from_raw(static_cast<Raw>((scaled ^ sign) - sign));
     };
     return {scale(v.x), scale(v.y), scale(v.z)};
   } else {
