@@ -25,7 +25,7 @@ template <Scalar S>
 class Engage {
  public:
   constexpr explicit Engage(const EngageConfig& config) noexcept
-      : engage_force_n_(scalar_cast<S>(config.engage_force_n)),
+      : engage_force_squared_(squared_limit<S>(config.engage_force_n)),
         soft_start_s_(config.soft_start_s),
         period_s_(config.period_s),
         soft_start_ns_(ns_from_seconds(config.soft_start_s)),
@@ -42,7 +42,8 @@ class Engage {
   /// then says so), the ramp while ramping, 1 once active.
   S gain(const Vec3<S>& scene_force_n, std::int64_t k) noexcept {
     if (state_ == LoopState::kEngaging) {
-      if (!(norm(scene_force_n) < engage_force_n_)) return S{};
+      // By the squares (exact in a Q format): no square root on the tick (issue 29).
+      if (!norm_below(scene_force_n, engage_force_squared_)) return S{};
       start(k);
     }
     constexpr S kOne = scalar_cast<S>(1.0);
@@ -74,7 +75,7 @@ class Engage {
     ramp_start_ = from;
   }
 
-  S engage_force_n_;
+  SquaredLimit<S> engage_force_squared_;  ///< [N^2]
   double soft_start_s_;
   double period_s_;
   std::int64_t soft_start_ns_;  ///< a fixed-point S's time: integer nanoseconds

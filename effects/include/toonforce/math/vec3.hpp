@@ -135,6 +135,16 @@ constexpr bool norm_exceeds(const Vec3<S>& v, SquaredLimit<S> limit) noexcept {
   }
 }
 
+/// Whether |v| is below the limit, as its square (exactly in a Q format).
+template <Scalar S>
+constexpr bool norm_below(const Vec3<S>& v, SquaredLimit<S> limit) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return detail::raw_squares(v) < limit.value;
+  } else {
+    return dot(v, v) < limit.value;
+  }
+}
+
 /// |v| when it exceeds `limit` (>= 0), else nothing: the test of every magnitude limit, with
 /// the norm (a square root) only when the limit bites. In a Q format the squares are compared
 /// exactly, raw in 64 bits. Compared as Q16.16 values they were rounded to 2^-16: a 0.02 N
