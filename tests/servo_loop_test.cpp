@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
+#include <vector>
 
 #include "servo_support.hpp"
 
@@ -157,6 +159,49 @@ TEST(MotionLimits, Q16OverspeedComparesTheSquaresExactly) {
           << over << " LSB over";
     }
   }
+}
+
+// A loop on its period only (no LoopStages::stamps) takes 1/dt after a gap of g periods from
+// g with a 32-bit division: the same rate as 1e9 / (g T) by the 64-bit quotient, for periods
+// from 31 us to 10 s and gaps from 1 to past the one where the rate rounds to 0.
+TEST(HipSensor, Q16RateAfterAGapIsTheExactQuotientsFromTheTickCount) {
+  for (const std::int64_t period_ns : {30'518LL, 31'000LL, 62'500LL, 100'000LL, 125'000LL, 333'333LL, 1'000'000LL,
+                                       1'000'001LL, 2'000'000LL, 16'666'667LL, 10'000'000'000LL}) {
+    const PeriodsRate<Q16_16> rate = PeriodsRate<Q16_16>::of(period_ns);
+    ASSERT_TRUE(rate.fits) << period_ns;
+    std::vector<std::int64_t> gaps = {1, 2, 3, 7, 30, 31, 1000, 65'535, 65'536, 1'000'003};
+    for (const std::int64_t g : {rate.twice_q_b / 2, rate.twice_q_b - 1, rate.twice_q_b, rate.twice_q_b + 1,
+                                 rate.twice_q_b + 2}) {
+      if (g >= 1) gaps.push_back(static_cast<std::int64_t>(g));
+    }
+    for (const std::int64_t g : gaps) {
+      static_cast<void>(take_fixed_saturated());
+      EXPECT_EQ(rate.after(g), Q16_16::from_ratio(kNsPerS, g * period_ns)) << period_ns << " ns times " << g;
+      EXPECT_FALSE(take_fixed_saturated());
+    }
+  }
+  // Under 30.5 us one period's rate is past Q16.16: every rate saturates, with the flag.
+  const PeriodsRate<Q16_16> fast = PeriodsRate<Q16_16>::of(25'000);
+  EXPECT_FALSE(fast.fits);
+  static_cast<void>(take_fixed_saturated());
+  EXPECT_EQ(fast.after(1), Q16_16::max());
+  EXPECT_TRUE(take_fixed_saturated());
+}
+
+// The estimator's gain 1 / (1 + rate tau) by one 32-bit division: the quotient the 64-bit
+// division gives, over the whole range of denominators >= 1 (and a smaller one counts as 1).
+TEST(VelocityEstimator, Q16GainIsTheExactReciprocal) {
+  std::mt19937_64 rng(32);
+  std::vector<std::int32_t> denominators = {65536, 65537, 98304, 131071, 131072, 196608, 1 << 30, INT32_MAX};
+  for (int i = 0; i < 200000; ++i) {
+    denominators.push_back(static_cast<std::int32_t>(65536 + rng() % (std::uint64_t{INT32_MAX} - 65536)));
+  }
+  const Q16_16 one = Q16_16::from_raw(65536);
+  for (const std::int32_t d : denominators) {
+    ASSERT_EQ(Q16_16::reciprocal_of_at_least_one(Q16_16::from_raw(d)), one / Q16_16::from_raw(d)) << d;
+  }
+  EXPECT_EQ(Q16_16::reciprocal_of_at_least_one(Q16_16::from_raw(1000)), one);
+  EXPECT_EQ(Q16_16::reciprocal_of_at_least_one(Q16_16::from_raw(-5)), one);
 }
 
 TYPED_TEST(ServoSafety, VelocityLimitAlsoWorksOnTheEstimateWhenTheDeviceGivesNone) {

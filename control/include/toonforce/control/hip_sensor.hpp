@@ -22,8 +22,37 @@ struct Hip {
   bool estimated = false;         ///< velocity_m_per_s is the estimator's, not yet committed
 };
 
+/// The rate 1e9 / (g T) of g >= 1 periods of T ns in a Q format, exactly as
+/// `S::from_ratio(kNsPerS, g * T)` rounds it, with one 32-bit division: with 2^F 1e9 = Q T + R
+/// and b = 1 when 2R >= T, round(2^F 1e9 / (g T)) = floor((2Q + b + g) / (2g)) (R's share,
+/// below one T, never reaches the next multiple of 2gT). Valid while 2Q + b fits 32 bits, that
+/// is while one period's rate fits Q16.16 (T >= 30.5 us); a shorter period's rates do not.
+template <Scalar S>
+struct PeriodsRate {
+  std::uint64_t twice_q_b = 0;  ///< 2Q + b
+  bool fits = false;
+
+  static constexpr PeriodsRate of(std::int64_t period_ns) noexcept {
+    if (period_ns <= 0) return {};
+    const auto t = static_cast<std::uint64_t>(period_ns);
+    const std::uint64_t n = static_cast<std::uint64_t>(kNsPerS) << S::kFracBits;
+    const std::uint64_t twice = 2 * (n / t) + (2 * (n % t) >= t ? 1U : 0U);
+    return {twice, twice <= 0xFFFF'FFFFU};
+  }
+  /// The rate after `g` >= 1 periods (0 once it rounds to 0; saturated, with the flag, when
+  /// the period is too short for the format).
+  constexpr S after(std::int64_t g) const noexcept {
+    if (!fits) return S::from_wide(std::int64_t{1} << 32);  // past the range: the flag
+    if (static_cast<std::uint64_t>(g) > twice_q_b) return S{};
+    const auto half_sum = static_cast<std::uint32_t>((twice_q_b + static_cast<std::uint64_t>(g)) >> 1);  // <= 2Q + b
+    return S::from_wide(half_sum / static_cast<std::uint32_t>(g));  // floor(floor(M / 2) / g) = floor(M / 2g)
+  }
+};
+
 /// `kMayEstimate` false compiles the estimator out (no scene effect, no safety stage needs it).
-template <Scalar S, bool kMayEstimate>
+/// `kMayStamp` false: ticks come on the period only (no LoopStages::stamps), so in a Q format
+/// 1/dt after a gap is PeriodsRate's, and the filter's gain one 32-bit division.
+template <Scalar S, bool kMayEstimate, bool kMayStamp = true>
 class HipSensor {
  public:
   /// `period_s` > 0: ticks come on this period, and 1/dt and the filter's gain for one period
@@ -32,7 +61,8 @@ class HipSensor {
       : estimator_(velocity_cutoff_hz),
         estimate_(kMayEstimate && estimate),
         period_rate_hz_(scalar_cast<S>(1.0 / period_s)),
-        period_gain_(estimator_.gain(period_rate_hz_)) {}
+        period_gain_(estimator_.gain(period_rate_hz_)),
+        periods_rate_(periods_rate_of(period_s)) {}
 
   /// `reading` in double, or already in S (a device that reads in the loop's scalar: a
   /// fixed-point target's, tools/mcu).
@@ -46,7 +76,10 @@ class HipSensor {
     // One period since the last tick that counted, the usual case: the rate computed once.
     const std::int64_t since = has_commit_ ? time.now.tick - last_commit_.tick : time.gap;  // ticks
     bool one_period;
-    if constexpr (kIsFixed<S>) {  // integer time (control/clock.hpp): 1e9 / ns, no floating point
+    if constexpr (kIsFixed<S> && !kMayStamp) {  // the period's ticks only: from the count
+      one_period = since == 1;
+      h.rate_hz = one_period ? period_rate_hz_ : periods_rate_.after(since);
+    } else if constexpr (kIsFixed<S>) {  // integer time (control/clock.hpp): 1e9 / ns, no floating point
       one_period = since == 1 && time.period_ns > 0;
       h.rate_hz = one_period ? period_rate_hz_
                              : S::from_ratio(kNsPerS, has_commit_ ? time.ns_since(last_commit_) : time.dt_ns);
@@ -77,6 +110,13 @@ class HipSensor {
   }
 
  private:
+  static constexpr auto periods_rate_of(double period_s) noexcept {
+    if constexpr (kIsFixed<S> && !kMayStamp) {
+      return PeriodsRate<S>::of(ns_from_seconds(period_s));
+    } else {
+      return NoPeriodsRate{};
+    }
+  }
   template <class T>
   static constexpr Vec3<S> in_scalar(const Vec3<T>& v) noexcept {
     if constexpr (std::is_same_v<T, S>) {
@@ -90,6 +130,8 @@ class HipSensor {
   bool estimate_;
   S period_rate_hz_;  ///< 1/T
   S period_gain_;     ///< the filter's gain at 1/T
+  struct NoPeriodsRate {};
+  [[no_unique_address]] std::conditional_t<kIsFixed<S> && !kMayStamp, PeriodsRate<S>, NoPeriodsRate> periods_rate_;
   bool has_commit_ = false;
   Instant last_commit_{};
 };

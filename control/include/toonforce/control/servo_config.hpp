@@ -32,11 +32,15 @@ struct LoopStages {
   bool thermal = true;        ///< the motor thermal model derating the clamp
   bool motion_limits = true;  ///< velocity limit and workspace bounds
   bool live = false;          ///< takes scene updates between ticks (issue 19; scene_updates.hpp)
+  /// May take dt from time stamps (ServoConfig::time_from_stamps: replay). A loop without it
+  /// runs on its fixed period only, and computes what depends on dt from the tick count with
+  /// 32-bit divisions at most (its worst case has no 64-bit one, issue 29).
+  bool stamps = false;
 };
 /// Every stage: a loop that drives a device (run, sim, the examples).
 inline constexpr LoopStages kEveryStage{};
-/// Only effects.md §6 (non-finite guard, force-rate limit, clamp): replay.
-inline constexpr LoopStages kSpecStages{false, false, false, false, false, false};
+/// Only effects.md §6 (non-finite guard, force-rate limit, clamp), time from stamps or a period: replay.
+inline constexpr LoopStages kSpecStages{false, false, false, false, false, false, true};
 /// Every stage, and a scene an application changes while the loop runs (issue 19).
 inline constexpr LoopStages kLiveStages{true, true, true, true, true, true};
 
@@ -68,7 +72,8 @@ struct SafetyConfig {
 
 struct ServoConfig {
   /// [s] > 0: the servo period (ticks are integer multiples of it). With `time_from_stamps`,
-  /// the first tick's dt; every later dt is the difference of the ticks' stamps (replay).
+  /// the first tick's dt; every later dt is the difference of the ticks' stamps (replay). Only a
+  /// loop built with LoopStages::stamps (kSpecStages) reads stamps; every other runs on its period.
   double period_s = 0.0;
   bool time_from_stamps = false;
   ForceLimits limits;  ///< the clamp and the force-rate limit (effects.md §6)

@@ -93,7 +93,7 @@ class ServoLoop {
   constexpr ServoLoop(Device device, const SceneT& scene, const ServoConfig& config, PinsT pins = {}) noexcept
       : device_(std::move(device)),
         pins_(pins),
-        clock_(config.period_s, config.time_from_stamps),
+        clock_(config.period_s, kStages.stamps && config.time_from_stamps),
         supervisor_(config.supervisor()),
         scene_(scene),
         engage_(config.engage()),
@@ -345,7 +345,7 @@ class ServoLoop {
   /// once, on a regular tick).
   S max_step_of(const TickTime& time) const noexcept {
     if constexpr (kIsFixed<S>) {  // integer time: 1e9 / dt_ns
-      if (time.period_ns > 0) {
+      if (!kStages.stamps || time.period_ns > 0) {
         // A fixed period: gap periods' step, no division in the tick (issue 29). Past the
         // largest gap that fits it saturates, with the flag, as the division did.
         if (time.gap == 1) return period_max_step_;
@@ -422,7 +422,7 @@ class ServoLoop {
   StageOf<kStages.thermal, ThermalModel, NoThermal> thermal_;
   [[no_unique_address]] StageOf<kStages.motion_limits, MotionLimits, NoMotionLimits> motion_;
   ForceSafety<S> safety_;
-  HipSensor<S, kMayEstimate> sensor_;
+  HipSensor<S, kMayEstimate, kStages.stamps> sensor_;
   S max_force_n_;  ///< the configured clamp (the thermal model derates below it)
   S period_max_step_ = period_step(safety_, clock_);
   /// Fixed point: the largest gap whose step gap * period_max_step_ fits the format.

@@ -28,10 +28,15 @@ class VelocityEstimator {
     if (!started_) return velocity_;
     return velocity_ + ((position_m - previous_m_) * rate_hz - velocity_) * a;
   }
-  /// a = 1 / (1 + rate / (2 pi f_c)).
+  /// a = 1 / (1 + rate / (2 pi f_c)), for a rate >= 0 (a denominator of at least 1: in a Q
+  /// format its reciprocal is one 32-bit division, issue 29).
   constexpr S gain(S rate_hz) const noexcept {
     constexpr S kOne = scalar_cast<S>(1.0);
-    return kOne / (kOne + rate_hz * time_constant_s_);
+    if constexpr (kIsFixed<S>) {
+      return S::reciprocal_of_at_least_one(kOne + rate_hz * time_constant_s_);
+    } else {
+      return kOne / (kOne + rate_hz * time_constant_s_);
+    }
   }
   /// Makes `estimate`'s result the estimator's state.
   constexpr void commit(const Vec3<S>& position_m, const Vec3<S>& velocity_m_per_s) noexcept {

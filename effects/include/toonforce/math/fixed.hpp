@@ -331,6 +331,20 @@ class Fixed {
     const Wide q = ((num < 0) != (den < 0)) ? -q_abs : q_abs;
     return from_wide(q);
   }
+  /// 1 / x for x >= 1 (a smaller x counts as 1): `Fixed{1} / x` exactly, with one 32-bit
+  /// division where the format allows (FracBits <= 16), none of the 64-bit one's steps. The
+  /// quotient round(2^2F / x) is at most 2^F; taking d once off the dividend first,
+  /// floor((2^2F + d/2) / d) = floor((2^2F - d + d/2) / d) + 1, keeps the dividend below 2^32.
+  static constexpr Fixed reciprocal_of_at_least_one(Fixed x) noexcept {
+    if constexpr (2 * FracBits <= 32) {
+      const auto d = static_cast<std::uint32_t>(x.raw_ < kOneRaw ? kOneRaw : x.raw_);
+      const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - d) + d / 2;
+      return from_raw(static_cast<Raw>(below / d + 1));
+    } else {
+      return from_raw(kOneRaw) / (x.raw_ < kOneRaw ? from_raw(kOneRaw) : x);
+    }
+  }
+
   constexpr Fixed& operator+=(Fixed o) noexcept { return *this = *this + o; }
   constexpr Fixed& operator-=(Fixed o) noexcept { return *this = *this - o; }
   constexpr Fixed& operator*=(Fixed o) noexcept { return *this = *this * o; }
