@@ -219,7 +219,7 @@ class Passivity {
   /// End of a tick that commanded `out_n` for a wanted `wanted_n`: the share that reached the
   /// device, for the next interval's bookkeeping (only needed while an episode runs).
   void settle(const Vec3<S>& wanted_n, const Vec3<S>& out_n) noexcept {
-    if (!episodes_) {
+    if (kSlots == 0 || !episodes_) {  // no active part, no episode: a constant the compiler sees
       applied_ = S{};
       return;
     }
