@@ -99,6 +99,40 @@ TYPED_TEST(ServoSafety, SoftStartRampsLinearlyFromTheEngagingTick) {
   }
 }
 
+// In Q16.16 the ramp is the tick count times a 32-bit fraction per tick, no division: the
+// exactly rounded (k - start) T / soft_start except within (k - start) 2^-17 LSB of a tie.
+TEST(Engage, Q16RampIsTheRoundedQuotientOfTheElapsedTime) {
+  struct Ramp {
+    double soft_start_s;
+    double period_s;
+  };
+  for (const Ramp r : {Ramp{1.0, 1e-3}, Ramp{0.1, 1e-3}, Ramp{0.25, 2.5e-4}, Ramp{3.7, 1e-3}, Ramp{10.0, 1e-4},
+                       Ramp{0.0021, 1e-3}}) {
+    Engage<Q16_16> engage(EngageConfig{0.2, r.soft_start_s, r.period_s});
+    const std::int64_t period_ns = ns_from_seconds(r.period_s);
+    const std::int64_t soft_start_ns = ns_from_seconds(r.soft_start_s);
+    const std::int64_t start = 5;
+    ASSERT_EQ(engage.gain(Vec3<Q16_16>{}, start), Q16_16{});  // engages: the ramp starts here
+    for (std::int64_t k = start + 1;; ++k) {
+      const Q16_16 gain = engage.gain(Vec3<Q16_16>{}, k);
+      const std::int64_t elapsed_ns = (k - start) * period_ns;
+      if (elapsed_ns >= soft_start_ns) {
+        EXPECT_EQ(gain, Q16_16::from_raw(65536)) << r.soft_start_s << " s at " << r.period_s << " s, tick " << k;
+        EXPECT_EQ(engage.state(), LoopState::kActive);
+        break;
+      }
+      ASSERT_EQ(engage.state(), LoopState::kRamping);
+      const Q16_16 exact = Q16_16::from_ratio(elapsed_ns, soft_start_ns);
+      if (gain == exact) continue;
+      // Off by one only near a tie: |2 (elapsed 2^16 mod soft_start) - soft_start| is then tiny.
+      const std::int64_t twice_remainder = 2 * ((elapsed_ns << 16) % soft_start_ns);
+      ASSERT_EQ(std::abs(gain.raw() - exact.raw()), 1) << k;
+      ASSERT_LE(std::abs(twice_remainder - soft_start_ns) * (std::int64_t{1} << 16), soft_start_ns * (k - start))
+          << r.soft_start_s << " s at " << r.period_s << " s, tick " << k << " is not near a tie";
+    }
+  }
+}
+
 TYPED_TEST(ServoSafety, RampsAgainFromZeroAfterEveryFault) {
   ServoConfig c = bare_config();
   c.safety.soft_start_s = 0.01;  // 10 ticks

@@ -29,7 +29,8 @@ class Engage {
         soft_start_s_(config.soft_start_s),
         period_s_(config.period_s),
         soft_start_ns_(ns_from_seconds(config.soft_start_s)),
-        period_ns_(ns_from_seconds(config.period_s)) {}
+        period_ns_(ns_from_seconds(config.period_s)),
+        ramp_step_(ramp_step_of(period_ns_, soft_start_ns_)) {}
 
   /// The gate opened again: wait for the scene force to be small before any force flows.
   void reset() noexcept { state_ = LoopState::kEngaging; }
@@ -54,7 +55,13 @@ class Engage {
         state_ = LoopState::kActive;
         return kOne;
       }
-      return S::from_ratio(elapsed_ns, soft_start_ns_);
+      // (k - start) T / soft_start as (k - start) times a 32-bit fraction per tick, rounded
+      // once: no division on the tick (issue 29). The fraction is within 2^-33 of T /
+      // soft_start, so the gain is within (k - start) 2^-17 LSB of the exact quotient (under
+      // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33.
+      const auto ticks = static_cast<std::uint64_t>(k - ramp_start_);
+      return S::from_raw(static_cast<typename S::Raw>((ticks * ramp_step_ + (std::uint64_t{1} << (31 - S::kFracBits))) >>
+                                                      (32 - S::kFracBits)));
     } else {
       // Time from integer ticks, in double, converted once (spec §0).
       const double elapsed_s = static_cast<double>(k - ramp_start_) * period_s_;
@@ -70,6 +77,16 @@ class Engage {
   LoopState state() const noexcept { return state_; }
 
  private:
+  /// round(2^32 T / soft_start) when T < soft_start (a ramp of more than one tick; one of one
+  /// tick or none never reaches the product). Start-up only: one 64-bit division.
+  static constexpr std::uint64_t ramp_step_of(std::int64_t period_ns, std::int64_t soft_start_ns) noexcept {
+    if (period_ns <= 0 || soft_start_ns <= period_ns) return 0;
+    const auto t = static_cast<std::uint64_t>(period_ns);
+    const auto d = static_cast<std::uint64_t>(soft_start_ns);
+    if (t >= (std::uint64_t{1} << 31)) return ((t << 1) / (d >> 31) + 1) >> 1;  // periods over 2 s: 2^32 t / d from d's top bits
+    return ((t << 32) + d / 2) / d;
+  }
+
   void start(std::int64_t from) noexcept {
     state_ = LoopState::kRamping;
     ramp_start_ = from;
@@ -80,6 +97,7 @@ class Engage {
   double period_s_;
   std::int64_t soft_start_ns_;  ///< a fixed-point S's time: integer nanoseconds
   std::int64_t period_ns_;
+  std::uint64_t ramp_step_;  ///< a fixed-point S's gain per tick: round(2^32 T / soft_start), below 2^32
   LoopState state_ = LoopState::kEngaging;
   std::int64_t ramp_start_ = 0;
 };
