@@ -96,6 +96,13 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   set_tests_properties(mcu_m3_no_float_effects_${scene} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 endforeach()
 
+# Nothing but the saturation flag touches the APSR's Q bit, where a Q16.16 image keeps the flag.
+foreach(image IN LISTS _mcu_images _mcu_size_images)
+  add_test(NAME mcu_m3_q_bit_${image} COMMAND ${CMAKE_COMMAND} -DOBJDUMP=${TOONFORCE_ARM_OBJDUMP}
+    -DIMAGE=${_mcu_m3_dir}/${image}.elf -P ${_mcu_src}/check_q_bit.cmake)
+  set_tests_properties(mcu_m3_q_bit_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
+
 # No heap: an image that allocates does not link.
 add_test(NAME mcu_m3_heap_link_fails
   COMMAND ${CMAKE_COMMAND} --build ${_mcu_m3_dir} --target alloc_probe)

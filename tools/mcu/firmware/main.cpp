@@ -339,6 +339,31 @@ bool calibrate() noexcept {
   return nops == 100;
 }
 
+/// Checks the saturation flag on the target (in a Q image the APSR's Q bit, math/fixed.hpp):
+/// an operation in range leaves it clear, one past the range sets it, reading it clears it.
+/// The operands are volatile, so the target computes them. Every fault the image reports of a
+/// saturated tick relies on this.
+bool check_saturation_flag() noexcept {
+  if constexpr (kIsFixed<image::S>) {
+    using Q = image::S;
+    volatile std::int32_t big = 30000 << 16;
+    volatile std::int32_t small = 3 << 16;
+    static_cast<void>(take_fixed_saturated());
+    const Q in_range = Q::from_raw(small) * Q::from_raw(small) + Q::from_raw(big);
+    const bool clear_after_in_range = !fixed_saturated();
+    const Q past = Q::from_raw(big) + Q::from_raw(big);
+    const bool set_after_past = fixed_saturated();
+    const bool taken = take_fixed_saturated();
+    const bool clear_after_take = !fixed_saturated();
+    const bool ok = clear_after_in_range && set_after_past && taken && clear_after_take &&
+                    in_range.raw() == 30009 << 16 && past == Q::max();
+    out << "saturation flag " << (ok ? "ok" : "wrong") << '\n';
+    return ok;
+  } else {
+    return true;
+  }
+}
+
 }  // namespace
 }  // namespace toonforce::mcu
 
@@ -350,6 +375,7 @@ int run_image() {
   return 0;
 #endif
   bool ok = calibrate();
+  ok = check_saturation_flag() && ok;
   ok = play_scenes(image::Scenes{}) && ok;
   out << "stack program " << stack_high_water() << '\n';
   out << (ok ? "done\n" : "failed\n");

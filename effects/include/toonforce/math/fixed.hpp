@@ -31,16 +31,44 @@ namespace toonforce {
 /// tests tick loops on several threads at once). A bare-metal target defines
 /// TOONFORCE_SINGLE_THREADED: it runs one loop and has no thread-local storage (arm-none-eabi
 /// compiles `thread_local` into calls of __aeabi_read_tp, which only an operating system
-/// provides), so there the flag is a plain global (tools/mcu builds this way).
+/// provides), so there the flag is a plain global, or on an Armv7-M core the Q bit (below).
 #if defined(TOONFORCE_SINGLE_THREADED)
 #define TOONFORCE_FIXED_FLAG_STORAGE inline
 #else
 #define TOONFORCE_FIXED_FLAG_STORAGE inline thread_local
 #endif
 
+#if defined(TOONFORCE_SINGLE_THREADED) && defined(__ARM_FEATURE_SAT) && defined(__thumb2__)
+#define TOONFORCE_FIXED_FLAG_IN_Q_BIT 1
+#endif
+
 namespace detail {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+/// A bare-metal Arm core with SSAT (Armv7-M: the Cortex-M3 images) keeps the flag where the
+/// hardware keeps its own: the APSR's sticky Q bit, which an exception saves and restores with
+/// the rest of the xPSR. Setting it is one SSAT of the saturated value (never in [-1, 0]) to
+/// one bit, no load or store, in every operation's saturation path (the tick's static bound
+/// counts that path for each operation, issue 29). Nothing else in an image may touch Q: a
+/// compiler emits SSAT/USAT for clamps, so tools/mcu/check_q_bit.cmake fails an image with any
+/// SSAT, USAT or flag-writing MSR but these.
+inline void set_q_bit(std::int32_t saturated_value) noexcept {
+  std::int32_t ignored;
+  asm volatile("ssat %0, #1, %1" : "=r"(ignored) : "r"(saturated_value));
+}
+inline bool q_bit() noexcept {
+  std::uint32_t apsr;
+  asm volatile("mrs %0, apsr" : "=r"(apsr));
+  return (apsr >> 27) & 1U;
+}
+inline void clear_q_bit() noexcept {
+  std::uint32_t apsr;
+  asm volatile("mrs %0, apsr" : "=r"(apsr));
+  asm volatile("msr apsr_nzcvq, %0" : : "r"(apsr & ~(1U << 27)) : "cc");
+}
+#else
 /// The sticky saturation flag of the calling thread (of the program when single-threaded).
 TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
+#endif
 }  // namespace detail
 
 namespace detail {
@@ -180,11 +208,22 @@ constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
-inline bool fixed_saturated() noexcept { return detail::fixed_saturated_flag; }
+inline bool fixed_saturated() noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+  return detail::q_bit();
+#else
+  return detail::fixed_saturated_flag;
+#endif
+}
 /// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
 inline bool take_fixed_saturated() noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+  const bool was = detail::q_bit();
+  if (was) detail::clear_q_bit();
+#else
   const bool was = detail::fixed_saturated_flag;
   detail::fixed_saturated_flag = false;
+#endif
   return was;
 }
 
@@ -358,12 +397,23 @@ class Fixed {
 
  private:
   static constexpr void flag_saturation() noexcept {
-    if (!std::is_constant_evaluated()) detail::fixed_saturated_flag = true;
+    if (!std::is_constant_evaluated()) {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+      detail::set_q_bit(std::numeric_limits<Raw>::max());
+#else
+      detail::fixed_saturated_flag = true;
+#endif
+    }
   }
   /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
   static constexpr Fixed saturated_toward(Raw sign) noexcept {
+    const Raw limit = (sign >> 31) ^ std::numeric_limits<Raw>::max();
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    if (!std::is_constant_evaluated()) detail::set_q_bit(limit);  // the limit itself sets Q
+#else
     flag_saturation();
-    return from_raw((sign >> 31) ^ std::numeric_limits<Raw>::max());
+#endif
+    return from_raw(limit);
   }
   static constexpr Fixed saturated(bool positive) noexcept {
     flag_saturation();
