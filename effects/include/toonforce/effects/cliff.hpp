@@ -67,9 +67,16 @@ struct CartoonCliff {
     const Vec3<S>& n = p.ground.normal;
     const Contact<S> c = p.ground.contact(in);
     const S lateral_speed = norm(tangential_part(in.velocity_m_per_s, n));
-    // dt/(tau + dt) written with the rate 1/dt: 1 / (1 + tau/dt).
+    // dt/(tau + dt) written with the rate 1/dt: 1 / (1 + tau/dt). In a Q format the gain is
+    // that reciprocal (one 32-bit division: the denominator is at least 1) times the step,
+    // rounded twice; no 64-bit division on the tick (issue 29).
     constexpr S kOne = scalar_cast<S>(1.0);
-    s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) / (kOne + p.tau_s * in.rate_hz);
+    if constexpr (kIsFixed<S>) {
+      s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) *
+                                  S::reciprocal_of_at_least_one(kOne + p.tau_s * in.rate_hz);
+    } else {
+      s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) / (kOne + p.tau_s * in.rate_hz);
+    }
 
     const S across = dot(p.axis, in.position_m - p.ground.point_m);
     const bool in_strip = p.gap_min_m <= across && across <= p.gap_max_m;
