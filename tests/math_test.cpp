@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <tuple>
 #include <vector>
 
 extern "C" {
@@ -403,6 +404,38 @@ TEST(Vec3Fixed, ScaleToNormIsTheRoundedQuotientExceptWithinAHairOfATie) {
   EXPECT_EQ(scale_to_norm(v, Q::from_double(100.0), norm_of(v)), v);
   EXPECT_EQ(scale_to_norm(v, Q{}, norm_of(v)), Vec3<Q>{});
   EXPECT_EQ(scale_to_norm(v, Q::from_double(-1.0), norm_of(v)), Vec3<Q>{});
+}
+
+TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {
+  // A plane's contact and a tangential part take n.v and n.(x - p) with a unit n: the same
+  // value as dot(), and for n.(x - p) the exact one even where a component of x - p saturates.
+  std::mt19937_64 rng(33);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  std::normal_distribution<double> gauss;
+  for (int i = 0; i < 100000; ++i) {
+    const Vec3<double> d{gauss(rng), gauss(rng), gauss(rng)};
+    const double length = std::sqrt(dot(d, d));
+    const Vec3<Q> n = i % 7 == 0 ? Vec3<Q>{Q{}, Q{}, Q::from_raw(i % 2 == 0 ? 65536 : -65536)} : vec_cast<Q>(d * (1.0 / length));
+    const int shift = static_cast<int>(rng() % 32);
+    const Vec3<Q> v{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
+    const Vec3<Q> p{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
+    static_cast<void>(take_fixed_saturated());
+    const Q expected_v = dot(n, v);
+    const bool saturated_v = take_fixed_saturated();
+    ASSERT_EQ(dot_unit(n, v), expected_v);
+    ASSERT_EQ(take_fixed_saturated(), saturated_v);
+    // n.(v - p) exactly: the raw products of the exact differences, summed, rounded once.
+    I128 exact = 0;
+    for (const auto& [a, b, c] : {std::tuple{n.x, v.x, p.x}, std::tuple{n.y, v.y, p.y}, std::tuple{n.z, v.z, p.z}}) {
+      exact += I128{a.raw()} * (I128{b.raw()} - c.raw());
+    }
+    const I128 magnitude = exact < 0 ? -exact : exact;
+    const I128 rounded_magnitude = (magnitude + 0x8000) >> 16;
+    const I128 rounded = exact < 0 ? -rounded_magnitude : rounded_magnitude;
+    const std::int32_t want = rounded > INT32_MAX ? INT32_MAX : rounded < INT32_MIN ? INT32_MIN : static_cast<std::int32_t>(rounded);
+    ASSERT_EQ(dot_unit_difference(n, v, p).raw(), want) << i;
+    ASSERT_EQ(take_fixed_saturated(), rounded > INT32_MAX || rounded < INT32_MIN) << i;
+  }
 }
 
 TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {

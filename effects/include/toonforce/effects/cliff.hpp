@@ -78,7 +78,7 @@ struct CartoonCliff {
       s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) / (kOne + p.tau_s * in.rate_hz);
     }
 
-    const S across = dot(p.axis, in.position_m - p.ground.point_m);
+    const S across = dot_unit_difference(p.axis, in.position_m, p.ground.point_m);
     const bool in_strip = p.gap_min_m <= across && across <= p.gap_max_m;
     const bool slow = s.filtered_speed_m_per_s < p.speed_threshold_m_per_s;
     if (!s.fallen) {

@@ -89,7 +89,7 @@ struct Plane {
   Vec3<S> normal;  ///< unit length (normalised when the scene is loaded)
 
   constexpr Contact<S> contact(const TickInput<S>& in) const noexcept {
-    return {-dot(normal, in.position_m - point_m), dot(normal, in.velocity_m_per_s)};
+    return {-dot_unit_difference(normal, in.position_m, point_m), dot_unit(normal, in.velocity_m_per_s)};
   }
 
   /// Scene-file keys `point` [m] and `normal` (normalised on load; zero is an error).

@@ -332,7 +332,7 @@ class Fixed {
     const Wide up = (remainder + (Wide{1} << (shift - 1)) + (wide >> 63)) >> shift;  // 0 or 1
     return (wide >> shift) + up;
   }
-  /// A product of two raw values (|product| <= 2^62) back to this format: round_shift by
+  /// A product of two raw values, or a sum of such (|product| <= 2^62), back to this format: round_shift by
   /// FracBits in fewer steps, because half can be added to it without overflow. Half away from
   /// zero is floor((p + half - 1) / 2^F) for p < 0 and floor((p + half) / 2^F) otherwise.
   static constexpr Fixed from_product(Wide product) noexcept {

@@ -60,6 +60,34 @@ constexpr S dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
   }
 }
 
+/// n.v for a unit vector n (each component in [-1, 1]: a plane's normal, an axis): what dot()
+/// gives, without its overflow tests, since each raw product is below 2^47 and their sum below
+/// 2^49 (issue 29: a plane's contact takes two such products a tick).
+template <Scalar S>
+constexpr S dot_unit(const Vec3<S>& n, const Vec3<S>& v) noexcept {
+  if constexpr (kIsFixed<S>) {
+    using W = typename S::Wide;
+    return S::from_product(W{n.x.raw()} * v.x.raw() + W{n.y.raw()} * v.y.raw() + W{n.z.raw()} * v.z.raw());
+  } else {
+    return dot(n, v);
+  }
+}
+/// n.(v - p) for a unit vector n. In a Q format n.v - n.p is summed exactly, then rounded once:
+/// what dot(n, v - p) gives unless a component of v - p saturates (a point 32,768 m away),
+/// which here does not happen first.
+template <Scalar S>
+constexpr S dot_unit_difference(const Vec3<S>& n, const Vec3<S>& v, const Vec3<S>& p) noexcept {
+  if constexpr (kIsFixed<S>) {
+    using W = typename S::Wide;
+    // Six raw products, each below 2^47 in magnitude: the sums cannot overflow.
+    const W nv = W{n.x.raw()} * v.x.raw() + W{n.y.raw()} * v.y.raw() + W{n.z.raw()} * v.z.raw();
+    const W np = W{n.x.raw()} * p.x.raw() + W{n.y.raw()} * p.y.raw() + W{n.z.raw()} * p.z.raw();
+    return S::from_product(nv - np);
+  } else {
+    return dot(n, v - p);
+  }
+}
+
 /// A norm and what scaling to it divides by. In a Q format the norm of a vector whose
 /// components are near the largest value exceeds it (up to sqrt(3) times) and `value`
 /// saturates; `root` is the true norm in raw units (< 2^32), so a scaling divides by it and
@@ -219,7 +247,7 @@ constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
 /// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
 template <Scalar S>
 constexpr Vec3<S> tangential_part(const Vec3<S>& v, const Vec3<S>& n) noexcept {
-  return v - n * dot(n, v);
+  return v - n * dot_unit(n, v);
 }
 
 }  // namespace toonforce
