@@ -343,9 +343,9 @@ bool calibrate() noexcept {
 /// an operation in range leaves it clear, one past the range sets it, reading it clears it.
 /// The operands are volatile, so the target computes them. Every fault the image reports of a
 /// saturated tick relies on this.
+template <class Q>
 bool check_saturation_flag() noexcept {
-  if constexpr (kIsFixed<image::S>) {
-    using Q = image::S;
+  if constexpr (kIsFixed<Q>) {
     volatile std::int32_t big = 30000 << 16;
     volatile std::int32_t small = 3 << 16;
     static_cast<void>(take_fixed_saturated());
@@ -375,7 +375,7 @@ int run_image() {
   return 0;
 #endif
   bool ok = calibrate();
-  ok = check_saturation_flag() && ok;
+  ok = check_saturation_flag<image::S>() && ok;
   ok = play_scenes(image::Scenes{}) && ok;
   out << "stack program " << stack_high_water() << '\n';
   out << (ok ? "done\n" : "failed\n");
