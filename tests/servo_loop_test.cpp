@@ -204,8 +204,8 @@ TEST(HipSensor, Q16RateAfterAGapIsTheExactQuotientsFromTheTickCount) {
     const PeriodsRate<Q16_16> rate = PeriodsRate<Q16_16>::of(period_ns);
     ASSERT_TRUE(rate.fits) << period_ns;
     std::vector<std::int64_t> gaps = {1, 2, 3, 7, 30, 31, 1000, 65'535, 65'536, 1'000'003};
-    for (const std::int64_t g : {rate.twice_q_b / 2, rate.twice_q_b - 1, rate.twice_q_b, rate.twice_q_b + 1,
-                                 rate.twice_q_b + 2}) {
+    for (const std::uint64_t g : {rate.twice_q_b / 2, rate.twice_q_b - 1, rate.twice_q_b, rate.twice_q_b + 1,
+                                  rate.twice_q_b + 2}) {
       if (g >= 1) gaps.push_back(static_cast<std::int64_t>(g));
     }
     for (const std::int64_t g : gaps) {
