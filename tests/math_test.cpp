@@ -14,6 +14,7 @@ extern "C" {
 
 #include "toonforce/math/sine.hpp"
 #include "toonforce/math/vec3.hpp"
+#include "toonforce/math/wide.hpp"
 
 namespace toonforce {
 namespace {
@@ -436,6 +437,28 @@ TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {
     ASSERT_EQ(dot_unit_difference(n, v, p).raw(), want) << i;
     ASSERT_EQ(take_fixed_saturated(), rounded > INT32_MAX || rounded < INT32_MIN) << i;
   }
+}
+
+TEST(WideFixed, SquaredNormIsTheExactDotProductOfAVectorWithItself) {
+  // The thermal model's (|F| / F_c)^2 from the raw squares summed unsigned: the value and the
+  // flag of Wide::dot(v, v), which saturates at 2^63 exactly when the squares pass it.
+  std::mt19937_64 rng(34);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  std::vector<Vec3<Q>> vectors = {Vec3<Q>{Q::lowest(), Q::lowest(), Q::lowest()},
+                                  Vec3<Q>{Q::lowest(), Q::lowest(), Q{}}, Vec3<Q>{Q::max(), Q::max(), Q::max()},
+                                  Vec3<Q>{Q::lowest(), Q::from_raw(1), Q{}}, Vec3<Q>{}};
+  for (int i = 0; i < 100000; ++i) {
+    const int shift = static_cast<int>(rng() % 32);
+    vectors.push_back({Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)});
+  }
+  for (const Vec3<Q>& v : vectors) {
+    static_cast<void>(take_fixed_saturated());
+    const Wide<Q> expected = Wide<Q>::dot(v, v);
+    const bool saturated = take_fixed_saturated();
+    ASSERT_EQ(Wide<Q>::squared_norm(v), expected) << v.x.raw() << " " << v.y.raw() << " " << v.z.raw();
+    ASSERT_EQ(take_fixed_saturated(), saturated) << v.x.raw() << " " << v.y.raw() << " " << v.z.raw();
+  }
+  EXPECT_EQ(Wide<Q>::squared_norm(Vec3<Q>{Q::from_double(3.0), Q::from_double(4.0), Q{}}).to_double(), 25.0);
 }
 
 TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {

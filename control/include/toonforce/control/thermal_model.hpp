@@ -67,7 +67,7 @@ class ThermalModel {
   constexpr void advance(const Vec3<S>& held_force_n, std::int64_t ticks) noexcept {
     if (!enabled_ || ticks <= 0) return;
     const Vec3<S> relative = held_force_n * inverse_continuous_n_;
-    const Wide<S> target = Wide<S>::dot(relative, relative);  // u = (|F| / F_c)^2
+    const Wide<S> target = Wide<S>::squared_norm(relative);  // u = (|F| / F_c)^2
     temperature_ = target + (temperature_ - target) * decay_over(ticks, target);
   }
 

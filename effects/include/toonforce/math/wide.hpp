@@ -73,6 +73,23 @@ class Wide {
     return w;
   }
 
+  /// v.v, exact in the fixed build like dot(v, v), from the raw squares summed unsigned (each
+  /// below 2^62, the three below 2^64): the same value and flag as dot(v, v), which saturates
+  /// at +2^63 exactly when this sum passes it, with fewer steps (no signed overflow tests).
+  static constexpr Wide squared_norm(const Vec3<S>& v) noexcept {
+    if constexpr (kIsFixed<S>) {
+      static_assert(S::kFracBits == 16, "Q32.32 holds products of Q16.16 values");
+      const std::uint64_t squares = detail::raw_squares(v);
+      if (squares > static_cast<std::uint64_t>(kMax)) {
+        if (!std::is_constant_evaluated()) S::note_saturation();
+        return make(kMax);
+      }
+      return make(static_cast<std::int64_t>(squares));
+    } else {
+      return dot(v, v);
+    }
+  }
+
   constexpr double to_double() const noexcept {
     if constexpr (kIsFixed<S>) {
       return static_cast<double>(rep_) / kOne;
