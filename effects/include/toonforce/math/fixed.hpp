@@ -43,6 +43,8 @@ namespace toonforce {
 #endif
 
 namespace detail {
+// The flag's three operations, on whichever storage the target has. `raise_saturation_flag`
+// takes the saturated value, which sets the Q bit (below) and is ignored elsewhere.
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
 /// A bare-metal Arm core with SSAT (Armv7-M: the Cortex-M3 images) keeps the flag where the
 /// hardware keeps its own: the APSR's sticky Q bit, which an exception saves and restores with
@@ -51,16 +53,16 @@ namespace detail {
 /// counts that path for each operation, issue 29). Nothing else in an image may touch Q: a
 /// compiler emits SSAT/USAT for clamps, so tools/mcu/check_q_bit.cmake fails an image with any
 /// SSAT, USAT or flag-writing MSR but these.
-inline void set_q_bit(std::int32_t saturated_value) noexcept {
+inline void raise_saturation_flag(std::int32_t saturated_value) noexcept {
   std::int32_t ignored;
   asm volatile("ssat %0, #1, %1" : "=r"(ignored) : "r"(saturated_value));
 }
-inline bool q_bit() noexcept {
+inline bool saturation_flag() noexcept {
   std::uint32_t apsr;
   asm volatile("mrs %0, apsr" : "=r"(apsr));
   return (apsr >> 27) & 1U;
 }
-inline void clear_q_bit() noexcept {
+inline void clear_saturation_flag() noexcept {
   std::uint32_t apsr;
   asm volatile("mrs %0, apsr" : "=r"(apsr));
   asm volatile("msr apsr_nzcvq, %0" : : "r"(apsr & ~(1U << 27)) : "cc");
@@ -68,6 +70,9 @@ inline void clear_q_bit() noexcept {
 #else
 /// The sticky saturation flag of the calling thread (of the program when single-threaded).
 TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
+inline void raise_saturation_flag(std::int32_t) noexcept { fixed_saturated_flag = true; }
+inline bool saturation_flag() noexcept { return fixed_saturated_flag; }
+inline void clear_saturation_flag() noexcept { fixed_saturated_flag = false; }
 #endif
 }  // namespace detail
 
@@ -212,22 +217,11 @@ constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
-inline bool fixed_saturated() noexcept {
-#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-  return detail::q_bit();
-#else
-  return detail::fixed_saturated_flag;
-#endif
-}
+inline bool fixed_saturated() noexcept { return detail::saturation_flag(); }
 /// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
 inline bool take_fixed_saturated() noexcept {
-#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-  const bool was = detail::q_bit();
-  if (was) detail::clear_q_bit();
-#else
-  const bool was = detail::fixed_saturated_flag;
-  detail::fixed_saturated_flag = false;
-#endif
+  const bool was = detail::saturation_flag();
+  if (was) detail::clear_saturation_flag();
   return was;
 }
 
@@ -401,22 +395,12 @@ class Fixed {
 
  private:
   static constexpr void flag_saturation() noexcept {
-    if (!std::is_constant_evaluated()) {
-#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-      detail::set_q_bit(std::numeric_limits<Raw>::max());
-#else
-      detail::fixed_saturated_flag = true;
-#endif
-    }
+    if (!std::is_constant_evaluated()) detail::raise_saturation_flag(std::numeric_limits<Raw>::max());
   }
   /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
   static constexpr Fixed saturated_toward(Raw sign) noexcept {
     const Raw limit = (sign >> 31) ^ std::numeric_limits<Raw>::max();
-#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-    if (!std::is_constant_evaluated()) detail::set_q_bit(limit);  // the limit itself sets Q
-#else
-    flag_saturation();
-#endif
+    if (!std::is_constant_evaluated()) detail::raise_saturation_flag(limit);  // the limit itself sets Q
     return from_raw(limit);
   }
   static constexpr Fixed saturated(bool positive) noexcept {

@@ -60,14 +60,22 @@ constexpr S dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
   }
 }
 
+namespace detail {
+/// n.v of a Q-format unit vector n, exact in raw units of 2^-2F: each raw product below 2^47,
+/// their sum below 2^49, so no overflow test is needed.
+template <Scalar S>
+constexpr typename S::Wide raw_dot_unit(const Vec3<S>& n, const Vec3<S>& v) noexcept {
+  using W = typename S::Wide;
+  return W{n.x.raw()} * v.x.raw() + W{n.y.raw()} * v.y.raw() + W{n.z.raw()} * v.z.raw();
+}
+}  // namespace detail
+
 /// n.v for a unit vector n (each component in [-1, 1]: a plane's normal, an axis): what dot()
-/// gives, without its overflow tests, since each raw product is below 2^47 and their sum below
-/// 2^49 (issue 29: a plane's contact takes two such products a tick).
+/// gives, without its overflow tests (issue 29: a plane's contact takes two such products a tick).
 template <Scalar S>
 constexpr S dot_unit(const Vec3<S>& n, const Vec3<S>& v) noexcept {
   if constexpr (kIsFixed<S>) {
-    using W = typename S::Wide;
-    return S::from_product(W{n.x.raw()} * v.x.raw() + W{n.y.raw()} * v.y.raw() + W{n.z.raw()} * v.z.raw());
+    return S::from_product(detail::raw_dot_unit(n, v));
   } else {
     return dot(n, v);
   }
@@ -78,11 +86,7 @@ constexpr S dot_unit(const Vec3<S>& n, const Vec3<S>& v) noexcept {
 template <Scalar S>
 constexpr S dot_unit_difference(const Vec3<S>& n, const Vec3<S>& v, const Vec3<S>& p) noexcept {
   if constexpr (kIsFixed<S>) {
-    using W = typename S::Wide;
-    // Six raw products, each below 2^47 in magnitude: the sums cannot overflow.
-    const W nv = W{n.x.raw()} * v.x.raw() + W{n.y.raw()} * v.y.raw() + W{n.z.raw()} * v.z.raw();
-    const W np = W{n.x.raw()} * p.x.raw() + W{n.y.raw()} * p.y.raw() + W{n.z.raw()} * p.z.raw();
-    return S::from_product(nv - np);
+    return S::from_product(detail::raw_dot_unit(n, v) - detail::raw_dot_unit(n, p));  // below 2^50
   } else {
     return dot(n, v - p);
   }
