@@ -3,7 +3,9 @@
 # (firmware/main.cpp's "count" lines in OUTPUT), costs at most BUDGET instructions for WHAT:
 # "loop" (replay's whole loop tick, read to write: effects.md §6 stages, stamped time), "every"
 # (the whole loop tick with every stage at 1 kHz) or "effects" (the scene's effects plus the
-# safety stage); and, with MEAN_BUDGET, their mean over each motion at most that. Variables:
+# safety stage); and, with MEAN_BUDGET, their mean over each bundled motion at most that (not
+# over the searched inputs' strikes, search_*: built to be expensive on every tick, they are
+# held to the per-tick budget and the static bound, not to a mean of normal use). Variables:
 # OUTPUT SCENE WHAT BUDGET [MEAN_BUDGET].
 foreach(var OUTPUT SCENE WHAT BUDGET)
   if(NOT DEFINED ${var})
@@ -38,7 +40,7 @@ foreach(line IN LISTS lines)
     message(FATAL_ERROR "check_budget.cmake: WHAT is loop, every or effects, not '${WHAT}'")
   endif()
   math(EXPR mean "${sum} / ${ticks}")
-  if(DEFINED MEAN_BUDGET AND mean GREATER MEAN_BUDGET)
+  if(DEFINED MEAN_BUDGET AND mean GREATER MEAN_BUDGET AND NOT motion MATCHES "^search_")
     set(failed TRUE)
     message("over: ${SCENE} with ${motion}: ${WHAT} mean ${mean} instructions a tick > ${MEAN_BUDGET}")
   endif()

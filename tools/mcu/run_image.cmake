@@ -1,7 +1,7 @@
 # Runs one microcontroller image under qemu-system-arm and compares its forces with the
 # host's `toonforce replay --scalar SCALAR` of each of its scenes and motions, bit for bit.
 # Variables: QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR
-# (SCENES and MOTIONS comma-separated); SCALAR (default q16.16) and SINE (replay --sine, as
+# (SCENES and MOTIONS comma-separated; a motion is NAME, scenes/motions/NAME.csv, or NAME=FILE); SCALAR (default q16.16) and SINE (replay --sine, as
 # the image was generated with) optional.
 foreach(var QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR)
   if(NOT DEFINED ${var})
@@ -47,10 +47,17 @@ endif()
 set(host_args)
 foreach(scene IN LISTS SCENES)
   foreach(motion IN LISTS MOTIONS)
+    # NAME (a bundled motion, scenes/motions/NAME.csv) or NAME=FILE (the searched inputs).
+    if(motion MATCHES "^([^=]+)=(.+)$")
+      set(motion "${CMAKE_MATCH_1}")
+      set(motion_file "${CMAKE_MATCH_2}")
+    else()
+      set(motion_file "${SOURCE_DIR}/scenes/motions/${motion}.csv")
+    endif()
     set(csv "${OUT_DIR}/replay_${scene}_${motion}.csv")
     execute_process(
       COMMAND "${TOONFORCE}" replay --scene "${SOURCE_DIR}/scenes/${scene}.toml"
-              --input "${SOURCE_DIR}/scenes/motions/${motion}.csv" --output "${csv}" --scalar ${SCALAR} ${sine_args} --quiet
+              --input "${motion_file}" --output "${csv}" --scalar ${SCALAR} ${sine_args} --quiet
       RESULT_VARIABLE rc ERROR_VARIABLE err)
     if(NOT rc EQUAL 0)
       message(FATAL_ERROR "toonforce replay of ${scene} with ${motion} failed: ${err}")

@@ -22,7 +22,13 @@ foreach(image IN LISTS _mcu_images _mcu_size_images)
     string(REGEX REPLACE "^size_" "" scenes "${image}")
   endif()
   string(REPLACE ";" "," scenes_arg "${scenes}")
-  string(REPLACE ";" "," motions_arg "${TOONFORCE_MCU_MOTIONS}")
+  set(motions ${TOONFORCE_MCU_MOTIONS})
+  if(image IN_LIST TOONFORCE_MCU_SCENES)  # a counted image of one scene: its searched inputs too
+    foreach(strike IN LISTS TOONFORCE_MCU_STRIKES_${image})
+      list(APPEND motions ${strike}=${_mcu_bin}/strikes/${strike}.csv)
+    endforeach()
+  endif()
+  string(REPLACE ";" "," motions_arg "${motions}")
   add_test(NAME mcu_m3_${image}
     COMMAND ${CMAKE_COMMAND}
       -DQEMU=${TOONFORCE_QEMU_ARM} -DMACHINE=mps2-an385 -DCPU=cortex-m3
@@ -114,6 +120,7 @@ set_tests_properties(mcu_m3_heap_link_fails PROPERTIES LABELS mcu FIXTURES_REQUI
 # The Cortex-M4F images in float (mps2-an386), compared bit for bit with `toonforce replay
 # --scalar float --sine polynomial`.
 set(_mcu_m4f_dir ${_mcu_bin}/cortex-m4f)
+string(REPLACE ";" "," _mcu_scripted_motions "${TOONFORCE_MCU_MOTIONS}")  # the float images play these
 add_test(NAME mcu_m4f_build COMMAND ${CMAKE_COMMAND} --build ${PROJECT_BINARY_DIR} --target toonforce_mcu_cortex_m4f)
 set_tests_properties(mcu_m4f_build PROPERTIES LABELS mcu FIXTURES_SETUP mcu_m4f_images TIMEOUT 900
   RESOURCE_LOCK mcu_build)
@@ -125,7 +132,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
         -DSHIFT=${TOONFORCE_MCU_ICOUNT_SHIFT} -DSCALAR=float -DSINE=polynomial
         -DIMAGE=${_mcu_m4f_dir}/${image}.elf
         -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
-        -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scene} -DMOTIONS=${motions_arg}
+        -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scene} -DMOTIONS=${_mcu_scripted_motions}
         -DOUT_DIR=${_mcu_bin}/runs/cortex-m4f/${image}
         -P ${_mcu_src}/run_image.cmake)
     set_tests_properties(mcu_m4f_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m4f_images

@@ -163,7 +163,10 @@ struct Run {
   /// The loop as `toonforce replay` runs it: effects.md §6 stages, time from the rows' stamps.
   using SpecLoop = ServoLoop<MotionDevice, SceneT, NullPins, kSpecStages>;
   /// The whole loop with every stage (supervisor, engage and soft start, passivity, thermal,
-  /// motion limits), on a fixed 1 kHz period: what a product runs.
+  /// motion limits), on a fixed 1 kHz period: what a product runs, with settings that make
+  /// every stage act on the scripted motions (SceneDef::every_config: a 0.1 s soft start, a
+  /// quick thermal model, a 0.1 mJ passivity budget, a workspace), so that its counts reach
+  /// each stage's expensive branch, as the static bound assumes.
   using FullLoop = ServoLoop<MotionDevice, SceneT, NullPins, kEveryStage>;
 
   static constexpr SceneT kScene = SceneDef::make();
@@ -181,7 +184,7 @@ struct Run {
   // converts through floating point at run time either. The first tick's dt of replay's loop
   // is the recordings' period, as replay's (replay_config; the generator checks they share it).
   static constexpr SpecLoop kSpecLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::config(image::kMotionPeriodS, true)};
-  static constexpr FullLoop kFullLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::config(kPeriodS, false)};
+  static constexpr FullLoop kFullLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::every_config(kPeriodS)};
 
   static SpecLoop& make_spec(const Motion& motion) noexcept {
     SpecLoop& loop = *new (spec_storage) SpecLoop(kSpecLoop);

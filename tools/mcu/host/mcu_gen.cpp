@@ -9,6 +9,12 @@
 //     so the image starts from the same numbers bit for bit: parameters are printed as raw
 //     Q16.16 integers or hexadecimal float literals, never as rounded decimals.
 //
+//   toonforce_mcu_gen strikes --out-dir DIR --count N --scene NAME...
+//     Writes the searched inputs of `toonforce report` (tools/report/src/workloads.cpp,
+//     search_path: a constructed strike, then seeded random ones, each for a fresh loop) of
+//     each paper scene NAME as motion files DIR/search_NAME_K.csv, one per strike, for the
+//     images to play and replay to compare: the searched inputs run on the target too.
+//
 //   toonforce_mcu_gen compare [--scalar q16.16|float] --target TARGET.txt --host SCENE/MOTION=REPLAY.csv ...
 //     Compares the forces an image wrote (raw Q16.16 integers, or a float's bits) with
 //     `toonforce replay --scalar q16.16` (or float) of the same scene and motion, row by row,
@@ -36,6 +42,8 @@
 
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/replay/motion_csv.hpp"
+#include "toonforce/report/stage_configs.hpp"
+#include "toonforce/report/workloads.hpp"
 
 namespace toonforce::mcu {
 namespace {
@@ -98,12 +106,41 @@ std::string_view sine_name(SineMethod m) {
   return "?";
 }
 
+/// A ServoConfig's settings as the statements of a constexpr function's body, exactly (the
+/// period and time base excepted: the image sets them).
+std::string settings_of(const ServoConfig& config) {
+  const auto& l = config.limits;
+  const auto& f = config.safety;
+  return fmt::format(
+      "    ServoConfig c;\n"
+      "    c.limits = ForceLimits{{{}, {}, {}, {}}};\n"
+      "    c.velocity_cutoff_hz = {};\n"
+      "    c.safety.engage_force_n = {};\n"
+      "    c.safety.soft_start_s = {};\n"
+      "    c.safety.has_max_velocity = {};\n"
+      "    c.safety.max_velocity_m_per_s = {};\n"
+      "    c.safety.has_workspace = {};\n"
+      "    c.safety.workspace_min_m = {};\n"
+      "    c.safety.workspace_max_m = {};\n"
+      "    c.safety.watchdog_periods = {};\n"
+      "    c.safety.device_timeout_periods = {};\n"
+      "    c.safety.thermal = ThermalConfig{{{}, {}, {}}};\n"
+      "    c.safety.passivity = PassivityConfig{{{}, {}, {}}};\n",
+      lit(l.max_force_n), lit(l.max_force_rate_n_per_s), l.has_max_force, l.has_max_force_rate,
+      lit(config.velocity_cutoff_hz), lit(f.engage_force_n), lit(f.soft_start_s), f.has_max_velocity,
+      lit(f.max_velocity_m_per_s), f.has_workspace, lit(f.workspace_min_m), lit(f.workspace_max_m),
+      f.watchdog_periods, f.device_timeout_periods, lit(f.thermal.continuous_force_n),
+      lit(f.thermal.time_constant_s), lit(f.thermal.derate_start), f.passivity.controller,
+      lit(f.passivity.budget_j), lit(f.passivity.max_damping_n_s_per_m));
+}
+
 /// One scene as a compile-time type and its constructor arguments, from the run-time scene
 /// replay builds from the same file: same parameters, and each surface gets only the laws the
 /// file gives it (a wall without damping is a SpringWall; no tangential law, no impact: none),
 /// which is what makes a scene's image carry only its effects.
 template <class S>
-std::string scene_struct(const std::string& name, const SceneDescription& d, const ServoConfig& config) {
+std::string scene_struct(const std::string& name, const SceneDescription& d, const ServoConfig& config,
+                         const ServoConfig& every_config) {
   std::vector<std::string> types;
   std::vector<std::string> args;
   for (const SceneEntry& entry : d.order) {
@@ -154,31 +191,12 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
     type_list += (i ? ",\n                    " : "") + types[i];
     arg_list += (i ? ",\n        " : "") + args[i];
   }
-  const auto& l = config.limits;
-  const auto& f = config.safety;
   // The scene's servo settings (servo_config of the file, every [device] key), exactly; the
   // image sets the period and the time base (stamps for the replay comparison).
-  const std::string settings = fmt::format(
-      "    ServoConfig c;\n"
-      "    c.limits = ForceLimits{{{}, {}, {}, {}}};\n"
-      "    c.velocity_cutoff_hz = {};\n"
-      "    c.safety.engage_force_n = {};\n"
-      "    c.safety.soft_start_s = {};\n"
-      "    c.safety.has_max_velocity = {};\n"
-      "    c.safety.max_velocity_m_per_s = {};\n"
-      "    c.safety.has_workspace = {};\n"
-      "    c.safety.workspace_min_m = {};\n"
-      "    c.safety.workspace_max_m = {};\n"
-      "    c.safety.watchdog_periods = {};\n"
-      "    c.safety.device_timeout_periods = {};\n"
-      "    c.safety.thermal = ThermalConfig{{{}, {}, {}}};\n"
-      "    c.safety.passivity = PassivityConfig{{{}, {}, {}}};\n",
-      lit(l.max_force_n), lit(l.max_force_rate_n_per_s), l.has_max_force, l.has_max_force_rate,
-      lit(config.velocity_cutoff_hz), lit(f.engage_force_n), lit(f.soft_start_s), f.has_max_velocity,
-      lit(f.max_velocity_m_per_s), f.has_workspace, lit(f.workspace_min_m), lit(f.workspace_max_m),
-      f.watchdog_periods, f.device_timeout_periods, lit(f.thermal.continuous_force_n),
-      lit(f.thermal.time_constant_s), lit(f.thermal.derate_start), f.passivity.controller,
-      lit(f.passivity.budget_j), lit(f.passivity.max_damping_n_s_per_m));
+  const std::string settings = settings_of(config);
+  // The every-stage loop's: the same with every stage acting (report::search_config), so
+  // that what the image counts of that loop reaches each stage's expensive branch.
+  const std::string every = settings_of(every_config);
   return fmt::format(
       "/// {} ({})\n"
       "struct {}Scene {{\n"
@@ -194,8 +212,26 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
       "    c.time_from_stamps = time_from_stamps;\n"
       "    return c;\n"
       "  }}\n"
+      "  /// The every-stage loop's settings: every stage acting (toonforce/report/stage_configs.hpp).\n"
+      "  static constexpr ServoConfig every_config(double period_s) noexcept {{\n"
+      "{}"
+      "    c.period_s = period_s;\n"
+      "    return c;\n"
+      "  }}\n"
       "}};\n\n",
-      d.name, d.source, camel(name), name, type_list, arg_list, settings);
+      d.name, d.source, camel(name), name, type_list, arg_list, settings, every);
+}
+
+/// Writes `text` to `path` only when it differs, so a rebuild that changes nothing recompiles
+/// nothing.
+bool write_if_changed(const std::string& path, const std::string& text) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream old;
+  old << in.rdbuf();
+  if (in && old.str() == text) return true;
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  return static_cast<bool>(out);
 }
 
 int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMethod> sine,
@@ -213,10 +249,11 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
     }
     if (sine) override_sine(d.value(), *sine);  // as `toonforce replay --sine` does
     const ServoConfig config = servo_config(d.value(), 1.0);  // the period is the image's
+    const ServoConfig every = report::search_config(d.value(), 1.0);
     if (scalar == ScalarKind::kQ16_16) {
-      header += scene_struct<Q16_16>(s.name, d.value(), config);
+      header += scene_struct<Q16_16>(s.name, d.value(), config, every);
     } else {
-      header += scene_struct<float>(s.name, d.value(), config);
+      header += scene_struct<float>(s.name, d.value(), config, every);
     }
     scene_names += (scene_names.empty() ? "" : ", ") + camel(s.name) + "Scene";
   }
@@ -289,16 +326,6 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
   header += "extern const Motion kMotions[];\nextern const std::size_t kMotionCount;\n\n";
   header += "}  // namespace toonforce::mcu::image\n";
 
-  // Written only when changed, so a rebuild that changes nothing recompiles nothing.
-  const auto write_if_changed = [](const std::string& path, const std::string& text) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream old;
-    old << in.rdbuf();
-    if (in && old.str() == text) return true;
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out << text;
-    return static_cast<bool>(out);
-  };
   if (!write_if_changed(out_dir + "/image.hpp", header) || !write_if_changed(out_dir + "/motions.cpp", source)) {
     std::fprintf(stderr, "toonforce_mcu_gen: cannot write into %s\n", out_dir.c_str());
     return 1;
@@ -486,6 +513,9 @@ bool read_sections(const std::string& path, std::map<std::string, std::uint64_t>
 struct SceneFigures {
   std::uint64_t ticks = 0, loop_sum = 0, loop_max = 0, every_sum = 0, every_max = 0, effects_sum = 0, effects_max = 0;
   std::uint64_t stack_tick = 0, controller_bytes = 0, loop_bytes = 0;
+  /// The searched inputs' strikes (motions search_*), apart: built to be dear, they would
+  /// make the means above say nothing about normal use.
+  std::uint64_t searched_ticks = 0, searched_loop_max = 0, searched_every_max = 0, searched_effects_max = 0;
 };
 
 /// The figure lines of an image's output (main.cpp): count, stack and sizeof, per scene.
@@ -510,6 +540,13 @@ bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& 
         return false;
       }
       SceneFigures& f = scenes[scene];
+      if (motion.rfind("search_", 0) == 0) {
+        f.searched_ticks += ticks;
+        f.searched_loop_max = std::max(f.searched_loop_max, lm);
+        f.searched_every_max = std::max(f.searched_every_max, vm);
+        f.searched_effects_max = std::max(f.searched_effects_max, em);
+        continue;
+      }
       f.ticks += ticks;
       f.loop_sum += ls;
       f.loop_max = std::max(f.loop_max, lm);
@@ -550,9 +587,8 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
                 static_cast<unsigned long long>(bss), static_cast<unsigned long long>(text + data),
                 static_cast<unsigned long long>(data + bss), static_cast<unsigned long long>(sec[".motion"]));
   }
-  std::printf("\n| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | "
-              "effects + safety, mean | max | stack per tick [B] | loop state, replay's / every stage [B] |\n");
-  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+  std::vector<SceneFigures> read;
+  bool searched = false;  // a column for the searched inputs when some image played them
   for (const auto& r : runs) {
     std::map<std::string, SceneFigures> scenes;
     std::uint64_t program_stack = 0;
@@ -565,13 +601,59 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
       std::fprintf(stderr, "toonforce_mcu_gen: %s: no figures of scene %s\n", r.path.c_str(), r.name.c_str());
       return 1;
     }
-    const SceneFigures& f = it->second;
+    read.push_back(it->second);
+    searched = searched || it->second.searched_ticks != 0;
+  }
+  std::printf("\n| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | "
+              "effects + safety, mean | max | stack per tick [B] | loop state, replay's / every stage [B] |%s\n",
+              searched ? " searched inputs: ticks | their max, replay's loop / every stage / effects + safety |" : "");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |%s\n", searched ? " ---: | ---: |" : "");
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = runs[i];
+    const SceneFigures& f = read[i];
     const auto mean = [&](std::uint64_t sum) { return static_cast<double>(sum) / static_cast<double>(f.ticks); };
-    std::printf("| %s | %llu | %.0f | %llu | %.0f | %llu | %.0f | %llu | %llu | %llu / %llu |\n", r.name.c_str(),
+    std::printf("| %s | %llu | %.0f | %llu | %.0f | %llu | %.0f | %llu | %llu | %llu / %llu |", r.name.c_str(),
                 static_cast<unsigned long long>(f.ticks), mean(f.loop_sum), static_cast<unsigned long long>(f.loop_max),
                 mean(f.every_sum), static_cast<unsigned long long>(f.every_max), mean(f.effects_sum),
                 static_cast<unsigned long long>(f.effects_max), static_cast<unsigned long long>(f.stack_tick),
                 static_cast<unsigned long long>(f.controller_bytes), static_cast<unsigned long long>(f.loop_bytes));
+    if (searched) {
+      std::printf(" %llu | %llu / %llu / %llu |", static_cast<unsigned long long>(f.searched_ticks),
+                  static_cast<unsigned long long>(f.searched_loop_max),
+                  static_cast<unsigned long long>(f.searched_every_max),
+                  static_cast<unsigned long long>(f.searched_effects_max));
+    }
+    std::printf("\n");
+  }
+  return 0;
+}
+
+// ---- the searched inputs as motion files -----------------------------------------------------
+
+int strikes(const std::string& out_dir, std::size_t count, const std::vector<std::string>& scenes) {
+  if (count != report::kSearchStrikes) {
+    std::fprintf(stderr, "toonforce_mcu_gen: --count %zu, but the search path has %zu strikes (report::kSearchStrikes); "
+                 "set TOONFORCE_MCU_STRIKE_COUNT in tools/mcu/images.cmake to it\n", count, report::kSearchStrikes);
+    return 1;
+  }
+  for (const auto& scene : scenes) {
+    const auto all = report::search_strikes(scene);
+    for (std::size_t k = 0; k < all.size(); ++k) {
+      const std::string path = fmt::format("{}/search_{}_{}.csv", out_dir, scene, k);
+      std::string text = fmt::format(
+          "# Strike {} of {} of the search path of scene {} (`toonforce report`'s searched inputs,\n"
+          "# tools/report/src/workloads.cpp, search_path), at 1 kHz; written by toonforce_mcu_gen strikes.\n"
+          "t,x,y,z\n",
+          k, all.size(), scene);
+      for (std::size_t i = 0; i < all[k].size(); ++i) {
+        const Vec3<double>& p = all[k][i];
+        text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
+      }
+      if (!write_if_changed(path, text)) {
+        std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
+        return 1;
+      }
+    }
   }
   return 0;
 }
@@ -580,6 +662,7 @@ int usage() {
   std::fputs(
       "usage: toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] [--sine METHOD] --scene NAME=FILE... "
       "--motion NAME=FILE...\n"
+      "       toonforce_mcu_gen strikes --out-dir DIR --count N --scene NAME...\n"
       "       toonforce_mcu_gen compare [--scalar q16.16|float] --target FILE --host SCENE/MOTION=REPLAY.csv...\n"
       "       toonforce_mcu_gen figures --size IMAGE=SIZE_A.txt... --run SCENE=TARGET.txt...\n",
       stderr);
@@ -597,6 +680,7 @@ int main(int argc, char** argv) {
   toonforce::ScalarKind scalar = toonforce::ScalarKind::kQ16_16;
   std::optional<toonforce::SineMethod> sine;
   std::vector<Named> scenes, motions, host, sizes, runs;
+  std::size_t count = 0;
   for (int i = 2; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (i + 1 >= argc) return usage();
@@ -613,6 +697,10 @@ int main(int argc, char** argv) {
     } else if (arg == "--sine") {
       sine = toonforce::parse_sine_method(value);
       if (!sine) return usage();
+    } else if (arg == "--count" && mode == "strikes") {
+      count = static_cast<std::size_t>(std::strtoull(std::string(value).c_str(), nullptr, 10));
+    } else if (arg == "--scene" && mode == "strikes") {  // a paper scene's name, no file
+      scenes.push_back({std::string(value), {}});
     } else if ((arg == "--scene" || arg == "--motion" || arg == "--host") && split_named(value, named)) {
       (arg == "--scene" ? scenes : arg == "--motion" ? motions : host).push_back(named);
     } else if ((arg == "--size" || arg == "--run") && split_named(value, named)) {
@@ -620,6 +708,11 @@ int main(int argc, char** argv) {
     } else {
       return usage();
     }
+  }
+  if (mode == "strikes" && !out_dir.empty() && !scenes.empty()) {
+    std::vector<std::string> names;
+    for (const auto& s : scenes) names.push_back(s.name);
+    return strikes(out_dir, count, names);
   }
   if (mode == "generate" && !out_dir.empty() && !scenes.empty() && !motions.empty()) {
     return generate(out_dir, scalar, sine, scenes, motions);

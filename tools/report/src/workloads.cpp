@@ -14,6 +14,7 @@
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/report/scenario.hpp"
+#include "toonforce/report/stage_configs.hpp"
 #include "toonforce/report/tsc_clock.hpp"
 
 namespace toonforce::report {
@@ -258,20 +259,6 @@ struct LoopWork {
 /// Replay's configuration at a fixed rate: the [device] clamp and rate limit only.
 ServoConfig spec_config(const SceneDescription& desc, double rate_hz) { return servo_config(desc, 1.0 / rate_hz); }
 
-ServoConfig every_stage_config(const SceneDescription& desc, double rate_hz) {
-  ServoConfig c = servo_config(desc, 1.0 / rate_hz);
-  c.limits.has_max_force = true;
-  c.limits.max_force_n = desc.limits.has_max_force ? desc.limits.max_force_n : 8.0;
-  c.limits.has_max_force_rate = true;
-  c.limits.max_force_rate_n_per_s = desc.limits.has_max_force_rate ? desc.limits.max_force_rate_n_per_s : 2000.0;
-  c.safety.has_workspace = true;
-  c.safety.workspace_min_m = {-0.06, -0.06, -0.06};
-  c.safety.workspace_max_m = {0.06, 0.06, 0.06};
-  c.safety.has_max_velocity = true;
-  c.safety.thermal.continuous_force_n = 0.5 * c.limits.max_force_n;
-  c.safety.passivity.controller = true;
-  return c;
-}
 
 // ---- inputs ---------------------------------------------------------------------------------
 
@@ -413,18 +400,6 @@ SearchPath search_path(std::string_view scene) {
   return path;
 }
 
-/// every_stage_config, tuned so that every stage's expensive branch is reachable within a
-/// strike: a 0.1 s soft start, a thermal model at half the clamp with a 50 ms time constant
-/// (derates within a strike of hard contact), a passivity budget of 0.1 mJ (the active
-/// effects exceed it within a few ticks of contact, so the controller damps).
-ServoConfig search_config(const SceneDescription& desc) {
-  ServoConfig c = every_stage_config(desc, kRateHz);
-  c.safety.soft_start_s = 0.1;
-  c.safety.thermal.time_constant_s = 0.05;
-  c.safety.passivity.budget_j = 1e-4;
-  return c;
-}
-
 /// The whole loop on a search path: a fresh loop (engaging, cold thermal model, no episode)
 /// at the start of every strike, built outside the counted tick.
 template <class SceneT>
@@ -552,7 +527,7 @@ class CaseBuilder {
   }
   void loop_searches() {
     for (const auto& [name, desc] : paper_scenes()) {
-      SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(*desc), search_config(*desc),
+      SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(*desc), search_config(*desc, kRateHz),
                                            search_path(name).position_m);
       const auto ticks = work.size();
       add(Level::kLoop, name, "search", "search", ticks, std::move(work));
@@ -847,12 +822,22 @@ Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, s
       [](ScalarKind) -> Result<std::unique_ptr<TickCase>> { return Error{"scalar not built"}; });
 }
 
+std::vector<std::vector<Vec3<double>>> search_strikes(std::string_view scene) {
+  const SearchPath path = search_path(scene);
+  std::vector<std::vector<Vec3<double>>> strikes;
+  for (std::size_t at = 0; at < path.position_m.size(); at += kSearchStrikeTicks) {
+    const auto first = path.position_m.begin() + static_cast<std::ptrdiff_t>(at);
+    strikes.emplace_back(first, first + static_cast<std::ptrdiff_t>(kSearchStrikeTicks));
+  }
+  return strikes;
+}
+
 Result<std::vector<SearchTick>> search_loop_ticks(const std::string& root, std::string_view scene, ScalarKind scalar) {
   auto desc = load(root, scene, scalar);
   if (!desc) return Error{desc.error()};
   return with_scalar(
       scalar, [&]<Scalar S>() -> Result<std::vector<SearchTick>> {
-        SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(desc.value()), search_config(desc.value()),
+        SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(desc.value()), search_config(desc.value(), kRateHz),
                                              search_path(scene).position_m);
         std::vector<SearchTick> ticks;
         for (std::size_t i = 0; i < work.size(); ++i) {

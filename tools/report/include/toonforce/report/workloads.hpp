@@ -27,6 +27,7 @@
 #include "toonforce/config/toml_reader.hpp"
 #include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/math/sine.hpp"
+#include "toonforce/math/vec3.hpp"
 
 namespace toonforce::report {
 
@@ -120,6 +121,12 @@ Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, s
 /// at 1 kHz, a fresh loop at the start of each.
 inline constexpr std::size_t kSearchStrikes = 8;
 inline constexpr std::size_t kSearchStrikeTicks = 300;
+
+/// The search path of `scene` (a paper scene's name) as device readings, strike by strike:
+/// kSearchStrikes strikes of kSearchStrikeTicks positions at 1 kHz, each for a fresh loop. The
+/// microcontroller images play them as motions (toonforce_mcu_gen strikes), so the searched
+/// inputs run on the target too.
+std::vector<std::vector<Vec3<double>>> search_strikes(std::string_view scene);
 
 /// What one tick of a loop search case did: its Limit bits and fault bits.
 struct SearchTick {
