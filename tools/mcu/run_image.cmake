@@ -2,7 +2,8 @@
 # host's `toonforce replay --scalar SCALAR` of each of its scenes and motions, bit for bit.
 # Variables: QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR
 # (SCENES and MOTIONS comma-separated; a motion is NAME, scenes/motions/NAME.csv, or NAME=FILE); SCALAR (default q16.16) and SINE (replay --sine, as
-# the image was generated with) optional.
+# the image was generated with) and COVERAGE (a file for the start addresses of the code that
+# ran, for the static bound's report: check_bound.py --covered) optional.
 foreach(var QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run_image.cmake: ${var} is not set")
@@ -25,12 +26,25 @@ file(REMOVE "${target_out}")
 # readings count instructions exactly (align and sleep off: no tie to the host's clock).
 # Semihosting carries the output (into a file: by default QEMU writes it to its standard
 # error, mixed with its own messages) and the exit status; no display, serial or monitor.
-execute_process(
-  COMMAND "${QEMU}" -machine ${MACHINE} -cpu ${CPU} -display none -monitor none -serial none
-          -chardev file,id=semihosting,path=${target_out}
-          -semihosting-config enable=on,target=native,chardev=semihosting
-          -icount shift=${SHIFT},align=off,sleep=off -kernel "${IMAGE}"
-  OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc TIMEOUT 240)
+set(qemu_command "${QEMU}" -machine ${MACHINE} -cpu ${CPU} -display none -monitor none -serial none
+  -chardev file,id=semihosting,path=${target_out}
+  -semihosting-config enable=on,target=native,chardev=semihosting
+  -icount shift=${SHIFT},align=off,sleep=off -kernel "${IMAGE}")
+if(DEFINED COVERAGE)
+  # Also which code ran: QEMU logs each translation block it runs (`-d exec,nochain`: every
+  # one, not only those entered from outside a chain) on its standard output, and awk keeps
+  # each start address once, into COVERAGE (wcet.py --covered reads it). Tens of millions of
+  # lines, never stored: about 10 s more per image.
+  file(REMOVE "${COVERAGE}")
+  execute_process(
+    COMMAND ${qemu_command} -d exec,nochain -D /dev/stdout
+    COMMAND awk "/^Trace/ { split($4, a, \"/\"); if (!(a[2] in seen)) { seen[a[2]] = 1; print a[2] } }"
+    OUTPUT_FILE "${COVERAGE}" ERROR_VARIABLE err RESULTS_VARIABLE results TIMEOUT 240)
+  list(GET results 0 rc)
+  set(out "")
+else()
+  execute_process(COMMAND ${qemu_command} OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc TIMEOUT 240)
+endif()
 if(EXISTS "${target_out}")
   file(READ "${target_out}" target_text)
 else()

@@ -22,6 +22,7 @@ foreach(image IN LISTS _mcu_images _mcu_size_images)
     string(REGEX REPLACE "^size_" "" scenes "${image}")
   endif()
   string(REPLACE ";" "," scenes_arg "${scenes}")
+  string(REGEX MATCH "^size_" size_image "${image}")  # the counted images record which code ran
   set(motions ${TOONFORCE_MCU_MOTIONS})
   if(image IN_LIST TOONFORCE_MCU_SCENES)  # a counted image of one scene: its searched inputs too
     foreach(strike IN LISTS TOONFORCE_MCU_STRIKES_${image})
@@ -37,6 +38,7 @@ foreach(image IN LISTS _mcu_images _mcu_size_images)
       -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
       -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=${scenes_arg} -DMOTIONS=${motions_arg}
       -DOUT_DIR=${_mcu_bin}/runs/cortex-m3/${image}
+      $<$<NOT:$<BOOL:${size_image}>>:-DCOVERAGE=${_mcu_bin}/runs/cortex-m3/${image}/ran.txt>
       -P ${_mcu_src}/run_image.cmake)
   set_tests_properties(mcu_m3_${image} PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED mcu_m3_images
     FIXTURES_SETUP mcu_m3_run_${image})
@@ -83,7 +85,8 @@ set_tests_properties(mcu_m3_wcet_analyser PROPERTIES LABELS mcu
 foreach(image IN LISTS _mcu_images)
   add_test(NAME mcu_m3_wcet_bound_${image} COMMAND /usr/bin/python3 ${_wcet}/check_bound.py
     ${_mcu_m3_dir}/${image}.elf ${_mcu_bin}/runs/cortex-m3/${image}/target.txt
-    --json ${_mcu_bin}/wcet/${image}.json --ceilings ${_wcet}/ceilings.txt)
+    --json ${_mcu_bin}/wcet/${image}.json --ceilings ${_wcet}/ceilings.txt
+    --covered ${_mcu_bin}/runs/cortex-m3/${image}/ran.txt)
   set_tests_properties(mcu_m3_wcet_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image})
 endforeach()
 file(MAKE_DIRECTORY ${_mcu_bin}/wcet)

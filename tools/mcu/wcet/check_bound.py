@@ -15,7 +15,12 @@ scene and variant fails too (a change made a tick dearer in the worst case; if t
 --update-ceilings rewrites the image's rows with its bounds, to commit with the change). The
 budgets of issue 29 are reported against, not gated on, until every scene meets them.
 
-    check_bound.py IMAGE.elf COUNTS [--json OUT] [--wait-states N] [--ceilings FILE [--update-ceilings]]
+With --covered TB_STARTS (the run's translation-block starts, run_image.cmake's COVERAGE), it
+reports per variant how much of the longest path is code no tick of the run executed: where
+the gap between the bound and the dearest measured tick lies.
+
+    check_bound.py IMAGE.elf COUNTS [--json OUT] [--wait-states N] [--covered TB_STARTS]
+                   [--ceilings FILE [--update-ceilings]]
 """
 import argparse
 import json
@@ -37,19 +42,25 @@ def scene_of(function: str) -> str:
     return re.sub(r"(?<!^)([A-Z])", r"_\1", m.group(1)).lower()
 
 
-def bounds(elf: str, wait: int) -> dict:
+def bounds(elf: str, wait: int, covered: str | None) -> tuple[dict, dict]:
+    """(scene, variant) -> (instructions, cycles); and, with `covered`, -> how many instructions
+    of that longest path the run never executed."""
     args = [sys.executable, os.path.join(HERE, "wcet.py"), elf, "--wait-states", str(wait)]
+    if covered:
+        args += ["--covered", covered]
     for label, fn in VARIANTS.items():
         args += ["--entry", f"{label}=::{fn}\\("]
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
         sys.stderr.write(r.stderr)
         raise SystemExit(r.returncode)
-    out = {}
+    out, never = {}, {}
     for line in r.stdout.splitlines():
-        label, instructions, cycles, function = line.split("\t")
+        label, instructions, cycles, function, *rest = line.split("\t")
         out[(scene_of(function), label)] = (int(instructions), int(cycles))
-    return out
+        if rest:
+            never[(scene_of(function), label)] = int(rest[0])
+    return out, never
 
 
 def measured(counts: str) -> dict:
@@ -100,13 +111,19 @@ def main() -> int:
     p.add_argument("counts")
     p.add_argument("--json")
     p.add_argument("--wait-states", type=int, default=0)
+    p.add_argument("--covered", help="the run's translation-block starts (run_image.cmake COVERAGE): report the "
+                                     "longest paths' code that no tick executed")
     p.add_argument("--ceilings", help="fail when a bound passes the one this file records (a ratchet)")
     p.add_argument("--update-ceilings", action="store_true", help="write this image's bounds into --ceilings")
     a = p.parse_args()
     if not os.path.exists(a.counts):
         print(f"check_bound: {a.counts}: no output of the image (its run test failed or did not run)", file=sys.stderr)
         return 1
-    b = bounds(a.elf, a.wait_states)
+    if a.covered and not os.path.exists(a.covered):
+        print(f"check_bound: {a.covered}: no coverage of the image's run (its run test failed or did not run)",
+              file=sys.stderr)
+        return 1
+    b, never = bounds(a.elf, a.wait_states, a.covered)
     m = measured(a.counts)
     if not m:
         print(f"check_bound: {a.counts}: no count lines", file=sys.stderr)
@@ -123,8 +140,16 @@ def main() -> int:
         failed = failed or not ok
         print(f"{'ok:  ' if ok else 'over:'} {key[0]} {key[1]}: measured {worst} {'<=' if ok else '>'} bound {instructions} "
               f"(+{CALL_SITE} call site) instructions; bound {cycles} cycles")
-        rows.append({"scene": key[0], "variant": key[1], "measured_max": worst,
-                     "bound_instructions": instructions, "bound_cycles": cycles})
+        row = {"scene": key[0], "variant": key[1], "measured_max": worst,
+               "bound_instructions": instructions, "bound_cycles": cycles}
+        if key in never:
+            # Where the gap between the bound and the dearest tick is: the longest path's code
+            # that no tick of the run executed (wcet.py --covered --path LABEL lists it by line).
+            row["path_never_run"] = never[key]
+            print(f"      {key[0]} {key[1]}: measured {100 * worst / instructions:.0f} % of the bound; of the longest "
+                  f"path's {instructions} instructions {never[key]} are code no tick ran; bound - never run = "
+                  f"{instructions - never[key]}")
+        rows.append(row)
     image = os.path.splitext(os.path.basename(a.elf))[0]
     if a.ceilings and a.update_ceilings:
         write_ceilings(a.ceilings, image, b)

@@ -693,6 +693,31 @@ class Analysis:
         return into
 
 
+def executed(image: Image, starts: set) -> set:
+    """The addresses a run executed, from the start addresses of the translation blocks QEMU
+    ran (`qemu-system-arm -d exec,nochain`): a block runs straight on from its start to its
+    first branch, call or return (QEMU ends a translation block there, and at nothing that
+    would skip an instruction in between)."""
+    ran = set()
+    for f in image.functions.values():
+        for i, insn in enumerate(f.insns):
+            if insn.addr not in starts:
+                continue
+            for later in f.insns[i:]:
+                if later.addr in ran:
+                    break
+                ran.add(later.addr)
+                if _classify(later)[0] != "plain":
+                    break
+    return ran
+
+
+def read_tb_starts(path: str) -> set:
+    """Hexadecimal addresses, one a line (the `-d exec` trace's second field, deduplicated)."""
+    with open(path) as f:
+        return {int(line.split()[0], 16) for line in f if line.strip()}
+
+
 def source_lines(image: Image, weights: dict) -> list:
     """(instructions, function, file:line) per source line of the addresses in `weights`, the
     innermost inlined function's line (addr2line), largest first."""
@@ -729,11 +754,16 @@ def main(argv=None) -> int:
     p.add_argument("--verbose", action="store_true", help="every function's bound and loops")
     p.add_argument("--path", action="append", default=[], metavar="LABEL",
                    help="where the bound of LABEL's functions goes: the longest path's instructions per source line")
+    p.add_argument("--covered", metavar="TB_STARTS",
+                   help="how many of each longest path's instructions the run that wrote TB_STARTS (QEMU's -d exec "
+                        "translation-block starts, one hexadecimal address a line) never executed: a fifth column, "
+                        "and with --path, per source line")
     p.add_argument("--budget", action="append", default=[], metavar="LABEL=INSTRUCTIONS[,CYCLES]",
                    help="exit 1 when a bound of LABEL's functions passes this budget")
     args = p.parse_args(argv)
     image = Image(args.elf, args.objdump)
     analysis = Analysis(image, args.wait_states, args.glpsol)
+    ran = executed(image, read_tb_starts(args.covered)) if args.covered else None
     results = []
     try:
         for spec in args.entry:
@@ -745,7 +775,12 @@ def main(argv=None) -> int:
                 b = analysis.bound(f.start)
                 results.append({"label": label, "function": f.name, "address": f.start,
                                 "instructions": b.instructions, "cycles": b.cycles})
-                print(f"{label}\t{b.instructions}\t{b.cycles}\t{f.name}")
+                line = f"{label}\t{b.instructions}\t{b.cycles}\t{f.name}"
+                if ran is not None:  # a fifth column: the longest path's instructions the run never executed
+                    weights = analysis.path(f.start)
+                    results[-1]["never_run"] = sum(n for a, n in weights.items() if a not in ran)
+                    line += f"\t{results[-1]['never_run']}"
+                print(line)
     except Refusal as e:
         print(f"wcet: {os.path.basename(args.elf)}: cannot bound: {e}", file=sys.stderr)
         return 2
@@ -767,6 +802,12 @@ def main(argv=None) -> int:
             print(f"path {label} {short_name(r['function'])}: {total} instructions")
             for n, fn, where in source_lines(image, weights):
                 print(f"{n:8d}  {where}  {fn}")
+            if ran is not None:
+                missed = {a: n for a, n in weights.items() if a not in ran}
+                print(f"never run {label} {short_name(r['function'])}: {sum(missed.values())} of the path's {total} "
+                      f"instructions are at addresses the run never executed")
+                for n, fn, where in source_lines(image, missed):
+                    print(f"{n:8d}  {where}  {fn}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"elf": args.elf, "wait_states": args.wait_states, "bounds": results}, f, indent=1)
