@@ -114,6 +114,37 @@ class Path(unittest.TestCase):
         self.assertEqual(per_line, self.at("loop_call.s", {9: 1, 10: 1, 11: 4, 12: 4, 13: 4, 14: 1, 21: 4, 22: 4}))
 
 
+class Covered(unittest.TestCase):
+    """--covered: the longest path's instructions a run never executed, from the starts of the
+    translation blocks QEMU ran (each runs on to its first branch)."""
+
+    def never_run(self, starts: list) -> int:
+        elf = build("diamond.s")
+        entry = wcet.Image(elf, "arm-none-eabi-objdump").by_name["entry"].start
+        tbs = os.path.join(WORK, "diamond-tbs.txt")
+        with open(tbs, "w") as f:
+            f.writelines(f"{entry + offset:08x}\n" for offset in starts)
+        r = analyse(elf, "--covered", tbs)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return int(r.stdout.splitlines()[0].split("\t")[4])
+
+    def test_only_the_taken_arm_ran(self):
+        # diamond.s: cmp at 0, beq at 2, adds at 4-8, b at 10, udiv at 12, bx at 16. From 0: cmp,
+        # beq (a branch ends the run); from 12: udiv, bx. The path's adds and b never ran: 4.
+        self.assertEqual(self.never_run([0, 12]), 4)
+
+    def test_the_longest_arm_ran(self):
+        # From 0: cmp, beq; from 4: the adds and b; from 16: bx. All of the path ran.
+        self.assertEqual(self.never_run([0, 4, 16]), 0)
+
+    def test_a_start_runs_on_to_its_branch_only(self):
+        # From 4 the run ends at the b: the bx at 16 never ran.
+        self.assertEqual(self.never_run([0, 4]), 1)
+
+    def test_nothing_ran(self):
+        self.assertEqual(self.never_run([]), 7)
+
+
 class Budget(unittest.TestCase):
     """--budget fails (exit 1) when a bound passes it, in instructions or in cycles."""
 
