@@ -228,11 +228,17 @@ constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& 
     // gives every component back as it is (|c| (2^32 - 1) / 2^32 rounds to |c|).
     const std::uint64_t quotient =
         detail::div_u64_u32(std::uint64_t{static_cast<std::uint32_t>(numerator.raw())} << 32, magnitude.root);
-    const auto factor = static_cast<std::uint32_t>(quotient > 0xFFFF'FFFFU ? 0xFFFF'FFFFU : quotient);
+    std::uint32_t factor = (quotient >> 32) != 0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(quotient);
+    // GCC 12 sees the 32-bit factor as the capped 64-bit quotient and multiplies each component
+    // by its high word too (always 0: an MLA per component on a Cortex-M3); an empty asm that
+    // may change the register hides where it came from.
+    if (!std::is_constant_evaluated()) asm("" : "+r"(factor));
     const auto scale = [factor](S c) {
       const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
       const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
-      const auto scaled = static_cast<std::uint32_t>((std::uint64_t{m} * factor + (1U << 31)) >> 32);  // <= |c|
+      // (p + 2^31) >> 32 without a 64-bit sum: the high word plus the low word's top bit.
+      const std::uint64_t p = std::uint64_t{m} * factor;
+      const auto scaled = static_cast<std::uint32_t>(p >> 32) + (static_cast<std::uint32_t>(p) >> 31);  // <= |c|
       return S::from_raw(static_cast<Raw>((scaled ^ sign) - sign));
     };
     return {scale(v.x), scale(v.y), scale(v.z)};
