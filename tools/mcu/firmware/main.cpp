@@ -12,6 +12,7 @@
 //   sizeof SCENE loop BYTES           the every-stage loop's state
 //   stack program BYTES               the whole program's high-water mark
 //   done
+#include <array>
 #include <cstdint>
 #include <new>
 
@@ -371,6 +372,79 @@ bool check_saturation_flag() noexcept {
   }
 }
 
+/// The operators the tick saturates with, as this core runs them (on the Cortex-M3, single-path
+/// in asm: math/fixed.hpp), against the same operations evaluated by the compiler, which takes
+/// the portable C++ of the host: on every pair of edge values (the limits, one off them, the
+/// signs, products that round to the edge or just past it), the same value, and the flag
+/// exactly when the operation leaves the range. Bit-for-bit agreement with replay on the
+/// motions cannot show this: no motion saturates.
+template <class Q>
+bool check_saturating_operators() noexcept {
+  if constexpr (kIsFixed<Q>) {
+    using Raw = std::int32_t;
+    constexpr Raw kEdges[] = {0, 1, -1, 2, -2, 0x7FFF'FFFF, -0x7FFF'FFFF - 1, 0x7FFF'FFFE, -0x7FFF'FFFF, 0x4000'0000,
+                              -0x4000'0000, 0x1'0000, -0x1'0000, 0xB5'04F3, -0xB5'04F3, 0xB5'04F4, -0xB5'04F4,
+                              0x7FFF'8000, 12'345'678, -87'654'321};
+    constexpr std::size_t kN = sizeof kEdges / sizeof kEdges[0];
+    struct Expected {
+      Raw sum, difference, product;
+      bool sum_saturates, difference_saturates, product_saturates;
+    };
+    static constexpr auto kExpected = [&] {
+      std::array<Expected, kN * kN> e{};
+      for (std::size_t i = 0; i < kN; ++i) {
+        for (std::size_t j = 0; j < kN; ++j) {
+          const Q a = Q::from_raw(kEdges[i]);
+          const Q b = Q::from_raw(kEdges[j]);
+          const std::int64_t p = std::int64_t{kEdges[i]} * kEdges[j];
+          const std::int64_t rounded = (p + ((std::int64_t{1} << 15) + (p >> 63))) >> 16;
+          Raw ignored = 0;
+          e[i * kN + j] = {(a + b).raw(), (a - b).raw(), (a * b).raw(),
+                           __builtin_add_overflow(kEdges[i], kEdges[j], &ignored),
+                           __builtin_sub_overflow(kEdges[i], kEdges[j], &ignored),
+                           rounded != static_cast<Raw>(rounded)};
+        }
+      }
+      return e;
+    }();
+    constexpr std::int64_t kWideEdges[] = {0, 1, -1, INT64_MAX, -INT64_MAX, INT64_MAX - 1, std::int64_t{1} << 62,
+                                           -(std::int64_t{1} << 62), 0xFFFF'FFFF, -0xFFFF'FFFFLL, 0x1'0000'0000};
+    std::size_t wrong = 0;
+    static_cast<void>(take_fixed_saturated());
+    for (std::size_t i = 0; i < kN; ++i) {
+      for (std::size_t j = 0; j < kN; ++j) {
+        volatile Raw va = kEdges[i];
+        volatile Raw vb = kEdges[j];
+        const Q a = Q::from_raw(va);
+        const Q b = Q::from_raw(vb);
+        const Expected& e = kExpected[i * kN + j];
+        const Raw sum = (a + b).raw();
+        wrong += sum != e.sum || take_fixed_saturated() != e.sum_saturates;
+        const Raw difference = (a - b).raw();
+        wrong += difference != e.difference || take_fixed_saturated() != e.difference_saturates;
+        const Raw product = (a * b).raw();
+        wrong += product != e.product || take_fixed_saturated() != e.product_saturates;
+      }
+    }
+    for (const std::int64_t a : kWideEdges) {
+      for (const std::int64_t b : kWideEdges) {
+        std::int64_t exact = 0;
+        const bool overflows = __builtin_add_overflow(a, b, &exact);
+        const std::int64_t expected = overflows ? (b > 0 ? INT64_MAX : -INT64_MAX) : exact;
+        volatile std::int64_t va = a;
+        volatile std::int64_t vb = b;
+        const Wide<Q> sum = Wide<Q>::from_raw(va) + Wide<Q>::from_raw(vb);
+        wrong += sum.raw() != expected || take_fixed_saturated() != overflows;
+      }
+    }
+    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + 121 << " cases, "
+        << wrong << " wrong\n";
+    return wrong == 0;
+  } else {
+    return true;
+  }
+}
+
 }  // namespace
 }  // namespace toonforce::mcu
 
@@ -383,6 +457,7 @@ int run_image() {
 #endif
   bool ok = calibrate();
   ok = check_saturation_flag<image::S>() && ok;
+  ok = check_saturating_operators<image::S>() && ok;
   ok = play_scenes(image::Scenes{}) && ok;
   out << "stack program " << stack_high_water() << '\n';
   out << (ok ? "done\n" : "failed\n");

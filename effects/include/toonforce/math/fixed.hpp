@@ -67,6 +67,83 @@ inline void clear_saturation_flag() noexcept {
   asm volatile("mrs %0, apsr" : "=r"(apsr));
   asm volatile("msr apsr_nzcvq, %0" : : "r"(apsr & ~(1U << 27)) : "cc");
 }
+// Single-path saturation (issue 29): the test, the limit and the flag in one IT block, the
+// same instructions whether or not the value saturates. A branch around the saturation path
+// costs as many cycles when not taken (a taken branch refills the pipeline) and as many
+// instructions when taken, and out of line it costs a second taken branch; so the tick's static
+// bound does not grow, and every tick now runs what the bound counts for each operation
+// (their saturation paths were most of the gap between the bound and the dearest tick run).
+// Always inlined, as are the operators that use them: GCC's inliner prices an asm statement
+// by its lines, and left these one-instruction-path operators out of line where a scene's
+// code calls them often (the image with all five scenes), adding a call to each.
+// The limit is max() or lowest() by the sign of `sign_of`: MVN gives max(), EOR with the
+// sign's all-ones flips it to lowest().
+/// `low` when `high:low` is a 32-bit value (high is low's sign extension), else the limit
+/// toward high's sign, with the flag.
+[[gnu::always_inline]] inline std::int32_t saturate_words(std::int32_t low, std::int32_t high) noexcept {
+  std::int32_t ignored;
+  asm volatile(
+      "cmp %[high], %[low], asr #31\n\t"
+      "ittt ne\n\t"
+      "mvnne %[low], #0x80000000\n\t"
+      "eorne %[low], %[low], %[high], asr #31\n\t"
+      "ssatne %[ignored], #1, %[low]"
+      : [low] "+r"(low), [ignored] "=&r"(ignored)
+      : [high] "r"(high)
+      : "cc");
+  return low;
+}
+/// a + b, or the limit toward a's sign when it overflows, with the flag.
+[[gnu::always_inline]] inline std::int32_t saturating_add_words(std::int32_t a, std::int32_t b) noexcept {
+  std::int32_t sum, ignored;
+  asm volatile(
+      "adds %[sum], %[a], %[b]\n\t"
+      "ittt vs\n\t"
+      "mvnvs %[sum], #0x80000000\n\t"
+      "eorvs %[sum], %[sum], %[a], asr #31\n\t"
+      "ssatvs %[ignored], #1, %[sum]"
+      : [sum] "=&r"(sum), [ignored] "=&r"(ignored)
+      : [a] "r"(a), [b] "r"(b)
+      : "cc");
+  return sum;
+}
+/// a - b, or the limit toward a's sign when it overflows, with the flag.
+[[gnu::always_inline]] inline std::int32_t saturating_sub_words(std::int32_t a, std::int32_t b) noexcept {
+  std::int32_t difference, ignored;
+  asm volatile(
+      "subs %[difference], %[a], %[b]\n\t"
+      "ittt vs\n\t"
+      "mvnvs %[difference], #0x80000000\n\t"
+      "eorvs %[difference], %[difference], %[a], asr #31\n\t"
+      "ssatvs %[ignored], #1, %[difference]"
+      : [difference] "=&r"(difference), [ignored] "=&r"(ignored)
+      : [a] "r"(a), [b] "r"(b)
+      : "cc");
+  return difference;
+}
+/// a + b in 64 bits, or on overflow +-(2^63 - 1) toward b's sign with the flag (Wide<S>'s
+/// accumulators: math/wide.hpp).
+[[gnu::always_inline]] inline std::int64_t saturating_add_doublewords(std::int64_t a, std::int64_t b) noexcept {
+  auto low = static_cast<std::uint32_t>(a);
+  auto high = static_cast<std::uint32_t>(static_cast<std::uint64_t>(a) >> 32);
+  const auto b_low = static_cast<std::uint32_t>(b);
+  const auto b_high = static_cast<std::uint32_t>(static_cast<std::uint64_t>(b) >> 32);
+  std::int32_t ignored;
+  asm volatile(
+      "adds %[low], %[low], %[b_low]\n\t"
+      "adcs %[high], %[high], %[b_high]\n\t"
+      "itttt vs\n\t"
+      "mvnvs %[low], %[b_high], asr #31\n\t"  // all ones, or 0 toward a negative b
+      "orrvs %[low], %[low], #1\n\t"          // low word of 2^63 - 1, or of -(2^63 - 1)
+      "mvnvs %[high], #0x80000000\n\t"
+      "eorvs %[high], %[high], %[b_high], asr #31\n\t"
+      "it vs\n\t"
+      "ssatvs %[ignored], #1, %[high]"
+      : [low] "+&r"(low), [high] "+&r"(high), [ignored] "=&r"(ignored)
+      : [b_low] "r"(b_low), [b_high] "r"(b_high)
+      : "cc");
+  return static_cast<std::int64_t>((std::uint64_t{high} << 32) | low);
+}
 #else
 /// The sticky saturation flag of the calling thread (of the program when single-threaded).
 TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
@@ -312,7 +389,14 @@ class Fixed {
   /// (Every operation of the tick ends here, so its worst path is what the tick's static bound
   /// counts most often, issue 29: the test is one comparison of the high word with the low
   /// word's sign, and the limit is picked from the high word's sign without a branch.)
-  static constexpr Fixed from_wide(Wide wide) noexcept {
+  [[gnu::always_inline]] static constexpr Fixed from_wide(Wide wide) noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    if constexpr (sizeof(Raw) == 4) {
+      if (!std::is_constant_evaluated() && !__builtin_constant_p(wide)) {
+        return from_raw(detail::saturate_words(static_cast<Raw>(wide), static_cast<Raw>(wide >> 32)));
+      }
+    }
+#endif
     const auto low = static_cast<Raw>(wide);
     if (low != wide) return saturated_toward(static_cast<Raw>(wide >> 32));
     return from_raw(low);
@@ -329,17 +413,31 @@ class Fixed {
   /// A product of two raw values, or a sum of such (|product| <= 2^62), back to this format: round_shift by
   /// FracBits in fewer steps, because half can be added to it without overflow. Half away from
   /// zero is floor((p + half - 1) / 2^F) for p < 0 and floor((p + half) / 2^F) otherwise.
-  static constexpr Fixed from_product(Wide product) noexcept {
+  [[gnu::always_inline]] static constexpr Fixed from_product(Wide product) noexcept {
     return from_wide((product + ((Wide{1} << (FracBits - 1)) + (product >> 63))) >> FracBits);
   }
 
   // Sums and differences overflow only past the 32-bit range, toward the first operand's sign.
-  friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
+  [[gnu::always_inline]] friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    if constexpr (sizeof(Raw) == 4) {
+      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
+        return from_raw(detail::saturating_add_words(a.raw_, b.raw_));
+      }
+    }
+#endif
     Raw sum = 0;
     if (__builtin_add_overflow(a.raw_, b.raw_, &sum)) return saturated_toward(a.raw_);
     return from_raw(sum);
   }
-  friend constexpr Fixed operator-(Fixed a, Fixed b) noexcept {
+  [[gnu::always_inline]] friend constexpr Fixed operator-(Fixed a, Fixed b) noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    if constexpr (sizeof(Raw) == 4) {
+      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
+        return from_raw(detail::saturating_sub_words(a.raw_, b.raw_));
+      }
+    }
+#endif
     Raw difference = 0;
     if (__builtin_sub_overflow(a.raw_, b.raw_, &difference)) return saturated_toward(a.raw_);
     return from_raw(difference);
@@ -349,7 +447,7 @@ class Fixed {
     if (__builtin_sub_overflow(Raw{0}, a.raw_, &negated)) return saturated_toward(0);  // -lowest()
     return from_raw(negated);
   }
-  friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept { return from_product(Wide{a.raw_} * b.raw_); }
+  [[gnu::always_inline]] friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept { return from_product(Wide{a.raw_} * b.raw_); }
   /// Division by zero saturates toward the sign of the dividend (0/0 gives 0), with the flag.
   friend constexpr Fixed operator/(Fixed a, Fixed b) noexcept {
     if (b.raw_ == 0) {

@@ -58,6 +58,18 @@ class Wide {
     }
     return w;
   }
+  /// Raw Q32.32 counts, in and out (fixed build): for tests of the saturating sums (the
+  /// images check theirs against the compiler's on the target, tools/mcu/firmware/main.cpp).
+  static constexpr Wide from_raw(std::int64_t counts) noexcept
+    requires(kIsFixed<S>)
+  {
+    return make(counts);
+  }
+  constexpr std::int64_t raw() const noexcept
+    requires(kIsFixed<S>)
+  {
+    return rep_;
+  }
   /// a.b, exact in the fixed build (each raw product is in units of 2^-32 already).
   static constexpr Wide dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
     Wide w;
@@ -138,7 +150,15 @@ class Wide {
     w.rep_ = r;
     return w;
   }
-  static constexpr std::int64_t saturating_add(std::int64_t a, std::int64_t b) noexcept {
+  [[gnu::always_inline]] static constexpr std::int64_t saturating_add(std::int64_t a, std::int64_t b) noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    // Single-path on the images, as Fixed's operators (math/fixed.hpp says why).
+    if constexpr (kIsFixed<S>) {
+      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a) && __builtin_constant_p(b))) {
+        return detail::saturating_add_doublewords(a, b);
+      }
+    }
+#endif
     std::int64_t sum = 0;
     if (__builtin_add_overflow(a, b, &sum)) {
       if constexpr (kIsFixed<S>) {
