@@ -9,14 +9,13 @@ set(TOONFORCE_MCU_MOTIONS strike stroke crossing_fast crossing_slow)
 set(TOONFORCE_MCU_ICOUNT_SHIFT 7)
 # Each scene's image also plays that scene's searched inputs (`toonforce report`'s search path,
 # issue 15), one motion per strike, written by `toonforce_mcu_gen strikes` into the build tree:
-# search_SCENE_0 .. search_SCENE_{N-1}, and search_SCENE_late (strike 0 with late ticks: rows
+# search_SCENE_0 .. search_SCENE_{N-1}, each also as search_SCENE_K_late (with late ticks: rows
 # left out). N is the report's kSearchStrikes (workloads.hpp); the generator refuses another.
 set(TOONFORCE_MCU_STRIKE_COUNT 8)
 foreach(_scene IN LISTS TOONFORCE_MCU_SCENES)
   set(TOONFORCE_MCU_STRIKES_${_scene})
   math(EXPR _last "${TOONFORCE_MCU_STRIKE_COUNT} - 1")
   foreach(_k RANGE ${_last})
-    list(APPEND TOONFORCE_MCU_STRIKES_${_scene} search_${_scene}_${_k})
+    list(APPEND TOONFORCE_MCU_STRIKES_${_scene} search_${_scene}_${_k} search_${_scene}_${_k}_late)
   endforeach()
-  list(APPEND TOONFORCE_MCU_STRIKES_${_scene} search_${_scene}_late)  # strike 0 with late ticks
 endforeach()

@@ -14,7 +14,7 @@
 //     search_path: a constructed strike, then seeded random ones, each for a fresh loop) of
 //     each paper scene NAME as motion files DIR/search_NAME_K.csv, one per strike, for the
 //     images to play and replay to compare: the searched inputs run on the target too. Besides,
-//     DIR/search_NAME_late.csv: the constructed strike with late ticks (rows left out).
+//     DIR/search_NAME_K_late.csv: each strike with late ticks (rows left out).
 //
 //   toonforce_mcu_gen compare [--scalar q16.16|float] --target TARGET.txt --host SCENE/MOTION=REPLAY.csv ...
 //     Compares the forces an image wrote (raw Q16.16 integers, or a float's bits) with
@@ -655,24 +655,26 @@ int strikes(const std::string& out_dir, std::size_t count, const std::vector<std
         return 1;
       }
     }
-    // And the constructed strike once more with late ticks: from its 40th tick on (engaged,
-    // in deep contact), every fourth period has no row, so the tick after it comes two periods
-    // late (the loop's clock, velocity estimate and rate limit take their late-tick paths,
-    // which the static bound counts and no other motion reaches).
-    const std::string path = fmt::format("{}/search_{}_late.csv", out_dir, scene);
-    std::string text = fmt::format(
-        "# Strike 0 of the search path of scene {} with late ticks: from t = 40 ms on, every fourth period\n"
-        "# has no row (the next tick comes two periods late); written by toonforce_mcu_gen strikes.\n"
-        "t,x,y,z\n",
-        scene);
-    for (std::size_t i = 0; i < all.front().size(); ++i) {
-      if (i >= 40 && i % 4 == 2) continue;
-      const Vec3<double>& p = all.front()[i];
-      text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
-    }
-    if (!write_if_changed(path, text)) {
-      std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
-      return 1;
+    // And each strike once more with late ticks: from its 40th tick on (engaged, in contact
+    // for the constructed one), every fourth period has no row, so the tick after it comes two
+    // periods late (the loop's clock, velocity estimate and rate limit take their late-tick
+    // paths, which the static bound counts and no other motion reaches).
+    for (std::size_t k = 0; k < all.size(); ++k) {
+      const std::string path = fmt::format("{}/search_{}_{}_late.csv", out_dir, scene, k);
+      std::string text = fmt::format(
+          "# Strike {} of the search path of scene {} with late ticks: from t = 40 ms on, every fourth period\n"
+          "# has no row (the next tick comes two periods late); written by toonforce_mcu_gen strikes.\n"
+          "t,x,y,z\n",
+          k, scene);
+      for (std::size_t i = 0; i < all[k].size(); ++i) {
+        if (i >= 40 && i % 4 == 2) continue;
+        const Vec3<double>& p = all[k][i];
+        text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
+      }
+      if (!write_if_changed(path, text)) {
+        std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
+        return 1;
+      }
     }
   }
   return 0;
