@@ -640,40 +640,27 @@ int strikes(const std::string& out_dir, std::size_t count, const std::vector<std
   for (const auto& scene : scenes) {
     const auto all = report::search_strikes(scene);
     for (std::size_t k = 0; k < all.size(); ++k) {
-      const std::string path = fmt::format("{}/search_{}_{}.csv", out_dir, scene, k);
-      std::string text = fmt::format(
-          "# Strike {} of {} of the search path of scene {} (`toonforce report`'s searched inputs,\n"
-          "# tools/report/src/workloads.cpp, search_path), at 1 kHz; written by toonforce_mcu_gen strikes.\n"
-          "t,x,y,z\n",
-          k, all.size(), scene);
-      for (std::size_t i = 0; i < all[k].size(); ++i) {
-        const Vec3<double>& p = all[k][i];
-        text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
-      }
-      if (!write_if_changed(path, text)) {
-        std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
-        return 1;
-      }
-    }
-    // And each strike once more with late ticks: from its 40th tick on (engaged, in contact
-    // for the constructed one), every fourth period has no row, so the tick after it comes two
-    // periods late (the loop's clock, velocity estimate and rate limit take their late-tick
-    // paths, which the static bound counts and no other motion reaches).
-    for (std::size_t k = 0; k < all.size(); ++k) {
-      const std::string path = fmt::format("{}/search_{}_{}_late.csv", out_dir, scene, k);
-      std::string text = fmt::format(
-          "# Strike {} of the search path of scene {} with late ticks: from t = 40 ms on, every fourth period\n"
-          "# has no row (the next tick comes two periods late); written by toonforce_mcu_gen strikes.\n"
-          "t,x,y,z\n",
-          k, scene);
-      for (std::size_t i = 0; i < all[k].size(); ++i) {
-        if (i >= 40 && i % 4 == 2) continue;
-        const Vec3<double>& p = all[k][i];
-        text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
-      }
-      if (!write_if_changed(path, text)) {
-        std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
-        return 1;
+      // Each strike as it is, and once more with late ticks: from its 40th tick on (engaged,
+      // in contact for the constructed one), every fourth period has no row, so the tick after
+      // it comes two periods late (the loop's clock, velocity estimate and rate limit take
+      // their late-tick paths, which the static bound counts and no other motion reaches).
+      for (const bool late : {false, true}) {
+        const std::string path = fmt::format("{}/search_{}_{}{}.csv", out_dir, scene, k, late ? "_late" : "");
+        std::string text = fmt::format(
+            "# Strike {} of {} of the search path of scene {} (`toonforce report`'s searched inputs,\n"
+            "# tools/report/src/workloads.cpp, search_path), at 1 kHz{}; written by toonforce_mcu_gen strikes.\n"
+            "t,x,y,z\n",
+            k, all.size(), scene,
+            late ? ",\n# with late ticks: from t = 40 ms on, every fourth period has no row" : "");
+        for (std::size_t i = 0; i < all[k].size(); ++i) {
+          if (late && i >= 40 && i % 4 == 2) continue;
+          const Vec3<double>& p = all[k][i];
+          text += fmt::format("{:.3f},{:.9f},{:.9f},{:.9f}\n", static_cast<double>(i) / 1000.0, p.x, p.y, p.z);
+        }
+        if (!write_if_changed(path, text)) {
+          std::fprintf(stderr, "toonforce_mcu_gen: cannot write %s\n", path.c_str());
+          return 1;
+        }
       }
     }
   }

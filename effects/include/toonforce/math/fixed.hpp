@@ -93,34 +93,27 @@ inline void clear_saturation_flag() noexcept {
       : "cc");
   return low;
 }
-/// a + b, or the limit toward a's sign when it overflows, with the flag.
-[[gnu::always_inline]] inline std::int32_t saturating_add_words(std::int32_t a, std::int32_t b) noexcept {
-  std::int32_t sum, ignored;
-  asm volatile(
-      "adds %[sum], %[a], %[b]\n\t"
-      "ittt vs\n\t"
-      "mvnvs %[sum], #0x80000000\n\t"
-      "eorvs %[sum], %[sum], %[a], asr #31\n\t"
-      "ssatvs %[ignored], #1, %[sum]"
-      : [sum] "=&r"(sum), [ignored] "=&r"(ignored)
-      : [a] "r"(a), [b] "r"(b)
-      : "cc");
-  return sum;
+// After a flag-setting ADDS or SUBS into %[result] from %[a]: on overflow (V) the limit toward
+// a's sign, which is the true result's, in its place, and the flag.
+#define TOONFORCE_FIXED_LIMIT_ON_OVERFLOW         \
+  "ittt vs\n\t"                                    \
+  "mvnvs %[result], #0x80000000\n\t"               \
+  "eorvs %[result], %[result], %[a], asr #31\n\t" \
+  "ssatvs %[ignored], #1, %[result]"
+/// a + b (a - b with kSubtract), or the limit toward a's sign when it overflows, with the flag.
+template <bool kSubtract>
+[[gnu::always_inline]] inline std::int32_t saturating_words(std::int32_t a, std::int32_t b) noexcept {
+  std::int32_t result, ignored;
+  if constexpr (kSubtract) {
+    asm volatile("subs %[result], %[a], %[b]\n\t" TOONFORCE_FIXED_LIMIT_ON_OVERFLOW
+                 : [result] "=&r"(result), [ignored] "=&r"(ignored) : [a] "r"(a), [b] "r"(b) : "cc");
+  } else {
+    asm volatile("adds %[result], %[a], %[b]\n\t" TOONFORCE_FIXED_LIMIT_ON_OVERFLOW
+                 : [result] "=&r"(result), [ignored] "=&r"(ignored) : [a] "r"(a), [b] "r"(b) : "cc");
+  }
+  return result;
 }
-/// a - b, or the limit toward a's sign when it overflows, with the flag.
-[[gnu::always_inline]] inline std::int32_t saturating_sub_words(std::int32_t a, std::int32_t b) noexcept {
-  std::int32_t difference, ignored;
-  asm volatile(
-      "subs %[difference], %[a], %[b]\n\t"
-      "ittt vs\n\t"
-      "mvnvs %[difference], #0x80000000\n\t"
-      "eorvs %[difference], %[difference], %[a], asr #31\n\t"
-      "ssatvs %[ignored], #1, %[difference]"
-      : [difference] "=&r"(difference), [ignored] "=&r"(ignored)
-      : [a] "r"(a), [b] "r"(b)
-      : "cc");
-  return difference;
-}
+#undef TOONFORCE_FIXED_LIMIT_ON_OVERFLOW
 /// a + b in 64 bits, or on overflow +-(2^63 - 1) toward b's sign with the flag (Wide<S>'s
 /// accumulators: math/wide.hpp).
 [[gnu::always_inline]] inline std::int64_t saturating_add_doublewords(std::int64_t a, std::int64_t b) noexcept {
@@ -422,7 +415,7 @@ class Fixed {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
     if constexpr (sizeof(Raw) == 4) {
       if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
-        return from_raw(detail::saturating_add_words(a.raw_, b.raw_));
+        return from_raw(detail::saturating_words<false>(a.raw_, b.raw_));
       }
     }
 #endif
@@ -434,7 +427,7 @@ class Fixed {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
     if constexpr (sizeof(Raw) == 4) {
       if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
-        return from_raw(detail::saturating_sub_words(a.raw_, b.raw_));
+        return from_raw(detail::saturating_words<true>(a.raw_, b.raw_));
       }
     }
 #endif
