@@ -60,15 +60,17 @@ class Wide {
   }
   /// Raw Q32.32 counts, in and out (fixed build): for tests of the saturating sums (the
   /// images check theirs against the compiler's on the target, tools/mcu/firmware/main.cpp).
+  /// (The casts are no-ops where these exist; they keep the bodies well-formed for a compiler
+  /// that checks them in an explicit instantiation of a floating-point Wide, clang does.)
   static constexpr Wide from_raw(std::int64_t counts) noexcept
     requires(kIsFixed<S>)
   {
-    return make(counts);
+    return make(static_cast<Rep>(counts));
   }
   constexpr std::int64_t raw() const noexcept
     requires(kIsFixed<S>)
   {
-    return rep_;
+    return static_cast<std::int64_t>(rep_);
   }
   /// a.b, exact in the fixed build (each raw product is in units of 2^-32 already).
   static constexpr Wide dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
