@@ -76,8 +76,9 @@ inline void clear_saturation_flag() noexcept {
 // Always inlined, as are the operators that use them: GCC's inliner prices an asm statement
 // by its lines, and left these one-instruction-path operators out of line where a scene's
 // code calls them often (the image with all five scenes), adding a call to each.
-// The limit is max() or lowest() by the sign of `sign_of`: MVN gives max(), EOR with the
-// sign's all-ones flips it to lowest().
+// The limit is max() or lowest() by the sign of the true result (the high word's for a
+// narrowing, the first operand's for a sum or difference): MVN of 0x80000000 gives max(), and
+// EOR with that sign's all-ones (ASR #31) flips it to lowest().
 /// `low` when `high:low` is a 32-bit value (high is low's sign extension), else the limit
 /// toward high's sign, with the flag.
 [[gnu::always_inline]] inline std::int32_t saturate_words(std::int32_t low, std::int32_t high) noexcept {
