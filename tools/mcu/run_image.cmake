@@ -1,8 +1,8 @@
 # Runs one microcontroller image under qemu-system-arm and compares its forces with the
 # host's `toonforce replay --scalar SCALAR` of each of its scenes and motions, bit for bit.
 # Variables: QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR
-# (SCENES and MOTIONS comma-separated; a motion is NAME, scenes/motions/NAME.csv, or NAME=FILE); SCALAR (default q16.16) and SINE (replay --sine, as
-# the image was generated with) and COVERAGE (a file for the start addresses of the code that
+# (SCENES and MOTIONS comma-separated; a motion is NAME, scenes/motions/NAME.csv, or
+# NAME=FILE); SCALAR (default q16.16) and SINE (replay --sine, as the image was generated with) and COVERAGE (a file for the start addresses of the code that
 # ran, for the static bound's report: check_bound.py --covered) optional.
 foreach(var QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR)
   if(NOT DEFINED ${var})

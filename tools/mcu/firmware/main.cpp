@@ -156,8 +156,7 @@ void print_tick(const Vec3<S>& f, const TickStatus& status) noexcept {
 
 /// The servo period of the every-stage loop [s]: a product's fixed 1 kHz.
 constexpr double kPeriodS = 0.001;
-constexpr std::int64_t kPeriodNs = 1'000'000;
-static_assert(kPeriodS * 1e9 == static_cast<double>(kPeriodNs));
+constexpr std::int64_t kPeriodNs = ns_from_seconds(kPeriodS);
 
 template <class SceneDef>
 struct Run {
@@ -409,6 +408,7 @@ bool check_saturating_operators() noexcept {
     }();
     constexpr std::int64_t kWideEdges[] = {0, 1, -1, INT64_MAX, -INT64_MAX, INT64_MAX - 1, std::int64_t{1} << 62,
                                            -(std::int64_t{1} << 62), 0xFFFF'FFFF, -0xFFFF'FFFFLL, 0x1'0000'0000};
+    constexpr std::size_t kWideN = sizeof kWideEdges / sizeof kWideEdges[0];
     std::size_t wrong = 0;
     static_cast<void>(take_fixed_saturated());
     for (std::size_t i = 0; i < kN; ++i) {
@@ -437,7 +437,7 @@ bool check_saturating_operators() noexcept {
         wrong += sum.raw() != expected || take_fixed_saturated() != overflows;
       }
     }
-    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + 121 << " cases, "
+    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + kWideN * kWideN << " cases, "
         << wrong << " wrong\n";
     return wrong == 0;
   } else {
