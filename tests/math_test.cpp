@@ -350,6 +350,33 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
   static_assert(detail::div_u64_by_digits(0xFFFF'FFFFULL << 32, detail::divisor_of(0xFFFF'FFFFU)) == std::uint64_t{1} << 32);
 }
 
+// The passivity controller's 1 / |v| (issue 29: one 32-bit division for two quotients): the
+// quotient the 64-bit division gives, saturating as it does, for every small raw value (where
+// the quotient is large and saturates) and at random over the whole positive range.
+TEST(Fixed, ReciprocalOfAPositiveValueIsTheExactQuotient) {
+  const Q one = Q::from_raw(65536);
+  const auto check = [&](std::int32_t raw) {
+    static_cast<void>(take_fixed_saturated());
+    const Q expected = one / Q::from_raw(raw);
+    const bool expected_saturated = take_fixed_saturated();
+    ASSERT_EQ(Q::reciprocal_of_positive(Q::from_raw(raw)), expected) << raw;
+    ASSERT_EQ(take_fixed_saturated(), expected_saturated) << raw;
+  };
+  for (std::int32_t raw = 1; raw <= 200000; ++raw) check(raw);
+  std::mt19937_64 random(29);
+  for (int i = 0; i < 200000; ++i) check(static_cast<std::int32_t>(1 + random() % std::uint64_t{INT32_MAX}));
+  check(INT32_MAX);
+  // 2^-16 and 2^-15 have reciprocals past max(): saturated, with the flag; 3 LSB does not.
+  EXPECT_EQ(Q::reciprocal_of_positive(Q::from_raw(2)), Q::max());
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_EQ(Q::reciprocal_of_positive(Q::from_raw(3)).raw(), 1431655765);  // round(2^32 / 3)
+  EXPECT_FALSE(take_fixed_saturated());
+  // Zero and below count as the smallest positive value.
+  EXPECT_EQ(Q::reciprocal_of_positive(Q::from_raw(-7)), Q::max());
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_DOUBLE_EQ(reciprocal_of_positive(4.0), 0.25);
+}
+
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {
   // Each square (40000) is outside Q16.16; the norm (346.41) is not (spec §7).
   const Vec3<Q> v{Q::from_double(200.0), Q::from_double(200.0), Q::from_double(200.0)};

@@ -101,8 +101,10 @@ class PassivityController {
                            S rate_hz, bool& episodes) noexcept {
     episodes = false;
     damped_ = false;
+    if constexpr (kSlots == 0) return Vec3<S>{};  // a scene without an active part: no loop to bound
     // The speed (a square root) only when some episode is over its budget: most ticks have none.
     S speed{};
+    [[maybe_unused]] S inverse_speed{};  // [s/m] (Q formats), once the speed passes kMinSpeed
     S cap{};
     bool speed_known = false;
     Vec3<S> total{};
@@ -123,14 +125,28 @@ class PassivityController {
       if (!speed_known) {
         speed = norm(velocity_m_per_s);
         cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
+        if constexpr (kIsFixed<S>) {
+          if (speed > min_speed_) inverse_speed = reciprocal_of_positive(speed);
+        }
         speed_known = true;
       }
       if (!(speed > min_speed_)) continue;
-      // |F| = X / (|v| dt) = X rate / |v|, capped; along -v.
+      // |F| = X / (|v| dt) = X rate / |v|, capped; along -v: the force is -v |F| / |v|. In a Q
+      // format both quotients by |v| are products with 1 / |v|, one 32-bit division (issue 29:
+      // two 64-bit divisions were a fifth of the passivity stage's bound); double and float
+      // divide, one instruction each. The test keeps the first quotient below the cap, so it
+      // cannot overflow when |v| is small.
+      const auto per_speed = [&](S x) {
+        if constexpr (kIsFixed<S>) {
+          return x * inverse_speed;
+        } else {
+          return x / speed;
+        }
+      };
       const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
       const S power = excess * rate_hz;
-      const S magnitude = power < cap * speed ? power / speed : cap;
-      s.damping_n = velocity_m_per_s * (-(magnitude / speed));
+      const S magnitude = power < cap * speed ? per_speed(power) : cap;
+      s.damping_n = velocity_m_per_s * (-per_speed(magnitude));
       total += s.damping_n;
       damped_ = true;
     }

@@ -474,6 +474,19 @@ class Fixed {
     }
   }
 
+  /// 1 / x for x > 0 (x <= 0 counts as the smallest positive value): `Fixed{1} / x` exactly,
+  /// with one 32-bit division where the format allows (FracBits <= 16), as above; a quotient
+  /// past max() (x below 2^-(IntBits - 1) or so) saturates with the flag, as the division does.
+  static constexpr Fixed reciprocal_of_positive(Fixed x) noexcept {
+    if constexpr (2 * FracBits <= 32) {
+      const auto d = static_cast<std::uint32_t>(x.raw_ < 1 ? 1 : x.raw_);
+      const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - d) + d / 2;
+      return from_wide(static_cast<Wide>(below / d) + 1);
+    } else {
+      return from_raw(kOneRaw) / (x.raw_ < 1 ? from_raw(1) : x);
+    }
+  }
+
   constexpr Fixed& operator+=(Fixed o) noexcept { return *this = *this + o; }
   constexpr Fixed& operator-=(Fixed o) noexcept { return *this = *this - o; }
   constexpr Fixed& operator*=(Fixed o) noexcept { return *this = *this * o; }

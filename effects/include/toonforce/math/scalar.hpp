@@ -66,6 +66,17 @@ inline float abs(float x) noexcept { return std::fabs(x); }
 inline bool is_finite(double x) noexcept { return std::isfinite(x); }
 inline bool is_finite(float x) noexcept { return std::isfinite(x); }
 
+/// 1 / x for x > 0: in a Q format `Fixed::reciprocal_of_positive`, one 32-bit division (a
+/// quotient that divides several values is cheaper as this and products, issue 29).
+template <Scalar S>
+constexpr S reciprocal_of_positive(S x) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return S::reciprocal_of_positive(x);
+  } else {
+    return S{1} / x;
+  }
+}
+
 template <Scalar S>
 constexpr S min(S a, S b) noexcept {
   return b < a ? b : a;
