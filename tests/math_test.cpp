@@ -377,6 +377,36 @@ TEST(Fixed, ReciprocalOfAPositiveValueIsTheExactQuotient) {
   EXPECT_DOUBLE_EQ(reciprocal_of_positive(4.0), 0.25);
 }
 
+// The passivity stage's applied share (issue 29): n / d in [0, 1] in units of 2^-16 from one
+// 32-bit division of the normalised top bits, within 2 of the exact quotient, over the whole
+// 64-bit range of both sums, and exactly 0 and 1 at the ends.
+TEST(Fixed, FractionOfTwoSumsIsWithinTwoOfTheExactQuotient) {
+  const auto check = [](std::uint64_t n, std::uint64_t d) {
+    const auto exact = static_cast<double>((static_cast<Uint128>(n) << 16) / d);  // floor
+    const std::uint32_t q = detail::fraction_q16(n, d);
+    ASSERT_LE(q, 1U << 16) << n << " / " << d;
+    ASSERT_LE(std::abs(static_cast<double>(q) - exact), 2.0) << n << " / " << d;
+  };
+  std::mt19937_64 random(29);
+  for (int i = 0; i < 1000000; ++i) {
+    const std::uint64_t d = (random() >> (random() % 64)) | 1U;
+    const std::uint64_t n = d == UINT64_MAX ? random() : random() % (d + 1);
+    check(n, d);
+    check(d, d);
+    check(d - 1, d);
+    check(0, d);
+  }
+  for (const std::uint64_t d : {std::uint64_t{1}, std::uint64_t{2}, std::uint64_t{3}, std::uint64_t{0xFFFF}, std::uint64_t{0x1'0000}, std::uint64_t{0xFFFF'FFFF}, std::uint64_t{1} << 63, std::uint64_t{UINT64_MAX}}) {
+    for (std::uint64_t n = 0; n <= 1000 && n <= d; ++n) check(n, d);
+    check(d / 2, d);
+    check(d / 3, d);
+  }
+  EXPECT_EQ(detail::fraction_q16(0, 12345), 0U);
+  EXPECT_EQ(detail::fraction_q16(12345, 12345), 1U << 16);
+  EXPECT_EQ(detail::fraction_q16(UINT64_MAX, UINT64_MAX), 1U << 16);
+  EXPECT_NEAR(detail::fraction_q16(1, 2), 32768U, 2U);
+}
+
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {
   // Each square (40000) is outside Q16.16; the norm (346.41) is not (spec §7).
   const Vec3<Q> v{Q::from_double(200.0), Q::from_double(200.0), Q::from_double(200.0)};

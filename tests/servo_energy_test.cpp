@@ -227,6 +227,22 @@ TYPED_TEST(ServoEnergy, PassivityControllerKeepsASlipperySurfacesInjectedEnergyU
   EXPECT_GT(damped, 1000);
 }
 
+// The applied share (Passivity::settle) comes from the exact sums (issue 29): a wanted force
+// past 181 N, whose square does not fit Q16.16, clamped while a slippery contact's episode runs,
+// is no saturation fault (it was one when the share divided two Q16.16 dot products).
+TYPED_TEST(ServoEnergy, AWantedForcePast181NewtonsWhileAnEpisodeRunsIsClampedWithoutAFault) {
+  ServoConfig c = bare_config();
+  c.safety.passivity.controller = true;
+  Rig<TypeParam> rig(floor_toml(20000.0, "  [surface.slippery]\n  mu = 4.0\n  max_tangential_force = 2.0\n"), c);
+  for (int i = 0; i < 5; ++i) ASSERT_FALSE(rig.at({0.0, 0.0, 0.01}).faults);  // engaged out of contact
+  for (int i = 0; i < 50; ++i) {
+    const TickStatus s = rig.at({0.0005 * i, 0.0, -0.02});  // 400 N deep, sliding at 0.5 m/s
+    ASSERT_FALSE(s.faults) << "tick " << i << ": " << s.faults.bits();
+    ASSERT_NEAR(norm(rig.force()), 8.0, kForceTol<TypeParam>) << "tick " << i;
+  }
+  EXPECT_TRUE(rig.loop.passivity().controller().in_episode(0));
+}
+
 TYPED_TEST(ServoEnergy, PassivityControllerLeavesAnEpisodeWithinBudgetUntouched) {
   ServoConfig c = bare_config();
   c.safety.passivity.budget_j = 100.0;

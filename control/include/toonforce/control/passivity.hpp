@@ -30,6 +30,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 
 #include "toonforce/control/hip_sensor.hpp"
 #include "toonforce/effects/tick.hpp"
@@ -244,8 +245,25 @@ class Passivity {
       applied_ = wanted_n == Vec3<S>{} ? S{} : kOne;
       return;
     }
-    const S wanted_squared = dot(wanted_n, wanted_n);
-    applied_ = wanted_squared > S{} ? max(S{}, min(kOne, dot(out_n, wanted_n) / wanted_squared)) : S{};
+    if constexpr (kIsFixed<S>) {
+      static_assert(S::kFracBits == 16, "fraction_q16 gives 2^-16 units");
+      // The share out.wanted / |wanted|^2 from the exact 64-bit sums (no Q16.16 square to
+      // saturate past 181 N), as a fraction within 2^-15 of it: one 32-bit division
+      // (detail::fraction_q16; issue 29: a Q16.16 quotient and two rounded dot products were
+      // the stage's dearest step after the update).
+      const std::uint64_t wanted_squared = detail::raw_squares(wanted_n);
+      const std::int64_t projection = Wide<S>::dot(out_n, wanted_n).raw();
+      if (wanted_squared == 0 || projection <= 0) {
+        applied_ = S{};
+        return;
+      }
+      const auto p = static_cast<std::uint64_t>(projection);
+      applied_ = p >= wanted_squared ? kOne
+                                     : S::from_raw(static_cast<typename S::Raw>(detail::fraction_q16(p, wanted_squared)));
+    } else {
+      const S wanted_squared = dot(wanted_n, wanted_n);
+      applied_ = wanted_squared > S{} ? max(S{}, min(kOne, dot(out_n, wanted_n) / wanted_squared)) : S{};
+    }
   }
   /// End of a tick whose force was cut: nothing of the effects' forces reached the device.
   void cut() noexcept { applied_ = S{}; }
