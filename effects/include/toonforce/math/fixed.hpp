@@ -476,28 +476,24 @@ class Fixed {
   }
   /// 1 / x for x >= 1 (a smaller x counts as 1): `Fixed{1} / x` exactly, with one 32-bit
   /// division where the format allows (FracBits <= 16), none of the 64-bit one's steps. The
-  /// quotient round(2^2F / x) is at most 2^F; taking d once off the dividend first,
-  /// floor((2^2F + d/2) / d) = floor((2^2F - d + d/2) / d) + 1, keeps the dividend below 2^32.
+  /// quotient round(2^2F / x) is at most 2^F, so it needs no saturation.
   static constexpr Fixed reciprocal_of_at_least_one(Fixed x) noexcept {
+    const Fixed d = x.raw_ < kOneRaw ? from_raw(kOneRaw) : x;
     if constexpr (2 * FracBits <= 32) {
-      const auto d = static_cast<std::uint32_t>(x.raw_ < kOneRaw ? kOneRaw : x.raw_);
-      const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - d) + d / 2;
-      return from_raw(static_cast<Raw>(below / d + 1));
+      return from_raw(static_cast<Raw>(rounded_reciprocal_raw(d)));
     } else {
-      return from_raw(kOneRaw) / (x.raw_ < kOneRaw ? from_raw(kOneRaw) : x);
+      return from_raw(kOneRaw) / d;
     }
   }
-
   /// 1 / x for x > 0 (x <= 0 counts as the smallest positive value): `Fixed{1} / x` exactly,
-  /// with one 32-bit division where the format allows (FracBits <= 16), as above; a quotient
-  /// past max() (x below 2^-(IntBits - 1) or so) saturates with the flag, as the division does.
+  /// the same way; a quotient past max() (x below 2^-(IntBits - 1) or so) saturates with the
+  /// flag, as the division does.
   static constexpr Fixed reciprocal_of_positive(Fixed x) noexcept {
+    const Fixed d = x.raw_ < 1 ? from_raw(1) : x;
     if constexpr (2 * FracBits <= 32) {
-      const auto d = static_cast<std::uint32_t>(x.raw_ < 1 ? 1 : x.raw_);
-      const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - d) + d / 2;
-      return from_wide(static_cast<Wide>(below / d) + 1);
+      return from_wide(rounded_reciprocal_raw(d));
     } else {
-      return from_raw(kOneRaw) / (x.raw_ < 1 ? from_raw(1) : x);
+      return from_raw(kOneRaw) / d;
     }
   }
 
@@ -515,6 +511,14 @@ class Fixed {
  private:
   static constexpr void flag_saturation() noexcept {
     if (!std::is_constant_evaluated()) detail::raise_saturation_flag(std::numeric_limits<Raw>::max());
+  }
+  /// round(2^2F / d) for d > 0 and 2F <= 32, in raw units (up to 2^32, unsaturated): taking d
+  /// once off the dividend first, floor((2^2F + d/2) / d) = floor((2^2F - d + d/2) / d) + 1
+  /// keeps the dividend below 2^32, one 32-bit division.
+  static constexpr Wide rounded_reciprocal_raw(Fixed d) noexcept {
+    const auto divisor = static_cast<std::uint32_t>(d.raw_);
+    const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - divisor) + divisor / 2;
+    return static_cast<Wide>(below / divisor) + 1;
   }
   /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
   static constexpr Fixed saturated_toward(Raw sign) noexcept {
