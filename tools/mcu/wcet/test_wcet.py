@@ -68,6 +68,12 @@ class Exact(unittest.TestCase):
     def test_exclusive_retry_runs_once(self):
         self.assertEqual(bound("exclusive.s"), (6, 11))
 
+    def test_load_store_pairings(self):
+        self.assertEqual(bound("pairing.s"), (11, 22))
+
+    def test_a_stall_is_charged_across_a_join(self):
+        self.assertEqual(bound("pairing_join.s"), (5, 12))
+
     def test_wait_states_add_per_fetch_and_per_word(self):
         # straight.s with 2 wait states: 5 fetches x 2 more, no data access: 8 + 10.
         r = analyse(build("straight.s"), "--wait-states", "2")

@@ -14,9 +14,12 @@ bound is a constant cost of its call site (context-insensitive: sound, maybe loo
 
 Cycles: the Cortex-M3 Technical Reference Manual's instruction timings (r2p1, table 3-1 "Cortex-M3
 instruction set summary"), worst case of each range (UMULL 5, UDIV/SDIV 12, a taken branch or a
-write of the PC 1 + 3 for the pipeline refill), plus WAIT cycles for every instruction fetch and
-every data word moved (a pessimistic model of wait states; 0 for the AN385's SRAM). No
-interrupt is assumed inside the function.
+write of the PC 1 + 3 for the pipeline refill), with its "Load/store timings" rules for what a
+load or store costs after the instruction before it (a stall +1 when a data-processing result is
+its address, +1 for a PC-relative load, -1 for a load or store pipelined after a load: see
+pair_cycles), plus WAIT cycles for every instruction fetch and every data word moved (a
+pessimistic model of wait states; 0 for the AN385's SRAM). No interrupt is assumed inside the
+function.
 
 --path LABEL says where a bound goes: the longest path (in instructions) that the bound counts,
 as instructions per source line (addr2line: the innermost inlined function's line), adding up to
@@ -240,6 +243,105 @@ def cycles(insn: Insn, wait: int) -> tuple[int, int]:
     if base in ("b", "bl", "bx", "blx", "cbz", "cbnz") or writes_pc(base, ops):
         taken = PIPELINE_REFILL
     return c + fetch, taken
+
+
+# The TRM's "Load/store timings" (r2p1, 3.3.1) change a load's or store's cost by what ran just
+# before it, so a block's cycles are not only the sum of its instructions' own:
+# - "Any load or store that generates an address dependent on the result of a preceding data
+#   processing operation will stall the pipeline for an additional cycle": +1;
+# - "LDR Rx,[PC,#imm] might add a cycle because of contention with the fetch unit": +1;
+# - "LDR [any] are pipelined when possible ... if the next instruction is an LDR or STR, and the
+#   destination of the first LDR is not used to compute the address for the next instruction,
+#   then one cycle is removed from the cost of the next instruction": -1, taken only where it
+#   surely applies (both unconditional single loads/stores without writeback, neither PC-relative,
+#   one straight after the other inside a block, zero wait states: the TRM's timings assume none).
+# STR Rx,[Ry,#imm]'s single cycle through the write buffer is not taken (whether the buffer can
+# accept depends on the bus: a store stays at 2).
+
+_SINGLE_LOADS = ("ldr", "ldrb", "ldrh", "ldrsb", "ldrsh")
+_SINGLE_STORES = ("str", "strb", "strh")
+_MEMORY = _SINGLE_LOADS + _SINGLE_STORES + ("ldrd", "strd", "push", "pop", "ldm", "ldmia", "ldmfd", "ldmdb",
+                                            "stm", "stmia", "stmdb")
+_NOT_DATA_PROCESSING = _MEMORY + ("b", "bl", "bx", "blx", "cbz", "cbnz", "cmp", "cmn", "tst", "teq", "it",
+                                  "nop", "dmb", "dsb", "isb", "udf", "bkpt", "svc", "wfi", "wfe", "sev")
+_ALIASES = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12", "sp": "r13", "lr": "r14", "pc": "r15"}
+
+
+def _registers(text: str) -> set:
+    return {_ALIASES.get(r, r) for r in re.findall(r"\b(r1[0-5]|r[0-9]|sb|sl|fp|ip|sp|lr|pc)\b", text)}
+
+
+def _is_it(insn: Insn) -> bool:
+    return insn.mnemonic.startswith("it")
+
+
+def address_registers(insn: Insn) -> set:
+    """The registers a load or store computes its address from (empty for anything else)."""
+    base, _ = split_mnemonic(insn.mnemonic)
+    if base in ("push", "pop"):
+        return {"r13"}
+    if base.startswith(("ldm", "stm")):
+        return _registers(insn.operands.split(",")[0])
+    if base in _MEMORY or base.startswith(("ldrex", "strex")):
+        m = re.search(r"\[([^\]]*)\]", insn.operands)
+        return _registers(m.group(1)) if m else set()
+    return set()
+
+
+def data_processing_writes(insn: Insn) -> set:
+    """The registers a data-processing instruction writes (empty for loads, stores, branches,
+    compares and hints)."""
+    base, _ = split_mnemonic(insn.mnemonic)
+    if base in _NOT_DATA_PROCESSING or base.startswith(("ldrex", "strex", "it")):
+        return set()
+    fields = [f.strip() for f in insn.operands.split(",")]
+    written = fields[:2] if base in ("umull", "smull", "umlal", "smlal") else fields[:1]
+    return _registers(",".join(written))
+
+
+def _pipelinable(insn: Insn, loads_only: bool) -> bool:
+    base, cond = split_mnemonic(insn.mnemonic)
+    kinds = _SINGLE_LOADS if loads_only else _SINGLE_LOADS + _SINGLE_STORES
+    ops = insn.operands
+    return (base in kinds and not cond and "!" not in ops and not re.search(r"\]\s*,", ops)
+            and "r15" not in address_registers(insn))
+
+
+def pair_cycles(prev: Insn | None, insn: Insn, wait: int) -> int:
+    """Cycles `insn` costs beyond cycles(insn) when `prev` ran straight before it (None: unknown,
+    or a branch, a call or a return: no pairing)."""
+    address = address_registers(insn)
+    if not address:
+        return 0
+    extra = 1 if "r15" in address else 0
+    if prev is None:
+        return extra
+    if data_processing_writes(prev) & address:
+        return extra + 1
+    if (wait == 0 and _pipelinable(prev, loads_only=True) and _pipelinable(insn, loads_only=False)
+            and not (_registers(prev.operands.split(",")[0]) & address)):
+        return extra - 1
+    return extra
+
+
+def block_cycles(insns: list, before: Insn | None, wait: int) -> int:
+    """A block's cycles when it does not branch: its instructions' own, and what each pairs with
+    the one before it (an IT folds into the instruction after it: looked through). `before`: the
+    instruction laid out just before the block, which may have run just before its first one
+    (or a branch did): a stall counts, a pipelining credit does not."""
+    total = 0
+    prev = None
+    for insn in insns:
+        total += cycles(insn, wait)[0]
+        if _is_it(insn):
+            continue
+        if prev is None:
+            stall = before is not None and bool(data_processing_writes(before) & address_registers(insn))
+            total += pair_cycles(None, insn, wait) + (1 if stall else 0)
+        else:
+            total += pair_cycles(prev, insn, wait)
+        prev = insn
+    return total
 
 
 # ---- control-flow graph of one function --------------------------------------------------------
@@ -641,11 +743,13 @@ class Analysis:
             bounds = cfg.loop_bounds()
             instr_cost, cycle_cost, taken_cost = {}, {}, {}
             callees = []
+            laid_out = {insn.addr: k for k, insn in enumerate(func.insns)}
             for b, blk in cfg.blocks.items():
                 n = len(blk.insns)
-                cyc = 0
-                for insn in blk.insns:
-                    cyc += cycles(insn, self.wait)[0]
+                k = laid_out[b] - 1
+                while k >= 0 and _is_it(func.insns[k]):
+                    k -= 1
+                cyc = block_cycles(blk.insns, func.insns[k] if k >= 0 else None, self.wait)
                 last = blk.insns[-1]
                 taken_cost[b] = cycles(last, self.wait)[1]
                 # a call's branch and its return's refill are both taken branches
