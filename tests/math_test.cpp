@@ -518,6 +518,25 @@ TEST(WideFixed, SquaredNormIsTheExactDotProductOfAVectorWithItself) {
   EXPECT_EQ(Wide<Q>::squared_norm(Vec3<Q>{Q::from_double(3.0), Q::from_double(4.0), Q{}}).to_double(), 25.0);
 }
 
+TEST(WideFixed, TimesAFractionIsTheExactProductRoundedOnce) {
+  // The passivity controller's work times the applied share (0..1): round(d q / 2^16), half
+  // up, for every Q32.32 value, the extremes included, and never a saturation.
+  std::mt19937_64 rng(35);
+  std::vector<std::int64_t> values = {INT64_MAX, -INT64_MAX, 0, 1, -1, 0x8000, -0x8000, std::int64_t{1} << 32};
+  for (int i = 0; i < 200000; ++i) values.push_back(static_cast<std::int64_t>(rng()) >> (rng() % 64));
+  std::vector<std::int32_t> fractions = {0, 1, 0x7FFF, 0x8000, 0xFFFF, 0x10000};
+  for (int i = 0; i < 20; ++i) fractions.push_back(static_cast<std::int32_t>(rng() % 0x10001));
+  static_cast<void>(take_fixed_saturated());
+  for (const std::int64_t d : values) {
+    for (const std::int32_t q : fractions) {
+      const I128 exact = static_cast<I128>(d) * q;
+      const I128 want = (exact + 0x8000) >> 16;  // floor(x + 1/2): half up
+      ASSERT_EQ(Wide<Q>::from_raw(d).times_fraction(Q::from_raw(q)).raw(), static_cast<std::int64_t>(want)) << d << " " << q;
+    }
+  }
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
 TEST(Vec3Fixed, DotAccumulatesInSixtyFourBitsAndRoundsOnce) {
   const Vec3<Q> a{Q::from_double(300.0), Q::from_double(300.0), Q::from_double(0.001)};
   const Vec3<Q> b{Q::from_double(300.0), Q::from_double(-300.0), Q::from_double(0.001)};

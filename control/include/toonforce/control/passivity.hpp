@@ -86,7 +86,11 @@ class PassivityController {
       TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
       Slot& s = slots_[i];
       if (!s.in_episode) continue;
-      s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m * applied);
+      if constexpr (kIsFixed<S>) {  // the work, then its share: one rounding, no Q16.16 product (issue 29)
+        s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m).times_fraction(applied);
+      } else {  // floating point: as it was (the figures' double runs unchanged)
+        s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m * applied);
+      }
     }
   }
 
