@@ -84,6 +84,7 @@ set(_wcet ${_mcu_src}/wcet)
 add_test(NAME mcu_m3_wcet_analyser COMMAND /usr/bin/python3 ${_wcet}/test_wcet.py)
 set_tests_properties(mcu_m3_wcet_analyser PROPERTIES LABELS mcu
   ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests")
+set(_mcu_every_budget_met wall)  # issue 29's every-stage budget, met by these scenes' bounds
 foreach(image IN LISTS _mcu_images)
   # A scene's image plays the inputs built to take its longest paths (the searched strikes,
   # with and without late ticks): its dearest ticks must come within 10 % of every bound
@@ -92,10 +93,17 @@ foreach(image IN LISTS _mcu_images)
   if(image IN_LIST TOONFORCE_MCU_SCENES)
     set(witness --min-witness 90)
   endif()
+  # The every-stage loop's budget (2,000 instructions, 2,500 cycles) is gated in the images of
+  # the scenes whose bound meets it, so none of them slips back; the others report it until
+  # they meet it too (then they join the list, and --gate-budget every goes to every image).
+  set(every_gate)
+  if(image IN_LIST _mcu_every_budget_met)
+    set(every_gate --gate-budget every)
+  endif()
   add_test(NAME mcu_m3_wcet_bound_${image} COMMAND /usr/bin/python3 ${_wcet}/check_bound.py
     ${_mcu_m3_dir}/${image}.elf ${_mcu_bin}/runs/cortex-m3/${image}/target.txt
     --json ${_mcu_bin}/wcet/${image}.json --ceilings ${_wcet}/ceilings.txt
-    --covered ${_mcu_bin}/runs/cortex-m3/${image}/ran.txt ${witness} --gate-budget effects)
+    --covered ${_mcu_bin}/runs/cortex-m3/${image}/ran.txt ${witness} --gate-budget effects ${every_gate})
   set_tests_properties(mcu_m3_wcet_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image}
     FIXTURES_SETUP mcu_m3_wcet_${image})
 endforeach()

@@ -14,9 +14,9 @@ A ratchet besides: with --ceilings FILE, a bound above the one FILE records for 
 scene and variant fails too (a change made a tick dearer in the worst case; if that is meant,
 --update-ceilings rewrites the image's rows with its bounds, to commit with the change). The
 budgets of issue 29 are reported against; --gate-budget VARIANT fails on a VARIANT's budget
-(tests.cmake gates the effects plus safety's 1,500 instructions, which every scene meets; the
-every-stage loop's 2,000 instructions and 2,500 cycles stay reported until every scene meets
-them).
+(tests.cmake gates the effects plus safety's 1,500 instructions, which every scene meets, and
+the every-stage loop's 2,000 instructions and 2,500 cycles in the images of the scenes that
+meet them; the others' stay reported until they do).
 
 With --covered TB_STARTS (the run's translation-block starts, run_image.cmake's COVERAGE), it
 reports per variant how much of the longest path is code no tick of the run executed: where
