@@ -307,9 +307,10 @@ def _pipelinable(insn: Insn, loads_only: bool) -> bool:
             and "r15" not in address_registers(insn))
 
 
-def pair_cycles(prev: Insn | None, insn: Insn, wait: int) -> int:
+def pair_cycles(prev: Insn | None, insn: Insn, wait: int, credit: bool = True) -> int:
     """Cycles `insn` costs beyond cycles(insn) when `prev` ran straight before it (None: unknown,
-    or a branch, a call or a return: no pairing)."""
+    or a branch, a call or a return: no pairing). `credit`: whether a pipelining credit may be
+    taken (not when `prev` only may have run just before)."""
     address = address_registers(insn)
     if not address:
         return 0
@@ -318,7 +319,7 @@ def pair_cycles(prev: Insn | None, insn: Insn, wait: int) -> int:
         return extra
     if data_processing_writes(prev) & address:
         return extra + 1
-    if (wait == 0 and _pipelinable(prev, loads_only=True) and _pipelinable(insn, loads_only=False)
+    if (credit and wait == 0 and _pipelinable(prev, loads_only=True) and _pipelinable(insn, loads_only=False)
             and not (_registers(prev.operands.split(",")[0]) & address)):
         return extra - 1
     return extra
@@ -330,17 +331,13 @@ def block_cycles(insns: list, before: Insn | None, wait: int) -> int:
     instruction laid out just before the block, which may have run just before its first one
     (or a branch did): a stall counts, a pipelining credit does not."""
     total = 0
-    prev = None
+    prev, first = before, True
     for insn in insns:
         total += cycles(insn, wait)[0]
         if _is_it(insn):
             continue
-        if prev is None:
-            stall = before is not None and bool(data_processing_writes(before) & address_registers(insn))
-            total += pair_cycles(None, insn, wait) + (1 if stall else 0)
-        else:
-            total += pair_cycles(prev, insn, wait)
-        prev = insn
+        total += pair_cycles(prev, insn, wait, credit=not first)
+        prev, first = insn, False
     return total
 
 
