@@ -118,6 +118,15 @@ endforeach()
 add_test(NAME mcu_m3_wcet_bounds_table COMMAND /usr/bin/python3 ${_wcet}/bounds_table.py
   --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_bound_jsons})
 set_tests_properties(mcu_m3_wcet_bounds_table PROPERTIES LABELS mcu FIXTURES_REQUIRED "${_bound_fixtures}")
+# And its breakdown of the every-stage bound by stage and by kind is the one the images give
+# (stages_table.py --write): the prose's "where the bound goes" cannot drift either.
+set(_stage_elfs)
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  list(APPEND _stage_elfs ${_mcu_m3_dir}/${scene}.elf)
+endforeach()
+add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_table.py
+  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
+set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu)
 file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
 
 # No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table, for

@@ -11,9 +11,12 @@ the figures cannot drift from the code; --write puts it there.
 
     bounds_table.py --doc docs/PERFORMANCE.md (--check | --write) SCENE.json...
 """
-import argparse
 import json
+import os
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import doc_section  # noqa: E402
 
 BEGIN = "<!-- wcet bounds: tools/mcu/wcet/bounds_table.py writes the table below -->"
 END = "<!-- wcet bounds: end -->"
@@ -41,37 +44,6 @@ def table(paths: list) -> list:
     return lines
 
 
-def main() -> int:
-    p = argparse.ArgumentParser()
-    p.add_argument("--doc", required=True)
-    mode = p.add_mutually_exclusive_group(required=True)
-    mode.add_argument("--check", action="store_true")
-    mode.add_argument("--write", action="store_true")
-    p.add_argument("json", nargs="+")
-    a = p.parse_args()
-    with open(a.doc) as f:
-        doc = f.read().split("\n")
-    if doc.count(BEGIN) != 1 or doc.count(END) != 1 or doc.index(BEGIN) > doc.index(END):
-        print(f"bounds_table: {a.doc} must hold the line '{BEGIN}' once, then '{END}' once", file=sys.stderr)
-        return 1
-    begin, end = doc.index(BEGIN), doc.index(END)
-    want = table(a.json)
-    have = doc[begin + 1:end]
-    if a.write:
-        with open(a.doc, "w") as f:
-            f.write("\n".join(doc[:begin + 1] + want + doc[end:]))
-        return 0
-    if have != want:
-        for k in range(max(len(have), len(want))):
-            h = have[k] if k < len(have) else "(none)"
-            w = want[k] if k < len(want) else "(none)"
-            if h != w:
-                print(f"bounds_table: {a.doc} line {begin + 2 + k}:\n  has  {h}\n  want {w}", file=sys.stderr)
-        print(f"bounds_table: {a.doc}'s bounds table is not the images' (a bound or a measured tick changed): "
-              f"tools/mcu/wcet/bounds_table.py --doc {a.doc} --write " + " ".join(a.json), file=sys.stderr)
-        return 1
-    return 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(doc_section.main("bounds_table", BEGIN, END, "json", table,
+                              "bounds table is not the images' (a bound or a measured tick changed)"))

@@ -349,6 +349,7 @@ class Block:
     insns: list
     succs: list = field(default_factory=list)   # (target block start or "exit", taken: bool)
     calls: list = field(default_factory=list)   # callee start addresses, in order
+    call_sites: list = field(default_factory=list)  # the address of each of those calls
     falls_off: bool = False
     noreturn_call: int | None = None
     tail_call: int | None = None
@@ -430,6 +431,7 @@ class Cfg:
                 if target is None or target not in image.functions:
                     raise Refusal(f"call to an address that starts no function at {image.where(insn.addr)}")
                 current.calls.append(target)
+                current.call_sites.append(insn.addr)
             if kind == "jump":
                 if target in index:
                     current.succs.append((target, True))
@@ -438,6 +440,7 @@ class Cfg:
                         raise Refusal(f"jump out of {func.name} to an address that starts no function at "
                                       f"{image.where(insn.addr)}")
                     current.calls.append(target)
+                    current.call_sites.append(insn.addr)
                     current.succs.append(("exit", True))
                     current.returns = True  # if the callee does (checked)
                     current.tail_call = target
@@ -776,11 +779,13 @@ class Analysis:
         self.done[func.start] = result
         return result
 
-    def path(self, start: int, times: int = 1, into: dict | None = None) -> dict:
+    def path(self, start: int, times: int = 1, into: dict | None = None, calls: tuple | None = None) -> dict:
         """Instructions of the longest path (in instructions) per address: each block's count on
         that path times its instructions, and each call's callee on its own longest path (the
         bound is context-insensitive, so this is the path the bound counts, not necessarily one
-        a single input takes). The values add up to the bound."""
+        a single input takes). The values add up to the bound. With `calls` (a tuple, () at the
+        entry) the keys are (address, the call instructions' addresses that led there), so a
+        callee's instructions can be told apart by where they were called from."""
         into = {} if into is None else into
         cfg, counts = self.paths[start]
         for b, blk in cfg.blocks.items():
@@ -788,9 +793,10 @@ class Analysis:
             if n == 0:
                 continue
             for insn in blk.insns:
-                into[insn.addr] = into.get(insn.addr, 0) + n
-            for callee in blk.calls:
-                self.path(self.image.function_at(callee).start, n, into)
+                key = insn.addr if calls is None else (insn.addr, calls)
+                into[key] = into.get(key, 0) + n
+            for callee, site in zip(blk.calls, blk.call_sites):
+                self.path(self.image.function_at(callee).start, n, into, None if calls is None else calls + (site,))
         return into
 
 
