@@ -310,6 +310,65 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   static_assert(detail::isqrt_round_divided(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_divided(3) == 2);
 }
 
+/// The values the inverse root is checked at: powers of two and their neighbours, the ends of
+/// each seed's interval (a normalised top byte of 64..255, in either word), squares and their
+/// neighbours, and random values of every length.
+std::vector<std::uint64_t> inverse_root_values() {
+  std::vector<std::uint64_t> values = {1, 2, 3, 4, 5, 0xFFFF'FFFFULL, 0x1'0000'0000ULL, 0xFFFF'FFFF'FFFF'FFFFULL};
+  for (int shift = 1; shift < 64; ++shift) {
+    const std::uint64_t p = std::uint64_t{1} << shift;
+    values.insert(values.end(), {p - 1, p, p + 1});
+  }
+  for (std::uint64_t byte = 64; byte <= 256; ++byte) {
+    const std::uint64_t h = byte << 24;
+    values.insert(values.end(), {h - 1, h, (h - 1) << 32 | 0xFFFF'FFFFULL, h << 32, (h << 32) | 0x8000'0000ULL});
+  }
+  for (const std::uint64_t r : {2ULL, 3ULL, 1000ULL, 65535ULL, 65536ULL, 0xFFFF'FFFEULL, 0xFFFF'FFFFULL}) {
+    values.insert(values.end(), {r * r - 1, r * r, r * r + 1});
+  }
+  std::mt19937_64 random(29);
+  for (int i = 0; i < 300000; ++i) values.push_back((random() >> (random() % 64)) | 1U);
+  std::erase(values, 0U);  // 2^64 wrapped: v > 0 is the precondition
+  return values;
+}
+
+TEST(FixedMath, InverseRootIsNeverAboveOneOverTheRootAndWithinTwoToTheMinus26OfIt) {
+  // y 2^(shift - 62) against 1 / sqrt(v) in long double (64-bit mantissa): never above it (a
+  // scaling by it never passes its limit) and at most 2^-26 under it. Without the final
+  // correction the truncations leave it above for many values.
+  for (const std::uint64_t v : inverse_root_values()) {
+    const detail::InverseRoot r = detail::inverse_root(v);
+    ASSERT_TRUE(r.shift >= 0 && r.shift <= 31) << v;
+    const long double exact = 1.0L / std::sqrt(static_cast<long double>(v));
+    const long double got = std::ldexp(static_cast<long double>(r.y), r.shift - 62);
+    ASSERT_LE(got, exact) << v;
+    ASSERT_GE(got, exact * (1.0L - 0x1p-26L)) << v;
+  }
+}
+
+TEST(FixedMath, TimesInverseRootIsTheFractionRoundedDownWithinTwoToTheMinus26) {
+  // n 2^32 / sqrt(v) for n < sqrt(v) (a limit that bites, the factor below 1), in units of
+  // 2^-32: at most its floor, at least (1 - 2^-26) of it less one unit; n = 1 is 1 / |x| in
+  // Q16.16 for v = |x|^2 in raw units. Past 2^32 (n >= sqrt(v)) it is capped at 2^32 - 1.
+  // (n = sqrt(v) is checked too: the floor there is 2^32, the result just under it.)
+  std::mt19937_64 random(30);
+  for (const std::uint64_t v : inverse_root_values()) {
+    const long double root = std::sqrt(static_cast<long double>(v));
+    const auto largest = static_cast<std::uint64_t>(std::min(root, 2147483647.0L));
+    for (const std::uint64_t n64 : {std::uint64_t{1}, largest, random() % (largest + 1), random() % (largest + 1)}) {
+      const auto n = static_cast<std::uint32_t>(n64);
+      const std::uint32_t got = detail::times_inverse_root(n, detail::inverse_root(v));
+      const long double exact = std::ldexp(static_cast<long double>(n), 32) / root;
+      ASSERT_LE(static_cast<long double>(got), std::floor(exact)) << n << " / sqrt(" << v << ")";
+      ASSERT_GE(static_cast<long double>(got), std::min(exact * (1.0L - 0x1p-26L) - 1.0L, 0x1p32L - 1.0L))
+          << n << " / sqrt(" << v << ")";
+    }
+  }
+  // 1 / |v| of the longest Q16.16 vector, |v|^2 = 3 (2^31)^2 raw: still 1 LSB, not 0 (the
+  // passivity controller takes 0 for "too slow to damp").
+  EXPECT_EQ(detail::times_inverse_root(1U, detail::inverse_root(3 * (std::uint64_t{1} << 62))), 1U);
+}
+
 TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
   // detail::div_u64 replaces the 64-bit division (a library call on a 32-bit core) in every
   // Q quotient: the same quotient whenever it fits 32 bits, 2^32 (saturating) when not. Values
@@ -462,6 +521,52 @@ TEST(Vec3Fixed, ScaleToNormIsTheRoundedQuotientExceptWithinAHairOfATie) {
   EXPECT_EQ(scale_to_norm(v, Q::from_double(100.0), norm_of(v)), v);
   EXPECT_EQ(scale_to_norm(v, Q{}, norm_of(v)), Vec3<Q>{});
   EXPECT_EQ(scale_to_norm(v, Q::from_double(-1.0), norm_of(v)), Vec3<Q>{});
+}
+
+TEST(Vec3Fixed, ScaledIfAboveIsNeverPastTheExactlyScaledVectorRoundedAndAtMostOneLsbUnder) {
+  // The limits of the tick (rate limit, clamp, the slippery law's): nothing while |v| <= limit
+  // (the squares compared exactly), else each component against c limit / |v| (long double),
+  // rounded half away from zero: never past it in magnitude, under the exact value by at most
+  // 2^-26 of it and half an LSB (the factor's error, the rounding), so at most one LSB under
+  // the rounded one below 2^25 LSB (512 N), the sign kept, nothing saturating.
+  std::mt19937_64 rng(32);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  int scaled_count = 0;
+  for (int i = 0; i < 300000; ++i) {
+    const int shift = static_cast<int>(rng() % 31);
+    Vec3<Q> v{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
+    if (i == 0) v = {Q::lowest(), Q::lowest(), Q::lowest()};
+    const std::uint64_t squares = detail::raw_squares(v);
+    const long double norm_raw = std::sqrt(static_cast<long double>(squares));
+    const auto limit = Q::from_raw(static_cast<std::int32_t>(rng() % (std::min<std::uint64_t>(static_cast<std::uint64_t>(norm_raw), INT32_MAX) + 2)));
+    static_cast<void>(take_fixed_saturated());
+    const std::optional<Vec3<Q>> scaled = scaled_if_above(v, limit);
+    ASSERT_FALSE(take_fixed_saturated());
+    const auto limit_squared = static_cast<std::uint64_t>(limit.raw()) * static_cast<std::uint64_t>(limit.raw());
+    ASSERT_EQ(scaled.has_value(), squares > limit_squared) << i;
+    if (!scaled) continue;
+    ++scaled_count;
+    for (const auto& [c, got] : {std::pair{v.x, scaled->x}, std::pair{v.y, scaled->y}, std::pair{v.z, scaled->z}}) {
+      const long double magnitude = std::fabs(static_cast<long double>(c.raw()));
+      const long double exact = magnitude * limit.raw() / norm_raw;
+      const long double rounded = std::floor(exact + 0.5L);
+      const long double g = std::fabs(static_cast<long double>(got.raw()));
+      ASSERT_TRUE(got.raw() == 0 || (got.raw() < 0) == (c.raw() < 0)) << c.raw();
+      ASSERT_LE(g, rounded) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
+      ASSERT_GE(g, exact * (1.0L - 0x1p-26L) - magnitude * 0x1p-32L - 0.5L) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
+      if (exact < 0x1p25L) {
+        ASSERT_GE(g, rounded - 1) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
+      }
+    }
+  }
+  EXPECT_GT(scaled_count, 100000);
+  // At the boundary: (3, 4, 0) LSB is 5 LSB long exactly.
+  const Vec3<Q> v{Q::from_raw(3), Q::from_raw(4), Q{}};
+  EXPECT_FALSE(scaled_if_above(v, Q::from_raw(5)).has_value());
+  EXPECT_EQ(scaled_if_above(v, Q::from_raw(4)), (Vec3<Q>{Q::from_raw(2), Q::from_raw(3), Q{}}));  // (2.4, 3.2)
+  EXPECT_EQ(scaled_if_above(v, Q{}), Vec3<Q>{});
+  EXPECT_EQ(scaled_if_above(v, Q::from_double(-1.0)), Vec3<Q>{});
+  EXPECT_FALSE(scaled_if_above(Vec3<Q>{}, Q{}).has_value());
 }
 
 TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {

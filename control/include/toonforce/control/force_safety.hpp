@@ -53,17 +53,16 @@ class ForceSafety {
   constexpr Output limit_step(const Vec3<S>& scene_force_n, S max_step) noexcept {
     Output out{scene_force_n, 0};
     // Each limit compares squares first: the norm (a square root) only when the limit bites.
-    if constexpr (kIsFixed<S>) {  // exactly, in 64 bits (norm_if_above says why)
+    if constexpr (kIsFixed<S>) {  // exactly, in 64 bits, and no root (scaled_if_above says why)
       if (has_max_force_rate_) {
-        const Vec3<S> step = out.force_n - previous_n_;
-        if (const auto step_size = norm_if_above(step, max_step)) {
-          out.force_n = previous_n_ + scale_to_norm(step, max_step, *step_size);
+        if (const auto step = scaled_if_above(out.force_n - previous_n_, max_step)) {
+          out.force_n = previous_n_ + *step;
           out.limits = out.limits | Limit::kRateLimited;
         }
       }
       if (has_max_force_) {
-        if (const auto magnitude = norm_if_above(out.force_n, max_force_n_)) {
-          out.force_n = scale_to_norm(out.force_n, max_force_n_, *magnitude);
+        if (const auto clamped = scaled_if_above(out.force_n, max_force_n_)) {
+          out.force_n = *clamped;
           out.limits = out.limits | Limit::kClamped;
         }
       }

@@ -69,6 +69,7 @@ class PassivityController {
   static constexpr double kMinSpeedMPerS = 1e-3;
   /// [J] an excess is capped here before it is turned into a force (keeps X * rate in range).
   static constexpr double kMaxExcessJ = 1.0;
+  static constexpr std::uint64_t kMaxExcessQ32 = static_cast<std::uint64_t>(kMaxExcessJ * 4294967296.0);  // [2^-32 J]
 
   /// `max_force_n` caps each slot's damping force (the clamp caps the sum anyway).
   constexpr PassivityController(const PassivityConfig& config, double max_force_n) noexcept
@@ -76,6 +77,7 @@ class PassivityController {
         budget_(Wide<S>::from_double(config.budget_j)),
         max_excess_(scalar_cast<S>(kMaxExcessJ)),
         min_speed_(scalar_cast<S>(kMinSpeedMPerS)),
+        min_speed_squared_(min_speed_squared_of()),
         max_damping_n_s_per_m_(scalar_cast<S>(config.max_damping_n_s_per_m)),
         max_force_n_(scalar_cast<S>(max_force_n)) {}
 
@@ -108,10 +110,13 @@ class PassivityController {
     damped_ = false;
     if constexpr (kSlots == 0) return Vec3<S>{};  // a scene without an active part: no loop to bound
     // The speed (a square root) only when some episode is over its budget: most ticks have none.
-    S speed{};
-    [[maybe_unused]] S inverse_speed{};  // [s/m] (Q formats), once the speed passes kMinSpeed
-    S cap{};
+    // The damping is -v alpha, alpha = |F| / |v| = min(X rate / |v|^2, max_damping, max_force /
+    // |v|) [N s/m] (the force X rate / |v|, capped at max_damping |v| and at max_force).
     bool speed_known = false;
+    [[maybe_unused]] S speed{};
+    [[maybe_unused]] S cap{};            // [N] (floating point)
+    [[maybe_unused]] S inverse_speed{};  // [s/m] (Q formats) 0 while |v| <= kMinSpeed, else >= 2^-16
+    [[maybe_unused]] S alpha_cap{};      // [N s/m] (Q formats) min(max_damping, max_force / |v|)
     Vec3<S> total{};
     for (std::size_t i = 0; i < slots; ++i) {
       TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
@@ -128,31 +133,54 @@ class PassivityController {
       episodes = true;
       if (!enabled_ || !(s.energy > budget_)) continue;
       if (!speed_known) {
-        speed = norm(velocity_m_per_s);
-        cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
         if constexpr (kIsFixed<S>) {
-          if (speed > min_speed_) inverse_speed = reciprocal_of_positive(speed);
+          // 1 / |v| from the inverse root of the exact |v|^2: no root and no division (issue 29:
+          // the root, its reciprocal and four products were 180 instructions of the bound).
+          const std::uint64_t squares = detail::raw_squares(velocity_m_per_s);
+          if (squares > min_speed_squared_.value) {
+            inverse_speed = S::from_raw(static_cast<typename S::Raw>(
+                detail::times_inverse_root(1U, detail::inverse_root(squares))));  // |v| > 1e-3: below 2^31
+            alpha_cap = at_most(raw_product(max_force_n_, inverse_speed), max_damping_n_s_per_m_);
+          }
+        } else {
+          speed = norm(velocity_m_per_s);
+          cap = min(max_damping_n_s_per_m_ * speed, max_force_n_);  // [N]
         }
         speed_known = true;
       }
-      if (!(speed > min_speed_)) continue;
-      // |F| = X / (|v| dt) = X rate / |v|, capped; along -v: the force is -v |F| / |v|. In a Q
-      // format both quotients by |v| are products with 1 / |v|, one 32-bit division (issue 29:
-      // two 64-bit divisions were a fifth of the passivity stage's bound); double and float
-      // divide, one instruction each. The test keeps the first quotient below the cap, so it
-      // cannot overflow when |v| is small.
-      const auto per_speed = [&](S x) {
-        if constexpr (kIsFixed<S>) {
-          return x * inverse_speed;
-        } else {
-          return x / speed;
-        }
-      };
-      const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
-      const S power = excess * rate_hz;
-      const S magnitude = power < cap * speed ? per_speed(power) : cap;
-      s.damping_n = velocity_m_per_s * (-per_speed(magnitude));
-      total += s.damping_n;
+      // Below kMinSpeed nothing is dissipated. (No flag of its own: one more instruction on every
+      // tick of issue 14's 600-instruction double loop, which the cartoon wall's just passed.)
+      if constexpr (kIsFixed<S>) {
+        if (inverse_speed.raw() == 0) continue;  // |v| < 56,756 m/s in Q16.16: 1 / |v| is never 0
+      } else {
+        if (!(speed > min_speed_)) continue;
+      }
+      S alpha;
+      if constexpr (kIsFixed<S>) {
+        // X = E - budget > 0 exactly as an unsigned difference of the raw energies, capped
+        // before it is rounded; X rate <= rate, in range: no saturation test is needed.
+        const std::uint64_t x = static_cast<std::uint64_t>(s.energy.raw()) - static_cast<std::uint64_t>(budget_.raw());
+        static_assert(2 * S::kFracBits == 32, "a Q32.32 energy has a raw product's scale");
+        const S excess = x >= kMaxExcessQ32 ? max_excess_ : rounded(static_cast<std::int64_t>(x));
+        const S power = rounded(raw_product(excess, rate_hz));  // [W] > 0
+        // X rate / |v|^2 as (X rate / |v|) / |v|, each product compared with its cap before it
+        // is rounded, so neither saturates: a force X rate / |v| past the format's range is past
+        // max_force, and then alpha is alpha_cap.
+        const std::int64_t force = raw_product(power, inverse_speed);
+        alpha = force >= raw_product(S::max(), kOne) ? alpha_cap
+                                                       : at_most(raw_product(rounded(force), inverse_speed), alpha_cap);
+      } else {  // as it was (the figures' double runs unchanged)
+        const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
+        const S power = excess * rate_hz;  // [W] > 0
+        const S magnitude = power < cap * speed ? power / speed : cap;
+        alpha = magnitude / speed;
+      }
+      s.damping_n = velocity_m_per_s * (-alpha);
+      if constexpr (kSlots == 1) {
+        total = s.damping_n;  // 0 + d: no sum to saturate
+      } else {
+        total += s.damping_n;
+      }
       damped_ = true;
     }
     return total;
@@ -197,10 +225,30 @@ class PassivityController {
     bool in_episode = false;
   };
 
+  static constexpr auto min_speed_squared_of() noexcept {
+    if constexpr (kIsFixed<S>) {
+      return squared_limit<S>(kMinSpeedMPerS);
+    } else {
+      return NoSquare{};
+    }
+  }
+  // Q formats only: a product of two raw values, exact in units of 2^-2F; one such p >= 0 below
+  // max() 2^F rounded to S (no saturation test: it cannot saturate); min(p, cap) rounded, for
+  // a cap >= 0, compared before the rounding, so it never saturates either.
+  static constexpr S kOne = scalar_cast<S>(1.0);
+  static constexpr std::int64_t raw_product(S a, S b) noexcept { return std::int64_t{a.raw()} * b.raw(); }
+  static constexpr S rounded(std::int64_t p) noexcept {
+    return S::from_raw(static_cast<typename S::Raw>((p + (std::int64_t{1} << (S::kFracBits - 1))) >> S::kFracBits));
+  }
+  static constexpr S at_most(std::int64_t p, S cap) noexcept { return p >= raw_product(cap, kOne) ? cap : rounded(p); }
+
   bool enabled_;
   Wide<S> budget_;
   S max_excess_;
-  S min_speed_;
+  S min_speed_;  ///< floating point: the speed is compared
+  struct NoSquare {};
+  /// Q formats: the exact raw square is (the controller takes no root to test it).
+  [[no_unique_address]] std::conditional_t<kIsFixed<S>, SquaredLimit<S>, NoSquare> min_speed_squared_;
   S max_damping_n_s_per_m_;
   S max_force_n_;
   std::array<Slot, (kSlots > 0 ? kSlots : 1)> slots_{};

@@ -710,6 +710,69 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
     return isqrt_round_divided(v);
   }
 }
+
+/// 1 / sqrt(v) for v > 0 without a root or a division (issue 29: scaling a vector to a limit
+/// took a root and a 64/32 division, about 125 instructions of a tick's bound each time, and
+/// four UDIVs): v = m 2^(32 - 2 shift) with m its top 32 bits, normalised to [2^30, 2^32) (the
+/// bits below them dropped, under 2^-30 of v), and `y` 1 / sqrt(m 2^-32), in (1, 2], in units
+/// of 2^-30, so that 1 / sqrt(v) = y 2^(shift - 62). From a seed of m's top byte (the inverse
+/// root of its midpoint, within 2^-8) two Newton steps y (3 - x y^2) / 2, each of three 32x32
+/// products: the error squares each step (2^-15, then 2^-29 and the truncations'). y is never
+/// above 1 / sqrt(v) and within 2^-26 of it (math_test checks both against long double).
+struct InverseRoot {
+  std::uint32_t y = 0;  ///< in units of 2^-30
+  int shift = 0;        ///< 0..31
+};
+inline constexpr auto kInverseRootSeeds = [] {
+  // Entry i: 2^15 / sqrt((i + 64 + 1/2) / 256), rounded (a normalised m's top byte is 64..255);
+  // below 2^16. A constexpr Newton iteration in double: no <cmath> in a constant expression.
+  std::array<std::uint16_t, 192> seeds{};
+  for (std::uint32_t i = 0; i < seeds.size(); ++i) {
+    const double x = (i + 64.5) / 256.0;
+    double y = 1.0;
+    for (int k = 0; k < 40; ++k) y = y * (3.0 - x * y * y) / 2.0;
+    seeds[i] = static_cast<std::uint16_t>(y * 32768.0 + 0.5);
+  }
+  return seeds;
+}();
+constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
+  auto high = static_cast<std::uint32_t>(v >> 32);
+  auto low = static_cast<std::uint32_t>(v);
+  int shift = 0;  // pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift)
+  if (high == 0) {
+    high = low;
+    low = 0;
+    shift = 16;
+  }
+  const int c = std::countl_zero(high) & ~1;
+  const std::uint32_t m = (high << c) | (c == 0 ? 0U : low >> (32 - c));
+  shift += c / 2;
+  // x = m 2^-32 in [1/4, 1); y in units of 2^-30, y^2 and 3 - x y^2 in units of 2^-28.
+  const auto newton = [m](std::uint32_t y) {
+    const auto y2 = static_cast<std::uint32_t>((std::uint64_t{y} * y) >> 32);
+    const auto xy2 = static_cast<std::uint32_t>((std::uint64_t{m} * y2) >> 32);
+    const std::uint32_t t = (3U << 28) - xy2;  // x y^2 <= 1 + 2^-14 here: t > 0
+    return static_cast<std::uint32_t>((std::uint64_t{y} * t) >> 29);
+  };
+  const std::uint32_t seed = std::uint32_t{kInverseRootSeeds[(m >> 24) - 64]} << 15;
+  // The truncations leave y up to 8 units over the inverse root (the products' floors make
+  // 3 - x y^2 too large); taking 8 off puts it under, within 2^-26: a scaling to a limit
+  // never ends past it but by its components' rounding.
+  return {newton(newton(seed)) - 8U, shift};
+}
+/// n 2^32 / sqrt(v) for 0 <= n < 2^31 and v > 0 (a scaling's factor n / |x| as a fraction in
+/// units of 2^-32 when v is |x|^2 in raw units; 1 / |x| in Q16.16 for n = 1), from its inverse
+/// root r: n y 2^(shift - 30), capped at 2^32 - 1.
+constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexcept {
+  const std::uint64_t p = std::uint64_t{n} * r.y;  // < 2^62
+  const auto p_high = static_cast<std::uint32_t>(p >> 32);
+  const auto p_low = static_cast<std::uint32_t>(p);
+  if (r.shift > 30) return p_high != 0 || (p_low >> 31) != 0 ? 0xFFFF'FFFFU : p_low << 1;  // v <= 3
+  // p >> (30 - shift) in 32-bit words (a 64-bit shift by a variable amount costs more).
+  const int down = 30 - r.shift;  // 0..30
+  if ((down == 0 ? p_high : p_high >> down) != 0) return 0xFFFF'FFFFU;
+  return down == 0 ? p_low : (p_low >> down) | (p_high << (32 - down));
+}
 }  // namespace detail
 
 /// Square root; a negative argument gives 0 and sets the saturation flag.

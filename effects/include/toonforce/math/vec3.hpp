@@ -209,49 +209,81 @@ constexpr bool is_finite(const Vec3<S>& v) noexcept {
   }
 }
 
+namespace detail {
+/// Each component of a Q-format `v` times a fraction `factor` in units of 2^-32 (below 1), as
+/// |c| times it rounded to nearest with the sign put back: nothing can saturate, and no
+/// division per component (the tick's static bound counts each one, issue 29).
+template <Scalar S>
+constexpr Vec3<S> scaled_by_fraction(const Vec3<S>& v, std::uint32_t factor) noexcept {
+  using Raw = typename S::Raw;
+  // GCC 12 sees a factor capped from a 64-bit quotient as that quotient and multiplies each
+  // component by its high word too (always 0: an MLA per component on a Cortex-M3); an empty
+  // asm that may change the register hides where it came from.
+  if (!std::is_constant_evaluated()) asm("" : "+r"(factor));
+  const auto scale = [factor](S c) {
+    const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
+    const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
+    // (p + 2^31) >> 32 without a 64-bit sum: the high word plus the low word's top bit.
+    const std::uint64_t p = std::uint64_t{m} * factor;
+    const auto scaled = static_cast<std::uint32_t>(p >> 32) + (static_cast<std::uint32_t>(p) >> 31);  // <= |c|
+    return S::from_raw(static_cast<Raw>((scaled ^ sign) - sign));
+  };
+  return {scale(v.x), scale(v.y), scale(v.z)};
+}
+}  // namespace detail
+
 /// `v` scaled down to `numerator` (0 <= numerator <= |v|: a limit that bites), direction kept,
 /// `magnitude` being norm_of(v). A numerator past |v| leaves v as it is; a negative one gives 0.
-/// In a Q format the factor numerator / |v| is a 32-bit fraction, one division, and each
-/// component is |c| times it, rounded to nearest with the sign put back: nothing can saturate,
-/// and no division per component (the tick's static bound counts each one, issue 29). The
-/// factor is within 2^-32 of the ratio, so a component is off the exactly rounded quotient only
-/// within |c| 2^-32 LSB of a tie. The ratio rounded to an LSB instead would be a coarse factor
-/// when it is small (a 13 N step out of a 30000 N request is a ratio of 29 LSB, 2% off), and
-/// safety limits scale by exactly such ratios. It divides by the true norm (tick_fuzz found
-/// (8, 8, 8) out of an 8 N clamp when the saturated one was used: up to sqrt(3) too long).
+/// In a Q format the factor numerator / |v| is a 32-bit fraction, one division
+/// (detail::scaled_by_fraction). The factor is within 2^-32 of the ratio, so a component is
+/// off the exactly rounded quotient only within |c| 2^-32 LSB of a tie. The ratio rounded to an
+/// LSB instead would be a coarse factor when it is small (a 13 N step out of a 30000 N request
+/// is a ratio of 29 LSB, 2% off), and safety limits scale by exactly such ratios. It divides by
+/// the true norm (tick_fuzz found (8, 8, 8) out of an 8 N clamp when the saturated one was
+/// used: up to sqrt(3) too long).
 template <Scalar S>
 constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& magnitude) noexcept {
   if constexpr (kIsFixed<S>) {
-    using Raw = typename S::Raw;
     if (magnitude.root == 0 || numerator.raw() <= 0) return {};  // nothing to scale, or to nothing
     // numerator 2^32 / |v| < 2^32 when numerator < |v|; capped at 1 - 2^-32 otherwise, which
     // gives every component back as it is (|c| (2^32 - 1) / 2^32 rounds to |c|).
     const std::uint64_t quotient =
         detail::div_u64_u32(std::uint64_t{static_cast<std::uint32_t>(numerator.raw())} << 32, magnitude.root);
-    std::uint32_t factor = (quotient >> 32) != 0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(quotient);
-    // GCC 12 sees the 32-bit factor as the capped 64-bit quotient and multiplies each component
-    // by its high word too (always 0: an MLA per component on a Cortex-M3); an empty asm that
-    // may change the register hides where it came from.
-    if (!std::is_constant_evaluated()) asm("" : "+r"(factor));
-    const auto scale = [factor](S c) {
-      const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
-      const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
-      // (p + 2^31) >> 32 without a 64-bit sum: the high word plus the low word's top bit.
-      const std::uint64_t p = std::uint64_t{m} * factor;
-      const auto scaled = static_cast<std::uint32_t>(p >> 32) + (static_cast<std::uint32_t>(p) >> 31);  // <= |c|
-      return S::from_raw(static_cast<Raw>((scaled ^ sign) - sign));
-    };
-    return {scale(v.x), scale(v.y), scale(v.z)};
+    return detail::scaled_by_fraction(v, (quotient >> 32) != 0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(quotient));
   } else {
     return v * (numerator / magnitude.value);
+  }
+}
+
+/// `v` scaled down to `limit`, direction kept, when |v| exceeds it (a negative limit counts as
+/// 0), else nothing: every magnitude limit of the tick (the rate limit, the clamp, the
+/// slippery law's). In a Q format the squares are compared exactly, as norm_if_above, and the
+/// factor limit / |v| is limit times the inverse root of |v|^2 (detail::inverse_root): no root
+/// and no division (issue 29: they were about 125 instructions of a tick's bound per limit,
+/// and four UDIVs). The factor is never above the ratio and within 2^-26 of it, so a component
+/// is never past the exactly scaled one rounded to nearest, and under the exact one by at most
+/// 2^-26 of it and half an LSB (at most one LSB under the rounded one below 512 N): the limit
+/// holds but for the components' rounding.
+template <Scalar S>
+constexpr std::optional<Vec3<S>> scaled_if_above(const Vec3<S>& v, S limit) noexcept {
+  if constexpr (kIsFixed<S>) {
+    const std::uint64_t squares = detail::raw_squares(v);
+    if (squares <= detail::raw_square(limit)) return std::nullopt;
+    if (limit.raw() <= 0) return Vec3<S>{};
+    const std::uint32_t factor =
+        detail::times_inverse_root(static_cast<std::uint32_t>(limit.raw()), detail::inverse_root(squares));
+    return detail::scaled_by_fraction(v, factor);
+  } else {
+    const auto magnitude = norm_if_above(v, limit);
+    if (!magnitude) return std::nullopt;
+    return scale_to_norm(v, limit, *magnitude);
   }
 }
 
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
-  const auto magnitude = norm_if_above(v, max_magnitude);
-  return magnitude ? scale_to_norm(v, max_magnitude, *magnitude) : v;
+  return scaled_if_above(v, max_magnitude).value_or(v);
 }
 
 /// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
