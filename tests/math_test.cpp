@@ -332,6 +332,31 @@ std::vector<std::uint64_t> inverse_root_values() {
   return values;
 }
 
+TEST(FixedMath, FromNsIsFromRatioByOneBillion) {
+  // The impact transient's time since its trigger: from_ratio(ns, 1e9)'s value and flag, by
+  // the prepared reciprocal. At the ties (5e8 ns), around the 32-bit quotients it saturates
+  // past, at the range's ends, and at random.
+  const std::int64_t limit = std::int64_t{1} << 46;
+  std::vector<std::int64_t> values = {0, 1, 7'629, 7'630, 15'258, 499'999'999, 500'000'000, 500'000'001,
+                                      1'000'000'000, 32'767'999'992'371LL, 32'768'000'000'000LL, limit - 1, limit};
+  for (const std::int64_t q : {std::int64_t{1} << 31, std::int64_t{1} << 32}) {
+    const std::int64_t at = (q * 1'000'000'000 - 500'000'000) >> 16;  // around where the quotient reaches q
+    for (std::int64_t d = -3; d <= 3; ++d) values.push_back(at + d);
+  }
+  std::mt19937_64 random(34);
+  for (int i = 0; i < 200000; ++i) values.push_back(static_cast<std::int64_t>(random() >> (17 + random() % 47)));
+  for (const std::int64_t magnitude : values) {
+    for (const std::int64_t ns : {magnitude, -magnitude}) {
+      static_cast<void>(take_fixed_saturated());
+      const Q got = Q::from_ns(ns);
+      const bool got_flag = take_fixed_saturated();
+      const Q want = Q::from_ratio(ns, 1'000'000'000);
+      ASSERT_EQ(got, want) << ns;
+      ASSERT_EQ(got_flag, take_fixed_saturated()) << ns;
+    }
+  }
+}
+
 TEST(FixedMath, InverseRootIsNeverAboveOneOverTheRootAndWithinTwoToTheMinus26OfIt) {
   // y 2^(shift - 62) against 1 / sqrt(v) in long double (64-bit mantissa): never above it (a
   // scaling by it never passes its limit) and at most 2^-26 under it. Without the final
@@ -567,6 +592,30 @@ TEST(Vec3Fixed, ScaledIfAboveIsNeverPastTheExactlyScaledVectorRoundedAndAtMostOn
   EXPECT_EQ(scaled_if_above(v, Q{}), Vec3<Q>{});
   EXPECT_EQ(scaled_if_above(v, Q::from_double(-1.0)), Vec3<Q>{});
   EXPECT_FALSE(scaled_if_above(Vec3<Q>{}, Q{}).has_value());
+}
+
+TEST(Vec3Fixed, TimesInRangeIsTheProductWhereItCannotSaturate) {
+  // A vector times a share in [0, 1], and a unit vector's components times a push >= 0: the
+  // value operator* gives (the same rounding), and no flag, at the ends of both ranges too.
+  std::mt19937_64 rng(35);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
+  std::uniform_int_distribution<std::int32_t> share(0, 65536);
+  std::uniform_int_distribution<std::int32_t> unit(-65536, 65536);
+  std::uniform_int_distribution<std::int32_t> push(0, INT32_MAX);
+  std::vector<std::pair<Vec3<Q>, Q>> cases = {
+      {{Q::lowest(), Q::max(), Q::from_raw(-1)}, Q::from_raw(65536)},
+      {{Q::lowest(), Q::max(), Q::from_raw(1)}, Q::from_raw(32768)},
+      {{Q::from_raw(-65536), Q::from_raw(65536), Q{}}, Q::max()},
+      {{Q::from_raw(-65535), Q::from_raw(3), Q::from_raw(-3)}, Q::from_raw(32768)}};
+  for (int i = 0; i < 200000; ++i) {
+    cases.push_back({{Q::from_raw(any(rng)), Q::from_raw(any(rng)), Q::from_raw(any(rng))}, Q::from_raw(share(rng))});
+    cases.push_back({{Q::from_raw(unit(rng)), Q::from_raw(unit(rng)), Q::from_raw(unit(rng))}, Q::from_raw(push(rng))});
+  }
+  for (const auto& [v, k] : cases) {
+    static_cast<void>(take_fixed_saturated());
+    ASSERT_EQ(times_in_range(v, k), v * k) << v.x.raw() << " " << v.y.raw() << " " << v.z.raw() << " times " << k.raw();
+    ASSERT_FALSE(take_fixed_saturated());
+  }
 }
 
 TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {

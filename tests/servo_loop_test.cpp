@@ -133,6 +133,25 @@ TEST(Engage, Q16RampIsTheRoundedQuotientOfTheElapsedTime) {
   }
 }
 
+// A ramp of more than 2^16 ticks whose step per tick was rounded up adds up its rounding: the
+// gain is capped at 1 (the loop scales the force by it without a saturation test). A 300 s
+// soft start at about 1 kHz, the period chosen so that the step is rounded up by 0.4 or more:
+// 2 LSB over the ramp's 300,000 ticks, past 1 at its end without the cap.
+TEST(Engage, Q16RampOfManyTicksNeverPassesOne) {
+  const std::int64_t soft_start_ns = 300'000'000'000LL;
+  std::int64_t period_ns = 1'000'000;
+  const auto tenths = [soft_start_ns](std::int64_t t) {  // of 2^32 T / soft_start's fraction
+    const auto rest = (static_cast<unsigned __int128>(t) << 32) % static_cast<unsigned __int128>(soft_start_ns);
+    return static_cast<int>(rest * 10 / static_cast<unsigned __int128>(soft_start_ns));
+  };
+  while (tenths(period_ns) != 5) ++period_ns;  // a fraction in [0.5, 0.6): rounded up by 0.4 or more
+  Engage<Q16_16> engage(EngageConfig{0.2, static_cast<double>(soft_start_ns) * 1e-9, static_cast<double>(period_ns) * 1e-9});
+  ASSERT_EQ(engage.gain(Vec3<Q16_16>{}, 0), Q16_16{});
+  for (std::int64_t k = 1; engage.state() == LoopState::kRamping; ++k) {
+    ASSERT_LE(engage.gain(Vec3<Q16_16>{}, k).raw(), 65536) << "tick " << k << " of a " << period_ns << " ns period";
+  }
+}
+
 TYPED_TEST(ServoSafety, RampsAgainFromZeroAfterEveryFault) {
   ServoConfig c = bare_config();
   c.safety.soft_start_s = 0.01;  // 10 ticks

@@ -60,8 +60,11 @@ class Engage {
       // soft_start, so the gain is within (k - start) 2^-17 LSB of the exact quotient (under
       // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33.
       const auto ticks = static_cast<std::uint64_t>(k - ramp_start_);
-      return S::from_raw(static_cast<typename S::Raw>((ticks * ramp_step_ + (std::uint64_t{1} << (31 - S::kFracBits))) >>
-                                                      (32 - S::kFracBits)));
+      const auto ramp = static_cast<typename S::Raw>((ticks * ramp_step_ + (std::uint64_t{1} << (31 - S::kFracBits))) >>
+                                                     (32 - S::kFracBits));
+      // At most 1 (the loop scales by it without a saturation test, times_in_range): a ramp of
+      // more than 2^16 ticks may round past it by the step's rounding.
+      return ramp < kOne.raw() ? S::from_raw(ramp) : kOne;
     } else {
       // Time from integer ticks, in double, converted once (spec §0).
       const double elapsed_s = static_cast<double>(k - ramp_start_) * period_s_;

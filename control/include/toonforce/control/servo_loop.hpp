@@ -294,7 +294,7 @@ class ServoLoop {
       return cut(o, -1);
     }
     const Vec3<S> wanted = scene.force_n + o.damping_n;
-    const auto limited = safety_.limit_step(wanted * o.gain, max_step_of(time));
+    const auto limited = safety_.limit_step(times_in_range(wanted, o.gain), max_step_of(time));  // gain in [0, 1]
     o.force_n = limited.force_n;
     o.limits = static_cast<std::uint8_t>(o.limits | limited.limits);
     if (o.gain < scalar_cast<S>(1.0)) o.limits = o.limits | Limit::kSoftStart;

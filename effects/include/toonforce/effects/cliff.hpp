@@ -87,7 +87,7 @@ struct CartoonCliff {
       s.fallen = false;
     }
 
-    if (!s.fallen) return n * PenaltyWall<S>::normal_force(p.wall, c);
+    if (!s.fallen) return times_in_range(n, PenaltyWall<S>::normal_force(p.wall, c));  // unit n, push >= 0
     if (in_strip) return n * (-p.fall_force_n);
     if (c.penetration_m > S{}) {  // under a ledge: its side face pushes back toward the strip
       if (across < p.gap_min_m) return p.axis * (p.wall.stiffness_n_per_m * (p.gap_min_m - across));

@@ -125,7 +125,7 @@ struct ImpactTransient {
         out.triggered = false;
         return out;
       }
-      t = S::from_ratio(elapsed_ns, kNsPerS);
+      t = S::from_ns(elapsed_ns);
     } else {
       const double elapsed_s = in.seconds_since(s.trigger);
       if (!(elapsed_s <= to_double(p.duration_s))) {  // past d: the transient is over

@@ -123,7 +123,8 @@ struct Surface {
       along_normal += impact.force_n;
       if (impact_configured(p.impact)) *next_slot = {p.plane.normal * impact.force_n, impact.running, impact.triggered};
     }
-    Vec3<S> f = p.plane.normal * along_normal;
+    // Without an impact the push is the wall's, >= 0: a unit normal times it cannot saturate.
+    Vec3<S> f = Impact::kPresent ? p.plane.normal * along_normal : times_in_range(p.plane.normal, along_normal);
     if constexpr (Tangential::kPresent) {
       const bool touching = c.penetration_m > S{};
       Vec3<S> tangential{};

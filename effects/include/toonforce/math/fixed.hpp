@@ -370,6 +370,22 @@ class Fixed {
     const Wide q = detail::div_round(magnitude, den);  // magnitude + den / 2 < 2^63: both < 2^62
     return from_wide(scaled < 0 ? -q : q);
   }
+  /// `ns` nanoseconds in seconds, exactly as from_ratio(ns, 1e9) rounds and saturates it, by the
+  /// reciprocal of 1e9 prepared at compile time (detail::Divisor): a multiplication and two
+  /// corrections where from_ratio's 64/32 division took about 50 instructions of the tick's
+  /// bound (issue 29: an impact transient's time since its trigger, every tick it runs).
+  static constexpr Fixed from_ns(std::int64_t ns) noexcept {
+    constexpr detail::Divisor kSecond = detail::divisor_of(1'000'000'000);
+    constexpr Wide kLimit = Wide{1} << (62 - FracBits);  // ns * 2^FracBits stays within 2^62
+    if (ns >= kLimit) return saturated(true);
+    if (ns <= -kLimit) return saturated(false);
+    const Wide scaled = ns * kOneRaw;
+    const auto magnitude = static_cast<std::uint64_t>(scaled < 0 ? -scaled : scaled);
+    // floor((m + 1e9 / 2) / 1e9), or 2^32 past 32 bits: from_wide saturates both ways as
+    // from_ratio's quotient would.
+    const auto q = static_cast<Wide>(detail::div_round_by(magnitude, kSecond));
+    return from_wide(scaled < 0 ? -q : q);
+  }
   /// This value (a rate, per second) times `ns` nanoseconds: rounded toward zero, so a limit
   /// it sizes is never exceeded, and saturating with the flag. `ns` >= 0, any size: whole
   /// seconds and the rest are multiplied apart, each product exact in 64 bits. No reciprocal:
@@ -418,6 +434,12 @@ class Fixed {
     const Wide up = (remainder + (Wide{1} << (shift - 1)) + (wide >> 63)) >> shift;  // 0 or 1
     return (wide >> shift) + up;
   }
+  /// A product of two raw values rounded to this format's units, half away from zero (below).
+  [[gnu::always_inline]] static constexpr Wide rounded_product(Wide product) noexcept {
+    static_assert(FracBits >= 1 && FracBits <= 31);
+    const auto half = static_cast<std::uint32_t>((std::int32_t{1} << (FracBits - 1)) + static_cast<std::int32_t>(product >> 63));
+    return (product + Wide{half}) >> FracBits;
+  }
   /// A product of two raw values, or a sum of such (|product| <= 2^62), back to this format: round_shift by
   /// FracBits in fewer steps, because half can be added to it without overflow. Half away from
   /// zero is floor((p + half - 1) / 2^F) for p < 0 and floor((p + half) / 2^F) otherwise.
@@ -425,9 +447,12 @@ class Fixed {
   /// is one 32-bit add and a carry into the high word, where GCC added it as a 64-bit value
   /// (an instruction more per product on a 32-bit core; the same value).
   [[gnu::always_inline]] static constexpr Fixed from_product(Wide product) noexcept {
-    static_assert(FracBits >= 1 && FracBits <= 31);
-    const auto half = static_cast<std::uint32_t>((std::int32_t{1} << (FracBits - 1)) + static_cast<std::int32_t>(product >> 63));
-    return from_wide((product + Wide{half}) >> FracBits);
+    return from_wide(rounded_product(product));
+  }
+  /// from_product for a product that cannot leave the range (a value times a share in [0, 1],
+  /// a unit vector times a push: times_in_range): the same rounding, without the saturation test.
+  [[gnu::always_inline]] static constexpr Fixed from_product_in_range(Wide product) noexcept {
+    return from_raw(static_cast<Raw>(rounded_product(product)));
   }
 
   // Sums and differences overflow only past the 32-bit range, toward the first operand's sign.

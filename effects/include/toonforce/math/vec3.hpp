@@ -280,6 +280,21 @@ constexpr std::optional<Vec3<S>> scaled_if_above(const Vec3<S>& v, S limit) noex
   }
 }
 
+/// `v` times `k` where no product can leave the range: k a share in [0, 1] (the soft start's
+/// gain), or v a unit vector (each component in [-1, 1]: a plane's normal) and k >= 0 (a
+/// wall's push). Each product is then at most |c| or k in magnitude, so in a Q format it is
+/// rounded as operator* rounds it, without the saturation test (issue 29: three a vector).
+template <Scalar S>
+constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
+  if constexpr (kIsFixed<S>) {
+    using W = typename S::Wide;
+    const auto times = [k](S c) { return S::from_product_in_range(W{c.raw()} * k.raw()); };
+    return {times(v.x), times(v.y), times(v.z)};
+  } else {
+    return v * k;
+  }
+}
+
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
