@@ -13,10 +13,11 @@ refuses the image (exit 2: what it cannot bound).
 A ratchet besides: with --ceilings FILE, a bound above the one FILE records for that image,
 scene and variant fails too (a change made a tick dearer in the worst case; if that is meant,
 --update-ceilings rewrites the image's rows with its bounds, to commit with the change). The
-budgets of issue 29 are reported against; --gate-budget VARIANT fails on a VARIANT's budget
-(tests.cmake gates the effects plus safety's 1,500 instructions, which every scene meets, and
-the every-stage loop's 2,000 instructions and 2,500 cycles in the images of the scenes that
-meet them; the others' stay reported until they do).
+budgets of issue 29 are reported against; --gate-budget GATE fails on one (tests.cmake gates the
+effects plus safety's 1,500 instructions, which every scene meets, the every-stage loop's 2,000
+instructions in the images of the scenes that meet them (every-instructions), and its 2,000
+instructions and 2,500 cycles in those of the scenes that meet both (every); the others stay
+reported until they do).
 
 With --covered TB_STARTS (the run's translation-block starts, run_image.cmake's COVERAGE), it
 reports per variant how much of the longest path is code no tick of the run executed: where
@@ -89,6 +90,9 @@ def measured(counts: str) -> tuple[dict, dict]:
 
 
 BUDGETS = {"every": (2000, 2500), "effects": (1500, None)}  # issue 29 item 4: instructions, cycles
+# What --gate-budget can gate: a variant's whole budget, or the every-stage loop's instructions
+# alone (met by more scenes than its cycles are): gate -> (variant, instructions, cycles or None).
+GATES = {"every": ("every", 2000, 2500), "every-instructions": ("every", 2000, None), "effects": ("effects", 1500, None)}
 
 
 def read_ceilings(path: str) -> dict:
@@ -129,9 +133,10 @@ def main() -> int:
                         "that the bound is tight: issue 29 asks for 90)")
     p.add_argument("--ceilings", help="fail when a bound passes the one this file records (a ratchet)")
     p.add_argument("--update-ceilings", action="store_true", help="write this image's bounds into --ceilings")
-    p.add_argument("--gate-budget", action="append", default=[], choices=sorted(BUDGETS), metavar="VARIANT",
-                   help="fail when a bound of VARIANT passes its issue-29 budget (one the scenes meet); the other "
-                        "budgets are reported")
+    p.add_argument("--gate-budget", action="append", default=[], choices=sorted(GATES), metavar="GATE",
+                   help="fail when a bound passes the issue-29 budget GATE names (one the scenes meet: a variant's, "
+                        "or every-instructions, the every-stage loop's instructions alone); the other budgets are "
+                        "reported")
     a = p.parse_args()
     if not os.path.exists(a.counts):
         print(f"check_bound: {a.counts}: no output of the image (its run test failed or did not run)", file=sys.stderr)
@@ -195,12 +200,17 @@ def main() -> int:
         if variant in BUDGETS:
             max_i, max_c = BUDGETS[variant]
             meets = instructions <= max_i and (max_c is None or cycles <= max_c)
-            gated = variant in a.gate_budget
-            print(f"budget (issue 29, {'gated' if gated else 'reported'}): {scene} {variant}: {instructions} "
-                  f"instructions, {cycles} cycles against {max_i}{'' if max_c is None else f', {max_c}'}: "
-                  f"{'met' if meets else 'not met'}")
-            if gated and not meets:
-                failed = True
+            status = "met" if meets else "instructions met, cycles not" if instructions <= max_i else "not met"
+            gates = [g for g in a.gate_budget if GATES[g][0] == variant]
+            print(f"budget (issue 29, {'gated: ' + ', '.join(gates) if gates else 'reported'}): {scene} {variant}: "
+                  f"{instructions} instructions, {cycles} cycles against {max_i}{'' if max_c is None else f', {max_c}'}: "
+                  f"{status}")
+            for g in gates:
+                _, gate_i, gate_c = GATES[g]
+                if instructions > gate_i or (gate_c is not None and cycles > gate_c):
+                    print(f"check_bound: {scene} {variant}: over the gated budget {g} ({gate_i} instructions"
+                          f"{'' if gate_c is None else f', {gate_c} cycles'})", file=sys.stderr)
+                    failed = True
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"elf": a.elf, "wait_states": a.wait_states, "rows": rows}, f, indent=1)
