@@ -258,6 +258,47 @@ TYPED_TEST(ServoEnergy, PassivityControllerLeavesAnEpisodeWithinBudgetUntouched)
   EXPECT_GT(on.loop.passivity().controller().max_episode_energy(on.loop.passivity().slots()).to_double(), 0.01);
 }
 
+// The damping for an episode over its budget is -alpha v with alpha = min(X rate / |v|^2,
+// max_damping, max_force / |v|) (the excess X, HR's rule capped twice), nothing below 1 mm/s:
+// each cap binding in turn, against that closed form from the controller's own energy. In
+// Q16.16 from the inverse root (issue 29), within 0.1 % and a few LSB.
+TYPED_TEST(ServoEnergy, PassivityDampingIsTheExcessOverTheSpeedSquaredCappedTwice) {
+  using S = TypeParam;
+  PassivityConfig config;
+  config.budget_j = 0.001;
+  config.max_damping_n_s_per_m = 20.0;
+  constexpr double kMaxForceN = 8.0;
+  constexpr double kRateHz = 1000.0;
+  struct Case {
+    double work_j;      // the episode's work so far (the excess is work - budget)
+    double speed_m_per_s;
+  };
+  // X = 10 mJ, 10 W at 1 kHz: alpha from X rate / |v|^2 (at 2 m/s: 2.5), max_damping (at 0.3
+  // m/s: 111 -> 20), max_force / |v| (at 1 m/s: 10 -> 8), and too slow to damp.
+  for (const Case k : {Case{0.011, 2.0}, Case{0.011, 0.3}, Case{0.011, 1.0}, Case{0.011, 0.0005}}) {
+    PassivityController<S, 1> controller(config, kMaxForceN);
+    const ActiveForce<S> start{vec_cast<S>(Vec3<double>{1.0, 0.0, 0.0}), true, true};
+    controller.update(&start, 1, Vec3<S>{}, scalar_cast<S>(kRateHz));  // the episode starts at 0 J
+    controller.account(vec_cast<S>(Vec3<double>{k.work_j, 0.0, 0.0}), scalar_cast<S>(1.0), 1);  // 1 N over work_j m
+    const double excess_j = controller.episode_energy(0).to_double() - controller.budget().to_double();
+    ASSERT_GT(excess_j, 0.0);
+    const Vec3<double> v{0.6 * k.speed_m_per_s, 0.0, -0.8 * k.speed_m_per_s};
+    const ActiveForce<S> running{start.force_n, true, false};
+    const Vec3<double> damping = to_double(controller.update(&running, 1, vec_cast<S>(v), scalar_cast<S>(kRateHz)));
+    const double speed = std::sqrt(dot(v, v));
+    const double alpha = speed > 1e-3 ? std::min({std::min(excess_j, 1.0) * kRateHz / (speed * speed),
+                                                  config.max_damping_n_s_per_m, kMaxForceN / speed})
+                                      : 0.0;
+    // Q16.16: the excess is rounded to 2^-16 J before it is divided (half of it, relative to X),
+    // 1 / |v| within 2^-26, and the products' roundings.
+    const double tolerance = kIsFixed<S> ? (1e-3 + 0.5 / 65536.0 / excess_j) * alpha * speed + 4.0 / 65536.0 : 1e-12;
+    EXPECT_NEAR(damping.x, -alpha * v.x, tolerance) << k.work_j << " J at " << k.speed_m_per_s << " m/s";
+    EXPECT_NEAR(damping.y, 0.0, tolerance);
+    EXPECT_NEAR(damping.z, -alpha * v.z, tolerance) << k.work_j << " J at " << k.speed_m_per_s << " m/s";
+    EXPECT_EQ(controller.damped(), alpha > 0.0);
+  }
+}
+
 // ---- active effects -----------------------------------------------------------------------------
 
 TEST(ActiveEffects, SlotsAreTheForcesTheActiveEffectsAdded) {

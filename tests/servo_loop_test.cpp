@@ -140,9 +140,10 @@ TEST(Engage, Q16RampIsTheRoundedQuotientOfTheElapsedTime) {
 TEST(Engage, Q16RampOfManyTicksNeverPassesOne) {
   const std::int64_t soft_start_ns = 300'000'000'000LL;
   std::int64_t period_ns = 1'000'000;
+  __extension__ typedef unsigned __int128 U128;  // exact 2^32 T (g++)
   const auto tenths = [soft_start_ns](std::int64_t t) {  // of 2^32 T / soft_start's fraction
-    const auto rest = (static_cast<unsigned __int128>(t) << 32) % static_cast<unsigned __int128>(soft_start_ns);
-    return static_cast<int>(rest * 10 / static_cast<unsigned __int128>(soft_start_ns));
+    const U128 rest = (static_cast<U128>(t) << 32) % static_cast<U128>(soft_start_ns);
+    return static_cast<int>(rest * 10 / static_cast<U128>(soft_start_ns));
   };
   while (tenths(period_ns) != 5) ++period_ns;  // a fraction in [0.5, 0.6): rounded up by 0.4 or more
   Engage<Q16_16> engage(EngageConfig{0.2, static_cast<double>(soft_start_ns) * 1e-9, static_cast<double>(period_ns) * 1e-9});
