@@ -54,7 +54,7 @@ KINDS = [
     ("roots and norms", r"isqrt|inverse_root|norm_from_raw_squares|raw_squares?\b|raw_square::|raw_squares::"),
     ("divisions and reciprocals", r"div_u64|fraction_q16|reciprocal|from_ratio|countl_zero|__countl_zero"),
     ("Q16.16 rounding and saturation",
-     r"saturat|from_product|from_wide|round_shift|^operator[-+*]|Wide::dot|times_fraction|Decay::apply"),
+     r"saturat|from_product|rounded_product|::rounded$|::at_most$|from_wide|round_shift|^operator[-+*]|Wide::dot|times_fraction|Decay::apply"),
 ]
 REST = "the rest"
 
