@@ -55,7 +55,14 @@ class SceneStage {
 
   /// The scene's force on `in`, the effects' new states committed if it is finite.
   SceneForce<S> force(const TickInput<S>& in) noexcept {
-    Vec3<S> f = scene_.force(in, states_[current_], states_[1 - current_], active_.data());
+    Vec3<S> f;
+    if constexpr (kIsFixed<S>) {
+      // A Q force is always finite, so the tick always commits: the effects update their
+      // states in place (issue 29: the copy of the states was on every tick's bound).
+      f = scene_.force(in, states_[current_], active_.data());
+    } else {
+      f = scene_.force(in, states_[current_], states_[1 - current_], active_.data());
+    }
     if constexpr (kLive) f += fade_.offset_n;
     // One test for the three components: the squared magnitude is non-finite if any component
     // is, and also when a finite force is so large that its square overflows (stiffness = 1e308):
@@ -64,8 +71,8 @@ class SceneStage {
     // finite (it saturates instead).
     if constexpr (!kIsFixed<S>) {
       if (!is_finite(dot(f, f))) return {};
+      current_ = 1 - current_;  // commit
     }
-    current_ = 1 - current_;  // commit
     last_position_m_ = in.position_m;  // what describe() needs besides the velocity
     last_now_ = in.now;
     started_ = true;

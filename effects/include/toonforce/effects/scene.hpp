@@ -119,15 +119,25 @@ class Scene {
   constexpr const Params& params() const noexcept { return params_; }
 
  private:
-  template <std::size_t... I>
+  template <std::size_t I0, std::size_t... I>
   constexpr Vec3<S> sum(const TickInput<S>& in, State& state, ActiveForce<S>* active,
-                        std::index_sequence<I...>) const noexcept {
+                        std::index_sequence<I0, I...>) const noexcept {
+    // The first effect's force is the start: 0 + f is f in a Q format, so a one-effect scene
+    // adds nothing (issue 29: three saturating adds of every tick's bound). Floating point
+    // starts from +0 as it did: 0 + (-0) is +0, and the traces print the sign.
     Vec3<S> total{};
+    if constexpr (kIsFixed<S>) {
+      total = force_of<I0>(in, state, active);
+    } else {
+      total += force_of<I0>(in, state, active);
+    }
     // The comma fold runs left to right: effects add in declaration order.
-    ((total += effect::force<E<I>>(std::get<I>(params_), std::get<I>(state.effects), in,
-                                   active + offset<I>(kSlots))),
-     ...);
+    ((total += force_of<I>(in, state, active)), ...);
     return total;
+  }
+  template <std::size_t I>
+  constexpr Vec3<S> force_of(const TickInput<S>& in, State& state, ActiveForce<S>* active) const noexcept {
+    return effect::force<E<I>>(std::get<I>(params_), std::get<I>(state.effects), in, active + offset<I>(kSlots));
   }
   template <std::size_t... I>
   constexpr bool describe_all(const State& state, const TickInput<S>& in, double* values,
