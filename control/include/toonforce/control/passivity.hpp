@@ -70,6 +70,9 @@ class PassivityController {
   /// [J] an excess is capped here before it is turned into a force (keeps X * rate in range).
   static constexpr double kMaxExcessJ = 1.0;
   static constexpr std::uint64_t kMaxExcessQ32 = static_cast<std::uint64_t>(kMaxExcessJ * 4294967296.0);  // [2^-32 J]
+  /// [N] Q formats: max_force_n is capped here (a device's is below 100 N), so that each
+  /// component of the damping, at most alpha |v| <= max_force_n, is far inside the range.
+  static constexpr double kMaxFixedForceN = 16384.0;
 
   /// `max_force_n` caps each slot's damping force (the clamp caps the sum anyway).
   constexpr PassivityController(const PassivityConfig& config, double max_force_n) noexcept
@@ -79,7 +82,7 @@ class PassivityController {
         min_speed_(scalar_cast<S>(kMinSpeedMPerS)),
         min_speed_squared_(min_speed_squared_of()),
         max_damping_n_s_per_m_(scalar_cast<S>(config.max_damping_n_s_per_m)),
-        max_force_n_(scalar_cast<S>(max_force_n)) {}
+        max_force_n_(scalar_cast<S>(kIsFixed<S> && max_force_n > kMaxFixedForceN ? kMaxFixedForceN : max_force_n)) {}
 
   /// Books the interval that just ended: the previous tick's forces, times `applied` (the share
   /// of the wanted force that reached the device, 0..1), moved the HIP by `displacement_m`.
@@ -175,7 +178,11 @@ class PassivityController {
         const S magnitude = power < cap * speed ? power / speed : cap;
         alpha = magnitude / speed;
       }
-      s.damping_n = velocity_m_per_s * (-alpha);
+      if constexpr (kIsFixed<S>) {
+        s.damping_n = opposed(velocity_m_per_s, alpha);
+      } else {
+        s.damping_n = velocity_m_per_s * (-alpha);
+      }
       if constexpr (kSlots == 1) {
         total = s.damping_n;  // 0 + d: no sum to saturate
       } else {
@@ -241,6 +248,14 @@ class PassivityController {
     return S::from_raw(static_cast<typename S::Raw>((p + (std::int64_t{1} << (S::kFracBits - 1))) >> S::kFracBits));
   }
   static constexpr S at_most(std::int64_t p, S cap) noexcept { return p >= raw_product(cap, kOne) ? cap : rounded(p); }
+  // -alpha v, each product rounded as operator* rounds it (half away from zero, so the sign
+  // can go on the result) without the saturation test (issue 29: three of the bound's):
+  // alpha <= max_force / |v| rounded up by at most 2^-17 N s/m (alpha_cap), so |alpha v_i| <=
+  // max_force + |v| 2^-17 <= 16,384 + 0.25 N, far inside the range.
+  static constexpr Vec3<S> opposed(const Vec3<S>& v, S alpha) noexcept {
+    const auto times = [alpha](S c) { return S::from_raw(-S::from_product_in_range(raw_product(c, alpha)).raw()); };
+    return {times(v.x), times(v.y), times(v.z)};
+  }
 
   bool enabled_;
   Wide<S> budget_;
