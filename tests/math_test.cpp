@@ -738,6 +738,21 @@ TEST(Sine, FloatMethodsMeetTheirStatedErrors) {
   EXPECT_LT(sine_error<float>(SineMethod::kTable), 5e-6);
 }
 
+// The Q16.16 polynomial in 32-bit words gives the 64-bit evaluation's result for every
+// quarter-wave argument there is (sine.hpp: fixed_polynomial_q16), so no force changed with it.
+TEST(Sine, Q16PolynomialInWordsIsTheWideOneOnEveryArgument) {
+  int differ = 0;
+  for (std::int32_t raw = 0; raw <= Q::kOneRaw / 4; ++raw) {
+    const Q wide = detail::fixed_polynomial(Q::from_raw(raw));
+    const std::int32_t words = detail::fixed_polynomial_q16(raw);
+    if (words != wide.raw()) {
+      ADD_FAILURE() << "q = " << raw << " / 65536: " << words << " against " << wide.raw();
+      if (++differ == 5) break;
+    }
+  }
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
 TEST(Sine, Q16MethodsStayNearTheFormatResolution) {
   EXPECT_LT(sine_error<Q>(SineMethod::kPolynomial), 1 * kLsb);
   EXPECT_LT(sine_error<Q>(SineMethod::kTable), 3 * kLsb);

@@ -99,9 +99,9 @@ struct SineTable {
   }();
 };
 
-/// The polynomial for a Q type, evaluated with 30 fraction bits in 64-bit integers and rounded
-/// once at the end: Horner steps in the Q format itself would round at every step (about 4 LSB
-/// in Q16.16 instead of 0.5).
+/// The polynomial for a Q type (Q16.16 takes fixed_polynomial_q16, below), evaluated with 30
+/// fraction bits in 64-bit integers and rounded once at the end: Horner steps in the Q format
+/// itself would round at every step (about 4 LSB in Q16.16 instead of 0.5).
 template <Scalar S>
 constexpr S fixed_polynomial(S q) noexcept {
   using W = typename S::Wide;
@@ -118,22 +118,53 @@ constexpr S fixed_polynomial(S q) noexcept {
   return S::from_wide(S::round_shift(acc * q30, 2 * kBits - S::kFracBits));  // Q60 -> Q16
 }
 
+/// The same polynomial for Q16.16 in 32-bit words: four 32x32 products whose high word is the
+/// next step (issue 29: the 64-bit products above were 59 instructions of the Cortex-M3 tick's
+/// bound; these are about 20). Each step keeps what its range allows: q in Q33 (q <= 1/4 fills
+/// an unsigned word), q^2 in Q34, the Horner sums in Q23 (c5 + c7 q^2 in [76, 82]), Q25 ([-42,
+/// -36]) and Q27 ([3.7, 6.3]), the sine in Q28. c1 is rounded up by 2 units of 2^-27 (1.5e-8):
+/// with it, each of the 16,385 quarter-wave arguments gives the 64-bit evaluation's result
+/// (math_test compares all of them), so no Q16.16 force changed.
+constexpr std::int32_t fixed_polynomial_q16(std::int32_t q_raw) noexcept {
+  constexpr auto coefficient = [](double c, int bits) {
+    const double scaled = c * static_cast<double>(std::int64_t{1} << bits);
+    return static_cast<std::int32_t>(scaled < 0.0 ? scaled - 0.5 : scaled + 0.5);
+  };
+  constexpr std::int32_t c7 = coefficient(kSinPoly7, 21), c5 = coefficient(kSinPoly5, 23);
+  constexpr std::int32_t c3 = coefficient(kSinPoly3, 25), c1 = coefficient(kSinPoly1, 27) + 2;
+  constexpr auto high = [](std::int32_t a, std::int32_t b) {  // floor(a b / 2^32): SMULL's high word
+    return static_cast<std::int32_t>((std::int64_t{a} * b) >> 32);
+  };
+  const std::uint32_t q33 = static_cast<std::uint32_t>(q_raw) << 17;                // <= 2^31
+  const auto q2 = static_cast<std::int32_t>((std::uint64_t{q33} * q33) >> 32);     // <= 2^30
+  std::int32_t acc = c5 + high(c7, q2);
+  acc = c3 + high(acc, q2);
+  acc = c1 + high(acc, q2);
+  const auto sine = static_cast<std::uint32_t>((std::uint64_t{static_cast<std::uint32_t>(acc)} * q33) >> 32);
+  return static_cast<std::int32_t>((sine + (1U << 11)) >> 12);  // >= 0: half up is half away from zero
+}
+
 /// Splits a phase into its quarter-wave argument q in [0, 1/4] and the sign of the result.
 template <Scalar S>
 constexpr S quarter_wave(S turns, bool& negative) noexcept {
-  S frac{};
+  // sin(2 pi (q + 1/2)) = -sin(2 pi q); sin(2 pi (1/2 - q)) = sin(2 pi q).
   if constexpr (kIsFixed<S>) {
-    // Two's complement masking gives the fraction mod 1 for negative phases too.
-    frac = S::from_raw(turns.raw() & (S::kOneRaw - 1));
+    // Two's complement masking gives the fraction mod 1 for negative phases too; in [0, 1),
+    // it is folded without a saturation test.
+    auto raw = turns.raw() & (S::kOneRaw - 1);
+    negative = raw >= S::kOneRaw / 2;
+    if (negative) raw -= S::kOneRaw / 2;
+    if (raw > S::kOneRaw / 4) raw = S::kOneRaw / 2 - raw;
+    return S::from_raw(raw);
   } else {
-    frac = turns - std::floor(turns);
+    S frac = turns - std::floor(turns);
+    constexpr S half = scalar_cast<S>(0.5);
+    constexpr S quarter = scalar_cast<S>(0.25);
+    negative = frac >= half;
+    if (negative) frac = frac - half;
+    if (frac > quarter) frac = half - frac;
+    return frac;
   }
-  constexpr S half = scalar_cast<S>(0.5);
-  constexpr S quarter = scalar_cast<S>(0.25);
-  negative = frac >= half;
-  if (negative) frac = frac - half;                // sin(2 pi (q + 1/2)) = -sin(2 pi q)
-  if (frac > quarter) frac = half - frac;          // sin(2 pi (1/2 - q)) = sin(2 pi q)
-  return frac;
 }
 
 }  // namespace detail
@@ -152,27 +183,39 @@ constexpr S sin_turns(S turns, SineMethod method) noexcept {
   const S q = detail::quarter_wave(turns, negative);
   S value{};
   if (method == SineMethod::kTable) {
-    constexpr S kSegmentsPerTurn = scalar_cast<S>(4.0 * detail::kSineTableSegments);
-    const S position = q * kSegmentsPerTurn;  // in [0, segments]
-    int index = 0;
-    S fraction{};
-    if constexpr (kIsFixed<S>) {
-      index = static_cast<int>(position.raw() >> S::kFracBits);
-      fraction = S::from_raw(position.raw() & (S::kOneRaw - 1));
-    } else {
-      index = static_cast<int>(position);
-      fraction = position - static_cast<S>(index);
-    }
-    if (index >= detail::kSineTableSegments) {  // q == 1/4 exactly
-      index = detail::kSineTableSegments - 1;
-      fraction = scalar_cast<S>(1.0);
-    }
     const auto& table = detail::SineTable<S>::kValues;
-    const S lo = table[static_cast<std::size_t>(index)];
-    const S hi = table[static_cast<std::size_t>(index) + 1];
-    value = lo + (hi - lo) * fraction;
+    if constexpr (kIsFixed<S>) {
+      // Steps none of which can leave the range, so without a saturation test (issue 29: the
+      // method is chosen at run time, so the tick's bound counts the dearer one): q * 1024 is
+      // exact, a shift (q <= 1/4: below 2^(F + 8)); hi - lo is a few LSB; lo plus a share of it
+      // lies between lo and hi. The values are operator*'s and operator+'s.
+      static_assert(4 * detail::kSineTableSegments == 1 << 10 && S::kFracBits <= 22);
+      const auto position = static_cast<std::uint32_t>(q.raw()) << 10;  // segments, F fraction bits
+      auto index = static_cast<std::size_t>(position >> S::kFracBits);
+      auto fraction = static_cast<typename S::Raw>(position & static_cast<std::uint32_t>(S::kOneRaw - 1));
+      if (index >= detail::kSineTableSegments) {  // q == 1/4 exactly
+        index = detail::kSineTableSegments - 1;
+        fraction = S::kOneRaw;
+      }
+      const typename S::Raw lo = table[index].raw();
+      const auto step = static_cast<typename S::Wide>(table[index + 1].raw() - lo);
+      value = S::from_raw(lo + S::from_product_in_range(step * fraction).raw());
+    } else {
+      const S position = q * static_cast<S>(4 * detail::kSineTableSegments);  // in [0, segments]
+      auto index = static_cast<std::size_t>(position);
+      S fraction = position - static_cast<S>(index);
+      if (index >= detail::kSineTableSegments) {  // q == 1/4 exactly
+        index = detail::kSineTableSegments - 1;
+        fraction = S{1};
+      }
+      value = table[index] + (table[index + 1] - table[index]) * fraction;
+    }
   } else if constexpr (kIsFixed<S>) {
-    value = detail::fixed_polynomial(q);
+    if constexpr (S::kFracBits == 16 && sizeof(typename S::Raw) == 4) {
+      value = S::from_raw(detail::fixed_polynomial_q16(q.raw()));  // in [0, 1]: no saturation
+    } else {
+      value = detail::fixed_polynomial(q);
+    }
   } else {
     constexpr S c1 = scalar_cast<S>(detail::kSinPoly1);
     constexpr S c3 = scalar_cast<S>(detail::kSinPoly3);
@@ -181,7 +224,11 @@ constexpr S sin_turns(S turns, SineMethod method) noexcept {
     const S q2 = q * q;
     value = q * (c1 + q2 * (c3 + q2 * (c5 + q2 * c7)));
   }
-  return negative ? -value : value;
+  if constexpr (kIsFixed<S>) {
+    return negative ? S::from_raw(-value.raw()) : value;  // |value| <= 1: no saturation test
+  } else {
+    return negative ? -value : value;
+  }
 }
 
 }  // namespace toonforce
