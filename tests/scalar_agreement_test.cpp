@@ -154,6 +154,35 @@ TEST(ScalarAgreement, CartoonWallImpactTransient) {
             0.03);
 }
 
+// A phase f t past Q16.16's range (20 kHz for 3 s: 60,000 turns; a scene file cannot say so,
+// ImpactTransient::check, but the law takes any parameters): only the phase's fraction matters
+// to the sine, and Q16.16 keeps it, so the force is the double law's at the Q16.16 time. With a
+// saturated phase the sine would stop at sin(2 pi (1 - 2^-16)) and the force with it.
+TEST(ScalarAgreement, Q16ImpactPhasePastTheRangeKeepsItsFraction) {
+  using Law = ImpactTransient<Q16_16>;
+  Law::Params p{};
+  p.oscillation_gain_n_per_m = scalar_cast<Q16_16>(100.0);
+  p.duration_s = scalar_cast<Q16_16>(3.0);
+  p.frequency_hz = scalar_cast<Q16_16>(20000.0);
+  p.sine = SineMethod::kPolynomial;
+  Law::State s{};
+  ASSERT_TRUE(Law::fire(p, s, 0.5, Instant{0, 0}));  // v_i = 0.5 m/s from tick 0
+  TickInput<Q16_16> in{};
+  in.period_ns = 100'000;  // 10 kHz
+  const Contact<Q16_16> outside{scalar_cast<Q16_16>(-0.01), Q16_16{}};
+  double largest = 0.0;
+  for (std::int64_t k = 20'000; k < 20'050; ++k) {  // t = 2 s on: f t from 40,000 turns
+    in.now = Instant{k, 0};
+    const double t = to_double(Q16_16::from_ratio(k * in.period_ns, 1'000'000'000));
+    const double want = 0.5 * (3.0 - t) * 100.0 * std::sin(2.0 * M_PI * std::fmod(20000.0 * t, 1.0));
+    // The phase rounds by 2^-17 turns: the sine by 4.8e-5, times 0.5 (3 - t) 100 <= 50 N.
+    EXPECT_NEAR(to_double(Law::force(p, s, outside, in).force_n), want, 0.01) << "t = " << t;
+    largest = std::max(largest, std::abs(want));
+  }
+  EXPECT_GT(largest, 20.0);  // the sine really swings
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
 // Along +x across the cliff's gap [0, 0.02] at constant speed, 1 mm into the ground, at
 // positions that stay 0.1 mm clear of the strip edges on every tick.
 Motion crossing(double speed) {

@@ -370,21 +370,15 @@ class Fixed {
     const Wide q = detail::div_round(magnitude, den);  // magnitude + den / 2 < 2^63: both < 2^62
     return from_wide(scaled < 0 ? -q : q);
   }
-  /// `ns` nanoseconds in seconds, exactly as from_ratio(ns, 1e9) rounds and saturates it, by the
-  /// reciprocal of 1e9 prepared at compile time (detail::Divisor): a multiplication and two
-  /// corrections where from_ratio's 64/32 division took about 50 instructions of the tick's
-  /// bound (issue 29: an impact transient's time since its trigger, every tick it runs).
-  static constexpr Fixed from_ns(std::int64_t ns) noexcept {
+  /// `ns` nanoseconds in seconds, as from_ratio(ns, 1e9) rounds it, for a time whose value is
+  /// in range (below 2^(31 - FracBits) s; the caller knows it: an impact's time since its
+  /// trigger, tested against its duration first): by the reciprocal of 1e9 prepared at compile
+  /// time (detail::Divisor), a multiplication and two corrections, where from_ratio's 64/32
+  /// division took about 50 instructions of the tick's bound and the limits and the sign 20
+  /// more (issue 29).
+  static constexpr Fixed from_ns_in_range(std::uint64_t ns) noexcept {
     constexpr detail::Divisor kSecond = detail::divisor_of(1'000'000'000);
-    constexpr Wide kLimit = Wide{1} << (62 - FracBits);  // ns * 2^FracBits stays within 2^62
-    if (ns >= kLimit) return saturated(true);
-    if (ns <= -kLimit) return saturated(false);
-    const Wide scaled = ns * kOneRaw;
-    const auto magnitude = static_cast<std::uint64_t>(scaled < 0 ? -scaled : scaled);
-    // floor((m + 1e9 / 2) / 1e9), or 2^32 past 32 bits: from_wide saturates both ways as
-    // from_ratio's quotient would.
-    const auto q = static_cast<Wide>(detail::div_round_by(magnitude, kSecond));
-    return from_wide(scaled < 0 ? -q : q);
+    return from_raw(static_cast<Raw>(detail::div_round_by(ns << FracBits, kSecond)));
   }
   /// This value (a rate, per second) times `ns` nanoseconds: rounded toward zero, so a limit
   /// it sizes is never exceeded, and saturating with the flag. `ns` >= 0, any size: whole
