@@ -299,6 +299,31 @@ TYPED_TEST(ServoEnergy, PassivityDampingIsTheExcessOverTheSpeedSquaredCappedTwic
   }
 }
 
+// Q16.16: the damping's force is capped at PassivityController::kMaxFixedForceN whatever
+// max_force says, which is what lets its products skip the saturation test (each component at
+// most alpha |v| <= that cap plus 2^-2 N). At the format's corner (32 kHz, a whole joule over
+// budget, 1 m/s, max_damping and max_force 30,000): 16,384 N against -v, nothing saturated.
+TEST(ServoEnergyQ16, PassivityDampingStopsAtItsFixedPointForceCap) {
+  using Q = Q16_16;
+  using Controller = PassivityController<Q, 1>;
+  PassivityConfig config;
+  config.budget_j = 0.001;
+  config.max_damping_n_s_per_m = 30000.0;
+  Controller controller(config, 30000.0);
+  const Q rate = scalar_cast<Q>(32000.0);
+  const ActiveForce<Q> start{vec_cast<Q>(Vec3<double>{1.0, 0.0, 0.0}), true, true};
+  controller.update(&start, 1, Vec3<Q>{}, rate);
+  controller.account(vec_cast<Q>(Vec3<double>{2.0, 0.0, 0.0}), scalar_cast<Q>(1.0), 1);  // 2 J: X capped at 1 J
+  static_cast<void>(take_fixed_saturated());
+  const ActiveForce<Q> running{start.force_n, true, false};
+  const Vec3<double> damping =
+      to_double(controller.update(&running, 1, vec_cast<Q>(Vec3<double>{0.0, -1.0, 0.0}), rate));
+  EXPECT_NEAR(damping.y, Controller::kMaxFixedForceN, 0.25);
+  EXPECT_EQ(damping.x, 0.0);
+  EXPECT_EQ(damping.z, 0.0);
+  EXPECT_FALSE(take_fixed_saturated());
+}
+
 // ---- active effects -----------------------------------------------------------------------------
 
 TEST(ActiveEffects, SlotsAreTheForcesTheActiveEffectsAdded) {
