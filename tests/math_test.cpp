@@ -394,6 +394,24 @@ TEST(FixedMath, TimesInverseRootIsTheFractionRoundedDownWithinTwoToTheMinus26) {
   EXPECT_EQ(detail::times_inverse_root(1U, detail::inverse_root(3 * (std::uint64_t{1} << 62))), 1U);
 }
 
+TEST(FixedMath, OverRootIsTheQuotientRoundedWithinTwoToTheMinus26) {
+  // n 2^16 / sqrt(v), the friction's Coulomb gain mu_c N / max(|v_t|, v_reg) in Q16.16 raw
+  // units: the quotient through an inverse root never above it and within 2^-26, rounded half
+  // up, so within half a unit of a value in [q (1 - 2^-26), q] (rounded down instead, the
+  // lower bound fails).
+  std::mt19937_64 random(31);
+  for (const std::uint64_t v : inverse_root_values()) {
+    const long double root = std::sqrt(static_cast<long double>(v));
+    for (const std::uint64_t n64 : {std::uint64_t{1}, std::uint64_t{1} << 31, random() >> 33, random() >> 48}) {
+      const auto n = static_cast<std::uint32_t>(n64);
+      const std::uint64_t got = detail::over_root<16>(n, detail::inverse_root(v));
+      const long double exact = std::ldexp(static_cast<long double>(n), 16) / root;
+      ASSERT_LE(static_cast<long double>(got), exact + 0.5L) << n << " / sqrt(" << v << ")";
+      ASSERT_GE(static_cast<long double>(got), exact * (1.0L - 0x1p-26L) - 0.5L) << n << " / sqrt(" << v << ")";
+    }
+  }
+}
+
 TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
   // detail::div_u64 replaces the 64-bit division (a library call on a 32-bit core) in every
   // Q quotient: the same quotient whenever it fits 32 bits, 2^32 (saturating) when not. Values

@@ -3,6 +3,8 @@
 /// wall force (spec effects.md §2-3). Each takes the tangential velocity v_t = v - (n.v) n and
 /// the wall's normal force N of the same tick.
 
+#include <algorithm>
+
 #include "toonforce/effects/tick.hpp"
 
 namespace toonforce {
@@ -54,9 +56,28 @@ struct RealisticFriction {
 
   static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
                                  S normal_force_n) noexcept {
-    const S speed = max(norm(tangential_velocity), p.regularization_speed_m_per_s);
-    const S coulomb_gain = p.coulomb * normal_force_n / speed;  // [N s/m]
-    return tangential_velocity * (p.viscous_n_s_per_m - coulomb_gain);
+    if constexpr (kIsFixed<S>) {
+      // mu_c N / max(|v_t|, v_reg) from the inverse root of the larger exact square: no root
+      // and no division (issue 29: they were about 140 instructions and four UDIVs of the
+      // Cortex-M3 tick's bound), and no rounding of the speed (v_reg = 0.02 m/s is 1,311 LSB:
+      // a rounded speed was 4e-4 off, the gain now within 2^-26 and half an LSB).
+      const S push = p.coulomb * normal_force_n;  // [N], >= 0 in a scene file: mu_c >= 0, N >= 0
+      const std::uint64_t squares =
+          std::max(detail::raw_squares(tangential_velocity), detail::raw_square(p.regularization_speed_m_per_s));
+      S coulomb_gain{};  // [N s/m]; with v_t = 0 (and a v_reg of 0, which a file cannot give) any gain gives 0
+      if (squares != 0) {
+        const auto magnitude = static_cast<std::uint32_t>(push.raw() < 0 ? 0U - static_cast<std::uint32_t>(push.raw())
+                                                                         : static_cast<std::uint32_t>(push.raw()));
+        const auto gain = static_cast<typename S::Wide>(
+            detail::over_root<S::kFracBits>(magnitude, detail::inverse_root(squares)));
+        coulomb_gain = S::from_wide(push.raw() < 0 ? -gain : gain);
+      }
+      return tangential_velocity * (p.viscous_n_s_per_m - coulomb_gain);
+    } else {
+      const S speed = max(norm(tangential_velocity), p.regularization_speed_m_per_s);
+      const S coulomb_gain = p.coulomb * normal_force_n / speed;  // [N s/m]
+      return tangential_velocity * (p.viscous_n_s_per_m - coulomb_gain);
+    }
   }
 };
 

@@ -792,6 +792,18 @@ constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexc
   if ((down == 0 ? p_high : p_high >> down) != 0) return 0xFFFF'FFFFU;
   return down == 0 ? p_low : (p_low >> down) | (p_high << (32 - down));
 }
+/// n 2^F / sqrt(v) rounded to nearest (half up), for n <= 2^31 and v > 0: n / |x| as a raw
+/// value of a Q format with F fraction bits, when n is a raw value and v is |x|^2 in raw units
+/// (a gain over a speed: the friction's mu_c N / |v_t|), from v's inverse root r: n y 2^(shift
+/// + F - 62). Below 2^48; from_wide saturates what passes the format's range. Within one unit
+/// and 2^-26 of the quotient (the inverse root's error).
+template <int F>
+constexpr std::uint64_t over_root(std::uint32_t n, InverseRoot r) noexcept {
+  static_assert(F >= 1 && F <= 30);
+  const std::uint64_t p = std::uint64_t{n} * r.y;  // <= 2^62
+  const int down = 62 - F - r.shift;               // 31 - F .. 62 - F, >= 1
+  return ((p >> (down - 1)) + 1) >> 1;
+}
 }  // namespace detail
 
 /// Square root; a negative argument gives 0 and sets the saturation flag.
