@@ -35,6 +35,18 @@ TYPED_TEST(ServoEnergy, ThermalHeatingFollowsTheClosedFormOverMinutes) {
   }
 }
 
+// Q16.16: the update theta <- u + (theta - u) r^n skips the saturation tests because theta and
+// u are >= 0 (theta - u then cannot overflow), so a temperature set below ambient is taken as 0;
+// the model then heats from there as from cold.
+TEST(ServoEnergyQ16, ThermalTemperatureBelowAmbientIsTakenAsAmbient) {
+  using Q = Q16_16;
+  ThermalModel<Q> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
+  model.set_temperature(Wide<Q>::from_double(-1.0));
+  EXPECT_EQ(model.temperature().raw(), 0);
+  model.set_temperature(Wide<Q>::from_double(0.25));
+  EXPECT_EQ(model.temperature().to_double(), 0.25);
+}
+
 TYPED_TEST(ServoEnergy, ThermalCoolingOverSkippedTicksIsTheSameExponential) {
   ThermalModel<TypeParam> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
   model.set_temperature(Wide<TypeParam>::from_double(1.0));

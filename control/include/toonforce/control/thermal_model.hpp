@@ -53,6 +53,7 @@ class ThermalModel {
         inverse_continuous_n_(scalar_cast<S>(enabled_ ? 1.0 / config.continuous_force_n : 0.0)),
         derate_start_(scalar_cast<S>(config.derate_start)),
         derate_span_inverse_(scalar_cast<S>(1.0 / (1.0 - config.derate_start))),
+        derate_range_n_(max_force_n_ - continuous_force_n_),
         decay_per_tick_(Decay<S>::from_double(std::exp(-period_s / config.time_constant_s))) {
     if constexpr (kIsFixed<S>) {
       // r^n rounded once from the exact exponential (the first entry is decay_per_tick_).
@@ -68,7 +69,15 @@ class ThermalModel {
     if (!enabled_ || ticks <= 0) return;
     const Vec3<S> relative = held_force_n * inverse_continuous_n_;
     const Wide<S> target = Wide<S>::squared_norm(relative);  // u = (|F| / F_c)^2
-    temperature_ = target + (temperature_ - target) * decay_over(ticks, target);
+    if constexpr (kIsFixed<S>) {
+      // theta and u are >= 0, so theta - u is in range, and u + (theta - u) r^n with r^n in
+      // [0, 1] (rounded never past theta - u) lies between u and theta: the same values
+      // without the saturation tests (issue 29).
+      const Wide<S> difference = Wide<S>::from_raw(temperature_.raw() - target.raw());
+      temperature_ = Wide<S>::from_raw(target.raw() + (difference * decay_over(ticks, target)).raw());
+    } else {
+      temperature_ = target + (temperature_ - target) * decay_over(ticks, target);
+    }
   }
 
   /// The clamp the temperature allows now [N].
@@ -77,15 +86,32 @@ class ThermalModel {
     const S theta = temperature_.to_scalar();
     if (!(theta > derate_start_)) return max_force_n_;
     constexpr S kOne = scalar_cast<S>(1.0);
-    const S fraction = min(kOne, (theta - derate_start_) * derate_span_inverse_);
-    return max_force_n_ - (max_force_n_ - continuous_force_n_) * fraction;
+    if constexpr (kIsFixed<S>) {
+      // The same steps, only the one that can leave the range saturated (issue 29): theta >
+      // derate_start >= 0 (checked at configuration), so theta - derate_start is in range;
+      // the fraction is in [0, 1], so the drop is at most max - F_c and max minus it at least F_c.
+      const S above = S::from_raw(theta.raw() - derate_start_.raw());
+      const S fraction = min(kOne, above * derate_span_inverse_);
+      const S drop = S::from_product_in_range(typename S::Wide{derate_range_n_.raw()} * fraction.raw());
+      return S::from_raw(max_force_n_.raw() - drop.raw());
+    } else {
+      const S fraction = min(kOne, (theta - derate_start_) * derate_span_inverse_);
+      return max_force_n_ - (max_force_n_ - continuous_force_n_) * fraction;
+    }
   }
 
   constexpr bool enabled() const noexcept { return enabled_; }
   /// theta: 0 cold, 1 rated.
   constexpr Wide<S> temperature() const noexcept { return temperature_; }
   /// Starts from a known temperature (tests; a warm restart).
-  constexpr void set_temperature(Wide<S> theta) noexcept { temperature_ = theta; }
+  /// Below 0 (colder than ambient) it is taken as 0 in a Q format: advance() relies on theta >= 0.
+  constexpr void set_temperature(Wide<S> theta) noexcept {
+    if constexpr (kIsFixed<S>) {
+      temperature_ = theta.raw() < 0 ? Wide<S>{} : theta;
+    } else {
+      temperature_ = theta;
+    }
+  }
 
  /// Gaps [periods] whose r^n the fixed-point build tabulates: the supervisor's default
   /// watchdog (30) and a little more.
@@ -112,6 +138,7 @@ class ThermalModel {
   S inverse_continuous_n_;
   S derate_start_;
   S derate_span_inverse_;
+  S derate_range_n_;  ///< max_force - F_c [N] (> 0 when enabled)
   Decay<S> decay_per_tick_;
   [[no_unique_address]] GapTable decay_by_gap_{};
   Wide<S> temperature_{};
