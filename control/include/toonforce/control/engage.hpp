@@ -30,7 +30,8 @@ class Engage {
         period_s_(config.period_s),
         soft_start_ns_(ns_from_seconds(config.soft_start_s)),
         period_ns_(ns_from_seconds(config.period_s)),
-        ramp_step_(ramp_step_of(period_ns_, soft_start_ns_)) {}
+        ramp_step_(ramp_step_of(period_ns_, soft_start_ns_)),
+        ramp_ticks_(ramp_ticks_of(period_ns_, soft_start_ns_)) {}
 
   /// The gate opened again: wait for the scene force to be small before any force flows.
   void reset() noexcept { state_ = LoopState::kEngaging; }
@@ -50,17 +51,19 @@ class Engage {
     constexpr S kOne = scalar_cast<S>(1.0);
     if (state_ != LoopState::kRamping) return kOne;
     if constexpr (kIsFixed<S>) {  // integer nanoseconds, no floating point (control/clock.hpp)
-      const std::int64_t elapsed_ns = (k - ramp_start_) * period_ns_;
-      if (!(elapsed_ns < soft_start_ns_)) {
+      // (k - start) T < soft_start as a count of ticks (ramp_ticks_): no 64-bit product.
+      const std::int64_t ticks = k - ramp_start_;
+      if (!(ticks < ramp_ticks_)) {
         state_ = LoopState::kActive;
         return kOne;
       }
       // (k - start) T / soft_start as (k - start) times a 32-bit fraction per tick, rounded
       // once: no division on the tick (issue 29). The fraction is within 2^-33 of T /
       // soft_start, so the gain is within (k - start) 2^-17 LSB of the exact quotient (under
-      // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33.
-      const auto ticks = static_cast<std::uint64_t>(k - ramp_start_);
-      const auto ramp = static_cast<typename S::Raw>((ticks * ramp_step_ + (std::uint64_t{1} << (31 - S::kFracBits))) >>
+      // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33,
+      // and ticks < ramp_ticks_ <= 2^32 lets it be one 32x32 product.
+      const auto product = std::uint64_t{static_cast<std::uint32_t>(ticks)} * static_cast<std::uint32_t>(ramp_step_);
+      const auto ramp = static_cast<typename S::Raw>((product + (std::uint64_t{1} << (31 - S::kFracBits))) >>
                                                      (32 - S::kFracBits));
       // At most 1 (the loop scales by it without a saturation test, times_in_range): a ramp of
       // more than 2^16 ticks may round past it by the step's rounding.
@@ -90,6 +93,16 @@ class Engage {
     return ((t << 32) + d / 2) / d;
   }
 
+  /// The ticks of the ramp: the least n with n T >= soft_start (so (k - start) T < soft_start
+  /// is k - start < n exactly), at most 2^32 (a ramp of more periods, 49 days at 1 kHz, ends
+  /// there, at a gain of 2^32 T / soft_start). Start-up only.
+  static constexpr std::int64_t ramp_ticks_of(std::int64_t period_ns, std::int64_t soft_start_ns) noexcept {
+    if (soft_start_ns <= 0) return 0;
+    if (period_ns <= 0) return std::int64_t{1} << 32;
+    const std::int64_t n = soft_start_ns / period_ns + (soft_start_ns % period_ns != 0 ? 1 : 0);
+    return n < (std::int64_t{1} << 32) ? n : std::int64_t{1} << 32;
+  }
+
   void start(std::int64_t from) noexcept {
     state_ = LoopState::kRamping;
     ramp_start_ = from;
@@ -101,6 +114,7 @@ class Engage {
   std::int64_t soft_start_ns_;  ///< a fixed-point S's time: integer nanoseconds
   std::int64_t period_ns_;
   std::uint64_t ramp_step_;  ///< a fixed-point S's gain per tick: round(2^32 T / soft_start), below 2^32
+  std::int64_t ramp_ticks_;  ///< a fixed-point S's ramp in ticks (ramp_ticks_of)
   LoopState state_ = LoopState::kEngaging;
   std::int64_t ramp_start_ = 0;
 };
