@@ -293,7 +293,16 @@ class ServoLoop {
       o.limits = o.limits | Limit::kEngaging;
       return cut(o, -1);
     }
-    const Vec3<S> wanted = scene.force_n + o.damping_n;
+    // A Q scene without active parts has no damping, and 0 + f is f: the saturating add is an
+    // asm statement GCC cannot fold away, so it is not written (issue 29: 16 instructions of
+    // the bound). Floating point adds as it did (f + 0 turns -0 into the +0 traces print).
+    const Vec3<S> wanted = [&] {
+      if constexpr (kIsFixed<S> && kSlots == 0) {
+        return scene.force_n;
+      } else {
+        return scene.force_n + o.damping_n;
+      }
+    }();
     const auto limited = safety_.limit_step(times_in_range(wanted, o.gain), max_step_of(time));  // gain in [0, 1]
     o.force_n = limited.force_n;
     o.limits = static_cast<std::uint8_t>(o.limits | limited.limits);
@@ -349,8 +358,13 @@ class ServoLoop {
         // A fixed period: gap periods' step, no division in the tick (issue 29). Past the
         // largest gap that fits it saturates, with the flag, as the division did.
         if (time.gap == 1) return period_max_step_;
-        if (time.gap > max_step_gaps_) return S::from_wide(std::int64_t{std::numeric_limits<std::int32_t>::max()} + 1);
-        return S::from_wide(period_max_step_.raw() * time.gap);
+        if (time.gap > max_step_gaps_) {
+          return period_max_step_.raw() > 0 ? S::from_wide(std::int64_t{std::numeric_limits<std::int32_t>::max()} + 1)
+                                            : S{};  // a step of 0 (rate T below 2^-16 N) stays 0
+        }
+        // gap <= max_step_gaps_ = floor((2^31 - 1) / step): the product fits 32 bits, so it is
+        // one 32-bit multiply without a saturation test (issue 29: a 64-bit one was three).
+        return S::from_raw(period_max_step_.raw() * static_cast<typename S::Raw>(time.gap));
       }
       // Stamps: a dt of the configured period takes the step computed once.
       if (time.dt_ns == clock_.period_ns()) return period_max_step_;
@@ -364,7 +378,7 @@ class ServoLoop {
   static constexpr std::int64_t largest_step_gap(S period_step) noexcept {
     if constexpr (kIsFixed<S>) {
       return period_step.raw() > 0 ? std::numeric_limits<std::int32_t>::max() / period_step.raw()
-                                   : std::numeric_limits<std::int64_t>::max();
+                                   : std::numeric_limits<std::int32_t>::max();  // step >= 0 (rate > 0)
     } else {
       return 0;
     }
