@@ -66,14 +66,20 @@ struct CartoonCliff {
   static constexpr Vec3<S> force(const Params& p, State& s, const TickInput<S>& in) noexcept {
     const Vec3<S>& n = p.ground.normal;
     const Contact<S> c = p.ground.contact(in);
-    const S lateral_speed = norm(tangential_part(in.velocity_m_per_s, n));
+    const S lateral_speed = norm(tangential_part(in.velocity_m_per_s, n, c.normal_speed_m_per_s));
     // dt/(tau + dt) written with the rate 1/dt: 1 / (1 + tau/dt). In a Q format the gain is
     // that reciprocal (one 32-bit division: the denominator is at least 1) times the step,
     // rounded twice; no 64-bit division on the tick (issue 29).
     constexpr S kOne = scalar_cast<S>(1.0);
     if constexpr (kIsFixed<S>) {
-      s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) *
-                                  S::reciprocal_of_at_least_one(kOne + p.tau_s * in.rate_hz);
+      // Both speeds are >= 0 (a norm, and its filter from 0), so their difference is in range;
+      // a gain in (0, 1] keeps the step within it and the new value between the two: no
+      // saturation test but the gain's own (issue 29). The values are operator-'s, * and +'s.
+      const S gain = S::reciprocal_of_at_least_one(kOne + p.tau_s * in.rate_hz);
+      const typename S::Raw filtered = s.filtered_speed_m_per_s.raw();
+      const typename S::Raw difference = lateral_speed.raw() - filtered;
+      s.filtered_speed_m_per_s =
+          S::from_raw(filtered + S::from_product_in_range(typename S::Wide{difference} * gain.raw()).raw());
     } else {
       s.filtered_speed_m_per_s += (lateral_speed - s.filtered_speed_m_per_s) / (kOne + p.tau_s * in.rate_hz);
     }
@@ -88,10 +94,13 @@ struct CartoonCliff {
     }
 
     if (!s.fallen) return times_in_range(n, PenaltyWall<S>::normal_force(p.wall, c));  // unit n, push >= 0
-    if (in_strip) return n * (-p.fall_force_n);
+    // A unit vector times a force none of whose components can leave the range, so without the
+    // saturation test (times_in_range; issue 29): the fall force and a ledge's push are >= 0
+    // (scene files: fall_force >= 0, stiffness > 0), and either negated is never lowest().
+    if (in_strip) return times_in_range(n, -p.fall_force_n);
     if (c.penetration_m > S{}) {  // under a ledge: its side face pushes back toward the strip
-      if (across < p.gap_min_m) return p.axis * (p.wall.stiffness_n_per_m * (p.gap_min_m - across));
-      return p.axis * (-(p.wall.stiffness_n_per_m * (across - p.gap_max_m)));
+      if (across < p.gap_min_m) return times_in_range(p.axis, p.wall.stiffness_n_per_m * (p.gap_min_m - across));
+      return times_in_range(p.axis, -(p.wall.stiffness_n_per_m * (across - p.gap_max_m)));
     }
     return {};
   }

@@ -282,8 +282,9 @@ constexpr std::optional<Vec3<S>> scaled_if_above(const Vec3<S>& v, S limit) noex
 
 /// `v` times `k` where no product can leave the range: k a share in [0, 1] (the soft start's
 /// gain), or v a unit vector (each component in [-1, 1]: a plane's normal) and k >= 0 (a
-/// wall's push). Each product is then at most |c| or k in magnitude, so in a Q format it is
-/// rounded as operator* rounds it, without the saturation test (issue 29: three a vector).
+/// wall's push) or the negation of one (never lowest(), whose product with -1 would not fit).
+/// Each product is then at most |c| or |k| in magnitude, so in a Q format it is rounded as
+/// operator* rounds it, without the saturation test (issue 29: three a vector).
 template <Scalar S>
 constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
   if constexpr (kIsFixed<S>) {
@@ -301,10 +302,17 @@ constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
   return scaled_if_above(v, max_magnitude).value_or(v);
 }
 
-/// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n.
+/// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n, with n.v already known
+/// (a contact's normal speed: GCC cannot share a Q product between two calls, its saturation
+/// test being an asm statement, so a second dot product would be computed again).
+template <Scalar S>
+constexpr Vec3<S> tangential_part(const Vec3<S>& v, const Vec3<S>& n, S n_dot_v) noexcept {
+  return v - n * n_dot_v;
+}
+/// The same, computing n.v.
 template <Scalar S>
 constexpr Vec3<S> tangential_part(const Vec3<S>& v, const Vec3<S>& n) noexcept {
-  return v - n * dot_unit(n, v);
+  return tangential_part(v, n, dot_unit(n, v));
 }
 
 }  // namespace toonforce
