@@ -28,10 +28,8 @@ class Engage {
       : engage_force_squared_(squared_limit<S>(config.engage_force_n)),
         soft_start_s_(config.soft_start_s),
         period_s_(config.period_s),
-        soft_start_ns_(ns_from_seconds(config.soft_start_s)),
-        period_ns_(ns_from_seconds(config.period_s)),
-        ramp_step_(ramp_step_of(period_ns_, soft_start_ns_)),
-        ramp_ticks_(ramp_ticks_of(period_ns_, soft_start_ns_)) {}
+        ramp_step_(ramp_step_of(ns_from_seconds(config.period_s), ns_from_seconds(config.soft_start_s))),
+        ramp_ticks_(ramp_ticks_of(ns_from_seconds(config.period_s), ns_from_seconds(config.soft_start_s))) {}
 
   /// The gate opened again: wait for the scene force to be small before any force flows.
   void reset() noexcept { state_ = LoopState::kEngaging; }
@@ -111,8 +109,7 @@ class Engage {
   SquaredLimit<S> engage_force_squared_;  ///< [N^2]
   double soft_start_s_;
   double period_s_;
-  std::int64_t soft_start_ns_;  ///< a fixed-point S's time: integer nanoseconds
-  std::int64_t period_ns_;
+  // A fixed-point S's ramp, from the times in integer nanoseconds (control/clock.hpp).
   std::uint64_t ramp_step_;  ///< a fixed-point S's gain per tick: round(2^32 T / soft_start), below 2^32
   std::int64_t ramp_ticks_;  ///< a fixed-point S's ramp in ticks (ramp_ticks_of)
   LoopState state_ = LoopState::kEngaging;
