@@ -170,7 +170,7 @@ class PassivityController {
         // is rounded, so neither saturates: a force X rate / |v| past the format's range is past
         // max_force, and then alpha is alpha_cap.
         const std::int64_t force = raw_product(power, inverse_speed);
-        alpha = force >= raw_product(S::max(), kOne) ? alpha_cap
+        alpha = force >= scaled_up(S::max()) ? alpha_cap
                                                        : at_most(raw_product(rounded(force), inverse_speed), alpha_cap);
       } else {  // as it was (the figures' double runs unchanged)
         const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
@@ -243,11 +243,20 @@ class PassivityController {
   // max() 2^F rounded to S (no saturation test: it cannot saturate); min(p, cap) rounded, for
   // a cap >= 0, compared before the rounding, so it never saturates either.
   static constexpr S kOne = scalar_cast<S>(1.0);
-  static constexpr std::int64_t raw_product(S a, S b) noexcept { return std::int64_t{a.raw()} * b.raw(); }
+  static constexpr std::int64_t raw_product(S a, S b) noexcept {
+    auto x = a.raw();
+    auto y = b.raw();
+    // GCC 12 keeps an operand that came from a 64-bit value (a rounded product) as that value
+    // and multiplies all 64 bits (two MLAs and a UMULL for one SMULL); an empty asm that may
+    // change the registers leaves it only the 32-bit words.
+    if (!std::is_constant_evaluated()) asm("" : "+r"(x), "+r"(y));
+    return std::int64_t{x} * y;
+  }
+  static constexpr std::int64_t scaled_up(S cap) noexcept { return std::int64_t{cap.raw()} * kOne.raw(); }
   static constexpr S rounded(std::int64_t p) noexcept {
     return S::from_raw(static_cast<typename S::Raw>((p + (std::int64_t{1} << (S::kFracBits - 1))) >> S::kFracBits));
   }
-  static constexpr S at_most(std::int64_t p, S cap) noexcept { return p >= raw_product(cap, kOne) ? cap : rounded(p); }
+  static constexpr S at_most(std::int64_t p, S cap) noexcept { return p >= scaled_up(cap) ? cap : rounded(p); }
   // -alpha v, each product rounded as operator* rounds it (half away from zero, so the sign
   // can go on the result) without the saturation test (issue 29: three of the bound's):
   // alpha <= max_force / |v| rounded up by at most 2^-17 N s/m (alpha_cap), so |alpha v_i| <=
