@@ -288,6 +288,27 @@ TEST(ForceSafety, Q16ClampHoldsWhenTheForcesNormIsBeyondTheQ16Range) {
   EXPECT_LE(std::sqrt(dot(h, h)), 3.0 + 2 * kLsb);
 }
 
+TEST(ForceSafety, Q16RateLimitStepsTowardARequestBeyondTheRange) {
+  // From -20000 N to +30000 N on x (and back on y) the difference, 50000 N, is past the Q16.16
+  // range and saturates; the step is scaled from it and added to the previous output without
+  // a saturation test (plus_in_range): it must still land between the two, the limit's size
+  // along the difference's direction.
+  ForceLimits rate_only;
+  rate_only.has_max_force_rate = true;
+  rate_only.max_force_rate_n_per_s = 1.0;  // any: the step is given
+  ForceSafety<Q16_16> safety(rate_only);
+  const Vec3<Q16_16> from = vec_cast<Q16_16>(Vec3<double>{-20000.0, 20000.0, 0.0});
+  ASSERT_EQ(safety.limit_step(from, scalar_cast<Q16_16>(30000.0)).limits, 0);  // 28284 N: not limited
+  const auto out = safety.limit_step(vec_cast<Q16_16>(Vec3<double>{30000.0, -30000.0, 0.0}), scalar_cast<Q16_16>(20000.0));
+  EXPECT_TRUE(has(out.limits, Limit::kRateLimited));
+  const Vec3<double> f = to_double(out.force_n);
+  const double step = 20000.0 / std::sqrt(2.0);
+  EXPECT_NEAR(f.x, -20000.0 + step, 0.01);
+  EXPECT_NEAR(f.y, 20000.0 - step, 0.01);
+  EXPECT_EQ(f.z, 0.0);
+  EXPECT_EQ(out.force_n, safety.previous_output());
+}
+
 TEST(ForceSafety, Q16LimitsCompareTheSquaresExactly) {
   // The limits compared Q16.16 squares, rounded to 2^-16: a 0.02 N step's square is 26 LSB, so
   // steps up to 6 LSB (0.5 %) over a 0.02 N rate limit passed unlimited, and up to 38 % over a

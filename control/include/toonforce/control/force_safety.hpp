@@ -56,7 +56,7 @@ class ForceSafety {
     if constexpr (kIsFixed<S>) {  // exactly, in 64 bits, and no root (scaled_if_above says why)
       if (has_max_force_rate_) {
         if (const auto step = scaled_if_above(out.force_n - previous_n_, max_step)) {
-          out.force_n = previous_n_ + *step;
+          out.force_n = plus_in_range(previous_n_, *step);  // a scaled-down step toward the force
           out.limits = out.limits | Limit::kRateLimited;
         }
       }

@@ -296,6 +296,20 @@ constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
   }
 }
 
+/// a + b where no component can leave the range: b a step from a toward some c in range,
+/// scaled down (each b_i of c_i - a_i's sign and at most its magnitude; c - a itself may have
+/// saturated, toward the true difference), so a_i + b_i lies between a_i and c_i. In a Q
+/// format the raw values add without the saturation test (issue 29: three a vector).
+template <Scalar S>
+constexpr Vec3<S> plus_in_range(const Vec3<S>& a, const Vec3<S>& b) noexcept {
+  if constexpr (kIsFixed<S>) {
+    const auto plus = [](S p, S q) { return S::from_raw(static_cast<typename S::Raw>(p.raw() + q.raw())); };
+    return {plus(a.x, b.x), plus(a.y, b.y), plus(a.z, b.z)};
+  } else {
+    return a + b;
+  }
+}
+
 /// `v` scaled down, direction kept, so that its magnitude is at most `max_magnitude` (>= 0).
 template <Scalar S>
 constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
