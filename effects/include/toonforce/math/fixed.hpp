@@ -783,6 +783,10 @@ constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
 /// units of 2^-32 when v is |x|^2 in raw units; 1 / |x| in Q16.16 for n = 1), from its inverse
 /// root r: n y 2^(shift - 30), capped at 2^32 - 1.
 constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexcept {
+  // GCC 12 sees an n cast from a signed raw value as that value and multiplies its sign word
+  // too (always 0 here: a MOV and an MLA per call); an empty asm that may change the register
+  // hides where it came from (not for a constant n, which it multiplies by folding).
+  if (!std::is_constant_evaluated() && !__builtin_constant_p(n)) asm("" : "+r"(n));
   const std::uint64_t p = std::uint64_t{n} * r.y;  // < 2^62
   const auto p_high = static_cast<std::uint32_t>(p >> 32);
   const auto p_low = static_cast<std::uint32_t>(p);
