@@ -30,11 +30,12 @@ class VelocityEstimator {
       // The same filter as v (1 - a) + dx (rate a): per component two raw products summed
       // exactly and rounded once, where the form below rounds and saturates five times (issue
       // 29: a third of the operations). dx saturates as before; |dx rate a| <= 2^62 since
-      // rate a <= rate, and |v (1 - a)| < 2^47, so the sum stays in 64 bits.
+      // rate a <= rate, and |v (1 - a)| < 2^47, so the sum stays in 64 bits. With a in (0, 1]
+      // (gain()), 1 - a is in [0, 1) and |rate a| <= |rate|: neither needs the saturation test.
       using W = typename S::Wide;
       constexpr S kOne = scalar_cast<S>(1.0);
-      const S keep = kOne - a;
-      const S gain = rate_hz * a;
+      const S keep = S::from_raw(kOne.raw() - a.raw());
+      const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
       const Vec3<S> dx = position_m - previous_m_;
       const auto filtered = [keep, gain](S d, S v) {
         return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw());
