@@ -246,10 +246,7 @@ class PassivityController {
   static constexpr std::int64_t raw_product(S a, S b) noexcept {
     auto x = a.raw();
     auto y = b.raw();
-    // GCC 12 keeps an operand that came from a 64-bit value (a rounded product) as that value
-    // and multiplies all 64 bits (two MLAs and a UMULL for one SMULL); an empty asm that may
-    // change the registers leaves it only the 32-bit words.
-    if (!std::is_constant_evaluated()) asm("" : "+r"(x), "+r"(y));
+    detail::make_opaque(x, y);  // from rounded 64-bit products: one SMULL, not two MLAs and a UMULL
     return std::int64_t{x} * y;
   }
   static constexpr std::int64_t scaled_up(S cap) noexcept { return std::int64_t{cap.raw()} * kOne.raw(); }

@@ -43,6 +43,23 @@ namespace toonforce {
 #endif
 
 namespace detail {
+/// Leaves `word` (or the two operands of one product) as it is, with where it came from hidden
+/// from the optimiser. GCC 12 keeps a 32-bit operand that it knows came from a wider value (a
+/// 64-bit quotient or product, a sign-extended raw value) as that value and multiplies its high
+/// word too, always 0 or a copy of the sign there (an MLA, or a MOV and an MLA, per product on
+/// a 32-bit core); an empty asm that may change the register leaves it only the word. The
+/// tick's static bound counts each of those (issue 29). Two operands go through one asm: two
+/// separate ones changed what GCC keeps in registers around them (the slippery surface's bound
+/// +119 cycles).
+template <typename Word>
+[[gnu::always_inline]] constexpr void make_opaque(Word& word) noexcept {
+  if (!std::is_constant_evaluated()) asm("" : "+r"(word));
+}
+template <typename A, typename B>
+[[gnu::always_inline]] constexpr void make_opaque(A& a, B& b) noexcept {
+  if (!std::is_constant_evaluated()) asm("" : "+r"(a), "+r"(b));
+}
+
 // The flag's three operations, on whichever storage the target has. `raise_saturation_flag`
 // takes the saturated value, which sets the Q bit (below) and is ignored elsewhere.
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
@@ -783,10 +800,7 @@ constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
 /// units of 2^-32 when v is |x|^2 in raw units; 1 / |x| in Q16.16 for n = 1), from its inverse
 /// root r: n y 2^(shift - 30), capped at 2^32 - 1.
 constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexcept {
-  // GCC 12 sees an n cast from a signed raw value as that value and multiplies its sign word
-  // too (always 0 here: a MOV and an MLA per call); an empty asm that may change the register
-  // hides where it came from (not for a constant n, which it multiplies by folding).
-  if (!std::is_constant_evaluated() && !__builtin_constant_p(n)) asm("" : "+r"(n));
+  make_opaque(n);  // cast from a signed raw value: GCC would multiply its sign word too
   const std::uint64_t p = std::uint64_t{n} * r.y;  // < 2^62
   const auto p_high = static_cast<std::uint32_t>(p >> 32);
   const auto p_low = static_cast<std::uint32_t>(p);

@@ -216,10 +216,7 @@ namespace detail {
 template <Scalar S>
 constexpr Vec3<S> scaled_by_fraction(const Vec3<S>& v, std::uint32_t factor) noexcept {
   using Raw = typename S::Raw;
-  // GCC 12 sees a factor capped from a 64-bit quotient as that quotient and multiplies each
-  // component by its high word too (always 0: an MLA per component on a Cortex-M3); an empty
-  // asm that may change the register hides where it came from.
-  if (!std::is_constant_evaluated()) asm("" : "+r"(factor));
+  make_opaque(factor);  // capped from a 64-bit quotient: GCC would multiply its high word too
   const auto scale = [factor](S c) {
     const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
     const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
