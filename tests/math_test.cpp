@@ -636,6 +636,32 @@ TEST(Vec3Fixed, TimesInRangeIsTheProductWhereItCannotSaturate) {
   }
 }
 
+TEST(Vec3Fixed, TimesUnitIsTheProductForAnyPushButTheLowest) {
+  // A unit vector's components times any push, negative ones too (an impact's recoil): the
+  // value operator* gives and no flag; a push of lowest() is taken as -max(), so a component
+  // of -1 gives max() (operator* saturates there) and one of +1 gives -max().
+  std::mt19937_64 rng(36);
+  std::uniform_int_distribution<std::int32_t> any(INT32_MIN + 1, INT32_MAX);
+  std::uniform_int_distribution<std::int32_t> unit(-65536, 65536);
+  std::vector<std::pair<Vec3<Q>, Q>> cases = {
+      {{Q::from_raw(-65536), Q::from_raw(65536), Q{}}, Q::from_raw(INT32_MIN + 1)},
+      {{Q::from_raw(-65536), Q::from_raw(65536), Q::from_raw(-1)}, Q::max()},
+      {{Q::from_raw(-65535), Q::from_raw(3), Q::from_raw(-3)}, Q::from_raw(-32768)}};
+  for (int i = 0; i < 200000; ++i) {
+    cases.push_back({{Q::from_raw(unit(rng)), Q::from_raw(unit(rng)), Q::from_raw(unit(rng))}, Q::from_raw(any(rng))});
+  }
+  for (const auto& [v, k] : cases) {
+    static_cast<void>(take_fixed_saturated());
+    ASSERT_EQ(times_unit(v, k), v * k) << v.x.raw() << " " << v.y.raw() << " " << v.z.raw() << " times " << k.raw();
+    ASSERT_FALSE(take_fixed_saturated());
+  }
+  const Vec3<Q> axes{Q::from_raw(-65536), Q::from_raw(65536), Q::from_raw(32768)};
+  EXPECT_EQ(times_unit(axes, Q::lowest()), (Vec3<Q>{Q::max(), -Q::max(), Q::from_raw(-(INT32_MAX / 2 + 1))}));
+  EXPECT_FALSE(take_fixed_saturated());
+  // Floating point multiplies, the lowest double too.
+  EXPECT_EQ(times_unit(Vec3<double>{-1.0, 1.0, 0.5}, -3.0), (Vec3<double>{3.0, -3.0, -1.5}));
+}
+
 TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {
   // A plane's contact and a tangential part take n.v and n.(x - p) with a unit n: the same
   // value as dot(), and for n.(x - p) the exact one even where a component of x - p saturates.

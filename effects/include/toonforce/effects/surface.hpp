@@ -121,10 +121,10 @@ struct Surface {
     if constexpr (Impact::kPresent) {
       const ImpactOutput<S> impact = Impact::force(p.impact, s.impact, c, in);
       along_normal += impact.force_n;
-      if (impact_configured(p.impact)) *next_slot = {p.plane.normal * impact.force_n, impact.running, impact.triggered};
+      if (impact_configured(p.impact)) *next_slot = {times_unit(p.plane.normal, impact.force_n), impact.running, impact.triggered};
     }
-    // Without an impact the push is the wall's, >= 0: a unit normal times it cannot saturate.
-    Vec3<S> f = Impact::kPresent ? p.plane.normal * along_normal : times_in_range(p.plane.normal, along_normal);
+    // A unit normal times a push: without an impact the wall's, >= 0, which cannot saturate.
+    Vec3<S> f = Impact::kPresent ? times_unit(p.plane.normal, along_normal) : times_in_range(p.plane.normal, along_normal);
     if constexpr (Tangential::kPresent) {
       const bool touching = c.penetration_m > S{};
       Vec3<S> tangential{};

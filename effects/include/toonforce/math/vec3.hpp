@@ -293,6 +293,20 @@ constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
   }
 }
 
+/// A unit vector `unit` (each component in [-1, 1]: a plane's normal) times any `k`, in a Q
+/// format without the saturation test (issue 29: three a vector): k = lowest() is taken as
+/// -max() first, the one k whose product with a component of -1 would not fit. That changes
+/// a product by at most one raw unit, and only for a k at the end of the range (a force that
+/// saturated, or exactly -32,768 N in Q16.16). Floating point multiplies.
+template <Scalar S>
+constexpr Vec3<S> times_unit(const Vec3<S>& unit, S k) noexcept {
+  if constexpr (kIsFixed<S>) {
+    return times_in_range(unit, max(k, -S::max()));
+  } else {
+    return unit * k;
+  }
+}
+
 /// a + b where no component can leave the range: b a step from a toward some c in range,
 /// scaled down (each b_i of c_i - a_i's sign and at most its magnitude; c - a itself may have
 /// saturated, toward the true difference), so a_i + b_i lies between a_i and c_i. In a Q
