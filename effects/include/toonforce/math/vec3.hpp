@@ -329,10 +329,11 @@ constexpr Vec3<S> limit_magnitude(const Vec3<S>& v, S max_magnitude) noexcept {
 
 /// The part of `v` perpendicular to the unit vector `n`: v - (n.v) n, with n.v already known
 /// (a contact's normal speed: GCC cannot share a Q product between two calls, its saturation
-/// test being an asm statement, so a second dot product would be computed again).
+/// test being an asm statement, so a second dot product would be computed again). (n.v) n is
+/// times_unit's: a Q format skips the products' saturation tests.
 template <Scalar S>
 constexpr Vec3<S> tangential_part(const Vec3<S>& v, const Vec3<S>& n, S n_dot_v) noexcept {
-  return v - n * n_dot_v;
+  return v - times_unit(n, n_dot_v);
 }
 /// The same, computing n.v.
 template <Scalar S>
