@@ -25,11 +25,7 @@ template <Scalar S>
 class Engage {
  public:
   constexpr explicit Engage(const EngageConfig& config) noexcept
-      : engage_force_squared_(squared_limit<S>(config.engage_force_n)),
-        soft_start_s_(config.soft_start_s),
-        period_s_(config.period_s),
-        ramp_step_(ramp_step_of(ns_from_seconds(config.period_s), ns_from_seconds(config.soft_start_s))),
-        ramp_ticks_(ramp_ticks_of(ns_from_seconds(config.period_s), ns_from_seconds(config.soft_start_s))) {}
+      : Engage(config, ns_from_seconds(config.period_s), ns_from_seconds(config.soft_start_s)) {}
 
   /// The gate opened again: wait for the scene force to be small before any force flows.
   void reset() noexcept { state_ = LoopState::kEngaging; }
@@ -81,6 +77,14 @@ class Engage {
   LoopState state() const noexcept { return state_; }
 
  private:
+  /// The period and the soft start in integer nanoseconds, converted once.
+  constexpr Engage(const EngageConfig& config, std::int64_t period_ns, std::int64_t soft_start_ns) noexcept
+      : engage_force_squared_(squared_limit<S>(config.engage_force_n)),
+        soft_start_s_(config.soft_start_s),
+        period_s_(config.period_s),
+        ramp_step_(ramp_step_of(period_ns, soft_start_ns)),
+        ramp_ticks_(ramp_ticks_of(period_ns, soft_start_ns)) {}
+
   /// round(2^32 T / soft_start) when T < soft_start (a ramp of more than one tick; one of one
   /// tick or none never reaches the product). Start-up only: one 64-bit division.
   static constexpr std::uint64_t ramp_step_of(std::int64_t period_ns, std::int64_t soft_start_ns) noexcept {
