@@ -658,7 +658,7 @@ TEST(Vec3Fixed, TimesUnitIsTheProductForAnyPushButTheLowest) {
   const Vec3<Q> axes{Q::from_raw(-65536), Q::from_raw(65536), Q::from_raw(32768)};
   EXPECT_EQ(times_unit(axes, Q::lowest()), (Vec3<Q>{Q::max(), -Q::max(), Q::from_raw(-(INT32_MAX / 2 + 1))}));
   EXPECT_FALSE(take_fixed_saturated());
-  // Floating point multiplies, the lowest double too.
+  // Floating point multiplies.
   EXPECT_EQ(times_unit(Vec3<double>{-1.0, 1.0, 0.5}, -3.0), (Vec3<double>{3.0, -3.0, -1.5}));
 }
 
