@@ -133,7 +133,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
 endforeach()
 add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_table.py
   --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
-set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu)
+set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
 
 # No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table, for
