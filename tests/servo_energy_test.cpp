@@ -47,6 +47,39 @@ TEST(ServoEnergyQ16, ThermalTemperatureBelowAmbientIsTakenAsAmbient) {
   EXPECT_EQ(model.temperature().to_double(), 0.25);
 }
 
+// Q16.16: the heating u = |F|^2 / F_c^2 from the exact squares of the force and 1/F_c^2 held to
+// 32 bits, so a gap past the table (heating: all the way to u) lands on u within a few 2^-32 of
+// it, for a continuous force below 1 N (1/F_c^2 shifted up) and above it. Scaling each component
+// by a Q16.16 1/F_c first was off by up to a few 10^-5 of u.
+TEST(ServoEnergyQ16, ThermalHeatingTargetIsTheSquaredForceRatio) {
+  using Q = Q16_16;
+  for (const double continuous_n : {0.88, 3.0, 7.3, 100.0}) {
+    for (const Vec3<double> force : {Vec3<double>{0.0, 0.0, 0.7}, Vec3<double>{2.5, -1.25, 0.5}, Vec3<double>{-150.0, 40.0, 3.0}}) {
+      ThermalModel<Q> model(ThermalConfig{continuous_n, 30.0, 0.8}, kPeriodS, 1000.0);
+      const Vec3<Q> held = vec_cast<Q>(force);
+      model.advance(held, ThermalModel<Q>::kTabulatedGaps + 1);
+      const Vec3<double> exact = to_double(held);
+      const double u = dot(exact, exact) / (continuous_n * continuous_n);
+      EXPECT_NEAR(model.temperature().to_double(), u, u * 0x1p-30 + 0x1p-31) << continuous_n << " N, |F| " << norm(exact);
+    }
+  }
+}
+
+// Q16.16: a force so far past F_c that u leaves Q32.32's range heats to the largest temperature,
+// with the saturation flag, and derates to F_c; within the range, no flag.
+TEST(ServoEnergyQ16, ThermalHeatingPastTheRangeSaturatesWithTheFlag) {
+  using Q = Q16_16;
+  ThermalModel<Q> model(ThermalConfig{0.001, 30.0, 0.8}, kPeriodS, 8.0);
+  static_cast<void>(take_fixed_saturated());
+  model.advance(vec_cast<Q>({0.0, 30.0, 0.0}), 1);  // u = 9e8 < 2^31
+  EXPECT_FALSE(take_fixed_saturated());
+  EXPECT_NEAR(model.temperature().to_double(), 9e8 * (1.0 - std::exp(-kPeriodS / 30.0)), 1.0);
+  model.advance(vec_cast<Q>({0.0, 0.0, 50.0}), ThermalModel<Q>::kTabulatedGaps + 1);  // u = 2.5e9 > 2^31
+  EXPECT_TRUE(take_fixed_saturated());
+  EXPECT_EQ(model.temperature().raw(), std::numeric_limits<std::int64_t>::max());
+  EXPECT_EQ(model.allowed_force(), vec_cast<Q>({0.001, 0.0, 0.0}).x);
+}
+
 TYPED_TEST(ServoEnergy, ThermalCoolingOverSkippedTicksIsTheSameExponential) {
   ThermalModel<TypeParam> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
   model.set_temperature(Wide<TypeParam>::from_double(1.0));
@@ -98,12 +131,16 @@ TYPED_TEST(ServoEnergy, ThermalOverALongGapNeverUnderestimatesTheTemperature) {
   }
 }
 
+// Q16.16 within two units of the last place (from theta in Q32.32, the slope floored), and
+// never below F_c.
 TYPED_TEST(ServoEnergy, DeratingIsLinearFromDerateStartToTheContinuousForce) {
   ThermalModel<TypeParam> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
-  const double tol = kIsFixed<TypeParam> ? 1e-3 : 1e-12;
-  for (const auto& [theta, allowed] : {std::pair{0.0, 8.0}, {0.5, 8.0}, {0.8, 8.0}, {0.9, 6.0}, {1.0, 4.0}, {2.0, 4.0}}) {
+  const double tol = kIsFixed<TypeParam> ? 0x1p-15 : 1e-12;
+  for (const auto& [theta, allowed] :
+       {std::pair{0.0, 8.0}, {0.5, 8.0}, {0.8, 8.0}, {0.83, 7.4}, {0.9, 6.0}, {0.97, 4.6}, {0.99999, 4.0002}, {1.0, 4.0}, {2.0, 4.0}}) {
     model.set_temperature(Wide<TypeParam>::from_double(theta));
     EXPECT_NEAR(to_double(model.allowed_force()), allowed, tol) << theta;
+    EXPECT_GE(to_double(model.allowed_force()), 4.0) << theta;
   }
 }
 
