@@ -152,44 +152,46 @@ class ThermalModel {
     std::uint64_t half = 0;      ///< 2^(right - 1), 0 without a right shift: its rounding
     std::uint64_t limit = 0;     ///< the largest squares whose u a Wide holds (past it: saturated)
 
-    static constexpr HeatScale of(double continuous_force_n) noexcept
-      requires(kIsFixed<S>)
-    {
+    static constexpr HeatScale of([[maybe_unused]] double continuous_force_n) noexcept {
       HeatScale h;
-      double m = 1.0 / (continuous_force_n * continuous_force_n);  // then into [1/2, 1)
-      double top = 0x1p63;  // 2^(63 - left): the Wide's range before the shift up
-      while (m >= 1.0 && h.left < 62) {  // 32 halvings at most for a Q16.16 F_c (>= 2^-16 N)
-        m *= 0.5;
-        top *= 0.5;
-        ++h.left;
+      if constexpr (kIsFixed<S>) {  // (a body clang can check for a floating-point S too)
+        double m = 1.0 / (continuous_force_n * continuous_force_n);  // then into [1/2, 1)
+        double top = 0x1p63;  // 2^(63 - left): the Wide's range before the shift up
+        while (m >= 1.0 && h.left < 62) {  // 32 halvings at most for a Q16.16 F_c (>= 2^-16 N)
+          m *= 0.5;
+          top *= 0.5;
+          ++h.left;
+        }
+        while (m < 0.5 && h.right < 62) {  // 31 at most for a Q16.16 F_c (< 2^15 N)
+          m *= 2.0;
+          ++h.right;
+        }
+        const double q = m * 0x1p32;  // in [2^31, 2^32) but for an F_c no Q16.16 value has
+        h.mantissa = q >= 0xFFFF'FFFFp0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(q + 0.5);
+        h.half = h.right > 0 ? std::uint64_t{1} << (h.right - 1) : 0U;
+        // squares m < 2^(63 - left) keeps the product, rounded and shifted up, within the Wide's
+        // range, and squares < 2^63 the product's high part; 2^-20 of margin for q's rounding and
+        // the double's (u saturates at 2^31 (1 - 2^-20) at the earliest).
+        const double fits = (top / m < 0x1p63 ? top / m : 0x1p63) * (1.0 - 0x1p-20);
+        h.limit = static_cast<std::uint64_t>(fits);
       }
-      while (m < 0.5 && h.right < 62) {  // 31 at most for a Q16.16 F_c (< 2^15 N)
-        m *= 2.0;
-        ++h.right;
-      }
-      const double q = m * 0x1p32;  // in [2^31, 2^32) but for an F_c no Q16.16 value has
-      h.mantissa = q >= 0xFFFF'FFFFp0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(q + 0.5);
-      h.half = h.right > 0 ? std::uint64_t{1} << (h.right - 1) : 0U;
-      // squares m < 2^(63 - left) keeps the product, rounded and shifted up, within the Wide's
-      // range, and squares < 2^63 the product's high part; 2^-20 of margin for q's rounding and
-      // the double's (u saturates at 2^31 (1 - 2^-20) at the earliest).
-      const double fits = (top / m < 0x1p63 ? top / m : 0x1p63) * (1.0 - 0x1p-20);
-      h.limit = static_cast<std::uint64_t>(fits);
       return h;
     }
     /// u in Q32.32; past the range the largest value, with the flag (as squared_norm saturates).
-    Wide<S> target(std::uint64_t squares) const noexcept
-      requires(kIsFixed<S>)
-    {
-      if (squares > limit) {
-        S::note_saturation();
-        return Wide<S>::from_raw(std::numeric_limits<std::int64_t>::max());
+    Wide<S> target([[maybe_unused]] std::uint64_t squares) const noexcept {
+      if constexpr (!kIsFixed<S>) {
+        return Wide<S>{};
+      } else {
+        if (squares > limit) {
+          S::note_saturation();
+          return Wide<S>::from_raw(std::numeric_limits<std::int64_t>::max());
+        }
+        // squares q / 2^32 rounded, squares = h 2^32 + l: h q + (l q + 2^31) / 2^32 (squares <
+        // 2^63, so h q < 2^63), then the shifts, which the limit keeps within the range.
+        const std::uint64_t high = (squares >> 32) * mantissa;
+        const std::uint64_t low = ((squares & 0xFFFF'FFFFU) * mantissa + (std::uint64_t{1} << 31)) >> 32;
+        return Wide<S>::from_raw(static_cast<std::int64_t>((((high + low) << left) + half) >> right));
       }
-      // squares q / 2^32 rounded, squares = h 2^32 + l: h q + (l q + 2^31) / 2^32 (squares <
-      // 2^63, so h q < 2^63), then the shifts, which the limit keeps within the range.
-      const std::uint64_t high = (squares >> 32) * mantissa;
-      const std::uint64_t low = ((squares & 0xFFFF'FFFFU) * mantissa + (std::uint64_t{1} << 31)) >> 32;
-      return Wide<S>::from_raw(static_cast<std::int64_t>((((high + low) << left) + half) >> right));
     }
   };
   struct Unused {};
@@ -200,14 +202,14 @@ class ThermalModel {
     std::int64_t span = 0;
     std::uint32_t slope = 0;
 
-    static constexpr Derating of(double derate_start, double range_n) noexcept
-      requires(kIsFixed<S>)
-    {
+    static constexpr Derating of([[maybe_unused]] double derate_start, [[maybe_unused]] double range_n) noexcept {
       Derating d;
-      d.start = Wide<S>::from_double(derate_start).raw();
-      d.span = Wide<S>::from_double(1.0 - derate_start).raw();
-      const double slope = range_n / (1.0 - derate_start) * 65536.0;
-      d.slope = slope >= 0xFFFF'FFFFp0 ? 0xFFFF'FFFFU : slope > 0.0 ? static_cast<std::uint32_t>(slope) : 0U;
+      if constexpr (kIsFixed<S>) {  // (a body clang can check for a floating-point S too)
+        d.start = Wide<S>::from_double(derate_start).raw();
+        d.span = Wide<S>::from_double(1.0 - derate_start).raw();
+        const double slope = range_n / (1.0 - derate_start) * 65536.0;
+        d.slope = slope >= 0xFFFF'FFFFp0 ? 0xFFFF'FFFFU : slope > 0.0 ? static_cast<std::uint32_t>(slope) : 0U;
+      }
       return d;
     }
   };
