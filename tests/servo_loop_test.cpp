@@ -242,6 +242,42 @@ TEST(HipSensor, Q16RateAfterAGapIsTheExactQuotientsFromTheTickCount) {
   EXPECT_TRUE(take_fixed_saturated());
 }
 
+// A loop on its period only takes a late tick's filter gain from a table set at configuration:
+// the estimate after a gap of up to kTabulatedGaps periods is bit for bit the one the gain
+// computed in the tick gives (1/dt from the tick count, then 1 / (1 + rate tau)); past the table
+// the gain is 1, the backward difference over the gap itself (the computed gain tends to it).
+TEST(HipSensor, Q16LateTickGainIsTheComputedOneAndOnePastTheTable) {
+  using Q = Q16_16;
+  constexpr double kPeriod = 1e-3;
+  using Sensor = HipSensor<Q, true, false>;
+  const PeriodsRate<Q> rates = PeriodsRate<Q>::of(1'000'000);
+  const VelocityEstimator<Q> reference(VelocityEstimator<Q>::kDefaultCutoffHz);
+  for (const std::int64_t gap : std::vector<std::int64_t>{1, 2, 7, 31, Sensor::kTabulatedGaps, Sensor::kTabulatedGaps + 1, 100, 5000}) {
+    Sensor sensor(VelocityEstimator<Q>::kDefaultCutoffHz, true, kPeriod);
+    BasicDeviceReading<Q> reading{};
+    const Vec3<Q> start = vec_cast<Q>({0.01, -0.02, 0.03});
+    reading.position_m = start;
+    TickTime first;
+    first.now = Instant{1, 0};
+    sensor.commit(sensor.sense(reading, first), first);  // the first estimate: 0
+    VelocityEstimator<Q> expected(VelocityEstimator<Q>::kDefaultCutoffHz);
+    expected.commit(reading.position_m, Vec3<Q>{});
+    reading.position_m = vec_cast<Q>({0.0137, -0.0211, 0.0288});
+    TickTime late;
+    late.now = Instant{1 + gap, 0};
+    late.gap = gap;
+    const Hip<Q> hip = sensor.sense(reading, late);
+    const Q rate = rates.after(gap);
+    const Q gain = gap <= Sensor::kTabulatedGaps ? reference.gain(rate) : scalar_cast<Q>(1.0);
+    EXPECT_EQ(hip.rate_hz, rate) << gap;
+    EXPECT_EQ(hip.velocity_m_per_s, expected.estimate(reading.position_m, rate, gain)) << gap;
+    if (gap > Sensor::kTabulatedGaps) {  // the backward difference itself, to a unit of the last place
+      const Vec3<double> difference = to_double(reading.position_m) - to_double(start);
+      EXPECT_NEAR(to_double(hip.velocity_m_per_s.x), difference.x * to_double(rate), 1e-4) << gap;
+    }
+  }
+}
+
 // The estimator's gain 1 / (1 + rate tau) by one 32-bit division: the quotient the 64-bit
 // division gives, over the whole range of denominators >= 1 (and a smaller one counts as 1).
 TEST(VelocityEstimator, Q16GainIsTheExactReciprocal) {

@@ -6,6 +6,10 @@
 /// non-finite tick leaves the estimator as it was, spec §6.1), and 1/dt is taken since the last
 /// tick that counted, so a dropped sample does not double the estimate.
 
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
 #include "toonforce/control/clock.hpp"
 #include "toonforce/control/velocity_estimator.hpp"
 #include "toonforce/hal/device.hpp"
@@ -51,9 +55,12 @@ struct PeriodsRate {
 
 /// `kMayEstimate` false compiles the estimator out (no scene effect, no safety stage needs it).
 /// `kMayStamp` false: ticks come on the period only (no LoopStages::stamps), so in a Q format
-/// 1/dt after a gap is PeriodsRate's, and the filter's gain one 32-bit division.
+/// 1/dt after a gap is PeriodsRate's (one 32-bit division), and the filter's gain a table's.
 template <Scalar S, bool kMayEstimate, bool kMayStamp = true>
 class HipSensor {
+  /// A late tick's filter gain comes from a table (gain_after).
+  static constexpr bool kGainTable = kIsFixed<S> && !kMayStamp && kMayEstimate;
+
  public:
   /// `period_s` > 0: ticks come on this period, and 1/dt and the filter's gain for one period
   /// are computed once, here.
@@ -62,7 +69,17 @@ class HipSensor {
         estimate_(kMayEstimate && estimate),
         period_rate_hz_(scalar_cast<S>(1.0 / period_s)),
         period_gain_(estimator_.gain(period_rate_hz_)),
-        periods_rate_(periods_rate_of(period_s)) {}
+        periods_rate_(periods_rate_of(period_s)) {
+    if constexpr (kGainTable) {
+      for (std::size_t i = 0; i < gains_.size(); ++i) {
+        gains_[i] = estimator_.gain(periods_rate_.after(static_cast<std::int64_t>(i + 1)));
+      }
+    }
+  }
+
+  /// Late ticks (Q formats on the period's ticks) whose filter gain is tabulated: the
+  /// supervisor's default watchdog (30 periods) and a little more, as the thermal model's decay.
+  static constexpr std::int64_t kTabulatedGaps = 32;
 
   /// `reading` in double, or already in S (a device that reads in the loop's scalar: a
   /// fixed-point target's, tools/mcu).
@@ -92,8 +109,12 @@ class HipSensor {
       h.velocity_m_per_s = in_scalar(reading.velocity_m_per_s);
     } else if constexpr (kMayEstimate) {
       if (estimate_) {
-        h.velocity_m_per_s = estimator_.estimate(h.position_m, h.rate_hz,
-                                                 one_period ? period_gain_ : estimator_.gain(h.rate_hz));
+        if constexpr (kGainTable) {
+          h.velocity_m_per_s = estimator_.estimate(h.position_m, h.rate_hz, one_period ? period_gain_ : gain_after(since));
+        } else {
+          h.velocity_m_per_s = estimator_.estimate(h.position_m, h.rate_hz,
+                                                   one_period ? period_gain_ : estimator_.gain(h.rate_hz));
+        }
         h.estimated = true;
       }
     }
@@ -117,6 +138,20 @@ class HipSensor {
       return NoPeriodsRate{};
     }
   }
+  /// Q formats on the period's ticks: the gain after `since` periods from the table
+  /// (bit for bit what estimator_.gain(periods_rate_.after(since)) gives: no reciprocal in the
+  /// tick, issue 29); past it 1, the gain's limit as the gap grows (the backward difference
+  /// over the gap itself; the exact gain is 0.91 at 33 periods of 1 ms with the default 50 Hz
+  /// cutoff and nearer 1 after longer gaps, which the default watchdog has faulted the loop for).
+  S gain_after([[maybe_unused]] std::int64_t since) const noexcept {
+    if constexpr (kGainTable) {  // (a body clang can check in every instantiation)
+      const auto k = static_cast<std::uint64_t>(since - 1);  // since >= 1: ticks only move on
+      return k < gains_.size() ? gains_[static_cast<std::size_t>(k)] : scalar_cast<S>(1.0);
+    } else {
+      return period_gain_;
+    }
+  }
+
   template <class T>
   static constexpr Vec3<S> in_scalar(const Vec3<T>& v) noexcept {
     if constexpr (std::is_same_v<T, S>) {
@@ -132,6 +167,8 @@ class HipSensor {
   S period_gain_;     ///< the filter's gain at 1/T
   struct NoPeriodsRate {};
   [[no_unique_address]] std::conditional_t<kIsFixed<S> && !kMayStamp, PeriodsRate<S>, NoPeriodsRate> periods_rate_;
+  [[no_unique_address]] std::conditional_t<kGainTable, std::array<S, static_cast<std::size_t>(kTabulatedGaps)>, NoPeriodsRate>
+      gains_{};
   bool has_commit_ = false;
   Instant last_commit_{};
 };
