@@ -25,10 +25,10 @@
 /// derating is never weaker than the exact model's. The floating-point builds keep r^n by
 /// repeated squaring (their results unchanged; no bound is taken of them).
 /// The heating u = |F|^2 / F_c^2 comes, in the fixed-point build, from the exact 64-bit squares
-/// of the force times 1/F_c^2 held as m 2^k (m a Q0.32 factor, k >= 0, both from the
-/// configuration): one 64x32 product and a shift, where scaling each component by 1/F_c first
-/// took three saturating Q16.16 products (issue 29: about 55 cycles of every scene's bound) and
-/// rounded 1/F_c to 2^-16 (u off by up to a few 10^-5 of itself; now by about 2^-31).
+/// of the force times 1/F_c^2 held as a 32-bit mantissa and a shift (HeatScale, from the
+/// configuration): one 64x32 product and the shifts, where scaling each component by 1/F_c
+/// first took three saturating Q16.16 products (issue 29) and rounded 1/F_c to 2^-16 (u off by
+/// up to a few 10^-5 of itself; now by about 2^-31).
 
 #include <array>
 #include <cmath>
