@@ -17,7 +17,7 @@
 /// The tick is noexcept and allocation-, lock- and exception-free; its only system calls are
 /// the device's and the pins' own. `tick(k)` is callable from any scheduler: the host's timer
 /// (control/realtime_runner.hpp), a self-clocked device's own servo thread, or a simulation.
-/// `request_rearm()` may be called from any thread (one atomic flag).
+/// `request_rearm()` may be called from any thread (one atomic counter, which the tick only reads).
 
 #include <cmath>
 #include <concepts>

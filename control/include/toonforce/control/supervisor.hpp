@@ -68,7 +68,8 @@ class Supervisor {
   /// tools/mcu) carries a pending re-arm over as a plain value.
   Supervisor(const Supervisor& other) noexcept
       : config_(other.config_),
-        rearm_requested_(other.rearm_requested_.load(std::memory_order_relaxed)),
+        rearm_requests_(other.rearm_requests_.load(std::memory_order_relaxed)),
+        rearm_seen_(other.rearm_seen_),
         latched_(other.latched_),
         mode_(other.mode_),
         was_armed_(other.was_armed_),
@@ -82,16 +83,23 @@ class Supervisor {
 
   /// The gate for a tick `gap` periods after the previous one.
   Gate admit(std::int64_t gap, PinLevel estop, PinLevel enable, DeviceStatus read) noexcept {
+    // Re-arm requests are counted by the requester; one not seen yet is asked for. A plain
+    // load: no exclusive-access retry loop in the tick (issue 29: the exchange this replaced
+    // was about 15 cycles of the bound), and requests made before this tick coalesce, as the
+    // flag's did.
+    const std::uint32_t requests = rearm_requests_.load(std::memory_order_relaxed);
     // The usual tick: armed, nothing asked, nothing wrong. Then the gate is simply open.
     if (steady_ && read == DeviceStatus::kOk && estop == PinLevel::kInactive && enable == PinLevel::kActive &&
-        gap <= config_.watchdog_periods && !rearm_requested_.load(std::memory_order_relaxed)) {
+        gap <= config_.watchdog_periods && requests == rearm_seen_) {
       failed_reads_ = 0;
       return Gate{};
     }
     Gate g;
     const bool read_ok = read == DeviceStatus::kOk;
     const bool homing = read == DeviceStatus::kNotReady;
-    if (take_rearm() && latched_) {
+    const bool rearm = requests != rearm_seen_;
+    rearm_seen_ = requests;
+    if (rearm && latched_) {
       if (estop == PinLevel::kInactive && read_ok) {
         latched_ = FaultSet{};
         armed_again_ = true;
@@ -152,8 +160,9 @@ class Supervisor {
     return f | latched_;
   }
 
-  /// Asks to clear the latched faults at the next tick (any thread: one atomic flag).
-  void request_rearm() noexcept { rearm_requested_.store(true, std::memory_order_release); }
+  /// Asks to clear the latched faults at the next tick (any thread: one atomic counter; the
+  /// tick only reads it).
+  void request_rearm() noexcept { rearm_requests_.fetch_add(1U, std::memory_order_relaxed); }
   /// The run is over: the loop is idle and must engage afresh if it ever runs again.
   void shut_down() noexcept {
     mode_ = LoopState::kIdle;
@@ -165,14 +174,11 @@ class Supervisor {
   LoopState mode() const noexcept { return mode_; }
 
  private:
-  bool take_rearm() noexcept {
-    // A relaxed look first: the exchange (a locked instruction) only when asked.
-    return rearm_requested_.load(std::memory_order_relaxed) &&
-           rearm_requested_.exchange(false, std::memory_order_acq_rel);
-  }
-
   SupervisorConfig config_;
-  std::atomic<bool> rearm_requested_{false};
+  /// Re-arm requests made so far (wrapping: only a change is read) and the count the last
+  /// tick saw. A request carries no data, so relaxed ordering is enough.
+  std::atomic<std::uint32_t> rearm_requests_{0};
+  std::uint32_t rearm_seen_ = 0;
   FaultSet latched_;
   LoopState mode_ = LoopState::kActive;
   bool was_armed_ = true;  ///< the loop starts armed, engaging (a first tick is no re-opening)
