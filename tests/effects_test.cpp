@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include "toonforce/effects/scene.hpp"
 
@@ -378,6 +382,119 @@ TEST(CartoonCliff, ZeroTauFollowsTheSpeedAtOnce) {
   run.p.tau_s = 0.0;
   run.step({-0.05, 0, 0.01}, {0.3, 0.4, 0});
   EXPECT_NEAR(run.s.filtered_speed_m_per_s, 0.5, 1e-15);
+}
+
+// ---- AxisPlane: Plane's results bit for bit, with an axis for the normal --------------------
+
+// Raw values at the edges of the range, around zero and at random.
+std::vector<std::int32_t> edge_and_random_raws(std::mt19937_64& random, int count) {
+  std::vector<std::int32_t> raws{0,         1,          -1,         65536,      -65536,     32768,
+                                 -32768,    2147483647, -2147483647 - 1, 2147483646, -2147483647, 1073741824,
+                                 -1073741824};
+  for (int i = 0; i < count; ++i) raws.push_back(static_cast<std::int32_t>(random() >> (random() % 33)));
+  return raws;
+}
+
+template <int kAxis, int kSign>
+void expect_axis_plane_is_plane() {
+  using Q = Q16_16;
+  std::mt19937_64 random(29 + 3 * kAxis + kSign);
+  const auto raws = edge_and_random_raws(random, 40);
+  const auto pick = [&] { return Q::from_raw(raws[random() % raws.size()]); };
+  const auto vec = [&] { return Vec3<Q>{pick(), pick(), pick()}; };
+  const AxisPlane<Q, kAxis, kSign> axis{vec()};
+  Plane<Q> plane{axis.point_m, {}};
+  plane.normal = AxisPlane<Q, kAxis, kSign>::normal;
+  const auto same = [](const Vec3<Q>& a, const Vec3<Q>& b) {
+    return a.x.raw() == b.x.raw() && a.y.raw() == b.y.raw() && a.z.raw() == b.z.raw();
+  };
+  // Each result and whether it raised the saturation flag.
+  const auto flagged = [](auto f) {
+    static_cast<void>(take_fixed_saturated());
+    const auto r = f();
+    return std::pair{r, take_fixed_saturated()};
+  };
+  for (int i = 0; i < 4000; ++i) {
+    TickInput<Q> in{};
+    in.position_m = vec();
+    in.velocity_m_per_s = vec();
+    const Q k = pick();
+    const auto [c_plane, c_plane_flag] = flagged([&] { return plane.contact(in); });
+    const auto [c_axis, c_axis_flag] = flagged([&] { return axis.contact(in); });
+    ASSERT_EQ(c_axis.penetration_m.raw(), c_plane.penetration_m.raw()) << i;
+    ASSERT_EQ(c_axis.normal_speed_m_per_s.raw(), c_plane.normal_speed_m_per_s.raw()) << i;
+    ASSERT_EQ(c_axis_flag, c_plane_flag) << i;
+    ASSERT_TRUE(same(axis.push(k), plane.push(k))) << i << " k " << k.raw();
+    ASSERT_TRUE(same(axis.along(k), plane.along(k))) << i << " k " << k.raw();
+    for (const Q n_dot_v : {c_plane.normal_speed_m_per_s, k}) {
+      const auto [t_plane, t_plane_flag] = flagged([&] { return plane.tangential(in.velocity_m_per_s, n_dot_v); });
+      const auto [t_axis, t_axis_flag] = flagged([&] { return axis.tangential(in.velocity_m_per_s, n_dot_v); });
+      ASSERT_TRUE(same(t_axis, t_plane)) << i << " n.v " << n_dot_v.raw();
+      ASSERT_EQ(t_axis_flag, t_plane_flag) << i;
+    }
+  }
+}
+
+TEST(AxisPlane, IsPlaneBitForBitWithThatNormalSaturationsIncluded) {
+  expect_axis_plane_is_plane<0, 1>();
+  expect_axis_plane_is_plane<0, -1>();
+  expect_axis_plane_is_plane<1, 1>();
+  expect_axis_plane_is_plane<1, -1>();
+  expect_axis_plane_is_plane<2, 1>();
+  expect_axis_plane_is_plane<2, -1>();
+}
+
+// A surface on it gives the scene's forces and active parts bit for bit, the impact's state
+// included, over strikes of a floor.
+template <class Tangential, class Impact>
+void expect_axis_surface_is_surface(const typename Tangential::Params& tangential, const typename Impact::Params& impact) {
+  using Q = Q16_16;
+  using General = Surface<SpringWall<Q>, Tangential, Impact>;
+  using Axis = Surface<SpringWall<Q>, Tangential, Impact, AxisPlane<Q, 2, 1>>;
+  const typename SpringWall<Q>::Params wall{scalar_cast<Q>(1500.0), Q{}};
+  const Vec3<Q> point{Q{}, Q{}, scalar_cast<Q>(0.01)};
+  const typename General::Params pg{{point, {Q{}, Q{}, scalar_cast<Q>(1.0)}}, wall, tangential, impact};
+  const typename Axis::Params pa{{point}, wall, tangential, impact};
+  typename General::State sg{};
+  typename Axis::State sa{};
+  std::mt19937_64 random(7);
+  const auto uniform = [&](double lo, double hi) {
+    return scalar_cast<Q>(lo + (hi - lo) * static_cast<double>(random() >> 11) * 0x1p-53);
+  };
+  int in_contact = 0;
+  for (std::int64_t k = 0; k < 20000; ++k) {
+    TickInput<Q> in{};
+    in.position_m = {uniform(-0.05, 0.05), uniform(-0.05, 0.05), uniform(-0.01, 0.02)};
+    in.velocity_m_per_s = {uniform(-1, 1), uniform(-1, 1), uniform(-1, 1)};
+    in.rate_hz = scalar_cast<Q>(1000.0);
+    in.period_ns = 1'000'000;
+    in.now = Instant{k, 0};
+    ActiveForce<Q> ag[2]{};
+    ActiveForce<Q> aa[2]{};
+    const Vec3<Q> fg = General::force(pg, sg, in, ag);
+    const Vec3<Q> fa = Axis::force(pa, sa, in, aa);
+    ASSERT_EQ(fa.x.raw(), fg.x.raw()) << k;
+    ASSERT_EQ(fa.y.raw(), fg.y.raw()) << k;
+    ASSERT_EQ(fa.z.raw(), fg.z.raw()) << k;
+    for (std::size_t i = 0; i < General::kActiveSlots; ++i) {
+      ASSERT_EQ(aa[i].force_n.z.raw(), ag[i].force_n.z.raw()) << k;
+      ASSERT_EQ(aa[i].force_n.x.raw(), ag[i].force_n.x.raw()) << k;
+      ASSERT_EQ(aa[i].in_episode, ag[i].in_episode) << k;
+      ASSERT_EQ(aa[i].triggered, ag[i].triggered) << k;
+    }
+    if (fg.z.raw() != 0) ++in_contact;
+  }
+  EXPECT_GT(in_contact, 5000);  // the strikes reach the surface
+}
+
+TEST(AxisPlane, SurfacesOnItAreTheSurfacesOnThePlaneBitForBit) {
+  using Q = Q16_16;
+  expect_axis_surface_is_surface<SuperSlippery<Q>, NoImpact<Q>>({scalar_cast<Q>(3.0), scalar_cast<Q>(2.0)}, {});
+  expect_axis_surface_is_surface<RealisticFriction<Q>, NoImpact<Q>>(
+      {scalar_cast<Q>(-2.0), scalar_cast<Q>(0.4), scalar_cast<Q>(0.01)}, {});
+  expect_axis_surface_is_surface<NoTangential<Q>, ImpactTransient<Q>>(
+      {}, {scalar_cast<Q>(200.0), scalar_cast<Q>(400.0), scalar_cast<Q>(0.15), scalar_cast<Q>(30.0),
+           scalar_cast<Q>(0.05), scalar_cast<Q>(0.001), SineMethod::kAuto});
 }
 
 }  // namespace

@@ -97,6 +97,26 @@ std::string lit(const Plane<S>& p) {
   return fmt::format("Plane<S>{{{}, {}}}", lit(p.point_m), lit(p.normal));
 }
 
+/// A Q-format plane whose normal is exactly a coordinate axis (raw +-1 there, 0 elsewhere):
+/// its AxisPlane<S, axis, sign> type, which computes bit for bit what Plane does with fewer
+/// products (effects/tick.hpp); otherwise nothing, and the scene keeps Plane<S>. Floating
+/// point always keeps Plane.
+template <class S>
+std::optional<std::string> axis_plane_type(const Plane<S>& p) {
+  if constexpr (!kIsFixed<S>) {
+    return std::nullopt;
+  } else {
+    const std::int32_t c[3] = {p.normal.x.raw(), p.normal.y.raw(), p.normal.z.raw()};
+    for (int axis = 0; axis < 3; ++axis) {
+      const bool unit = c[axis] == S::kOneRaw || c[axis] == -S::kOneRaw;
+      if (unit && c[(axis + 1) % 3] == 0 && c[(axis + 2) % 3] == 0) {
+        return fmt::format("AxisPlane<S, {}, {}>", axis, c[axis] > 0 ? 1 : -1);
+      }
+    }
+    return std::nullopt;
+  }
+}
+
 std::string_view sine_name(SineMethod m) {
   switch (m) {
     case SineMethod::kLibrary: return "SineMethod::kLibrary";
@@ -174,8 +194,12 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
                                  lit(i.oscillation_gain_n_per_m), lit(i.duration_s), lit(i.frequency_hz),
                                  lit(i.min_impact_speed_m_per_s), lit(i.rearm_distance_m), sine_name(i.sine));
       }
-      types.push_back(fmt::format("Surface<{}, {}, {}>", wall, tangential, impact));
-      args.push_back(fmt::format("{{{}, {{{}, {}}}, {}, {}}}", lit(p.plane), lit(p.wall.stiffness_n_per_m),
+      // A plane along an axis gets the type that multiplies by it for free (axis_plane_type).
+      const std::optional<std::string> axis_plane = axis_plane_type(p.plane);
+      const std::string plane = axis_plane ? fmt::format("{}{{{}}}", *axis_plane, lit(p.plane.point_m)) : lit(p.plane);
+      types.push_back(axis_plane ? fmt::format("Surface<{}, {}, {}, {}>", wall, tangential, impact, *axis_plane)
+                                 : fmt::format("Surface<{}, {}, {}>", wall, tangential, impact));
+      args.push_back(fmt::format("{{{}, {{{}, {}}}, {}, {}}}", plane, lit(p.wall.stiffness_n_per_m),
                                  lit(p.wall.damping_n_s_per_m), tangential_arg, impact_arg));
     } else {  // a cliff
       const auto c = schema::convert_params<CartoonCliff<double>, CartoonCliff<S>>(d.all<1>()[entry.index]);

@@ -21,12 +21,12 @@
 namespace toonforce {
 
 template <class Wall, class Tangential = NoTangential<typename Wall::Scalar>,
-          class Impact = NoImpact<typename Wall::Scalar>>
+          class Impact = NoImpact<typename Wall::Scalar>, class PlaneT = Plane<typename Wall::Scalar>>
 struct Surface {
   using Scalar = typename Wall::Scalar;
   using S = Scalar;
   struct Params {
-    Plane<S> plane;
+    PlaneT plane;  ///< Plane, or an AxisPlane in a compiled Q-format scene
     typename Wall::Params wall{};
     [[no_unique_address]] typename Tangential::Params tangential{};
     [[no_unique_address]] typename Impact::Params impact{};
@@ -52,7 +52,7 @@ struct Surface {
   /// impact's (spec interfaces.md).
   static constexpr auto schema() {
     using namespace schema;
-    return fields(inline_fields(&Params::plane, Plane<S>::schema()), inline_fields(&Params::wall, Wall::schema()),
+    return fields(inline_fields(&Params::plane, PlaneT::schema()), inline_fields(&Params::wall, Wall::schema()),
                   part<Tangential>(&Params::tangential), part<Impact>(&Params::impact));
   }
   static void check(const Params& p, schema::Problems& problems, ScalarKind scalar) {
@@ -121,10 +121,10 @@ struct Surface {
     if constexpr (Impact::kPresent) {
       const ImpactOutput<S> impact = Impact::force(p.impact, s.impact, c, in);
       along_normal += impact.force_n;
-      if (impact_configured(p.impact)) *next_slot = {times_unit(p.plane.normal, impact.force_n), impact.running, impact.triggered};
+      if (impact_configured(p.impact)) *next_slot = {p.plane.along(impact.force_n), impact.running, impact.triggered};
     }
     // A unit normal times a push: without an impact the wall's, >= 0, which cannot saturate.
-    Vec3<S> f = Impact::kPresent ? times_unit(p.plane.normal, along_normal) : times_in_range(p.plane.normal, along_normal);
+    Vec3<S> f = Impact::kPresent ? p.plane.along(along_normal) : p.plane.push(along_normal);
     if constexpr (Tangential::kPresent) {
       const bool touching = c.penetration_m > S{};
       Vec3<S> tangential{};
@@ -134,7 +134,7 @@ struct Surface {
         // never runs this) 2 instructions dearer, past issue 14's 600.
         Vec3<S> v_t;
         if constexpr (kIsFixed<S>) {
-          v_t = tangential_part(in.velocity_m_per_s, p.plane.normal, c.normal_speed_m_per_s);
+          v_t = p.plane.tangential(in.velocity_m_per_s, c.normal_speed_m_per_s);
         } else {
           v_t = tangential_part(in.velocity_m_per_s, p.plane.normal);
         }

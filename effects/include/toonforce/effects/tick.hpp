@@ -91,10 +91,81 @@ struct Plane {
   constexpr Contact<S> contact(const TickInput<S>& in) const noexcept {
     return {-dot_unit_difference(normal, in.position_m, point_m), dot_unit(normal, in.velocity_m_per_s)};
   }
+  /// n k for a push k >= 0 (times_in_range).
+  constexpr Vec3<S> push(S k) const noexcept { return times_in_range(normal, k); }
+  /// n k for any k (times_unit).
+  constexpr Vec3<S> along(S k) const noexcept { return times_unit(normal, k); }
+  /// v's part in the plane, v - (n.v) n, with n.v known (tangential_part).
+  constexpr Vec3<S> tangential(const Vec3<S>& v, S n_dot_v) const noexcept { return tangential_part(v, normal, n_dot_v); }
 
   /// Scene-file keys `point` [m] and `normal` (normalised on load; zero is an error).
   static constexpr auto schema() {
     return schema::fields(schema::vector("point", &Plane::point_m, "m"), schema::unit_vector("normal", &Plane::normal));
+  }
+};
+
+/// A Plane whose normal is the coordinate axis `kAxis` (0 x, 1 y, 2 z) times `kSign` (+1 or -1),
+/// known at compile time: what a compiled Q-format scene uses for such a plane (tools/mcu's
+/// generator picks it when a file's normal is exactly an axis; every paper scene's is). Each
+/// product with the normal is then a copy or a negation of one component, not three 64-bit
+/// products (issue 29: a slippery surface's tick took six for its contact and three for each
+/// vector along or across the normal). Every result is bit for bit Plane's with that normal
+/// (raw +-2^F on the axis, 0 elsewhere), saturations and their flag included:
+/// tests/math_test.cpp compares them on edge and random values.
+template <Scalar S, int kAxis, int kSign>
+struct AxisPlane {
+  static_assert(kIsFixed<S>, "floating point keeps Plane: its products with 0 and 1 are not all copies (-0, NaN)");
+  static_assert(kAxis >= 0 && kAxis <= 2 && (kSign == 1 || kSign == -1));
+  using Raw = typename S::Raw;
+  using Wide = typename S::Wide;
+  Vec3<S> point_m;
+
+  static constexpr Vec3<S> normal_of() noexcept {
+    Vec3<S> n{};
+    component(n) = S::from_raw(static_cast<Raw>(kSign * S::kOneRaw));
+    return n;
+  }
+  static constexpr Vec3<S> normal = normal_of();
+
+  // n.(x - p) is kSign (x_a - p_a) 2^F before Plane's rounding, which leaves kSign (x_a - p_a)
+  // exactly: from_wide of it saturates as from_product did. n.v likewise.
+  constexpr Contact<S> contact(const TickInput<S>& in) const noexcept {
+    const Wide difference = Wide{component(in.position_m).raw()} - component(point_m).raw();
+    return {-S::from_wide(kSign * difference), S::from_wide(kSign * Wide{component(in.velocity_m_per_s).raw()})};
+  }
+  // Plane's product of a component of +-1 and k rounds to +-k exactly, cast to Raw as
+  // times_in_range casts it (so -k of lowest() wraps there as here); of 0, to 0.
+  constexpr Vec3<S> push(S k) const noexcept {
+    Vec3<S> v{};
+    component(v) = S::from_raw(static_cast<Raw>(kSign * Wide{k.raw()}));
+    return v;
+  }
+  constexpr Vec3<S> along(S k) const noexcept { return push(max(k, -S::max())); }
+  // v - along(n.v): the other components less 0 are themselves.
+  constexpr Vec3<S> tangential(const Vec3<S>& v, S n_dot_v) const noexcept {
+    Vec3<S> t = v;
+    component(t) = component(v) - component(along(n_dot_v));
+    return t;
+  }
+
+ private:
+  static constexpr S& component(Vec3<S>& v) noexcept {
+    if constexpr (kAxis == 0) {
+      return v.x;
+    } else if constexpr (kAxis == 1) {
+      return v.y;
+    } else {
+      return v.z;
+    }
+  }
+  static constexpr const S& component(const Vec3<S>& v) noexcept {
+    if constexpr (kAxis == 0) {
+      return v.x;
+    } else if constexpr (kAxis == 1) {
+      return v.y;
+    } else {
+      return v.z;
+    }
   }
 };
 
