@@ -467,10 +467,14 @@ class Fixed {
   }
 
   // Sums and differences overflow only past the 32-bit range, toward the first operand's sign.
+  // An operand the compiler knows to be 0 (a component a vector along an axis does not have:
+  // effects/tick.hpp's AxisPlane) takes the plain form, which it folds to the other operand;
+  // the asm statement it cannot fold (issue 29: two of a slippery surface's three sums).
   [[gnu::always_inline]] friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
     if constexpr (sizeof(Raw) == 4) {
-      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
+      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_)) &&
+          !known_zero(a.raw_) && !known_zero(b.raw_)) {
         return from_raw(detail::saturating_words<false>(a.raw_, b.raw_));
       }
     }
@@ -481,8 +485,9 @@ class Fixed {
   }
   [[gnu::always_inline]] friend constexpr Fixed operator-(Fixed a, Fixed b) noexcept {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-    if constexpr (sizeof(Raw) == 4) {
-      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_))) {
+    if constexpr (sizeof(Raw) == 4) {  // a - 0 is a; 0 - b may overflow (-lowest())
+      if (!std::is_constant_evaluated() && !(__builtin_constant_p(a.raw_) && __builtin_constant_p(b.raw_)) &&
+          !known_zero(b.raw_)) {
         return from_raw(detail::saturating_words<true>(a.raw_, b.raw_));
       }
     }
@@ -561,6 +566,8 @@ class Fixed {
     const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - divisor) + divisor / 2;
     return static_cast<Wide>(below / divisor) + 1;
   }
+  /// `raw` is 0 and the compiler knows it (after inlining: a component set to 0).
+  [[gnu::always_inline]] static constexpr bool known_zero(Raw raw) noexcept { return __builtin_constant_p(raw) && raw == 0; }
   /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
   static constexpr Fixed saturated_toward(Raw sign) noexcept {
     const Raw limit = (sign >> 31) ^ std::numeric_limits<Raw>::max();
