@@ -296,6 +296,10 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   for (std::uint64_t byte = 64; byte <= 256; ++byte) {
     const std::uint64_t h = byte << 24;
     values.insert(values.end(), {h - 1, h, (h - 1) << 32 | 0xFFFF'FFFFULL, h << 32, (h << 32) | 0x8000'0000ULL});
+    // Across each segment of the seed's line: its middle and quarters, where it errs most.
+    for (const std::uint64_t quarter : {std::uint64_t{1} << 22, std::uint64_t{2} << 22, std::uint64_t{3} << 22}) {
+      values.insert(values.end(), {h + quarter, (h + quarter) << 32});
+    }
   }
   std::mt19937_64 random(18);
   for (int i = 0; i < 200000; ++i) values.push_back(random() >> (random() % 64));
@@ -310,8 +314,9 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   static_assert(detail::isqrt_round_divided(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_divided(3) == 2);
 }
 
-/// The values the inverse root is checked at: powers of two and their neighbours, the ends of
-/// each seed's interval (a normalised top byte of 64..255, in either word), squares and their
+/// The values the inverse root is checked at: powers of two and their neighbours, the ends,
+/// middle and quarters of each seed's segment (a normalised top byte of 64..255, in either
+/// word), squares and their
 /// neighbours, and random values of every length.
 std::vector<std::uint64_t> inverse_root_values() {
   std::vector<std::uint64_t> values = {1, 2, 3, 4, 5, 0xFFFF'FFFFULL, 0x1'0000'0000ULL, 0xFFFF'FFFF'FFFF'FFFFULL};
@@ -322,6 +327,10 @@ std::vector<std::uint64_t> inverse_root_values() {
   for (std::uint64_t byte = 64; byte <= 256; ++byte) {
     const std::uint64_t h = byte << 24;
     values.insert(values.end(), {h - 1, h, (h - 1) << 32 | 0xFFFF'FFFFULL, h << 32, (h << 32) | 0x8000'0000ULL});
+    // Across each segment of the seed's line: its middle and quarters, where it errs most.
+    for (const std::uint64_t quarter : {std::uint64_t{1} << 22, std::uint64_t{2} << 22, std::uint64_t{3} << 22}) {
+      values.insert(values.end(), {h + quarter, (h + quarter) << 32});
+    }
   }
   for (const std::uint64_t r : {2ULL, 3ULL, 1000ULL, 65535ULL, 65536ULL, 0xFFFF'FFFEULL, 0xFFFF'FFFFULL}) {
     values.insert(values.end(), {r * r - 1, r * r, r * r + 1});

@@ -758,25 +758,43 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
 /// took a root and a 64/32 division, about 125 instructions of a tick's bound each time, and
 /// four UDIVs): v = m 2^(32 - 2 shift) with m its top 32 bits, normalised to [2^30, 2^32) (the
 /// bits below them dropped, under 2^-30 of v), and `y` 1 / sqrt(m 2^-32), in (1, 2], in units
-/// of 2^-30, so that 1 / sqrt(v) = y 2^(shift - 62). From a seed of m's top byte (the inverse
-/// root of its midpoint, within 2^-8) two Newton steps y (3 - x y^2) / 2, each of three 32x32
-/// products: the error squares each step (2^-15, then 2^-29 and the truncations'). y is never
-/// above 1 / sqrt(v) and within 2^-26 of it (math_test checks both against long double).
+/// of 2^-30, so that 1 / sqrt(v) = y 2^(shift - 62). The seed is a straight line through m's
+/// segment (its top byte, 192 of them over [1/4, 1)), within 2^-16 of the inverse root; one
+/// Newton step y (3 - x y^2) / 2 of three 32x32 products squares that error (1.5 2^-32, from
+/// below) and leaves the truncations'. A table of seeds at the segments' midpoints, within
+/// 2^-8, took a second step (issue 29: three products more on each of a tick's roots). y is
+/// never above 1 / sqrt(v) and within 2^-26 of it (math_test checks both against long double).
 struct InverseRoot {
   std::uint32_t y = 0;  ///< in units of 2^-30
   int shift = 0;        ///< 0..31
 };
-inline constexpr auto kInverseRootSeeds = [] {
-  // Entry i: 2^15 / sqrt((i + 64 + 1/2) / 256), rounded (a normalised m's top byte is 64..255);
-  // below 2^16. A constexpr Newton iteration in double: no <cmath> in a constant expression.
-  std::array<std::uint16_t, 192> seeds{};
-  for (std::uint32_t i = 0; i < seeds.size(); ++i) {
-    const double x = (i + 64.5) / 256.0;
+/// Segment i of x = m 2^-32 (its top byte i + 64, x in [(i + 64) / 256, (i + 65) / 256)): the
+/// seed at offset u / 2^16 of the segment is `at_start` - (`drop` u) >> 8, in units of 2^-30.
+struct InverseRootLine {
+  std::uint32_t at_start;
+  std::uint16_t drop;  ///< the line's fall over the segment, in units of 2^-22
+};
+inline constexpr auto kInverseRootLines = [] {
+  // 1 / sqrt(x) by a constexpr Newton iteration in double (no <cmath> in a constant
+  // expression). The secant through the segment's ends lies above the convex curve, most near
+  // the middle; the line is the secant lowered by half that, so it errs both ways by about as
+  // much (under 2^-16 of the value: 1.5 2^-16 h^2 / x^2 at h = 2^-8, x >= 1/4, halved).
+  const auto inverse_root_of = [](double x) {
     double y = 1.0;
-    for (int k = 0; k < 40; ++k) y = y * (3.0 - x * y * y) / 2.0;
-    seeds[i] = static_cast<std::uint16_t>(y * 32768.0 + 0.5);
+    for (int k = 0; k < 60; ++k) y = y * (3.0 - x * y * y) / 2.0;
+    return y;
+  };
+  std::array<InverseRootLine, 192> lines{};
+  for (std::uint32_t i = 0; i < lines.size(); ++i) {
+    const double x0 = (i + 64.0) / 256.0;
+    const double f0 = inverse_root_of(x0);
+    const double f1 = inverse_root_of(x0 + 1.0 / 256.0);
+    const double bulge = (f0 + f1) / 2.0 - inverse_root_of(x0 + 0.5 / 256.0);  // > 0
+    const double drop_units = (f0 - f1) * 0x1p22;                                // < 2^16
+    lines[i].at_start = static_cast<std::uint32_t>((f0 - bulge / 2.0) * 0x1p30 + 0.5);
+    lines[i].drop = static_cast<std::uint16_t>(drop_units + 0.5);
   }
-  return seeds;
+  return lines;
 }();
 constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
   auto high = static_cast<std::uint32_t>(v >> 32);
@@ -791,17 +809,15 @@ constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
   const std::uint32_t m = (high << c) | (c == 0 ? 0U : low >> (32 - c));
   shift += c / 2;
   // x = m 2^-32 in [1/4, 1); y in units of 2^-30, y^2 and 3 - x y^2 in units of 2^-28.
-  const auto newton = [m](std::uint32_t y) {
-    const auto y2 = static_cast<std::uint32_t>((std::uint64_t{y} * y) >> 32);
-    const auto xy2 = static_cast<std::uint32_t>((std::uint64_t{m} * y2) >> 32);
-    const std::uint32_t t = (3U << 28) - xy2;  // x y^2 <= 1 + 2^-14 here: t > 0
-    return static_cast<std::uint32_t>((std::uint64_t{y} * t) >> 29);
-  };
-  const std::uint32_t seed = std::uint32_t{kInverseRootSeeds[(m >> 24) - 64]} << 15;
+  const InverseRootLine& line = kInverseRootLines[(m >> 24) - 64];
+  const std::uint32_t seed = line.at_start - ((std::uint32_t{line.drop} * ((m >> 8) & 0xFFFFU)) >> 8);
+  const auto y2 = static_cast<std::uint32_t>((std::uint64_t{seed} * seed) >> 32);
+  const auto xy2 = static_cast<std::uint32_t>((std::uint64_t{m} * y2) >> 32);
+  const std::uint32_t t = (3U << 28) - xy2;  // x y^2 <= 1 + 2^-15 here: t > 0
   // The truncations leave y up to 8 units over the inverse root (the products' floors make
   // 3 - x y^2 too large); taking 8 off puts it under, within 2^-26: a scaling to a limit
   // never ends past it but by its components' rounding.
-  return {newton(newton(seed)) - 8U, shift};
+  return {static_cast<std::uint32_t>((std::uint64_t{seed} * t) >> 29) - 8U, shift};
 }
 /// n 2^32 / sqrt(v) for 0 <= n < 2^31 and v > 0 (a scaling's factor n / |x| as a fraction in
 /// units of 2^-32 when v is |x|^2 in raw units; 1 / |x| in Q16.16 for n = 1), from its inverse
