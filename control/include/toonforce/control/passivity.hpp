@@ -67,6 +67,12 @@ class PassivityController {
  public:
   /// [m/s] below this speed no damping is applied.
   static constexpr double kMinSpeedMPerS = 1e-3;
+  /// A compiled scene's few slots: the loops over them run to kSlots, a count GCC unrolls, and
+  /// stop at the slots in use, so one slot is straight code (issue 29: the loops' counters and
+  /// back edges were 66-74 cycles of an image's bound). A run-time scene's many slots keep the
+  /// loop to the slots in use (unrolled to its capacity, the double loop's mean grew 2
+  /// instructions, past issue 14's 600).
+  static constexpr bool kUnrolled = kSlots <= 4;
   /// [J] an excess is capped here before it is turned into a force (keeps X * rate in range).
   static constexpr double kMaxExcessJ = 1.0;
   static constexpr std::uint64_t kMaxExcessQ32 = static_cast<std::uint64_t>(kMaxExcessJ * 4294967296.0);  // [2^-32 J]
@@ -87,8 +93,9 @@ class PassivityController {
   /// Books the interval that just ended: the previous tick's forces, times `applied` (the share
   /// of the wanted force that reached the device, 0..1), moved the HIP by `displacement_m`.
   constexpr void account(const Vec3<S>& displacement_m, S applied, std::size_t slots) noexcept {
-    for (std::size_t i = 0; i < slots; ++i) {
+    for (std::size_t i = 0; i < (kUnrolled ? kSlots : slots); ++i) {
       TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
+      if (kUnrolled && i >= slots) break;
       Slot& s = slots_[i];
       if (!s.in_episode) continue;
       if constexpr (kIsFixed<S>) {  // the work, then its share: one rounding, no Q16.16 product (issue 29)
@@ -121,8 +128,9 @@ class PassivityController {
     [[maybe_unused]] S inverse_speed{};  // [s/m] (Q formats) 0 while |v| <= kMinSpeed, else >= 2^-16
     [[maybe_unused]] S alpha_cap{};      // [N s/m] (Q formats) min(max_damping, max_force / |v|)
     Vec3<S> total{};
-    for (std::size_t i = 0; i < slots; ++i) {
+    for (std::size_t i = 0; i < (kUnrolled ? kSlots : slots); ++i) {  // as account()'s
       TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
+      if (kUnrolled && i >= slots) break;
       Slot& s = slots_[i];
       const ActiveForce<S>& f = forces[i];
       if (!f.in_episode) {  // no episode: nothing to book (account() skips the slot)
