@@ -85,8 +85,9 @@ add_test(NAME mcu_m3_wcet_analyser COMMAND /usr/bin/python3 ${_wcet}/test_wcet.p
 set_tests_properties(mcu_m3_wcet_analyser PROPERTIES LABELS mcu
   ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests")
 # Issue 29's every-stage budget: its instructions (2,000) met by the first list's bounds, its
-# instructions and cycles (2,500) by the second's.
-set(_mcu_every_instructions_met wall realistic_friction slippery cartoon_wall cliff)
+# instructions and cycles (2,500) by the second's. The five-scene image, where GCC inlines less,
+# meets the instructions since AxisPlane and the one-slot passivity (1,876 at most).
+set(_mcu_every_instructions_met wall realistic_friction slippery cartoon_wall cliff all_scenes)
 set(_mcu_every_budget_met wall realistic_friction cliff)
 foreach(image IN LISTS _mcu_images)
   # A scene's image plays the inputs built to take its longest paths (the searched strikes,
