@@ -149,16 +149,9 @@ struct AxisPlane {
   }
 
  private:
-  static constexpr S& component(Vec3<S>& v) noexcept {
-    if constexpr (kAxis == 0) {
-      return v.x;
-    } else if constexpr (kAxis == 1) {
-      return v.y;
-    } else {
-      return v.z;
-    }
-  }
-  static constexpr const S& component(const Vec3<S>& v) noexcept {
+  /// The axis's component of a vector (const or not, or a temporary read in the same expression).
+  template <class V>
+  static constexpr auto& component(V&& v) noexcept {
     if constexpr (kAxis == 0) {
       return v.x;
     } else if constexpr (kAxis == 1) {
