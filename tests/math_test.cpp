@@ -296,7 +296,7 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   for (std::uint64_t byte = 64; byte <= 256; ++byte) {
     const std::uint64_t h = byte << 24;
     values.insert(values.end(), {h - 1, h, (h - 1) << 32 | 0xFFFF'FFFFULL, h << 32, (h << 32) | 0x8000'0000ULL});
-    // Across each segment of the seed's line: its middle and quarters, where it errs most.
+    // And inside each seed's segment: its middle and quarters.
     for (const std::uint64_t quarter : {std::uint64_t{1} << 22, std::uint64_t{2} << 22, std::uint64_t{3} << 22}) {
       values.insert(values.end(), {h + quarter, (h + quarter) << 32});
     }

@@ -111,7 +111,7 @@ struct Plane {
 /// products (issue 29: a slippery surface's tick took six for its contact and three for each
 /// vector along or across the normal). Every result is bit for bit Plane's with that normal
 /// (raw +-2^F on the axis, 0 elsewhere), saturations and their flag included:
-/// tests/math_test.cpp compares them on edge and random values.
+/// tests/effects_test.cpp compares them on edge and random values, and surfaces on both.
 template <Scalar S, int kAxis, int kSign>
 struct AxisPlane {
   static_assert(kIsFixed<S>, "floating point keeps Plane: its products with 0 and 1 are not all copies (-0, NaN)");
