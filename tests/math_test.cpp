@@ -401,6 +401,17 @@ TEST(FixedMath, TimesInverseRootIsTheFractionRoundedDownWithinTwoToTheMinus26) {
   // 1 / |v| of the longest Q16.16 vector, |v|^2 = 3 (2^31)^2 raw: still 1 LSB, not 0 (the
   // passivity controller takes 0 for "too slow to damp").
   EXPECT_EQ(detail::times_inverse_root(1U, detail::inverse_root(3 * (std::uint64_t{1} << 62))), 1U);
+  // Past 2^32 the cap, for each of the inverse root's shifts (v = 1..3 is shift 31): n well
+  // past sqrt(v) (within 2^-26 of it the factor may stay under 2^32, as above).
+  for (int shift = 0; shift < 32; ++shift) {
+    const std::uint64_t v = std::uint64_t{1} << (62 - 2 * shift);  // sqrt(v) = 2^(31 - shift)
+    for (const std::uint64_t n : {(std::uint64_t{3} << (31 - shift)) / 2 + 1, std::uint64_t{0x7FFF'FFFF}}) {
+      if (n > 0x7FFF'FFFF || n * n <= v + (v >> 19)) continue;
+      ASSERT_EQ(detail::inverse_root(v).shift, shift) << v;
+      EXPECT_EQ(detail::times_inverse_root(static_cast<std::uint32_t>(n), detail::inverse_root(v)), 0xFFFF'FFFFU)
+          << n << " / sqrt(" << v << ")";
+    }
+  }
 }
 
 TEST(FixedMath, OverRootIsTheQuotientRoundedWithinTwoToTheMinus26) {

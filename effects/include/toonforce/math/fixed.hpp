@@ -799,14 +799,14 @@ inline constexpr auto kInverseRootLines = [] {
 constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
   auto high = static_cast<std::uint32_t>(v >> 32);
   auto low = static_cast<std::uint32_t>(v);
-  int shift = 0;  // pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift)
-  if (high == 0) {
-    high = low;
-    low = 0;
-    shift = 16;
-  }
+  // Pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift). Selects, not a
+  // branch: the bound took the branch out of line and back (issue 29).
+  const bool small = high == 0;
+  int shift = small ? 16 : 0;
+  high = small ? low : high;
+  low = small ? 0U : low;
   const int c = std::countl_zero(high) & ~1;
-  const std::uint32_t m = (high << c) | (c == 0 ? 0U : low >> (32 - c));
+  const std::uint32_t m = (high << c) | ((low >> 1) >> (31 - c));  // c even, 0..30 (v > 0): low >> (32 - c)
   shift += c / 2;
   // x = m 2^-32 in [1/4, 1); y in units of 2^-30, y^2 and 3 - x y^2 in units of 2^-28.
   const InverseRootLine& line = kInverseRootLines[(m >> 24) - 64];
@@ -827,11 +827,15 @@ constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexc
   const std::uint64_t p = std::uint64_t{n} * r.y;  // < 2^62
   const auto p_high = static_cast<std::uint32_t>(p >> 32);
   const auto p_low = static_cast<std::uint32_t>(p);
-  if (r.shift > 30) return p_high != 0 || (p_low >> 31) != 0 ? 0xFFFF'FFFFU : p_low << 1;  // v <= 3
-  // p >> (30 - shift) in 32-bit words (a 64-bit shift by a variable amount costs more).
-  const int down = 30 - r.shift;  // 0..30
-  if ((down == 0 ? p_high : p_high >> down) != 0) return 0xFFFF'FFFFU;
-  return down == 0 ? p_low : (p_low >> down) | (p_high << (32 - down));
+  // p >> (30 - shift), shift 0..31, as (2p) >> (31 - shift) (2p < 2^63): one shift by 0..31
+  // in 32-bit words, and no branch (issue 29: shift 31, v <= 3, and shift 30 were cases of
+  // their own, branches the bound took out of line and back).
+  const int down = 31 - r.shift;  // 0..31
+  const std::uint32_t twice_high = (p_high << 1) | (p_low >> 31);
+  const std::uint32_t twice_low = p_low << 1;
+  const std::uint32_t high = twice_high >> down;
+  const std::uint32_t low = (twice_low >> down) | ((twice_high << 1) << (31 - down));
+  return high != 0 ? 0xFFFF'FFFFU : low;
 }
 /// n 2^F / sqrt(v) rounded to nearest (half up), for n <= 2^31 and v > 0: n / |x| as a raw
 /// value of a Q format with F fraction bits, when n is a raw value and v is |x|^2 in raw units
