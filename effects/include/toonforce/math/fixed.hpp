@@ -799,12 +799,13 @@ inline constexpr auto kInverseRootLines = [] {
 constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
   auto high = static_cast<std::uint32_t>(v >> 32);
   auto low = static_cast<std::uint32_t>(v);
-  // Pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift). Selects, not a
-  // branch: the bound took the branch out of line and back (issue 29).
-  const bool small = high == 0;
-  int shift = small ? 16 : 0;
-  high = small ? low : high;
-  low = small ? 0U : low;
+  // Pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift). A high word of
+  // 0 takes the low word's place by a mask, not a branch (GCC made selects branches, and the
+  // bound took them out of line and back, issue 29).
+  const std::uint32_t small = 0U - static_cast<std::uint32_t>(high == 0);  // all ones: high is 0
+  int shift = static_cast<int>(small & 16U);
+  high |= low & small;
+  low &= ~small;
   const int c = std::countl_zero(high) & ~1;
   const std::uint32_t m = (high << c) | ((low >> 1) >> (31 - c));  // c even, 0..30 (v > 0): low >> (32 - c)
   shift += c / 2;
