@@ -386,8 +386,8 @@ bool check_saturating_operators() noexcept {
                               0x7FFF'8000, 12'345'678, -87'654'321};
     constexpr std::size_t kN = sizeof kEdges / sizeof kEdges[0];
     struct Expected {
-      Raw sum, difference, product;
-      bool sum_saturates, difference_saturates, product_saturates;
+      Raw sum, difference, product, negation;
+      bool sum_saturates, difference_saturates, product_saturates, negation_saturates;
     };
     static constexpr auto kExpected = [&] {
       std::array<Expected, kN * kN> e{};
@@ -398,10 +398,10 @@ bool check_saturating_operators() noexcept {
           const std::int64_t p = std::int64_t{kEdges[i]} * kEdges[j];
           const std::int64_t rounded = (p + ((std::int64_t{1} << 15) + (p >> 63))) >> 16;
           Raw ignored = 0;
-          e[i * kN + j] = {(a + b).raw(), (a - b).raw(), (a * b).raw(),
+          e[i * kN + j] = {(a + b).raw(), (a - b).raw(), (a * b).raw(), (-a).raw(),
                            __builtin_add_overflow(kEdges[i], kEdges[j], &ignored),
                            __builtin_sub_overflow(kEdges[i], kEdges[j], &ignored),
-                           rounded != static_cast<Raw>(rounded)};
+                           rounded != static_cast<Raw>(rounded), __builtin_sub_overflow(0, kEdges[i], &ignored)};
         }
       }
       return e;
@@ -425,6 +425,10 @@ bool check_saturating_operators() noexcept {
         const Raw product = (a * b).raw();
         wrong += product != e.product || take_fixed_saturated() != e.product_saturates;
       }
+      volatile Raw va = kEdges[i];
+      const Q a = Q::from_raw(va);  // -a, the same way
+      const Raw negation = (-a).raw();
+      wrong += negation != kExpected[i * kN].negation || take_fixed_saturated() != kExpected[i * kN].negation_saturates;
     }
     for (const std::int64_t a : kWideEdges) {
       for (const std::int64_t b : kWideEdges) {
@@ -437,7 +441,7 @@ bool check_saturating_operators() noexcept {
         wrong += sum.raw() != expected || take_fixed_saturated() != overflows;
       }
     }
-    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + kWideN * kWideN << " cases, "
+    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + kN + kWideN * kWideN << " cases, "
         << wrong << " wrong\n";
     return wrong == 0;
   } else {

@@ -496,7 +496,14 @@ class Fixed {
     if (__builtin_sub_overflow(a.raw_, b.raw_, &difference)) return saturated_toward(a.raw_);
     return from_raw(difference);
   }
-  friend constexpr Fixed operator-(Fixed a) noexcept {
+  [[gnu::always_inline]] friend constexpr Fixed operator-(Fixed a) noexcept {
+#if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
+    if constexpr (sizeof(Raw) == 4) {  // 0 - a, single-path as the difference (issue 29)
+      if (!std::is_constant_evaluated() && !__builtin_constant_p(a.raw_)) {
+        return from_raw(detail::saturating_words<true>(0, a.raw_));
+      }
+    }
+#endif
     Raw negated = 0;
     if (__builtin_sub_overflow(Raw{0}, a.raw_, &negated)) return saturated_toward(0);  // -lowest()
     return from_raw(negated);
