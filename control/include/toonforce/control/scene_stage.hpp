@@ -58,8 +58,10 @@ class SceneStage {
     Vec3<S> f;
     if constexpr (kIsFixed<S>) {
       // A Q force is always finite, so the tick always commits: the effects update their
-      // states in place (issue 29: the copy of the states was on every tick's bound).
-      f = scene_.force(in, states_[current_], active_.data());
+      // states in place (issue 29: the copy of the states was on every tick's bound). Only an
+      // update flips current_, so a stage that is not live has its states at index 0: a fixed
+      // address (issue 29 again: the cliff's state accesses each added the index).
+      f = scene_.force(in, states_[kLive ? current_ : 0], active_.data());
     } else {
       f = scene_.force(in, states_[current_], states_[1 - current_], active_.data());
     }
