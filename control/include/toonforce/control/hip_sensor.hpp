@@ -121,14 +121,33 @@ class HipSensor {
     return h;
   }
 
-  /// The tick counted: its estimate becomes the estimator's state.
+  /// The tick counted: its estimate becomes the estimator's state. The position and time of
+  /// the last tick that counted are kept once, here (the estimator's own copy of the position
+  /// when it took one): the scene's telemetry reads them (SceneStage::describe), where the
+  /// scene stage used to copy both again on every tick (issue 29: 22-40 cycles of the bound).
   constexpr void commit(const Hip<S>& h, const TickTime& time) noexcept {
     if constexpr (kMayEstimate) {
-      if (h.estimated) estimator_.commit(h.position_m, h.velocity_m_per_s);
+      if (h.estimated) {
+        estimator_.commit(h.position_m, h.velocity_m_per_s);
+      } else {
+        position_m_ = h.position_m;
+      }
+      estimated_ = h.estimated;
+    } else {
+      position_m_ = h.position_m;
     }
     last_commit_ = time.now;
     has_commit_ = true;
   }
+  /// The position of the last tick that counted (zero before the first).
+  constexpr const Vec3<S>& committed_position() const noexcept {
+    if constexpr (kMayEstimate) {
+      if (estimated_) return estimator_.position();
+    }
+    return position_m_;
+  }
+  /// The time of the last tick that counted (zero before the first).
+  constexpr Instant committed_at() const noexcept { return last_commit_; }
 
  private:
   static constexpr auto periods_rate_of(double period_s) noexcept {
@@ -170,7 +189,9 @@ class HipSensor {
   [[no_unique_address]] std::conditional_t<kGainTable, std::array<S, static_cast<std::size_t>(kTabulatedGaps)>, NoPeriodsRate>
       gains_{};
   bool has_commit_ = false;
+  bool estimated_ = false;  ///< the last tick that counted was estimated: the estimator holds its position
   Instant last_commit_{};
+  Vec3<S> position_m_{};  ///< the last tick that counted's position, when the estimator did not take it
 };
 
 }  // namespace toonforce

@@ -75,8 +75,6 @@ class SceneStage {
       if (!is_finite(dot(f, f))) return {};
       current_ = 1 - current_;  // commit
     }
-    last_position_m_ = in.position_m;  // what describe() needs besides the velocity
-    last_now_ = in.now;
     started_ = true;
     if constexpr (kLive) fade_.advance(active_[scene_.active_slots()]);
     return {f, true};
@@ -122,16 +120,18 @@ class SceneStage {
   const ActiveForce<S>* active() const noexcept { return active_.data(); }
   std::size_t active_slots() const noexcept { return slots_of(scene_); }
   /// The effects' values after the last tick that counted (outside the tick: for telemetry),
-  /// given the velocity that tick saw and the loop's time base.
-  bool describe(double* values, const Vec3<S>& velocity_m_per_s, double period_s) const noexcept {
+  /// given that tick's position, velocity and time (the loop keeps them: HipSensor) and the
+  /// loop's time base.
+  bool describe(double* values, const Vec3<S>& position_m, const Vec3<S>& velocity_m_per_s, Instant now,
+                double period_s) const noexcept {
     if (!started_) {  // nothing to show before the first tick that counted
       for (std::size_t i = 0; i < scene_.value_count(); ++i) values[i] = std::numeric_limits<double>::quiet_NaN();
       return false;
     }
     TickInput<S> in{};
-    in.position_m = last_position_m_;
+    in.position_m = position_m;
     in.velocity_m_per_s = velocity_m_per_s;
-    in.now = last_now_;
+    in.now = now;
     in.period_s = period_s;
     return scene_.describe(states_[current_], in, values);
   }
@@ -175,9 +175,7 @@ class SceneStage {
   // A live stage evaluates the old and the new scene at an update without committing either.
   [[no_unique_address]] std::conditional_t<kLive, typename SceneT::State, NoFade> scratch_{};
   [[no_unique_address]] std::conditional_t<kLive, decltype(active_), NoFade> scratch_active_{};
-  Vec3<S> last_position_m_{};  ///< of the last tick that counted (for describe)
-  Instant last_now_{};
-  bool started_ = false;
+  bool started_ = false;  ///< some tick counted
 };
 
 }  // namespace toonforce

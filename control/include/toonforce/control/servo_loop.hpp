@@ -242,7 +242,8 @@ class ServoLoop {
   const typename SceneT::State& scene_state() const noexcept { return scene_.state(); }
   /// The effects' values after the last tick that counted (`scene().value_count()` of them).
   bool describe(double* values) const noexcept {
-    return scene_.describe(values, out_.velocity_m_per_s, clock_.period_s_for_input());
+    return scene_.describe(values, sensor_.committed_position(), out_.velocity_m_per_s, sensor_.committed_at(),
+                           clock_.period_s_for_input());
   }
   const auto& thermal() const noexcept { return thermal_; }
   auto& thermal() noexcept { return thermal_; }

@@ -68,6 +68,8 @@ class VelocityEstimator {
     return v;
   }
   constexpr const Vec3<S>& velocity() const noexcept { return velocity_; }
+  /// The position of the last commit.
+  constexpr const Vec3<S>& position() const noexcept { return previous_m_; }
 
  private:
   S time_constant_s_;  ///< 1/(2 pi f_c) [s]
