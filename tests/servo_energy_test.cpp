@@ -292,6 +292,74 @@ TYPED_TEST(ServoEnergy, AWantedForcePast181NewtonsWhileAnEpisodeRunsIsClampedWit
   EXPECT_TRUE(rig.loop.passivity().controller().in_episode(0));
 }
 
+// A Q16.16 loop whose device reads in Q16.16 (a microcontroller's, tools/mcu) takes the step
+// since the last counted tick once, in the sensor, for the velocity estimate and the passivity
+// observer alike (issue 29); a loop whose device reads in double keeps the observer's own last
+// position. On the same positions (exact Q16.16 values) through a slippery stroke whose episodes
+// go over budget, late ticks and a failed read, the two give the same forces, damping,
+// velocities and energies, bit for bit.
+template <class T>
+struct ScriptedPositions {
+  const std::vector<Vec3<Q16_16>>* positions;
+  const std::size_t* k;
+  const DeviceStatus* status;
+  Vec3<T> written{};
+  DeviceStatus read(BasicDeviceReading<T>& r) noexcept {
+    if constexpr (std::same_as<T, double>) {
+      r.position_m = to_double((*positions)[*k]);  // exact: a Q16.16 value is a double
+    } else {
+      r.position_m = (*positions)[*k];
+    }
+    return *status;
+  }
+  DeviceStatus write(const Vec3<T>& f) noexcept {
+    written = f;
+    return DeviceStatus::kOk;
+  }
+};
+struct QScriptedPositions : ScriptedPositions<Q16_16> {
+  using Scalar = Q16_16;
+};
+
+TEST(ServoEnergyQ16, ALoopReadingInQ16TakesTheStepOnceAndMatchesOneReadingInDoubleBitForBit) {
+  using Q = Q16_16;
+  ServoConfig c = bare_config();
+  c.safety.passivity.controller = true;
+  c.safety.passivity.budget_j = 0.01;
+  c.safety.has_max_velocity = true;  // the motion limits need the velocity too
+  c.safety.max_velocity_m_per_s = 5.0;
+  std::vector<Vec3<Q>> positions;
+  for (int k = 0; k < 4000; ++k) {
+    const double t = k * kPeriodS;
+    positions.push_back(vec_cast<Q>(Vec3<double>{0.03 * std::sin(3.0 * t), 0.0, k < 200 ? 0.01 : -0.004}));
+  }
+  std::size_t row = 0;
+  DeviceStatus status = DeviceStatus::kOk;
+  ServoLoop<ScriptedPositions<double>, RuntimeScene<Q>> in_double(ScriptedPositions<double>{&positions, &row, &status},
+                                                                  scene_from<Q>(kSlippery), c);
+  ServoLoop<QScriptedPositions, RuntimeScene<Q>> in_q(QScriptedPositions{{&positions, &row, &status}},
+                                                      scene_from<Q>(kSlippery), c);
+  static_assert(!decltype(in_double)::kStepShared && decltype(in_q)::kStepShared);
+  int damped = 0;
+  std::int64_t k = 0;
+  for (row = 0; row < positions.size(); ++row) {
+    status = row == 2500 ? DeviceStatus::kTimeout : DeviceStatus::kOk;  // a tick without a position
+    k += row % 700 == 699 ? 4 : 1;                                         // and late ticks
+    const TickStatus a = in_double.tick(k);
+    const TickStatus b = in_q.tick(k);
+    ASSERT_EQ(a.faults.bits(), b.faults.bits()) << row;
+    ASSERT_EQ(a.limits, b.limits) << row;
+    ASSERT_EQ(in_double.force(), in_q.force()) << row;
+    ASSERT_EQ(in_double.velocity(), in_q.velocity()) << row;
+    ASSERT_EQ(in_double.passivity().observer().energy(), in_q.passivity().observer().energy()) << row;
+    ASSERT_EQ(in_double.passivity().controller().episode_energy(0), in_q.passivity().controller().episode_energy(0))
+        << row;
+    damped += has(b.limits, Limit::kPassivity) ? 1 : 0;
+  }
+  EXPECT_GT(damped, 100) << "the episodes must go over budget for the damping to be compared";
+  EXPECT_NE(in_q.passivity().observer().energy(), Wide<Q>{}) << "the stroke must exchange energy";
+}
+
 TYPED_TEST(ServoEnergy, PassivityControllerLeavesAnEpisodeWithinBudgetUntouched) {
   ServoConfig c = bare_config();
   c.safety.passivity.budget_j = 100.0;

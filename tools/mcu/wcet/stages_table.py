@@ -39,7 +39,7 @@ STAGES = [
     ("clock", r"^BasicLoopClock::"),
     ("supervisor", r"^Supervisor::"),
     ("velocity estimate", r"HipSensor::"),
-    ("passivity: observer, the last tick's work", r"^Passivity::observe$"),
+    ("passivity: observer, the last tick's work", r"^Passivity::observe(_step)?$"),
     ("thermal model", r"^ThermalModel::"),
     ("scene force", r"^SceneStage::"),
     ("passivity: damping", r"^Passivity::damping$"),

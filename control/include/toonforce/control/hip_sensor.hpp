@@ -16,7 +16,8 @@
 
 namespace toonforce {
 
-template <Scalar S>
+/// `kStep`: it also carries the step since the last counted tick (HipSensor's kStep).
+template <Scalar S, bool kStep = false>
 struct Hip {
   Vec3<S> position_m;
   Vec3<S> velocity_m_per_s;       ///< zero when nothing needs a velocity
@@ -24,6 +25,13 @@ struct Hip {
   bool position_finite = false;   ///< the position can be used (the passivity observer needs only it)
   bool finite = false;            ///< position and any given velocity finite: the tick can count
   bool estimated = false;         ///< velocity_m_per_s is the estimator's, not yet committed
+  /// kStep: position_m minus the last counted tick's, when there was one (`stepped`). In a Q
+  /// format every tick with a position counts, so that is also the step since the last good
+  /// position, the passivity observer's. (Only in the Hip of a loop that uses it: a larger Hip
+  /// was cleared by a call to memset in replay's loop, a loop the tick's bound refuses.)
+  struct NoStep {};
+  [[no_unique_address]] std::conditional_t<kStep, Vec3<S>, NoStep> step_m{};
+  bool stepped = false;
 };
 
 /// The rate 1e9 / (g T) of g >= 1 periods of T ns in a Q format, exactly as
@@ -56,7 +64,9 @@ struct PeriodsRate {
 /// `kMayEstimate` false compiles the estimator out (no scene effect, no safety stage needs it).
 /// `kMayStamp` false: ticks come on the period only (no LoopStages::stamps), so in a Q format
 /// 1/dt after a gap is PeriodsRate's (one 32-bit division), and the filter's gain a table's.
-template <Scalar S, bool kMayEstimate, bool kMayStamp = true>
+/// `kStep`: a Q format's Hip carries the step since the last counted tick (Hip::step_m) for
+/// the passivity stage, taken once for it and the estimator when the reading is in S.
+template <Scalar S, bool kMayEstimate, bool kMayStamp = true, bool kStep = false>
 class HipSensor {
   /// A late tick's filter gain comes from a table (gain_after).
   static constexpr bool kGainTable = kIsFixed<S> && !kMayStamp && kMayEstimate;
@@ -82,10 +92,11 @@ class HipSensor {
   static constexpr std::int64_t kTabulatedGaps = 32;
 
   /// `reading` in double, or already in S (a device that reads in the loop's scalar: a
-  /// fixed-point target's, tools/mcu).
+  /// fixed-point target's, tools/mcu). With kStep, a Q format and a reading in S, the Hip
+  /// carries the step since the last counted tick (Hip::step_m).
   template <class T>
-  Hip<S> sense(const BasicDeviceReading<T>& reading, const TickTime& time) const noexcept {
-    Hip<S> h;
+  Hip<S, kStep> sense(const BasicDeviceReading<T>& reading, const TickTime& time) const noexcept {
+    Hip<S, kStep> h;
     h.position_finite = is_finite(reading.position_m);
     h.finite = h.position_finite && (!reading.has_velocity || is_finite(reading.velocity_m_per_s));
     if (!h.position_finite) return h;
@@ -105,51 +116,79 @@ class HipSensor {
       h.rate_hz = one_period ? period_rate_hz_
                              : scalar_cast<S>(1.0 / (has_commit_ ? time.seconds_since(last_commit_) : time.dt_s()));
     }
-    if (reading.has_velocity) {
-      h.velocity_m_per_s = in_scalar(reading.velocity_m_per_s);
-    } else if constexpr (kMayEstimate) {
-      if (estimate_) {
-        if constexpr (kGainTable) {
-          h.velocity_m_per_s = estimator_.estimate(h.position_m, h.rate_hz, one_period ? period_gain_ : gain_after(since));
-        } else {
-          h.velocity_m_per_s = estimator_.estimate(h.position_m, h.rate_hz,
-                                                   one_period ? period_gain_ : estimator_.gain(h.rate_hz));
-        }
-        h.estimated = true;
+    // The step since the last tick that counted, once for the estimator and, in a Q loop that
+    // reads in S (every tick with a position counts there: a Q value is finite), the passivity
+    // observer (kStep), which took the same difference on its own (issue 29).
+    const bool estimating = kMayEstimate && estimate_ && !reading.has_velocity;
+    if constexpr (kStep) {
+      static_assert(kIsFixed<S>);
+      if (has_commit_ && (std::is_same_v<T, S> || estimating)) {
+        h.step_m = h.position_m - position_m_;
+        h.stepped = true;
       }
+      estimate_into(h, reading.has_velocity, reading.velocity_m_per_s, h.step_m, one_period, since);
+    } else {
+      Vec3<S> step;
+      if (has_commit_ && estimating) {
+        step = h.position_m - position_m_;
+        h.stepped = true;
+      }
+      estimate_into(h, reading.has_velocity, reading.velocity_m_per_s, step, one_period, since);
     }
     return h;
   }
 
-  /// The tick counted: its estimate becomes the estimator's state. The position and time of
-  /// the last tick that counted are kept once, here (the estimator's own copy of the position
-  /// when it took one): the scene's telemetry reads them (SceneStage::describe), where the
-  /// scene stage used to copy both again on every tick (issue 29: 22-40 cycles of the bound).
-  constexpr void commit(const Hip<S>& h, const TickTime& time) noexcept {
+  /// The tick counted: its estimate becomes the estimator's state. The position, velocity and
+  /// time of the last tick that counted are kept once, here (the estimator keeps the velocity
+  /// it estimated): the step of the next tick is taken from them, and the loop's telemetry
+  /// reads them (SceneStage::describe, the frame), where the scene stage and the loop used to
+  /// copy them again on every tick (issue 29: 22-40 cycles of the bound for the position and
+  /// time).
+  constexpr void commit(const Hip<S, kStep>& h, const TickTime& time) noexcept {
+    position_m_ = h.position_m;
     if constexpr (kMayEstimate) {
       if (h.estimated) {
-        estimator_.commit(h.position_m, h.velocity_m_per_s);
+        estimator_.commit_velocity(h.velocity_m_per_s);
       } else {
-        position_m_ = h.position_m;
+        velocity_m_per_s_ = h.velocity_m_per_s;
       }
       estimated_ = h.estimated;
     } else {
-      position_m_ = h.position_m;
+      velocity_m_per_s_ = h.velocity_m_per_s;
     }
     last_commit_ = time.now;
     has_commit_ = true;
   }
   /// The position of the last tick that counted (zero before the first).
-  constexpr const Vec3<S>& committed_position() const noexcept {
+  constexpr const Vec3<S>& committed_position() const noexcept { return position_m_; }
+  /// The velocity the last tick that counted saw (zero before the first, and when nothing
+  /// needed one).
+  constexpr const Vec3<S>& committed_velocity() const noexcept {
     if constexpr (kMayEstimate) {
-      if (estimated_) return estimator_.position();
+      if (estimated_) return estimator_.velocity();
     }
-    return position_m_;
+    return velocity_m_per_s_;
   }
   /// The time of the last tick that counted (zero before the first).
   constexpr Instant committed_at() const noexcept { return last_commit_; }
 
  private:
+  /// The velocity into `h`: the device's, else the estimator's from `step` when estimating.
+  template <class T>
+  void estimate_into(Hip<S, kStep>& h, bool has_velocity, const Vec3<T>& device_velocity, const Vec3<S>& step,
+                     bool one_period, std::int64_t since) const noexcept {
+    if (has_velocity) {
+      h.velocity_m_per_s = in_scalar(device_velocity);
+    } else if constexpr (kMayEstimate) {
+      if (estimate_) {
+        const S gain = kGainTable ? (one_period ? period_gain_ : gain_after(since))
+                                  : (one_period ? period_gain_ : estimator_.gain(h.rate_hz));
+        h.velocity_m_per_s = estimator_.estimate_step(step, h.rate_hz, gain);  // started: stepped
+        h.estimated = true;
+      }
+    }
+  }
+
   static constexpr auto periods_rate_of(double period_s) noexcept {
     if constexpr (kIsFixed<S> && !kMayStamp) {
       return PeriodsRate<S>::of(ns_from_seconds(period_s));
@@ -189,9 +228,10 @@ class HipSensor {
   [[no_unique_address]] std::conditional_t<kGainTable, std::array<S, static_cast<std::size_t>(kTabulatedGaps)>, NoPeriodsRate>
       gains_{};
   bool has_commit_ = false;
-  bool estimated_ = false;  ///< the last tick that counted was estimated: the estimator holds its position
+  bool estimated_ = false;  ///< the last tick that counted was estimated: the estimator holds its velocity
   Instant last_commit_{};
-  Vec3<S> position_m_{};  ///< the last tick that counted's position, when the estimator did not take it
+  Vec3<S> position_m_{};        ///< the last tick that counted's position
+  Vec3<S> velocity_m_per_s_{};  ///< and its velocity when not estimated (the device's, or zero)
 };
 
 }  // namespace toonforce

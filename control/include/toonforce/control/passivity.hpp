@@ -308,6 +308,15 @@ class Passivity {
     previous_m_ = position_m;
     has_position_ = true;
   }
+  /// The same with the HIP's step since the last good position already taken (`stepped`: there
+  /// was one): a Q loop whose device reads in its scalar, where every tick with a position
+  /// counts, so HipSensor's step since the last counted tick is this one (issue 29: the stage
+  /// kept its own last position and took the same difference again).
+  void observe_step(const Vec3<S>& held_force_n, const Vec3<S>& step_m, bool stepped) noexcept {
+    if (!stepped) return;
+    observer_.observe(held_force_n, step_m);
+    if (episodes_) controller_.account(step_m, applied_, slots_);  // only a running episode books work
+  }
   /// After a tick that counted: the damping for this tick's active parts into `damping_n`
   /// (zero when none exceeds its budget or the controller is off); true if there is some.
   bool damping(const ActiveForce<S>* active, const Vec3<S>& velocity_m_per_s, Vec3<S>& damping_n) noexcept {
@@ -378,6 +387,7 @@ class NoPassivity {
  public:
   constexpr NoPassivity(const PassivityConfig&, std::size_t, double, double) noexcept {}
   void observe(const Vec3<S>&, const Vec3<S>&, bool) noexcept {}
+  void observe_step(const Vec3<S>&, const Vec3<S>&, bool) noexcept {}
   bool damping(const ActiveForce<S>*, const Vec3<S>&, Vec3<S>&) noexcept { return false; }
   void settle(const Vec3<S>&, const Vec3<S>&) noexcept {}
   void cut() noexcept {}

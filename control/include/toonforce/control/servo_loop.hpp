@@ -84,6 +84,12 @@ class ServoLoop {
   using DeviceScalar = device_scalar_t<Device>;
   static_assert(std::same_as<DeviceScalar, double> || std::same_as<DeviceScalar, S>,
                 "a device reads in double or in the loop's scalar");
+  /// A Q loop with a passivity stage whose device reads in its scalar: every tick with a
+  /// position counts (a Q value is finite), so the sensor's step since the last counted tick is
+  /// the passivity observer's step since the last good position, taken once (HipSensor's kStep).
+  static constexpr bool kStepShared = kIsFixed<S> && std::same_as<DeviceScalar, S> && kStages.passivity;
+  /// The handle as the sensor gives it (with the step when it is shared).
+  using HipT = Hip<S, kStepShared>;
   /// A fixed-point loop keeps its time in integer nanoseconds (no floating point on a tick).
   using Clock = BasicLoopClock<kIsFixed<S>>;
 
@@ -139,7 +145,7 @@ class ServoLoop {
     if (gate.ramp_again_next) engage_.restart(time.now.tick + 1);
 
     // The handle; what the force held since the last tick did: heat (thermal), energy (passivity).
-    const Hip<S> hip = gate.position ? sensor_.sense(reading, time) : Hip<S>{};
+    const HipT hip = gate.position ? sensor_.sense(reading, time) : HipT{};
     thermal_.advance(out_.force_n, time.gap);
     bool derated = false;
     if (thermal_.enabled()) {
@@ -147,7 +153,11 @@ class ServoLoop {
       safety_.set_max_force(allowed);
       derated = allowed < max_force_n_;
     }
-    passivity_.observe(out_.force_n, hip.position_m, hip.position_finite);
+    if constexpr (kStepShared) {
+      passivity_.observe_step(out_.force_n, hip.step_m, hip.stepped);
+    } else {
+      passivity_.observe(out_.force_n, hip.position_m, hip.position_finite);
+    }
     if constexpr (kStages.live) take_update(gate, hip, time);
 
     // The scene and the safety chain (into out_); no position, no force.
@@ -208,7 +218,7 @@ class ServoLoop {
     f.tick = clock_.last().tick;
     f.t_s = clock_.time_s();
     f.position_m = to_double(position_m_);
-    f.velocity_m_per_s = to_double(out_.velocity_m_per_s);
+    f.velocity_m_per_s = to_double(sensor_.committed_velocity());
     f.force_n = to_double(out_.force_n);
     f.scene_force_n = to_double(out_.scene_n);
     f.damping_n = to_double(out_.damping_n);
@@ -242,7 +252,7 @@ class ServoLoop {
   const typename SceneT::State& scene_state() const noexcept { return scene_.state(); }
   /// The effects' values after the last tick that counted (`scene().value_count()` of them).
   bool describe(double* values) const noexcept {
-    return scene_.describe(values, sensor_.committed_position(), out_.velocity_m_per_s, sensor_.committed_at(),
+    return scene_.describe(values, sensor_.committed_position(), sensor_.committed_velocity(), sensor_.committed_at(),
                            clock_.period_s_for_input());
   }
   const auto& thermal() const noexcept { return thermal_; }
@@ -254,7 +264,7 @@ class ServoLoop {
   /// The scene's force before the safety chain on the last tick that counted [N].
   const Vec3<S>& scene_force() const noexcept { return out_.scene_n; }
   /// The velocity the scene saw on the last tick that counted [m/s] (zero if none needed).
-  const Vec3<S>& velocity() const noexcept { return out_.velocity_m_per_s; }
+  const Vec3<S>& velocity() const noexcept { return sensor_.committed_velocity(); }
   Device& device() noexcept { return device_; }
   const Device& device() const noexcept { return device_; }
   PinsT& pins() noexcept { return pins_; }
@@ -265,14 +275,13 @@ class ServoLoop {
     Vec3<S> force_n;           ///< to command
     Vec3<S> scene_n;           ///< the scene's force (zero on a tick that did not count)
     Vec3<S> damping_n;         ///< the passivity controller's
-    Vec3<S> velocity_m_per_s;  ///< what the scene saw
     S gain{};                  ///< soft start
     FaultSet faults;
     std::uint8_t limits = 0;
   };
 
   /// The scene with the non-finite guard, then the safety chain, into `o`.
-  void shape(const Gate& gate, const Hip<S>& hip, const TickTime& time, Outcome& o) noexcept {
+  void shape(const Gate& gate, const HipT& hip, const TickTime& time, Outcome& o) noexcept {
     const std::int64_t k = time.now.tick;
     SceneForce<S> scene{};
     if (hip.finite) scene = scene_.force(Stage::input(hip, time));
@@ -284,7 +293,6 @@ class ServoLoop {
       return;
     }
     sensor_.commit(hip, time);
-    o.velocity_m_per_s = hip.velocity_m_per_s;
     // Episodes are tracked whatever the gate says: the budget is per contact, not per ramp.
     const bool damping = passivity_.damping(scene_.active(), hip.velocity_m_per_s, o.damping_n);
     o.faults |= motion_.check(hip.position_m, hip.velocity_m_per_s);
@@ -313,7 +321,7 @@ class ServoLoop {
   }
 
   /// A live loop's one update a tick, if there is one: whole, before the scene's force.
-  void take_update(const Gate& gate, const Hip<S>& hip, const TickTime& time) noexcept {
+  void take_update(const Gate& gate, const HipT& hip, const TickTime& time) noexcept {
     if constexpr (kStages.live) {
       if (mailbox_ == nullptr) return;
       const auto* update = mailbox_->front();
@@ -437,7 +445,7 @@ class ServoLoop {
   StageOf<kStages.thermal, ThermalModel, NoThermal> thermal_;
   [[no_unique_address]] StageOf<kStages.motion_limits, MotionLimits, NoMotionLimits> motion_;
   ForceSafety<S> safety_;
-  HipSensor<S, kMayEstimate, kStages.stamps> sensor_;
+  HipSensor<S, kMayEstimate, kStages.stamps, kStepShared> sensor_;
   S max_force_n_;  ///< the configured clamp (the thermal model derates below it)
   S period_max_step_ = period_step(safety_, clock_);
   /// Fixed point: the largest gap whose step gap * period_max_step_ fits the format.

@@ -27,22 +27,21 @@ class VelocityEstimator {
   constexpr Vec3<S> estimate(const Vec3<S>& position_m, S rate_hz, S a) const noexcept {
     if (!started_) return velocity_;
     if constexpr (kIsFixed<S>) {
-      // The same filter as v (1 - a) + dx (rate a): per component two raw products summed
-      // exactly and rounded once, where the form below rounds and saturates five times (issue
-      // 29: a third of the operations). dx saturates as before; |dx rate a| <= 2^62 since
-      // rate a <= rate, and |v (1 - a)| < 2^47, so the sum stays in 64 bits. With a in (0, 1]
-      // (gain()), 1 - a is in [0, 1) and |rate a| <= |rate|: neither needs the saturation test.
-      using W = typename S::Wide;
-      constexpr S kOne = scalar_cast<S>(1.0);
-      const S keep = S::from_raw(kOne.raw() - a.raw());
-      const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
-      const Vec3<S> dx = position_m - previous_m_;
-      const auto filtered = [keep, gain](S d, S v) {
-        return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw());
-      };
-      return {filtered(dx.x, velocity_.x), filtered(dx.y, velocity_.y), filtered(dx.z, velocity_.z)};
+      return filtered(position_m - previous_m_, rate_hz, a);
     } else {
       return velocity_ + ((position_m - previous_m_) * rate_hz - velocity_) * a;
+    }
+  }
+  /// The same from the step dx = x_k - x_{k-1} already taken (once started: a commit came
+  /// before, so there was a last position), for an owner that keeps the positions (HipSensor,
+  /// which takes the step once for this and the passivity stage) and commits the velocity
+  /// alone (commit_velocity).
+  constexpr Vec3<S> estimate_step(const Vec3<S>& dx, S rate_hz, S a) const noexcept {
+    if (!started_) return velocity_;
+    if constexpr (kIsFixed<S>) {
+      return filtered(dx, rate_hz, a);
+    } else {
+      return velocity_ + (dx * rate_hz - velocity_) * a;
     }
   }
   /// a = 1 / (1 + rate / (2 pi f_c)), for a rate >= 0 (a denominator of at least 1: in a Q
@@ -61,6 +60,11 @@ class VelocityEstimator {
     previous_m_ = position_m;
     velocity_ = velocity_m_per_s;
   }
+  /// Makes estimate_step's result the estimator's state (its owner keeps the position).
+  constexpr void commit_velocity(const Vec3<S>& velocity_m_per_s) noexcept {
+    started_ = true;
+    velocity_ = velocity_m_per_s;
+  }
   /// estimate + commit.
   constexpr Vec3<S> update(const Vec3<S>& position_m, S rate_hz) noexcept {
     const Vec3<S> v = estimate(position_m, rate_hz);
@@ -68,10 +72,24 @@ class VelocityEstimator {
     return v;
   }
   constexpr const Vec3<S>& velocity() const noexcept { return velocity_; }
-  /// The position of the last commit.
-  constexpr const Vec3<S>& position() const noexcept { return previous_m_; }
 
  private:
+  /// Q formats: the same filter as v (1 - a) + dx (rate a): per component two raw products
+  /// summed exactly and rounded once, where the floating-point form rounds and saturates five
+  /// times (issue 29: a third of the operations). |dx rate a| <= 2^62 since rate a <= rate, and
+  /// |v (1 - a)| < 2^47, so the sum stays in 64 bits. With a in (0, 1] (gain()), 1 - a is in
+  /// [0, 1) and |rate a| <= |rate|: neither needs the saturation test.
+  constexpr Vec3<S> filtered(const Vec3<S>& dx, S rate_hz, S a) const noexcept
+    requires kIsFixed<S>
+  {
+    using W = typename S::Wide;
+    constexpr S kOne = scalar_cast<S>(1.0);
+    const S keep = S::from_raw(kOne.raw() - a.raw());
+    const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
+    const auto one = [keep, gain](S d, S v) { return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw()); };
+    return {one(dx.x, velocity_.x), one(dx.y, velocity_.y), one(dx.z, velocity_.z)};
+  }
+
   S time_constant_s_;  ///< 1/(2 pi f_c) [s]
   Vec3<S> previous_m_{};
   Vec3<S> velocity_{};
@@ -86,6 +104,8 @@ struct NoVelocityEstimator {
   constexpr Vec3<S> estimate(const Vec3<S>&, S, S) const noexcept { return {}; }
   constexpr S gain(S) const noexcept { return {}; }
   constexpr void commit(const Vec3<S>&, const Vec3<S>&) noexcept {}
+  constexpr Vec3<S> estimate_step(const Vec3<S>&, S, S) const noexcept { return {}; }
+  constexpr void commit_velocity(const Vec3<S>&) noexcept {}
   constexpr Vec3<S> update(const Vec3<S>&, S) noexcept { return {}; }
 };
 
