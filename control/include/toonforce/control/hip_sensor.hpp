@@ -54,8 +54,12 @@ struct PeriodsRate {
   /// The rate after `g` >= 1 periods (0 once it rounds to 0; saturated, with the flag, when
   /// the period is too short for the format).
   constexpr S after(std::int64_t g) const noexcept {
-    if (!fits) return S::from_wide(std::int64_t{1} << 32);  // past the range: the flag
-    if (static_cast<std::uint64_t>(g) > twice_q_b) return S{};
+    if (!fits) [[unlikely]] {
+      return S::from_wide(std::int64_t{1} << 32);  // past the range: the flag
+    }
+    if (static_cast<std::uint64_t>(g) > twice_q_b) [[unlikely]] {
+      return S{};
+    }
     const auto half_sum = static_cast<std::uint32_t>((twice_q_b + static_cast<std::uint64_t>(g)) >> 1);  // <= 2Q + b
     return S::from_wide(half_sum / static_cast<std::uint32_t>(g));  // floor(floor(M / 2) / g) = floor(M / 2g)
   }

@@ -134,7 +134,9 @@ class ThermalModel {
   /// r^ticks (fixed point: from the table, or the conservative factor past it; see above).
   constexpr Decay<S> decay_over(std::int64_t ticks, Wide<S> target) const noexcept {
     if constexpr (kIsFixed<S>) {
-      if (ticks <= kTabulatedGaps) return decay_by_gap_[static_cast<std::size_t>(ticks - 1)];
+      if (ticks <= kTabulatedGaps) [[likely]] {  // (GCC laid the usual case out of line and back)
+        return decay_by_gap_[static_cast<std::size_t>(ticks - 1)];
+      }
       return target > temperature_ ? Decay<S>{} : decay_by_gap_.back();
     } else {
       // One period, the usual case: r itself, no repeated squaring.
