@@ -611,7 +611,6 @@ class CaseBuilder {
     const std::string name = "impact transient";
     using State = typename F::State;
     State armed_out{};
-    armed_out.impact.started = true;
     armed_out.impact.previous_penetration_m = scalar_cast<S>(-0.002);
     effect<F>(name, "armed, out of contact", p, armed_out,
               branch_inputs<S>(10, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), any_velocity(r), 5); }));
@@ -620,7 +619,6 @@ class CaseBuilder {
                                      {r.uniform(-0.1, 0.1), 0.0, r.uniform(-0.5, -0.06)}, 5);
               }));
     State running{};
-    running.impact.started = true;
     running.impact.armed = false;
     running.impact.running = true;
     running.impact.trigger = Instant{0, 0};

@@ -55,8 +55,10 @@ struct ImpactTransient {
   struct State {
     Instant trigger{};                 ///< tick of the running transient's trigger
     S impact_speed_m_per_s{};          ///< v_i of the running transient
-    S previous_penetration_m{};        ///< delta of the previous tick
-    bool started = false;              ///< false before the first tick (previous delta = current)
+    /// delta of the previous tick; before the first, a depth inside (1 m), so that the first
+    /// tick is no entry whatever its delta (a flag for "no previous tick" was a branch the
+    /// Cortex-M3 bound took out of line and back, issue 29)
+    S previous_penetration_m = scalar_cast<S>(1.0);
     bool armed = true;
     bool running = false;
   };
@@ -95,8 +97,7 @@ struct ImpactTransient {
   static constexpr ImpactOutput<S> force(const Params& p, State& s, const Contact<S>& c,
                                          const TickInput<S>& in) noexcept {
     const S delta = c.penetration_m;
-    const S previous = s.started ? s.previous_penetration_m : delta;  // first tick: no entry
-    s.started = true;
+    const S previous = s.previous_penetration_m;  // first tick: inside, so no entry
     s.previous_penetration_m = delta;
 
     ImpactOutput<S> out;
