@@ -16,8 +16,7 @@
 
 namespace toonforce {
 
-/// `kStep`: it also carries the step since the last counted tick (HipSensor's kStep).
-template <Scalar S, bool kStep = false>
+template <Scalar S>
 struct Hip {
   Vec3<S> position_m;
   Vec3<S> velocity_m_per_s;       ///< zero when nothing needs a velocity
@@ -25,13 +24,7 @@ struct Hip {
   bool position_finite = false;   ///< the position can be used (the passivity observer needs only it)
   bool finite = false;            ///< position and any given velocity finite: the tick can count
   bool estimated = false;         ///< velocity_m_per_s is the estimator's, not yet committed
-  /// kStep: position_m minus the last counted tick's, when there was one (`stepped`). In a Q
-  /// format every tick with a position counts, so that is also the step since the last good
-  /// position, the passivity observer's. (Only in the Hip of a loop that uses it: a larger Hip
-  /// was cleared by a call to memset in replay's loop, a loop the tick's bound refuses.)
-  struct NoStep {};
-  [[no_unique_address]] std::conditional_t<kStep, Vec3<S>, NoStep> step_m{};
-  bool stepped = false;
+  bool stepped = false;  ///< the sensor took the step since the last counted tick (HipSensor::step)
 };
 
 /// The rate 1e9 / (g T) of g >= 1 periods of T ns in a Q format, exactly as
@@ -68,8 +61,8 @@ struct PeriodsRate {
 /// `kMayEstimate` false compiles the estimator out (no scene effect, no safety stage needs it).
 /// `kMayStamp` false: ticks come on the period only (no LoopStages::stamps), so in a Q format
 /// 1/dt after a gap is PeriodsRate's (one 32-bit division), and the filter's gain a table's.
-/// `kStep`: a Q format's Hip carries the step since the last counted tick (Hip::step_m) for
-/// the passivity stage, taken once for it and the estimator when the reading is in S.
+/// `kStep`: in a Q format, with a reading in S, the step since the last counted tick is taken
+/// for the passivity stage too (step()), once for it and the estimator.
 template <Scalar S, bool kMayEstimate, bool kMayStamp = true, bool kStep = false>
 class HipSensor {
   /// A late tick's filter gain comes from a table (gain_after).
@@ -96,11 +89,11 @@ class HipSensor {
   static constexpr std::int64_t kTabulatedGaps = 32;
 
   /// `reading` in double, or already in S (a device that reads in the loop's scalar: a
-  /// fixed-point target's, tools/mcu). With kStep, a Q format and a reading in S, the Hip
-  /// carries the step since the last counted tick (Hip::step_m).
+  /// fixed-point target's, tools/mcu). With kStep, a Q format and a reading in S, it also takes
+  /// the step since the last counted tick for the passivity stage (step()).
   template <class T>
-  Hip<S, kStep> sense(const BasicDeviceReading<T>& reading, const TickTime& time) const noexcept {
-    Hip<S, kStep> h;
+  Hip<S> sense(const BasicDeviceReading<T>& reading, const TickTime& time) const noexcept {
+    Hip<S> h;
     h.position_finite = is_finite(reading.position_m);
     h.finite = h.position_finite && (!reading.has_velocity || is_finite(reading.velocity_m_per_s));
     if (!h.position_finite) return h;
@@ -127,10 +120,10 @@ class HipSensor {
     if constexpr (kStep) {
       static_assert(kIsFixed<S>);
       if (has_commit_ && (std::is_same_v<T, S> || estimating)) {
-        h.step_m = h.position_m - position_m_;
+        step_m_ = h.position_m - position_m_;
         h.stepped = true;
       }
-      estimate_into(h, reading.has_velocity, reading.velocity_m_per_s, h.step_m, one_period, since);
+      estimate_into(h, reading.has_velocity, reading.velocity_m_per_s, step_m_, one_period, since);
     } else {
       Vec3<S> step;
       if (has_commit_ && estimating) {
@@ -148,7 +141,7 @@ class HipSensor {
   /// reads them (SceneStage::describe, the frame), where the scene stage and the loop used to
   /// copy them again on every tick (issue 29: 22-40 cycles of the bound for the position and
   /// time).
-  constexpr void commit(const Hip<S, kStep>& h, const TickTime& time) noexcept {
+  constexpr void commit(const Hip<S>& h, const TickTime& time) noexcept {
     position_m_ = h.position_m;
     if constexpr (kMayEstimate) {
       if (h.estimated) {
@@ -163,6 +156,11 @@ class HipSensor {
     last_commit_ = time.now;
     has_commit_ = true;
   }
+  /// kStep: the last sense()'s step since the last counted tick, when it took one (Hip::stepped).
+  /// In a Q format every tick with a position counts, so that is also the step since the last
+  /// good position, the passivity observer's. (Kept here, not in the Hip: a Hip that large was
+  /// cleared by a call to memset, a loop the tick's bound refuses.)
+  constexpr const Vec3<S>& step() const noexcept { return step_m_; }
   /// The position of the last tick that counted (zero before the first).
   constexpr const Vec3<S>& committed_position() const noexcept { return position_m_; }
   /// The velocity the last tick that counted saw (zero before the first, and when nothing
@@ -179,7 +177,7 @@ class HipSensor {
  private:
   /// The velocity into `h`: the device's, else the estimator's from `step` when estimating.
   template <class T>
-  void estimate_into(Hip<S, kStep>& h, bool has_velocity, const Vec3<T>& device_velocity, const Vec3<S>& step,
+  void estimate_into(Hip<S>& h, bool has_velocity, const Vec3<T>& device_velocity, const Vec3<S>& step,
                      bool one_period, std::int64_t since) const noexcept {
     if (has_velocity) {
       h.velocity_m_per_s = in_scalar(device_velocity);
@@ -234,6 +232,7 @@ class HipSensor {
   bool has_commit_ = false;
   bool estimated_ = false;  ///< the last tick that counted was estimated: the estimator holds its velocity
   Instant last_commit_{};
+  mutable Vec3<S> step_m_{};    ///< kStep: sense()'s step (a tick's scratch, not state)
   Vec3<S> position_m_{};        ///< the last tick that counted's position
   Vec3<S> velocity_m_per_s_{};  ///< and its velocity when not estimated (the device's, or zero)
 };

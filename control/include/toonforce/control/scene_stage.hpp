@@ -42,8 +42,7 @@ class SceneStage {
   static constexpr std::size_t slots_of(const SceneT& scene) noexcept { return scene.active_slots() + (kLive ? 1 : 0); }
 
   /// The inputs the effects see this tick.
-  template <bool kStep>
-  static constexpr TickInput<S> input(const Hip<S, kStep>& hip, const TickTime& time) noexcept {
+  static constexpr TickInput<S> input(const Hip<S>& hip, const TickTime& time) noexcept {
     TickInput<S> in{};
     in.position_m = hip.position_m;
     in.velocity_m_per_s = hip.velocity_m_per_s;

@@ -88,8 +88,6 @@ class ServoLoop {
   /// position counts (a Q value is finite), so the sensor's step since the last counted tick is
   /// the passivity observer's step since the last good position, taken once (HipSensor's kStep).
   static constexpr bool kStepShared = kIsFixed<S> && std::same_as<DeviceScalar, S> && kStages.passivity;
-  /// The handle as the sensor gives it (with the step when it is shared).
-  using HipT = Hip<S, kStepShared>;
   /// A fixed-point loop keeps its time in integer nanoseconds (no floating point on a tick).
   using Clock = BasicLoopClock<kIsFixed<S>>;
 
@@ -145,7 +143,7 @@ class ServoLoop {
     if (gate.ramp_again_next) engage_.restart(time.now.tick + 1);
 
     // The handle; what the force held since the last tick did: heat (thermal), energy (passivity).
-    const HipT hip = gate.position ? sensor_.sense(reading, time) : HipT{};
+    const Hip<S> hip = gate.position ? sensor_.sense(reading, time) : Hip<S>{};
     thermal_.advance(out_.force_n, time.gap);
     bool derated = false;
     if (thermal_.enabled()) {
@@ -154,7 +152,7 @@ class ServoLoop {
       derated = allowed < max_force_n_;
     }
     if constexpr (kStepShared) {
-      passivity_.observe_step(out_.force_n, hip.step_m, hip.stepped);
+      passivity_.observe_step(out_.force_n, sensor_.step(), hip.stepped);
     } else {
       passivity_.observe(out_.force_n, hip.position_m, hip.position_finite);
     }
@@ -281,7 +279,7 @@ class ServoLoop {
   };
 
   /// The scene with the non-finite guard, then the safety chain, into `o`.
-  void shape(const Gate& gate, const HipT& hip, const TickTime& time, Outcome& o) noexcept {
+  void shape(const Gate& gate, const Hip<S>& hip, const TickTime& time, Outcome& o) noexcept {
     const std::int64_t k = time.now.tick;
     SceneForce<S> scene{};
     if (hip.finite) scene = scene_.force(Stage::input(hip, time));
@@ -321,7 +319,7 @@ class ServoLoop {
   }
 
   /// A live loop's one update a tick, if there is one: whole, before the scene's force.
-  void take_update(const Gate& gate, const HipT& hip, const TickTime& time) noexcept {
+  void take_update(const Gate& gate, const Hip<S>& hip, const TickTime& time) noexcept {
     if constexpr (kStages.live) {
       if (mailbox_ == nullptr) return;
       const auto* update = mailbox_->front();
