@@ -79,15 +79,18 @@ class VelocityEstimator {
   /// times (issue 29: a third of the operations). |dx rate a| <= 2^62 since rate a <= rate, and
   /// |v (1 - a)| < 2^47, so the sum stays in 64 bits. With a in (0, 1] (gain()), 1 - a is in
   /// [0, 1) and |rate a| <= |rate|: neither needs the saturation test.
-  constexpr Vec3<S> filtered(const Vec3<S>& dx, S rate_hz, S a) const noexcept
-    requires kIsFixed<S>
-  {
-    using W = typename S::Wide;
-    constexpr S kOne = scalar_cast<S>(1.0);
-    const S keep = S::from_raw(kOne.raw() - a.raw());
-    const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
-    const auto one = [keep, gain](S d, S v) { return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw()); };
-    return {one(dx.x, velocity_.x), one(dx.y, velocity_.y), one(dx.z, velocity_.z)};
+  constexpr Vec3<S> filtered([[maybe_unused]] const Vec3<S>& dx, [[maybe_unused]] S rate_hz,
+                             [[maybe_unused]] S a) const noexcept {
+    if constexpr (kIsFixed<S>) {  // (a body clang can check in every instantiation)
+      using W = typename S::Wide;
+      constexpr S kOne = scalar_cast<S>(1.0);
+      const S keep = S::from_raw(kOne.raw() - a.raw());
+      const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
+      const auto one = [keep, gain](S d, S v) { return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw()); };
+      return {one(dx.x, velocity_.x), one(dx.y, velocity_.y), one(dx.z, velocity_.z)};
+    } else {
+      return velocity_;
+    }
   }
 
   S time_constant_s_;  ///< 1/(2 pi f_c) [s]
