@@ -300,18 +300,14 @@ class Passivity {
   /// this tick's position (zero-order hold).
   void observe(const Vec3<S>& held_force_n, const Vec3<S>& position_m, bool position_finite) noexcept {
     if (!position_finite) return;
-    if (has_position_) {
-      const Vec3<S> dx = position_m - previous_m_;
-      observer_.observe(held_force_n, dx);
-      if (episodes_) controller_.account(dx, applied_, slots_);  // only a running episode books work
-    }
+    observe_step(held_force_n, position_m - previous_m_, has_position_);
     previous_m_ = position_m;
     has_position_ = true;
   }
   /// The same with the HIP's step since the last good position already taken (`stepped`: there
-  /// was one): a Q loop whose device reads in its scalar, where every tick with a position
-  /// counts, so HipSensor's step since the last counted tick is this one (issue 29: the stage
-  /// kept its own last position and took the same difference again).
+  /// was a last position): a Q loop whose device reads in its scalar, where every tick with a
+  /// position counts, so HipSensor's step since the last counted tick is this one (issue 29: the
+  /// stage kept its own last position and took the same difference again).
   void observe_step(const Vec3<S>& held_force_n, const Vec3<S>& step_m, bool stepped) noexcept {
     if (!stepped) return;
     observer_.observe(held_force_n, step_m);
