@@ -2,6 +2,7 @@
 // cyclictest (rt-tests): absolute CLOCK_MONOTONIC deadlines with clock_nanosleep(TIMER_ABSTIME),
 // SCHED_FIFO, mlockall, and latency = wake-up time - deadline.
 #include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/control/running_clock.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -86,18 +87,21 @@ struct Watchdog {
   void run() noexcept {
     const std::int64_t poll_ns = std::max<std::int64_t>(timeout_ns / 4, 100'000);
     std::int64_t last_beat = heartbeat.load(std::memory_order_acquire);
-    std::int64_t last_change = now_ns();
+    // Only time in which this thread ran counts (running_clock.hpp): a process stopped and
+    // continued as a whole (Ctrl-Z, fg) did not stall its loop.
+    RunningClock clock(2 * poll_ns + 5'000'000);
+    clock.look(now_ns());
     bool tripped = false;
     while (!done.load(std::memory_order_acquire)) {
       timespec ts = to_timespec(poll_ns);
       nanosleep(&ts, nullptr);
       const std::int64_t beat = heartbeat.load(std::memory_order_acquire);
-      const std::int64_t now = now_ns();
+      const std::int64_t silent_ns = clock.look(now_ns());
       if (beat != last_beat) {
         last_beat = beat;
-        last_change = now;
+        clock.restart();
         tripped = false;
-      } else if (beat > 0 && !tripped && now - last_change > timeout_ns) {
+      } else if (beat > 0 && !tripped && silent_ns > timeout_ns) {
         emergency();  // the loop stalled: zero force from outside it
         trips.fetch_add(1, std::memory_order_relaxed);
         tripped = true;
@@ -220,6 +224,7 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
     }
     task.shutdown(k);  // zero force first; everything else afterwards
     heartbeat.store(k + 1, std::memory_order_release);
+    if (options.ended != nullptr) options.ended->store(1, std::memory_order_release);
     report->ticks = ticks;
     report->missed = missed;
     report->elapsed_s = static_cast<double>(now_ns() - start) / 1e9;
@@ -282,6 +287,7 @@ struct ClockedRun {
   std::int64_t deadlines;
   const std::atomic<int>& stop;
   std::atomic<std::int64_t>& heartbeat;
+  std::atomic<std::uint32_t>* ended;
   std::int64_t last_tick = -1;
   std::int64_t missed = 0;
 };
@@ -296,6 +302,7 @@ TickVerdict clocked_tick(void* context, const ClockedTick& clock) noexcept {
   if (run.stop.load(std::memory_order_relaxed) != 0 || (run.deadlines > 0 && run.report.ticks >= run.deadlines)) {
     run.task.shutdown(clock.tick);  // zero force inside the frame, then the device stops
     run.heartbeat.store(clock.tick + 1, std::memory_order_release);
+    if (run.ended != nullptr) run.ended->store(1, std::memory_order_release);
     return TickVerdict::kStop;
   }
   const std::int64_t start = now_ns();  // vDSO: no system call
@@ -346,7 +353,7 @@ Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, c
   } catch (const std::system_error& e) {
     return Error{fmt::format("cannot start the watchdog thread: {} (too little memory: `ulimit -v`?)", e.what())};
   }
-  ClockedRun run{task, *report, options.deadlines, stop, heartbeat};
+  ClockedRun run{task, *report, options.deadlines, stop, heartbeat, options.ended};
   const std::int64_t begin = now_ns();
   auto ended = device.run_clocked(&clocked_tick, &run);
   done.store(true, std::memory_order_release);

@@ -62,6 +62,11 @@ struct RealtimeOptions {
   /// (tools/run/guardian.hpp), which watches it from outside this process: the same store
   /// per tick, no cost added.
   std::atomic<std::int64_t>* heartbeat = nullptr;
+  /// Set to 1 by the servo thread right after its shut-down tick (zero force commanded), before
+  /// the rest of the run winds down (the writer drains the telemetry to a reader that may be
+  /// slow): a watcher outside the process then knows the loop ended, though the process goes
+  /// on. nullptr: not kept.
+  std::atomic<std::uint32_t>* ended = nullptr;
 };
 
 /// What the runner could set up, in words a person can act on.
