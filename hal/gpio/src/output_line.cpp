@@ -49,7 +49,11 @@ Result<std::unique_ptr<OutputLine>> OutputLine::open(const LineSpec& spec, const
     return Error{fmt::format("{}: cannot take {} as an output: {}{}", spec.text, where, std::strerror(error),
                              error == EBUSY && !user.empty() ? fmt::format(" (held by '{}')", user) : "")};
   }
-  return std::unique_ptr<OutputLine>(new OutputLine(chip, line, where));
+  std::unique_ptr<OutputLine> held(new OutputLine(chip, line, where));
+  held->chip_node_ = fmt::format("/dev/{}", gpiod_chip_name(chip));
+  held->offset_ = gpiod_line_offset(line);
+  held->active_low_ = spec.active_low;
+  return held;
 }
 
 OutputLine::~OutputLine() {

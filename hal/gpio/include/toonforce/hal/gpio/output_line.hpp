@@ -27,6 +27,11 @@ class OutputLine {
   /// Drives the line active or inactive: one ioctl. False on failure.
   bool set(bool active) noexcept;
   const std::string& describe() const noexcept { return description_; }
+  /// Where the line is: its chip's node (/dev/gpiochipN) and offset, and whether it is active
+  /// low (`toonforce run` hands these to its guardian, which requests the line itself).
+  const std::string& chip_node() const noexcept { return chip_node_; }
+  unsigned offset() const noexcept { return offset_; }
+  bool active_low() const noexcept { return active_low_; }
   /// Closes this process's descriptors without driving the line: a forked child's copy (the
   /// line stays requested, at its level, by the process that keeps its own).
   void close_copy() noexcept;
@@ -37,6 +42,9 @@ class OutputLine {
   gpiod_chip* chip_;
   gpiod_line* line_;
   std::string description_;
+  std::string chip_node_;
+  unsigned offset_ = 0;
+  bool active_low_ = false;
 };
 
 }  // namespace toonforce::gpio
