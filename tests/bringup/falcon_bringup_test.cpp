@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <map>
 
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/bringup/falcon_bringup.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/emulator/emulator_transport.hpp"

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
 
@@ -104,7 +105,7 @@ TEST_F(CalibrationFiles, TheDefaultPathIsPerSerialNumberUnderTheConfigHome) {
 }
 
 TEST_F(CalibrationFiles, WithoutAFileTheConstantIsLibnifalconsAndSaysSo) {
-  auto r = resolve_falcon_calibration("", "A7X");
+  auto r = resolve_falcon_calibration("", "A7X", &read_falcon_calibration);
   ASSERT_TRUE(r) << r.error();
   EXPECT_FALSE(r.value().from_file);
   EXPECT_EQ(r.value().calibration.words_per_n_m, kUncalibratedWordsPerNewtonMetre);
@@ -117,21 +118,35 @@ TEST_F(CalibrationFiles, TheFileWrittenForThisSerialIsFoundAndAnotherSerialsIsRe
   c.serial = "A7X";
   c.words_per_n_m = 4321.0;
   ASSERT_TRUE(write_falcon_calibration(default_falcon_calibration_path("A7X"), c));
-  auto found = resolve_falcon_calibration("", "A7X");
+  auto found = resolve_falcon_calibration("", "A7X", &read_falcon_calibration);
   ASSERT_TRUE(found) << found.error();
   EXPECT_TRUE(found.value().from_file);
   EXPECT_EQ(found.value().calibration.words_per_n_m, 4321.0);
   EXPECT_NE(found.value().source.find("falcon-A7X.toml"), std::string::npos);
 
-  auto other = resolve_falcon_calibration(default_falcon_calibration_path("A7X"), "B8Y");
+  auto other = resolve_falcon_calibration(default_falcon_calibration_path("A7X"), "B8Y", &read_falcon_calibration);
   ASSERT_FALSE(other);
   EXPECT_NE(other.error().find("measured on the Falcon with serial number A7X, but the one opened is B8Y"),
             std::string::npos)
       << other.error();
 }
 
+TEST_F(CalibrationFiles, TheDeviceLayerReadsAFileOnlyThroughTheReaderItIsHanded) {
+  // hal/ parses nothing: without a reader, a file that should be read is an error that says so,
+  // never a silent uncalibrated start; with none to read, the constant as before.
+  FalconCalibration c;
+  c.words_per_n_m = 4000.0;
+  ASSERT_TRUE(write_falcon_calibration(default_falcon_calibration_path("A7X"), c));
+  auto unread = resolve_falcon_calibration("", "A7X", nullptr);
+  ASSERT_FALSE(unread);
+  EXPECT_NE(unread.error().find("reads no Falcon calibration files"), std::string::npos) << unread.error();
+  auto none = resolve_falcon_calibration("", "NOFILE", nullptr);
+  ASSERT_TRUE(none) << none.error();
+  EXPECT_FALSE(none.value().from_file);
+}
+
 TEST_F(CalibrationFiles, AGivenFileMustExist) {
-  auto r = resolve_falcon_calibration((dir_ / "nope.toml").string(), "A7X");
+  auto r = resolve_falcon_calibration((dir_ / "nope.toml").string(), "A7X", &read_falcon_calibration);
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().find("nope.toml: no such Falcon calibration file"), std::string::npos) << r.error();
 }

@@ -19,6 +19,7 @@
 #include "guardian_stand_in.hpp"
 #include "run_command.hpp"
 #include "synthetic_firmware.hpp"
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
@@ -66,7 +67,8 @@ class FalconUsb : public ::testing::Test {
   }
 
   /// open_falcon() as `toonforce run --device falcon` will call it, as our driver type.
-  std::unique_ptr<FalconDriver> open(const FalconOptions& options = {}) {
+  std::unique_ptr<FalconDriver> open(FalconOptions options = {}) {
+    options.read_calibration = &read_falcon_calibration;  // as `run` hands it in
     auto opened = open_falcon(options);
     EXPECT_TRUE(opened) << opened.error();
     if (!opened) return nullptr;
@@ -188,6 +190,7 @@ TEST_F(FalconUsb, ABadCalibrationFileStopsTheOpenNamingItsLine) {
   std::ofstream(path) << "# measured today\nwords_per_newton_metre = 12\n";
   FalconOptions options;
   options.calibration_path = path;
+  options.read_calibration = &read_falcon_calibration;
   auto opened = open_falcon(options);
   ASSERT_FALSE(opened);
   EXPECT_NE(opened.error().find(path + ":2: words_per_newton_metre: 12 is outside"), std::string::npos) << opened.error();

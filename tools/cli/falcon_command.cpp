@@ -15,7 +15,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
-#include "toonforce/hal/falcon/calibration.hpp"
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/hal/falcon/falcon.hpp"
 #include "toonforce/hal/falcon/frames.hpp"
 #include "toonforce/hal/falcon/kinematics.hpp"

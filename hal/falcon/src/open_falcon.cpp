@@ -89,7 +89,8 @@ std::string probe(LibusbTransport& t, bool& loaded) {
 
 }  // namespace
 
-Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial) {
+Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial,
+                                                             falcon::CalibrationReader read_file) {
   ResolvedFalconCalibration out;
   std::string path = explicit_path;
   if (path.empty()) {
@@ -103,7 +104,12 @@ Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& 
     }
     path = fallback;
   }
-  auto read = falcon::read_falcon_calibration(path);
+  if (read_file == nullptr) {
+    return Error{fmt::format("{}: this program reads no Falcon calibration files (FalconOptions::read_calibration "
+                             "is not set)",
+                             path)};
+  }
+  auto read = read_file(path);
   if (!read) return Error{read.error()};
   if (!read.value().serial.empty() && !serial.empty() && read.value().serial != serial) {
     return Error{fmt::format("{}: this calibration was measured on the Falcon with serial number {}, but the one "
@@ -137,7 +143,7 @@ Result<std::unique_ptr<DeviceDriver>> open_falcon(const FalconOptions& options) 
     auto report = falcon::load_firmware(*t, *image, options.firmware);
     if (!report) return Error{report.error()};
   }
-  auto calibration = resolve_falcon_calibration(options.calibration_path, t->serial());
+  auto calibration = resolve_falcon_calibration(options.calibration_path, t->serial(), options.read_calibration);
   if (!calibration) return Error{calibration.error()};
   FalconOptions calibrated = options;
   calibrated.motor.words_per_n_m = calibration.value().calibration.words_per_n_m;

@@ -12,6 +12,7 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/firmware.hpp"
@@ -786,7 +787,7 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
       }
     }
     if (s.outcome == Outcome::kPass) {
-      auto calibration = resolve_falcon_calibration(o.falcon.calibration_path, serial);
+      auto calibration = resolve_falcon_calibration(o.falcon.calibration_path, serial, &falcon::read_falcon_calibration);
       if (!calibration) {
         fail(s, calibration.error(), "fix or remove the calibration file, or measure it again with the force step");
       } else {

@@ -19,6 +19,7 @@
 #include "toonforce/hal/gpio/gpio_session.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/sim/plausibility.hpp"
+#include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/run/guardian.hpp"
 #include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
@@ -233,7 +234,11 @@ Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
     if (!driver) return Error{driver.error()};
     return std::unique_ptr<DeviceDriver>(std::move(driver.value()));
   }
-  if (options.device == "falcon") return open_falcon(options.falcon);
+  if (options.device == "falcon") {
+    FalconOptions falcon = options.falcon;
+    falcon.read_calibration = &falcon::read_falcon_calibration;  // the file format is this layer's
+    return open_falcon(falcon);
+  }
   if (options.device == "omni") {
     OmniOptions omni = options.omni;
     omni.scheduler_rate_hz = options.rate_hz;

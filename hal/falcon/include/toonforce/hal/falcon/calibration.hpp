@@ -2,8 +2,10 @@
 /// The Falcon's calibration file: the motor words per newton-metre of joint torque measured on
 /// one device, which the driver uses instead of libnifalcon's uncalibrated 10000 (falcon.md §5
 /// "Forces": "rather random"; §3's captures of Novint's own driver used 2-4 times fewer words
-/// per newton). `toonforce bringup falcon` measures it and writes the file; open_falcon() reads
-/// it. Format (TOML; errors name the file, the line and the key, as scene files do):
+/// per newton). `toonforce bringup falcon` measures it and writes the file; open_falcon() uses
+/// what a reader it is given parsed (the file format lives with the other file formats, in
+/// tools/config: falcon_calibration_file.hpp; this layer parses nothing). Format (TOML; errors
+/// name the file, the line and the key, as scene files do):
 ///
 ///   # toonforce Falcon calibration (docs/FALCON.md, "Calibration")
 ///   serial = "A1234567"                 # optional: the Falcon it was measured on
@@ -43,14 +45,9 @@ struct FalconCalibration {
   std::string note;
 };
 
-/// Parses a calibration file's text; `source` names it in errors ("FILE:LINE: KEY: problem").
-Result<FalconCalibration> parse_falcon_calibration(std::string_view text, const std::string& source);
-/// Reads and parses `path`; a missing file is an error naming it.
-Result<FalconCalibration> read_falcon_calibration(const std::string& path);
-/// The file text for `calibration` (what bring-up writes; parse_falcon_calibration reads it back).
-std::string format_falcon_calibration(const FalconCalibration& calibration);
-/// Writes `calibration` to `path`, creating its directory; an error names the path.
-Result<std::string> write_falcon_calibration(const std::string& path, const FalconCalibration& calibration);
+/// Reads and checks the calibration file at `path` (tools/config's read_falcon_calibration); a
+/// missing or bad file is an error naming it.
+using CalibrationReader = Result<FalconCalibration> (*)(const std::string& path);
 
 /// Where the calibration of the Falcon with this serial number lives by default:
 /// $XDG_CONFIG_HOME/toonforce/falcon-SERIAL.toml, else $HOME/.config/toonforce/... ("falcon.toml"

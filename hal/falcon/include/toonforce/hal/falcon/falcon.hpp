@@ -39,6 +39,10 @@ struct FalconOptions {
   /// (default_falcon_calibration_path) when that file exists, else libnifalcon's uncalibrated
   /// constant. A given path must exist; a file naming another serial number is refused.
   std::string calibration_path;
+  /// What reads a calibration file (tools/config's read_falcon_calibration). Null: no file is
+  /// read, and a calibration file that should be (a given path, or the default one that exists)
+  /// is an error saying so.
+  falcon::CalibrationReader read_calibration = nullptr;
   falcon::MotorScale motor{};  ///< words per N m (from the calibration) and the command range
   /// Where motor.words_per_n_m came from, for messages and reports (open_falcon() fills it).
   std::string calibration_source = "libnifalcon's uncalibrated 10000 words per N m (no calibration file)";
@@ -76,7 +80,8 @@ struct ResolvedFalconCalibration {
   std::string source;
   bool from_file = false;
 };
-Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial);
+Result<ResolvedFalconCalibration> resolve_falcon_calibration(const std::string& explicit_path, std::string_view serial,
+                                                             falcon::CalibrationReader read);
 
 /// Every Falcon on the USB bus, whether this user may open it (and if not, why and how to fix
 /// it), plus the udev rule, group membership and (per device) firmware prerequisites.
