@@ -139,6 +139,8 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/examples/ DESTINATION ${CMAKE_INSTALL_DO
 
 # ---- the program and its data ----------------------------------------------------------------
 install(TARGETS toonforce RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
+# `run` execs its guardian from ../libexec/toonforce/ (control/src/process_split.cpp).
+install(TARGETS toonforce-guardian RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR}/toonforce COMPONENT runtime)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/scenes/ DESTINATION ${TOONFORCE_INSTALL_DATADIR}/scenes
         COMPONENT runtime FILES_MATCHING PATTERN "*.toml" PATTERN "*.csv")
 # `toonforce sim --plot` and `toonforce figures` run it (tools/sim/src/plot.cpp finds it here).

@@ -702,5 +702,31 @@ TEST_F(GpioEmulation, AnAmplifierEnableLineThatCannotBeTakenSaysWhoHoldsIt) {
   EXPECT_NE(line.error().find("held by 'someone-else'"), std::string::npos) << line.error();
 }
 
+TEST_F(GpioEmulation, TheGuardianRequestsTheEnableLineItselfAndDrivesItThroughItsOwnHandle) {
+  // `toonforce-guardian` takes the line it is given by chip and offset, at its inactive level,
+  // as the guardian's; the guard then drives it (the stand-in: active while it ticks, dropped at
+  // its death).
+  guardian::GpioEnableLine line;
+  ASSERT_EQ(line.open("/dev/gpiochip0", 2, /*active_low=*/true), "");
+  EXPECT_EQ(emu().line(0, 2).consumer, "toonforce-guardian");
+  EXPECT_EQ(emu().line(0, 2).physical, 1) << "requested inactive (active-low: high)";
+  EXPECT_EQ(line.describe(), "the amplifier-enable line /dev/gpiochip0 line 2");
+  const toonforce::test::GuardedStandIn run =
+      toonforce::test::guard_a_stand_in(ExternalZero{}, &line, [&] { return emu().line(0, 2).physical == 0; });
+  EXPECT_TRUE(run.active_while_ticking);
+  EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
+  EXPECT_EQ(emu().line(0, 2).physical, 1) << "dropped once the loop's process is gone";
+}
+
+TEST_F(GpioEmulation, TheGuardianRefusesAnEnableChipThatIsNotAGpioChip) {
+  for (const std::string& chip : {std::string("/etc/passwd"), std::string("/dev/gpiochip0/../null"), std::string("/dev/gpiochip9")}) {
+    guardian::GpioEnableLine line;
+    EXPECT_NE(line.open(chip, 0, false), "") << chip;
+    EXPECT_FALSE(line.set(true)) << chip;
+  }
+  guardian::GpioEnableLine past_the_end;
+  EXPECT_NE(past_the_end.open("/dev/gpiochip0", 4096, false).find("no line 4096"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace toonforce

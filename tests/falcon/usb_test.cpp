@@ -3,6 +3,7 @@
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -559,6 +560,45 @@ TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) 
     EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "the last frame the Falcon got";
     EXPECT_EQ(norm(e.motor_force_n()), 0.0);
   });
+}
+
+TEST_F(FalconUsb, TheGuardianOpensOnlyAFalconsNodeItVerifiedItself) {
+  bed_->add_falcon(with_firmware(), "FTEMU0002");
+  ExternalZero zero;
+  zero.kind = ExternalZero::Kind::kUsbBulk;
+  const auto node = [&](const std::string& path) {
+    std::fill(std::begin(zero.usbfs_node), std::end(zero.usbfs_node), '\0');
+    path.copy(zero.usbfs_node, std::min(path.size(), sizeof zero.usbfs_node - 1));
+    std::string why;
+    const int fd = guardian::open_verified_usbfs(zero, why);
+    if (fd >= 0) close(fd);
+    return std::pair{fd >= 0, why};
+  };
+  const auto [accepted, none] = node(bed_->devnode(0));
+  EXPECT_TRUE(accepted) << none;
+  // What a forged page could name: another file, a path that climbs out, another form, a node of
+  // the right form that is no Falcon.
+  for (const std::string& forged : {std::string("/etc/shadow"), std::string("/dev/bus/usb/001/../../../../etc/shadow"),
+                                    std::string("/dev/bus/usb/1/1"), std::string("/dev/bus/usb/001/001/"),
+                                    std::string("/dev/bus/usb/000/001"), std::string("/dev/bus/usb/001/099")}) {
+    const auto [opened, why] = node(forged);
+    EXPECT_FALSE(opened) << forged;
+    EXPECT_NE(why.find("refused"), std::string::npos) << forged << ": " << why;
+  }
+}
+
+TEST_F(FalconUsb, AForgedNodeInThePageIsNeverOpenedByTheGuardian) {
+  // The page says the device is at /etc/shadow: the guardian refuses it (said as a warning), and
+  // after the death it says it could not reach the device rather than writing anything there.
+  ExternalZero forged;
+  forged.kind = ExternalZero::Kind::kUsbBulk;
+  std::string("/etc/shadow").copy(forged.usbfs_node, 11);
+  forged.frame_bytes = 5;
+  const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(forged, nullptr);
+  EXPECT_TRUE(run.outcome.loop_died);
+  EXPECT_FALSE(run.outcome.zero_sent);
+  EXPECT_NE(run.outcome.warnings.find("'/etc/shadow' is not a USB device node"), std::string::npos) << run.outcome.warnings;
+  EXPECT_NE(run.outcome.zero_detail.find("could not be reached"), std::string::npos) << run.outcome.zero_detail;
 }
 
 }  // namespace

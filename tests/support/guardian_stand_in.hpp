@@ -1,5 +1,5 @@
 #pragma once
-// The guardian (tools/run/guardian.hpp) watching a stand-in for the loop's process: a forked
+// The guardian (control/guardian.hpp) watching a stand-in for the loop's process: a forked
 // child that only ticks the shared heartbeat every millisecond, as the runner does, until this
 // test kills it with SIGKILL. The device side is real (the emulated Falcon's usbfs node, the
 // emulated GPIO line): what is tested is that the guardian, from outside the process, zeroes it.
@@ -15,7 +15,7 @@
 #include <thread>
 #include <type_traits>
 
-#include "toonforce/run/guardian.hpp"
+#include "toonforce/control/guardian.hpp"
 
 namespace toonforce::test {
 

@@ -4,14 +4,20 @@
 #include <cstdio>
 #include <exception>
 #include <new>
+#include <string_view>
 #include <system_error>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "toonforce/run/command_stop.hpp"
 
 int main(int argc, char** argv) {
+  // `run` handles every stop signal from its first instruction: a signal that comes while the
+  // command line is read, the guardian started or the scene loaded is a stop before the loop
+  // (exit status 2), never a death by its default action (command_stop.hpp).
+  if (argc > 1 && std::string_view(argv[1]) == "run") toonforce::install_command_stop_signals();
   // A reader that went away (`toonforce ... --trace - | head`) is a write error every writer
   // reports, never a death: the servo loop must end by its own shut-down, not by SIGPIPE.
   std::signal(SIGPIPE, SIG_IGN);

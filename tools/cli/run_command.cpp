@@ -21,7 +21,9 @@
 #include "toonforce/gpio_cli/gpio_options.hpp"
 #include "toonforce/hal/gpio/output_line.hpp"
 #include "toonforce/run/command_stop.hpp"
-#include "toonforce/run/guardian.hpp"
+#include "toonforce/control/guardian.hpp"
+#include "toonforce/control/process_split.hpp"
+#include "toonforce/run/guardian_report.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
 #include "toonforce/config/scene_file.hpp"
@@ -33,12 +35,23 @@ namespace toonforce::cli {
 
 namespace {
 
-/// Forks the loop process. In the guardian (the parent) it returns the command's exit status
-/// once the loop process has ended; in the loop process, nothing (it goes on as `run`).
+/// Forks the loop's process (process_split.hpp). This process execs the guardian program and
+/// never comes back here; in the loop's process, it returns nothing (it goes on as `run`), or
+/// the command's exit status if the split could not be made.
 std::optional<int> become_guardian(RunOptions& options, double stall_limit_ms) {
-  // The amplifier-enable line is the guardian's alone: taken before the fork (a problem with
-  // it stops the start), and its descriptors closed in the loop process.
-  std::unique_ptr<gpio::OutputLine> amp_enable;
+  GuardianStart start;
+  auto program = guardian_program_path();
+  if (!program) {
+    fmt::print(stderr, "{}\n", program.error());
+    return 2;
+  }
+  start.program = program.value();
+  start.stall_limit_ms = stall_limit_ms;
+  // Above the loop's priority when it may (a wedged loop thread must not starve it).
+  start.priority = std::min(options.priority + 1, 99);
+  // The amplifier-enable line is the guardian's alone: checked here (a problem with it stops
+  // the start, said with the line's name), then released and requested again by the guardian
+  // itself, which drives it only while the loop ticks.
   if (!options.gpio.amp_enable_pin.empty()) {
     auto spec = gpio::parse_line_spec(options.gpio.amp_enable_pin);
     auto line = spec ? gpio::OutputLine::open(spec.value(), "toonforce-guardian")
@@ -47,81 +60,93 @@ std::optional<int> become_guardian(RunOptions& options, double stall_limit_ms) {
       fmt::print(stderr, "--amp-enable-pin {}\n", line.error());
       return 2;
     }
-    amp_enable = std::move(line.value());
+    start.enable_chip = line.value()->chip_node();
+    start.enable_offset = line.value()->offset();
+    start.enable_active_low = line.value()->active_low();
   }
-  guardian::SharedPage* page = guardian::map_shared_page();
-  if (page == nullptr) {
-    fmt::print(stderr, "cannot map the page shared with the guardian process: {} (--no-guardian runs without it)\n",
-               std::strerror(errno));
+  // After a death, the guardian hands over to this program's epilogue (`run-epilogue`), which
+  // ends the trace and writes the statistics: what may fail, apart from what must not.
+  char self[4096] = {};
+  const ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n > 0) {
+    start.epilogue = {std::string(self, static_cast<std::size_t>(n)), "run-epilogue"};
+    if (!options.trace_path.empty() && options.trace_path != "-") {
+      start.epilogue.insert(start.epilogue.end(), {"--trace", options.trace_path});
+    }
+    if (!options.stats_json_path.empty()) start.epilogue.insert(start.epilogue.end(), {"--stats-json", options.stats_json_path});
+  }
+  auto page = split_off_guardian(start);  // returns in the loop's process only
+  if (!page) {
+    fmt::print(stderr, "{}\n", page.error());
     return 2;
   }
-  page->guardian_pid = getpid();
-  std::fflush(stdout);
-  std::fflush(stderr);
-  const pid_t loop = fork();
-  if (loop < 0) {
-    fmt::print(stderr, "cannot start the loop's process: {} (--no-guardian runs without it)\n", std::strerror(errno));
-    return 2;
-  }
-  if (loop == 0) {
-    // The loop process: SIGTERM when the guardian dies (it stops with zero force, as on any stop
-    // signal); the guardian may be gone already.
-    prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (getppid() != page->guardian_pid) raise(SIGTERM);
-    options.guardian = page;
-    if (amp_enable) amp_enable->close_copy();  // the guardian's line: this process never drives it
-    amp_enable.reset();
-    return std::nullopt;
-  }
-  // The guardian, above the loop's priority when it may (a wedged loop thread must not starve
-  // it); without the permission it runs at normal priority (its end is seen by the kernel's
-  // wake-up on the pidfd either way).
-  sched_param sp{};
-  sp.sched_priority = std::min(options.priority + 1, 99);
-  static_cast<void>(sched_setscheduler(0, SCHED_FIFO, &sp));
-  guardian::GuardOptions go;
-  go.stall_limit_ns = static_cast<std::int64_t>(stall_limit_ms * 1e6);
-  struct AmpEnable final : guardian::EnableLine {
-    gpio::OutputLine* line;
-    explicit AmpEnable(gpio::OutputLine* l) : line(l) {}
-    bool set(bool active) noexcept override { return line->set(active); }
-    std::string describe() const override { return "the amplifier-enable line " + line->describe(); }
-  } enable(amp_enable.get());
-  if (amp_enable) go.enable = &enable;
-  const guardian::GuardOutcome outcome = guardian::guard(loop, *page, go);
-  const int status = outcome.wait_status;
-  if (!outcome.loop_died || (WIFEXITED(status) && !outcome.stalled)) {
-    // It ended as `run` ends, or before or after its loop (no force of its own then): its
-    // status is the command's; a signal's default action is passed on as such.
-    if (WIFSIGNALED(status)) {
-      signal(WTERMSIG(status), SIG_DFL);
-      raise(WTERMSIG(status));
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
-  }
-  std::fputs(guardian::describe_outcome(outcome, loop).c_str(), stderr);
-  if (!options.trace_path.empty() && options.trace_path != "-") {
-    const std::size_t values = outcome.have_frame ? outcome.last_frame.value_count : 0;
-    const std::string bad = guardian::end_trace(options.trace_path, outcome, values);
-    if (!bad.empty()) {
-      fmt::print(stderr, "guardian: {}\n", bad);
-    } else {
-      fmt::print(stderr, "guardian: {} ends with the zero-force row at t = {:.4f} s\n", options.trace_path, outcome.t_end_s);
-    }
-  }
-  if (!options.stats_json_path.empty()) {
-    const std::string json = guardian::outcome_json(outcome, loop);
-    if (std::FILE* f = std::fopen(options.stats_json_path.c_str(), "wb")) {
-      std::fwrite(json.data(), 1, json.size(), f);
-      std::fclose(f);
-    }
-  }
-  return guardian::kExitLoopDied;
+  options.guardian = page.value();
+  return std::nullopt;
+}
+
+/// Two outputs that are the same file would write over each other: refused before either opens.
+std::string same_output_problem(const RunOptions& options) {
+  const std::string& a = options.trace_path;
+  const std::string& b = options.stats_json_path;
+  if (a.empty() || b.empty() || a == "-") return {};
+  std::error_code ec;
+  const bool same = a == b || (std::filesystem::equivalent(a, b, ec) && !ec);
+  if (!same) return {};
+  return fmt::format("--trace {} and --stats-json {} are the same file: one would overwrite the other; choose two", a, b);
 }
 
 }  // namespace
 
+/// `toonforce run-epilogue`: what the guardian program execs after the loop's process died and
+/// it zeroed the force (guardian_main.cpp). Hidden: `run` names it, never a person.
+void add_run_epilogue(CLI::App& app) {
+  auto trace = std::make_shared<std::string>();
+  auto stats = std::make_shared<std::string>();
+  auto page_fd = std::make_shared<int>(-1);
+  CLI::App* cmd = app.add_subcommand("run-epilogue", "")->group("");
+  cmd->add_option("--trace", *trace);
+  cmd->add_option("--stats-json", *stats);
+  cmd->add_option("--page-fd", *page_fd)->required();
+  cmd->callback([=] {
+    guardian::SharedPage* page = guardian::attach_shared_page(*page_fd);
+    if (page == nullptr) {
+      fmt::print(stderr, "guardian: the loop's process died and the guardian zeroed what it could; its page is gone, so "
+                         "nothing more can be said\n");
+      set_exit_code(guardian::kExitLoopDied);
+      return;
+    }
+    const guardian::Verdict verdict = page->verdict;
+    TelemetryFrame frame{};
+    const bool have_frame = guardian::read_frame(*page, frame);
+    const TelemetryFrame* last = have_frame ? &frame : nullptr;
+    std::fputs(guardian::describe_verdict(verdict, last).c_str(), stderr);
+    int status = verdict.exit_status;
+    if (!trace->empty()) {
+      const std::string bad = guardian::end_trace(*trace, verdict, last);
+      if (!bad.empty()) {
+        fmt::print(stderr, "guardian: {}\n", bad);
+      } else {
+        fmt::print(stderr, "guardian: {} ends with the zero-force row at t = {:.4f} s\n", *trace, verdict.t_end_s);
+      }
+    }
+    if (!stats->empty()) {
+      const std::string json = guardian::verdict_json(verdict, last);
+      std::FILE* f = std::fopen(stats->c_str(), "wb");
+      const bool written = f != nullptr && std::fwrite(json.data(), 1, json.size(), f) == json.size();
+      const int error = errno;
+      const bool closed = f != nullptr && std::fclose(f) == 0;
+      if (!written || !closed) {
+        fmt::print(stderr, "guardian: {}: the statistics could not be written: {}\n", *stats,
+                   std::strerror(errno != 0 ? errno : (error != 0 ? error : EIO)));
+      }
+    }
+    std::fflush(stderr);
+    set_exit_code(status);
+  });
+}
+
 void add_run(CLI::App& app) {
+  add_run_epilogue(app);
   auto options = std::make_shared<RunOptions>();
   auto quiet = std::make_shared<bool>(false);
   auto no_mlock = std::make_shared<bool>(false);
@@ -236,6 +261,11 @@ void add_run(CLI::App& app) {
       set_exit_code(2);
       return;
     }
+    if (const std::string same = same_output_problem(*options); !same.empty()) {
+      fmt::print(stderr, "{}\n", same);
+      set_exit_code(2);
+      return;
+    }
     if (!*no_guardian) {
       const std::optional<int> guardian_status = become_guardian(*options, *stall_limit_ms);
       if (guardian_status) {
@@ -243,11 +273,13 @@ void add_run(CLI::App& app) {
         return;
       }
     }
-    // From here to the end, every stop signal takes one path (issue 27): the command's flag
-    // before and after the loop (the scene loading, the device opening, the viewer), the loop's
-    // own handlers (which put these back) while it runs; one that came before them stops the
-    // loop at its first tick.
+    // From here to the end, every stop signal takes one path: the command's flag before and
+    // after the loop (the scene loading, the device opening, the viewer), the loop's own
+    // handlers (which put these back) while it runs; one that came before them stops the loop at
+    // its first tick. main() installed the handlers before it read the command line, and the
+    // split blocked them across the fork: let them through now.
     install_command_stop_signals();
+    unblock_stop_signals();
     options->early_stop = &command_stop();
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
 #if TOONFORCE_VIEWER

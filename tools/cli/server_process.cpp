@@ -19,7 +19,7 @@
 #include "commands.hpp"
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/servo_session.hpp"
-#include "toonforce/run/guardian.hpp"
+#include "toonforce/control/guardian.hpp"
 #include "viewer_support.hpp"
 
 namespace toonforce::cli {

@@ -20,7 +20,8 @@
 #include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/sim/plausibility.hpp"
 #include "toonforce/config/falcon_calibration_file.hpp"
-#include "toonforce/run/guardian.hpp"
+#include "toonforce/control/guardian.hpp"
+#include "toonforce/control/process_split.hpp"
 #include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
 
@@ -162,7 +163,10 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   session.realtime.allow_non_realtime = options.allow_non_realtime;
   session.realtime.lock_memory = options.lock_memory;
   session.realtime.watchdog_periods = config.safety.watchdog_periods;
-  if (options.guardian != nullptr) session.realtime.heartbeat = &options.guardian->heartbeat;
+  if (options.guardian != nullptr) {
+    session.realtime.heartbeat = &options.guardian->heartbeat;
+    session.realtime.ended = &options.guardian->loop_ended;  // at the shut-down tick, not after the writer
+  }
   session.handle_signals = options.handle_signals;
   session.interactive = options.interactive;
   session.messages = options.messages;
@@ -172,10 +176,9 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   consumer.trace_limit_bytes = options.max_output_bytes;
 
   auto report = run_loop(*loop, driver, consumer, session);
-  // The loop commanded zero force on its way out (its shutdown tick): the guardian stands down.
-  if (options.guardian != nullptr) {
-    options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kLoopEnded), std::memory_order_release);
-  }
+  // The loop commanded zero force on its way out (its shut-down tick, which told the guardian):
+  // the guardian stands down. Said again here for a run that ended before its first tick.
+  if (options.guardian != nullptr) options.guardian->loop_ended.store(1, std::memory_order_release);
   if (options.guardian != nullptr && getppid() != options.guardian->guardian_pid) {
     fmt::print(options.messages, "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
                options.guardian->guardian_pid);
@@ -299,6 +302,10 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   if (const std::string bad = fixed_point::check_rate(options.rate_hz, options.scalar, scene.value()); !bad.empty()) {
     return Error{fmt::format("--rate {}", bad)};
   }
+  // The guardian watches before the device opens, or the device is not opened at all.
+  if (options.guardian != nullptr && !wait_for_guardian(*options.guardian, 10.0)) {
+    return Error{"the guardian process did not start watching (it said why above): the device was not opened"};
+  }
   auto device = open_device(options);
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();
@@ -324,7 +331,7 @@ Result<RunSummary> run_servo(const RunOptions& options) {
         });
   });
   if (options.guardian != nullptr) {  // the loop ended or never started: the device closes as usual
-    options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kLoopEnded), std::memory_order_release);
+    options.guardian->loop_ended.store(1, std::memory_order_release);
   }
   if (!result) return Error{result.error()};
   return std::move(result.value());
