@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -24,7 +25,10 @@
 #include "toonforce/run/guardian.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
+#include <fstream>
+
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/config/toml_reader.hpp"
 #include "server_process.hpp"
 #include "viewer_support.hpp"
 #endif
@@ -118,6 +122,27 @@ std::optional<int> become_guardian(RunOptions& options, double stall_limit_ms) {
   }
   return guardian::kExitLoopDied;
 }
+
+#if TOONFORCE_VIEWER
+/// The scene file's text, read once for the whole run: the viewer's hello, the control
+/// protocol's editor (in the server process, which reads no file) and the loop all take this
+/// text, so an edit of the file while the run waits for its control client is not half taken.
+/// nullopt when it is not a regular file that can be read (load_scene_file then says why).
+std::optional<std::string> read_scene_text(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::string text;
+  std::array<char, 1U << 16> chunk{};
+  // No further than just past the scene files' limit: the parser refuses the rest anyway.
+  while (text.size() <= kMaxTomlBytes && (in.read(chunk.data(), chunk.size()) || in.gcount() > 0)) {
+    text.append(chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) return std::nullopt;
+  return text;
+}
+#endif
 
 }  // namespace
 
@@ -257,8 +282,10 @@ void add_run(CLI::App& app) {
     // the live-scene mailbox in the memory they share.
     std::unique_ptr<ServerProcess> server;
     if (view->wanted()) {
-      auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       ServerSetup setup;
+      options->scene_text = read_scene_text(options->scene_path);
+      auto scene = options->scene_text ? parse_scene(*options->scene_text, options->scene_path, options->scalar)
+                                       : load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       viewer::HelloInfo& hello = setup.hello;
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
@@ -281,7 +308,8 @@ void add_run(CLI::App& app) {
           return;
         }
         setup.control = true;
-        setup.scene_path = options->scene_path;
+        setup.scene_text = *options->scene_text;  // a scene that parsed was read
+        setup.scene_name = options->scene_path;
         setup.scalar = options->scalar;
         const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
         setup.viewer.control_options.token = !control_token->empty() ? *control_token

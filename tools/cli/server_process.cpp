@@ -68,7 +68,7 @@ int serve(ServerChannel& ch, const ServerSetup& setup, pid_t loop) {
   LiveMailboxes live;
   std::unique_ptr<viewer::SceneControl> control;
   if (setup.control) {
-    auto opened = open_live_control(setup.scene_path, setup.scalar, live, ch.mailbox);
+    auto opened = open_live_control(setup.scene_text, setup.scene_name, setup.scalar, live, ch.mailbox);
     if (!opened) {
       fmt::print(stderr, "--control: {}\n", opened.error());
       ch.state.store(2);

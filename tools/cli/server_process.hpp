@@ -31,7 +31,10 @@ struct ServerSetup {
   viewer::ViewerOptions viewer;  ///< address, port, hosts, control_options (the token); `control` is set in the child
   viewer::HelloInfo hello;
   bool control = false;          ///< --control: /control drives the live scene
-  std::string scene_path;        ///< the scene the control protocol edits
+  /// The scene the control protocol edits: the text the loop's process read (once: the loop
+  /// renders the same text), and the file's name for the editor's messages (file:line: key).
+  std::string scene_text;
+  std::string scene_name;
   ScalarKind scalar = ScalarKind::kDouble;
   std::string token_note;        ///< appended to the "control: ..." line (e.g. "(random; ...)")
 };
