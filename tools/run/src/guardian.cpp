@@ -94,7 +94,18 @@ std::string describe_wait_status(int status) {
 
 
 SharedPage* map_shared_page() noexcept {
-  void* p = ::mmap(nullptr, sizeof(SharedPage), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  // Backed by a named memfd, not MAP_ANONYMOUS: /proc/PID/maps then names the page in every
+  // process that holds it ("/memfd:toonforce-guardian"), so a test can see that the viewer's
+  // server process dropped it. The mapping keeps the memory; the descriptor is not needed.
+  const int fd = ::memfd_create("toonforce-guardian", MFD_CLOEXEC);
+  if (fd < 0) return nullptr;
+  void* p = MAP_FAILED;
+  if (::ftruncate(fd, static_cast<off_t>(sizeof(SharedPage))) == 0) {
+    p = ::mmap(nullptr, sizeof(SharedPage), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  }
+  const int saved = errno;
+  ::close(fd);
+  errno = saved;
   if (p == MAP_FAILED) return nullptr;
   return new (p) SharedPage{};
 }
