@@ -1,6 +1,7 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
-//               [--view [PORT]] [--view-address ADDR] [--control [--control-token T] [--control-wait]]
+//               [--view [PORT]] [--view-address ADDR] [--server-user NAME]
+//               [--control [--control-token T] [--control-wait]]
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -25,6 +26,8 @@
 #include "toonforce/run/guardian.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
+#include <pwd.h>
+
 #include <fstream>
 
 #include "toonforce/config/scene_file.hpp"
@@ -246,6 +249,13 @@ void add_run(CLI::App& app) {
                   "The token a control client sends in its hello (default: $TOONFORCE_CONTROL_TOKEN, else a random "
                   "one, printed)")
       ->needs(control_flag);
+  auto server_user = std::make_shared<std::string>("nobody");
+  CLI::Option* server_user_option =
+      cmd->add_option("--server-user", *server_user,
+                      "Started as root: the user the viewer's server process becomes once its socket is bound "
+                      "(docs/DEPLOY.md \"Processes\")")
+          ->capture_default_str()
+          ->needs(view->view);
   auto control_wait = std::make_shared<bool>(false);
   cmd->add_flag("--control-wait", *control_wait,
                 "Start the loop only once a control client's hello has passed (a game or story page sets the scene up "
@@ -283,6 +293,21 @@ void add_run(CLI::App& app) {
     std::unique_ptr<ServerProcess> server;
     if (view->wanted()) {
       ServerSetup setup;
+      // Started as root, the server process runs as another user; otherwise it cannot change
+      // its user and keeps this one. A name given that is no user is an error either way.
+      if (geteuid() == 0 || server_user_option->count() > 0) {
+        const passwd* user = getpwnam(server_user->c_str());
+        if (user == nullptr) {
+          fmt::print(stderr, "--server-user {}: no such user (the viewer's server process runs as this user when "
+                             "`run` is started as root)\n", *server_user);
+          set_exit_code(2);
+          return;
+        }
+        if (geteuid() == 0) setup.user = ServerUser{*server_user, user->pw_uid, user->pw_gid};
+      }
+      if (options->guardian != nullptr) {  // the server must not forge the loop's heartbeat
+        setup.dropped_mappings.push_back({options->guardian, sizeof(guardian::SharedPage)});
+      }
       options->scene_text = read_scene_text(options->scene_path);
       auto scene = options->scene_text ? parse_scene(*options->scene_text, options->scene_path, options->scalar)
                                        : load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
