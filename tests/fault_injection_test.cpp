@@ -5,10 +5,14 @@
 // force, the summary, the exit status), never a time. `ctest -L fault_injection` runs them.
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <pwd.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -1669,6 +1673,138 @@ TEST(RunCommand, TheServerProcessHasNoRealTimePriorityNoLockedMemoryAndNoCapabil
   std::filesystem::remove(output);
 }
 
+
+/// The status line of the answer to `GET path` at 127.0.0.1:port (empty: no answer).
+std::string http_get_status_line(int port, const std::string& path) {
+  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return {};
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string answer;
+  if (connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0) {
+    const std::string request =
+        fmt::format("GET {} HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nConnection: close\r\n\r\n", path, port);
+    if (write(fd, request.data(), request.size()) == static_cast<ssize_t>(request.size())) {
+      char buffer[4096];
+      for (ssize_t n; answer.find("\r\n") == std::string::npos && (n = read(fd, buffer, sizeof buffer)) > 0;) {
+        answer.append(buffer, static_cast<std::size_t>(n));
+      }
+    }
+  }
+  close(fd);
+  const auto end = answer.find("\r\n");
+  return end == std::string::npos ? std::string() : answer.substr(0, end);
+}
+
+/// The value of /proc/PID/oom_score_adj (a number; -10000 when it cannot be read).
+int oom_score_adj_of(pid_t pid) {
+  const std::string text = proc_text(pid, "oom_score_adj");
+  return text.empty() ? -10000 : std::atoi(text.c_str());
+}
+
+// What a parser bug would hand an attacker of the server process: not the guardian's page (the
+// heartbeat and the zero-force recipe), not the loop's descriptors (the trace, the device), not
+// the loop's protection from the OOM killer, not root, and not the system calls beyond serving.
+TEST(RunCommand, TheServerProcessHoldsOnlyItsChannelsAndItsSocket) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto trace = temp_path("server_holds.csv");
+  const auto output = temp_path("server_holds.txt");
+  // A descriptor `run` inherits (as from a service manager or a careless parent): the loop's
+  // process keeps it, the server must not.
+  const auto inherited = temp_path("server_holds_inherited.txt");
+  const int inherited_fd = open(inherited.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);  // no O_CLOEXEC
+  ASSERT_GE(inherited_fd, 0);
+  Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                     "--duration", "30", "--view", "0", "--control", "--control-token", "t", "--allow-non-rt",
+                     "--no-mlock", "--trace", trace.string()},
+                    output);
+  close(inherited_fd);
+  ASSERT_TRUE(started(run));
+  ASSERT_TRUE(wait_for_text(run, output, "control: ws://")) << slurp(output);
+  const pid_t loop = loop_process_of(run.pid);
+  const pid_t server = server_process_of(run.pid);
+  ASSERT_GT(server, 0) << "no server process under the loop process";
+  ASSERT_TRUE(wait_for_file(run, trace, [](const std::string& text) { return std::count(text.begin(), text.end(), '\n') >= 100; }))
+      << "the loop runs (its trace open): " << slurp(output);
+  // It serves, all of this in force: the page's first request answered.
+  const std::string said = slurp(output);
+  const auto url_at = said.find("viewer: http://127.0.0.1:");
+  ASSERT_NE(url_at, std::string::npos) << said;
+  const int port = std::atoi(said.c_str() + url_at + std::strlen("viewer: http://127.0.0.1:"));
+  EXPECT_EQ(http_get_status_line(port, "/"), "HTTP/1.1 200 OK");
+
+  // The guardian's page (a memfd named toonforce-guardian): the loop's process maps it, the
+  // server's does not.
+  const std::string loop_maps = proc_text(loop, "maps");
+  const std::string server_maps = proc_text(server, "maps");
+  ASSERT_FALSE(server_maps.empty()) << "/proc/" << server << "/maps cannot be read here";
+  EXPECT_NE(loop_maps.find("toonforce-guardian"), std::string::npos) << loop_maps;
+  EXPECT_EQ(server_maps.find("toonforce-guardian"), std::string::npos) << server_maps;
+
+  // Descriptors: the standard streams, then only what it opened itself (its sockets, Asio's
+  // epoll, eventfd and timerfd); no file, nothing of the loop's (the trace it writes).
+  std::size_t descriptors = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(fmt::format("/proc/{}/fd", server))) {
+    const int fd = std::atoi(entry.path().filename().c_str());
+    std::error_code ec;
+    const std::string target = std::filesystem::read_symlink(entry.path(), ec).string();
+    ++descriptors;
+    if (fd <= 2 || ec) continue;
+    EXPECT_TRUE(target.starts_with("socket:") || target.starts_with("anon_inode:")) << "descriptor " << fd << ": " << target;
+  }
+  EXPECT_GT(descriptors, 3U) << "its listening socket at least";
+  bool loop_holds_it = false;
+  for (const auto& entry : std::filesystem::directory_iterator(fmt::format("/proc/{}/fd", loop))) {
+    std::error_code ec;
+    if (std::filesystem::read_symlink(entry.path(), ec) == inherited) loop_holds_it = true;
+  }
+  EXPECT_TRUE(loop_holds_it) << "the loop's process keeps the descriptor it inherited";
+
+  // The OOM killer takes it before the loop's process.
+  EXPECT_EQ(oom_score_adj_of(server), 1000);
+  EXPECT_GT(oom_score_adj_of(server), oom_score_adj_of(loop));
+
+  // Started as root (CI): the user nobody, no supplementary group.
+  const std::string status = proc_text(server, "status");
+  if (geteuid() == 0) {
+    const passwd* nobody = getpwnam("nobody");
+    ASSERT_NE(nobody, nullptr) << "no user nobody on this host";
+    const unsigned uid = nobody->pw_uid;
+    const unsigned gid = nobody->pw_gid;
+    EXPECT_NE(status.find(fmt::format("\nUid:\t{0}\t{0}\t{0}\t{0}\n", uid)), std::string::npos) << status;
+    EXPECT_NE(status.find(fmt::format("\nGid:\t{0}\t{0}\t{0}\t{0}\n", gid)), std::string::npos) << status;
+    const auto groups_at = status.find("\nGroups:\t");
+    ASSERT_NE(groups_at, std::string::npos) << status;
+    const std::string groups = status.substr(groups_at + 9, status.find('\n', groups_at + 1) - groups_at - 9);
+    EXPECT_EQ(groups.find_first_not_of(' '), std::string::npos) << "supplementary groups: " << groups;
+    EXPECT_NE(proc_text(loop, "status").find("\nUid:\t0\t0\t0\t0\n"), std::string::npos) << "the loop stays root";
+  } else {
+    std::fprintf(stderr, "note: not root here: the server keeps this user (nothing to check)\n");
+  }
+
+  // Its seccomp filter (mode 2: a filter), no_new_privs, no capability.
+  EXPECT_NE(status.find("Seccomp:\t2"), std::string::npos) << status;
+  EXPECT_NE(status.find("NoNewPrivs:\t1"), std::string::npos) << status;
+  EXPECT_NE(status.find("CapEff:\t0000000000000000"), std::string::npos) << status;
+  EXPECT_NE(status.find("CapPrm:\t0000000000000000"), std::string::npos) << status;
+
+  ASSERT_EQ(kill(run.pid, SIGTERM), 0);
+  EXPECT_EQ(wait_exit(run), 0) << slurp(output);
+  EXPECT_EQ(slurp(output).find("the server process (pid"), std::string::npos) << "it served to the end: " << slurp(output);
+  for (const auto& p : {trace, output, inherited}) std::filesystem::remove(p);
+}
+
+TEST(RunCommand, ServerUserThatDoesNotExistIsAnError) {
+  if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                  "--duration", "0.05", "--view", "0", "--server-user", "no-such-user-toonforce", "--allow-non-rt",
+                  "--no-mlock"});
+  EXPECT_EQ(status, 2) << text;
+  EXPECT_NE(text.find("--server-user no-such-user-toonforce: no such user"), std::string::npos) << text;
+}
 
 // Issue 27, "every phase": a stop signal that came while the device opened (the command's flag,
 // set before the loop's handlers exist) stops the loop before its first tick: no force at all,

@@ -196,6 +196,80 @@ def control_wait(work, scene):
           "--control-wait: Ctrl-C while waiting ends the run unstarted, exit status 2")
 
 
+REWRITTEN = """name = "rewritten"
+[[surface]]
+point = [0, 0, 0.015]
+normal = [0, 0, 1]
+stiffness = 200
+[[surface]]
+point = [0, 0, -0.015]
+normal = [0, 0, 1]
+stiffness = 200
+"""
+
+
+async def hello_and_one_change(url):
+    async with websockets.connect(url) as ws:
+        welcome = await talk(ws, {"type": "hello", "version": 1, "token": TOKEN})
+        effects = welcome["scene"]["effects"] if welcome["type"] == "welcome" else []
+        check(len(effects) == 1 and effects[0]["params"]["stiffness"] == 500,
+              "scene read once: the editor has the scene as the run read it, not as rewritten since")
+        reply = await talk(ws, {"type": "set", "id": 1, "effect": "surface1", "keys": {"stiffness": 800}})
+        check(reply == {"type": "ok", "id": 1, "sequence": 1}, "scene read once: the live change is taken")
+        applied = 0
+        for _ in range(300):
+            applied = (await talk(ws, {"type": "status"}))["applied"]
+            if applied == 1:
+                break
+            await asyncio.sleep(0.01)
+        check(applied == 1, "scene read once: the loop applied the change")
+
+
+def scene_read_once(work):
+    """The scene file is read once, when the run starts: rewritten on disk (another list of
+    effects) while the run waits for its control client, the loop still renders the scene it
+    read, before and after a live change, and the editor edits that same scene."""
+    scene = os.path.join(work, "once.toml")
+    trace = os.path.join(work, "once-trace.csv")
+    with open(scene, "w") as f:
+        f.write(SCENE)
+    run = subprocess.Popen([BINARY, "run", "--device", "sim", "--scene", scene, "--allow-non-rt", "--no-mlock",
+                            "--duration", "0.3", "--view", "0", "--control", "--control-token", TOKEN,
+                            "--control-wait", "--trace", trace],
+                           stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    url = None
+    for line in run.stderr:
+        print("run: " + line.rstrip(), flush=True)
+        m = re.search(r"control: (ws://\S+/control), token", line)
+        if m:
+            url = m.group(1)
+        if "waiting for a control client" in line:
+            break
+    check(url is not None, "scene read once: the run waits for a control client")
+    if url is None:
+        run.kill()
+        run.communicate()
+        return
+    with open(scene, "w") as f:
+        f.write(REWRITTEN)
+    asyncio.run(hello_and_one_change(url))
+    # The loop took the change: stop it (after its --duration the page would keep serving).
+    run.send_signal(signal.SIGTERM)
+    try:
+        out, err = run.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        run.kill()
+        out, err = run.communicate()
+    print(out + err)
+    check(run.returncode == 0, "scene read once: the run ends with status 0")
+    check(f"scene    control test ({scene}): 1 surface(s), 0 cliff(s)" in out,
+          "scene read once: the loop rendered the scene as read at the start (its name, one surface)")
+    with open(trace) as f:
+        header = f.readline()
+    check("surface1" in header and "surface2" not in header,
+          "scene read once: the trace's effect columns are the starting scene's")
+
+
 def main():
     work = tempfile.mkdtemp(prefix="toonforce_control_")
     scene = os.path.join(work, "scene.toml")
@@ -203,6 +277,7 @@ def main():
     with open(scene, "w") as f:
         f.write(SCENE)
     control_wait(work, scene)
+    scene_read_once(work)
     run = subprocess.Popen([BINARY, "run", "--device", "sim", "--scene", scene, "--allow-non-rt", "--no-mlock",
                             "--view", "0", "--control", "--control-token", TOKEN, "--stats-json", stats,
                             "--trace", os.path.join(work, "trace.csv")],

@@ -1,10 +1,12 @@
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
-//               [--view [PORT]] [--view-address ADDR] [--control [--control-token T] [--control-wait]]
+//               [--view [PORT]] [--view-address ADDR] [--server-user NAME]
+//               [--control [--control-token T] [--control-wait]]
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -26,7 +28,12 @@
 #include "toonforce/run/guardian_report.hpp"
 #include "toonforce/run/run.hpp"
 #if TOONFORCE_VIEWER
+#include <pwd.h>
+
+#include <fstream>
+
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/config/toml_reader.hpp"
 #include "server_process.hpp"
 #include "viewer_support.hpp"
 #endif
@@ -94,6 +101,27 @@ std::string same_output_problem(const RunOptions& options) {
   if (!same) return {};
   return fmt::format("--trace {} and --stats-json {} are the same file: one would overwrite the other; choose two", a, b);
 }
+
+#if TOONFORCE_VIEWER
+/// The scene file's text, read once for the whole run: the viewer's hello, the control
+/// protocol's editor (in the server process, which reads no file) and the loop all take this
+/// text, so an edit of the file while the run waits for its control client is not half taken.
+/// nullopt when it is not a regular file that can be read (load_scene_file then says why).
+std::optional<std::string> read_scene_text(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::string text;
+  std::array<char, 1U << 16> chunk{};
+  // No further than just past the scene files' limit: the parser refuses the rest anyway.
+  while (text.size() <= kMaxTomlBytes && (in.read(chunk.data(), chunk.size()) || in.gcount() > 0)) {
+    text.append(chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) return std::nullopt;
+  return text;
+}
+#endif
 
 }  // namespace
 
@@ -246,6 +274,13 @@ void add_run(CLI::App& app) {
                   "The token a control client sends in its hello (default: $TOONFORCE_CONTROL_TOKEN, else a random "
                   "one, printed)")
       ->needs(control_flag);
+  auto server_user = std::make_shared<std::string>("nobody");
+  CLI::Option* server_user_option =
+      cmd->add_option("--server-user", *server_user,
+                      "Started as root: the user the viewer's server process becomes once its socket is bound "
+                      "(docs/DEPLOY.md \"Processes\")")
+          ->capture_default_str()
+          ->needs(view->view);
   auto control_wait = std::make_shared<bool>(false);
   cmd->add_flag("--control-wait", *control_wait,
                 "Start the loop only once a control client's hello has passed (a game or story page sets the scene up "
@@ -289,8 +324,25 @@ void add_run(CLI::App& app) {
     // the live-scene mailbox in the memory they share.
     std::unique_ptr<ServerProcess> server;
     if (view->wanted()) {
-      auto scene = load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       ServerSetup setup;
+      // Started as root, the server process runs as another user; otherwise it cannot change
+      // its user and keeps this one. A name given that is no user is an error either way.
+      if (geteuid() == 0 || server_user_option->count() > 0) {
+        const passwd* user = getpwnam(server_user->c_str());
+        if (user == nullptr) {
+          fmt::print(stderr, "--server-user {}: no such user (the viewer's server process runs as this user when "
+                             "`run` is started as root)\n", *server_user);
+          set_exit_code(2);
+          return;
+        }
+        if (geteuid() == 0) setup.user = ServerUser{*server_user, user->pw_uid, user->pw_gid};
+      }
+      if (options->guardian != nullptr) {  // the server must not forge the loop's heartbeat
+        setup.dropped_mappings.push_back({options->guardian, sizeof(guardian::SharedPage)});
+      }
+      options->scene_text = read_scene_text(options->scene_path);
+      auto scene = options->scene_text ? parse_scene(*options->scene_text, options->scene_path, options->scalar)
+                                       : load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       viewer::HelloInfo& hello = setup.hello;
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
@@ -313,7 +365,8 @@ void add_run(CLI::App& app) {
           return;
         }
         setup.control = true;
-        setup.scene_path = options->scene_path;
+        setup.scene_text = *options->scene_text;  // a scene that parsed was read
+        setup.scene_name = options->scene_path;
         setup.scalar = options->scalar;
         const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
         setup.viewer.control_options.token = !control_token->empty() ? *control_token

@@ -1,6 +1,8 @@
 // `run --view`'s server process (server_process.hpp).
 #include "server_process.hpp"
 
+#include <fcntl.h>
+#include <grp.h>
 #include <linux/capability.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -17,6 +19,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "server_sandbox.hpp"
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/servo_session.hpp"
 #include "toonforce/control/guardian.hpp"
@@ -46,16 +49,81 @@ constexpr std::size_t kMailboxBytes = std::max({sizeof(SceneMailbox<RuntimeScene
                                                 sizeof(SceneMailbox<RuntimeScene<float>>),
                                                 sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
 
+/// Right after the fork: let go of what the loop's process holds and a server must not. A
+/// parser bug handed to an attacker then finds none of it: the guardian's page (whose heartbeat
+/// and zero-force recipe it could forge), the loop's descriptors (the device, the trace, the
+/// pidfd), the loop's protection from the OOM killer. Empty, or why not (the server does not
+/// start).
+std::string let_go_of_the_loops(const ServerSetup& setup) {
+  for (const DroppedMapping& m : setup.dropped_mappings) {
+    if (m.address != nullptr && munmap(m.address, m.length) != 0) {
+      return fmt::format("viewer: its server process cannot unmap the loop's shared memory: {}", std::strerror(errno));
+    }
+  }
+  // Every descriptor but the standard streams, before it opens its socket.
+  if (close_range(3, ~0U, 0) != 0) {
+    if (errno != ENOSYS) return fmt::format("viewer: its server process cannot close its descriptors: {}", std::strerror(errno));
+    rlimit files{};
+    getrlimit(RLIMIT_NOFILE, &files);
+    for (rlim_t fd = 3; fd < files.rlim_cur; ++fd) close(static_cast<int>(fd));  // a kernel before 5.9
+  }
+  // Under memory pressure the OOM killer takes this process first, never the loop's for it (a
+  // service lowers the whole group's score: OOMScoreAdjust). Raising one's own needs no right.
+  const int fd = open("/proc/self/oom_score_adj", O_WRONLY | O_CLOEXEC);
+  const bool written = fd >= 0 && write(fd, "1000", 4) == 4;
+  const int saved = errno;
+  if (fd >= 0) close(fd);
+  if (!written) return fmt::format("viewer: its server process cannot raise its oom_score_adj: {}", std::strerror(saved));
+  return {};
+}
+
+/// Sets the effective and permitted capabilities to `keep` (bits of CAP_*) of those it has.
+void keep_capabilities(std::uint64_t keep) {
+  __user_cap_header_struct header{_LINUX_CAPABILITY_VERSION_3, 0};
+  __user_cap_data_struct data[2] = {};
+  syscall(SYS_capget, &header, data);
+  for (int i = 0; i < 2; ++i) {
+    const auto bits = static_cast<std::uint32_t>(keep >> (32 * i));
+    data[i].effective &= bits;
+    data[i].permitted &= bits;
+    data[i].inheritable = 0;
+  }
+  syscall(SYS_capset, &header, data);
+}
+
 /// No more privilege than a web server needs: no real-time priority, no locked memory, no
-/// capability (a binary given cap_sys_nice/cap_ipc_lock for the loop passes them to a fork).
+/// capability (a binary given cap_sys_nice/cap_ipc_lock for the loop passes them to a fork),
+/// no_new_privs. Until its socket is bound it keeps, if it has them, binding a port below 1024
+/// and changing its user (started as root); become_server() drops them.
 void drop_privileges() {
   const rlimit none{0, 0};
   setrlimit(RLIMIT_RTPRIO, &none);
   setrlimit(RLIMIT_MEMLOCK, &none);
-  __user_cap_header_struct header{_LINUX_CAPABILITY_VERSION_3, 0};
-  __user_cap_data_struct data[2] = {};
-  syscall(SYS_capset, &header, data);
+  keep_capabilities((1ULL << CAP_NET_BIND_SERVICE) | (1ULL << CAP_SETUID) | (1ULL << CAP_SETGID));
   prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0);
+}
+
+/// Once it listens, before it serves (ViewerOptions::before_serving): another user when it was
+/// started as root, no capability left, and the seccomp filter. Empty, or why not (it then
+/// does not serve).
+std::string become_server(const ServerSetup& setup, pid_t loop) {
+  if (setup.user) {
+    const ServerUser& u = *setup.user;
+    // Groups first: setuid() takes the right to change them.
+    if (setgroups(0, nullptr) != 0 || setgid(u.gid) != 0 || setuid(u.uid) != 0 || getuid() != u.uid ||
+        geteuid() != u.uid || getgid() != u.gid || getegid() != u.gid) {
+      return fmt::format("viewer: its server process cannot become user {} (--server-user): {}", u.name,
+                         std::strerror(errno));
+    }
+    // A change of credentials clears the parent-death signal: set it again.
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != loop) _exit(0);
+  }
+  keep_capabilities(0);
+  if (std::string bad = install_server_filter(); !bad.empty()) {
+    return fmt::format("viewer: its server process cannot install its seccomp filter: {}", bad);
+  }
+  return {};
 }
 
 /// The server process's life; returns its exit status.
@@ -65,10 +133,11 @@ int serve(ServerChannel& ch, const ServerSetup& setup, pid_t loop) {
   for (const int signo : stop_signals()) signal(signo, SIG_IGN);
   signal(SIGPIPE, SIG_IGN);
   viewer::ViewerOptions vo = setup.viewer;
+  vo.before_serving = [&setup, loop] { return become_server(setup, loop); };
   LiveMailboxes live;
   std::unique_ptr<viewer::SceneControl> control;
   if (setup.control) {
-    auto opened = open_live_control(setup.scene_path, setup.scalar, live, ch.mailbox);
+    auto opened = open_live_control(setup.scene_text, setup.scene_name, setup.scalar, live, ch.mailbox);
     if (!opened) {
       fmt::print(stderr, "--control: {}\n", opened.error());
       ch.state.store(2);
@@ -164,6 +233,11 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& s
   if (child == 0) {
     prctl(PR_SET_PDEATHSIG, SIGKILL);  // it holds nothing that needs an orderly end
     if (getppid() != loop) _exit(0);
+    if (std::string bad = let_go_of_the_loops(setup); !bad.empty()) {
+      fmt::print(stderr, "{}\n", bad);
+      p->channel_->state.store(2);
+      _exit(2);
+    }
     drop_privileges();
     const int status = serve(*p->channel_, setup, loop);
     std::fflush(stdout);

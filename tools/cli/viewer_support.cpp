@@ -8,8 +8,6 @@
 #include <chrono>
 #include <concepts>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -85,12 +83,8 @@ class LiveControl final : public viewer::SceneControl {
 
 }  // namespace
 
-Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
-                                                                LiveMailboxes& live, void* place) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (!in) return Error{fmt::format("{}: cannot be read", path)};
+Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& text, const std::string& name,
+                                                                ScalarKind scalar, LiveMailboxes& live, void* place) {
   return with_scalar(
       scalar,
       [&]<Scalar S>() -> Result<std::unique_ptr<viewer::SceneControl>> {
@@ -103,7 +97,7 @@ Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::strin
           owned = std::make_unique<SceneMailbox<RuntimeScene<S>>>();
           mailbox = owned.get();
         }
-        auto editor = SceneEditor<S>::open(text.str(), path, *mailbox);
+        auto editor = SceneEditor<S>::open(text, name, *mailbox);
         if (!editor) return Error{editor.error()};
         editor->keep_layout("this run's trace and viewer show the starting scene's effects by column "
                             "(docs/spec/control-protocol.md): move or retune effects instead");

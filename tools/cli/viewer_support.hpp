@@ -43,13 +43,15 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
                                                            std::optional<std::vector<viewer::ViewFrame>> recording = std::nullopt,
                                                            std::string_view host_option = "--view-host");
 
-/// Live scenes (`run --control`): the editor of the scene file at `path` for the run's scalar,
-/// with its mailbox (set in `live`), for the viewer server's /control. Changes keep the scene's
-/// list of effects (the trace's and the viewer's columns). Owns the mailbox: keep it until the
-/// run and the server are over. `place`: construct the mailbox there instead (memory shared
-/// with the loop's process, room for any scalar's mailbox; server_process.hpp), not owned.
-Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& path, ScalarKind scalar,
-                                                                LiveMailboxes& live, void* place = nullptr);
+/// Live scenes (`run --control`): the editor of the scene `text` (the file `name`'s, as the run
+/// read it: named in its messages) for the run's scalar, with its mailbox (set in `live`), for
+/// the viewer server's /control. Changes keep the scene's list of effects (the trace's and the
+/// viewer's columns). Owns the mailbox: keep it until the run and the server are over. `place`:
+/// construct the mailbox there instead (memory shared with the loop's process, room for any
+/// scalar's mailbox; server_process.hpp), not owned.
+Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& text, const std::string& name,
+                                                                ScalarKind scalar, LiveMailboxes& live,
+                                                                void* place = nullptr);
 
 
 /// Keeps serving (the page has the whole recording) until Ctrl-C or another stop signal.

@@ -925,6 +925,9 @@ Result<std::unique_ptr<ViewerServer>> ViewerServer::start_recording(const Viewer
   auto bound = bind(options, std::move(hello_json));
   if (!bound) return Error{bound.error()};
   std::unique_ptr<Impl> impl = std::move(bound.value());
+  if (options.before_serving) {
+    if (std::string refused = options.before_serving(); !refused.empty()) return Error{std::move(refused)};
+  }
   if (recording) {
     const std::size_t frames = recording->size();
     impl->history = std::move(*recording);

@@ -30,6 +30,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -79,6 +80,11 @@ struct ViewerOptions {
   std::size_t max_control_pending = 4;
   double control_hello_deadline_s = 5.0;  ///< a control connection without a hello by then is closed (1008)
   double request_deadline_s = 5.0;        ///< an HTTP connection without a whole request by then is closed
+  /// Called once the socket listens, before anything is served: no connection accepted yet,
+  /// the server's thread not started. `run --view`'s server process gives up its user and
+  /// installs its seccomp filter there (tools/cli/server_process.cpp). Returns why the server
+  /// must not start (the error of start()); empty: it starts.
+  std::function<std::string()> before_serving;
 };
 
 /// Counters for the summary and the tests (any thread).
