@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "toonforce/control/realtime_runner.hpp"
+#include "toonforce/run/guardian_report.hpp"
 #include "toonforce/run/run.hpp"
 #include "toonforce/trace/json.hpp"
 #include "toonforce/trace/telemetry_trace.hpp"
@@ -400,6 +401,38 @@ TEST(TraceWriter, StartsWithTheSpecColumnsAndWritesNumbersThatReadBackExactly) {
   EXPECT_EQ(row[8], 0.1 + 0.2);
   EXPECT_NE(lines[1].find(",nan,42"), std::string::npos) << lines[1];
   std::filesystem::remove(path);
+}
+
+TEST(GuardianEpilogue, TheZeroForceRowIsAsWideAsTheHeaderWithOrWithoutAFrame) {
+  // A loop's process that dies before its writer took a frame leaves the guardian no frame to
+  // copy: the row is still as wide as the header (its effect values NaN), and so it is when the
+  // frame carries fewer values than the trace has columns for.
+  const std::vector<std::string> values{"surface1.contact", "surface1.impact_t", "cliff1.state"};
+  for (const bool with_frame : {false, true}) {
+    const auto path = temp_path(with_frame ? "epilogue_frame.csv" : "epilogue_none.csv");
+    {
+      auto w = TraceWriter::open(path.string(), telemetry_columns(values, true));
+      ASSERT_TRUE(w) << w.error();
+      ASSERT_TRUE(w.value()->close());
+    }
+    guardian::Verdict verdict;
+    verdict.t_end_s = 0.25;
+    TelemetryFrame frame{};
+    frame.t_s = 0.2;
+    frame.tick = 200;
+    frame.force_n = {0.0, 0.0, 3.0};
+    frame.value_count = 1;  // fewer than the header's three
+    frame.values[0] = 1.0;
+    EXPECT_EQ(guardian::end_trace(path.string(), verdict, with_frame ? &frame : nullptr), "");
+    const auto lines = lines_of(path);
+    ASSERT_EQ(lines.size(), 2U);
+    const auto header = fields_of_line(lines[0]);
+    const auto row = fields_of_line(lines[1]);
+    EXPECT_EQ(row.size(), header.size()) << (with_frame ? "with" : "without") << " a frame: " << lines[1];
+    EXPECT_EQ(std::stod(row[0]), 0.25);
+    EXPECT_EQ(std::stod(row[9]), 0.0) << "zero force";
+    std::filesystem::remove(path);
+  }
 }
 
 TEST(TraceWriter, TelemetryColumnsMatchWhatWriteFrameWrites) {

@@ -14,16 +14,17 @@
 #include "toonforce/run/command_stop.hpp"
 
 int main(int argc, char** argv) {
-  // `run` handles every stop signal from its first instruction: a signal that comes while the
-  // command line is read, the guardian started or the scene loaded is a stop before the loop
-  // (exit status 2), never a death by its default action (command_stop.hpp).
-  if (argc > 1 && std::string_view(argv[1]) == "run") toonforce::install_command_stop_signals();
   // A reader that went away (`toonforce ... --trace - | head`) is a write error every writer
   // reports, never a death: the servo loop must end by its own shut-down, not by SIGPIPE.
   std::signal(SIGPIPE, SIG_IGN);
   // A file-size limit (`ulimit -f`) is a write error (EFBIG) the writers report as a full disk,
   // never a death with an empty statistics file (a SIGXFSZ sent with kill is a stop in the loop).
   std::signal(SIGXFSZ, SIG_IGN);
+  // `run` handles every stop signal from here on: a signal that comes while the command line is
+  // read, the guardian starts or the scene loads is a stop before the loop (exit status 2), never
+  // a death by its default action (command_stop.hpp). After the line above: a SIGXFSZ sent with
+  // kill is a stop like the others (the handler itself ignores the kernel's file-size one).
+  if (argc > 1 && std::string_view(argv[1]) == "run") toonforce::install_command_stop_signals();
   CLI::App app{"toonforce: expressive, cartoon-inspired haptic rendering (Haptics Symposium 2010)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
