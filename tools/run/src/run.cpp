@@ -186,7 +186,10 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
-  if constexpr (kStages.live) summary.updates_applied = loop->updates_applied();
+  if constexpr (kStages.live) {
+    summary.updates_applied = loop->updates_applied();
+    summary.updates_refused = loop->updates_refused();
+  }
   if (trace && !trace->close() && summary.trace_error.empty()) {
     summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
   }
@@ -369,7 +372,10 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   row("compute", r.compute.summary());
   row("slack", r.slack.summary());
   text += fmt::format("forces   peak {:.3f} N\n", s.peak_force_n);
-  if (s.live) text += fmt::format("live     {} scene update(s) applied\n", s.updates_applied);
+  if (s.live) {
+    text += fmt::format("live     {} scene update(s) applied, {} refused{}\n", s.updates_applied, s.updates_refused,
+                        s.updates_refused > 0 ? " (they failed the loop's checks: docs/spec/live-scenes.md)" : "");
+  }
   if (s.device_limited_ticks > 0) {
     text += fmt::format("device   could not give the force asked in {} tick(s): its force envelope is smaller "
                         "there (`toonforce falcon envelope`); the hand felt less than the scene\n",
@@ -410,7 +416,7 @@ std::string stats_json(const RunSummary& s, const RunOptions& o) {
   out += fmt::format("  \"fault_ticks\": {},\n  \"fault_bits\": {},\n  \"latched_at_end\": {},\n  \"rearms\": {},\n",
                      s.fault_ticks, s.fault_bits, s.latched_at_end, s.rearms);
   out += fmt::format("  \"device_limited_ticks\": {},\n", s.device_limited_ticks);
-  out += fmt::format("  \"updates_applied\": {},\n", s.updates_applied);
+  out += fmt::format("  \"updates_applied\": {},\n  \"updates_refused\": {},\n", s.updates_applied, s.updates_refused);
   out += fmt::format("  \"faults\": {},\n", json_string(describe_faults(s.fault_bits)));
   out += fmt::format("  \"wake_latency_us\": {},\n", json_latency(r.wake.summary()));
   out += fmt::format("  \"compute_us\": {},\n", json_latency(r.compute.summary()));

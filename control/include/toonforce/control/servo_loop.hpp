@@ -53,6 +53,16 @@ template <class SceneT>
 struct MailboxOf<SceneT, true> {
   using type = SceneMailbox<SceneT>;
 };
+/// A live loop's own side of its mailbox (its index and copies); nothing in a loop that is not.
+struct NoIntake {};
+template <class SceneT, bool kLive>
+struct IntakeOf {
+  using type = NoIntake;
+};
+template <class SceneT>
+struct IntakeOf<SceneT, true> {
+  using type = SceneIntake<SceneT>;
+};
 }  // namespace detail
 
 /// The outcome of one tick.
@@ -114,15 +124,26 @@ class ServoLoop {
         fade_ticks_(kStages.live ? std::llround(config.safety.update_fade_s / config.period_s) : 0) {}
 
   /// A live loop takes its scene updates from `mailbox` (the application's side pushes them;
-  /// config/scene_editor.hpp) from the next tick on. Before the loop runs, or from its thread.
+  /// config/scene_editor.hpp) from the next tick on, from the mailbox's first update: no other
+  /// loop has taken any of it. Before the loop runs, or from its thread.
   template <class M>
   void listen(M& mailbox) noexcept
     requires(kStages.live && std::same_as<M, Mailbox>)
   {
     mailbox_ = &mailbox;
+    intake_.restart();
   }
   /// Live loop: updates applied since the start.
   std::uint64_t updates_applied() const noexcept { return updates_applied_; }
+  /// Live loop: updates refused since the start (torn, or failing the checks of
+  /// docs/spec/live-scenes.md): taken off the mailbox and not applied.
+  std::uint64_t updates_refused() const noexcept {
+    if constexpr (kStages.live) {
+      return intake_.refused();
+    } else {
+      return 0;
+    }
+  }
 
   /// One tick at integer time `k` (strictly increasing; a smaller k is taken as last + 1).
   TickStatus tick(std::int64_t k) noexcept { return tick(Instant{k, 0}); }
@@ -318,16 +339,19 @@ class ServoLoop {
     passivity_.settle(wanted, o.force_n);
   }
 
-  /// A live loop's one update a tick, if there is one: whole, before the scene's force.
+  /// A live loop's one update a tick, if there is one: copied out of the mailbox into the
+  /// loop's own memory and checked whole (SceneIntake), then applied whole before the scene's
+  /// force; a refused one is counted and the scene stays as it was. A tick without an update
+  /// reads the mailbox's one index.
   void take_update(const Gate& gate, const Hip<S>& hip, const TickTime& time) noexcept {
     if constexpr (kStages.live) {
       if (mailbox_ == nullptr) return;
-      const auto* update = mailbox_->front();
-      if (update == nullptr) return;
+      if (intake_.take(*mailbox_, scene_.scene()) != Intake::Taken::kChecked) return;
+      const auto& update = intake_.update();
       const TickInput<S> in = Stage::input(hip, time);
-      scene_.apply(*update, gate.position && hip.finite ? &in : nullptr, time.now, fade_ticks_);
+      scene_.apply(update, gate.position && hip.finite ? &in : nullptr, time.now, fade_ticks_);
       passivity_.relayout(scene_.active_slots());
-      mailbox_->pop(update->sequence);
+      mailbox_->report_applied(update.sequence);
       ++updates_applied_;
     }
   }
@@ -450,6 +474,8 @@ class ServoLoop {
   std::int64_t max_step_gaps_ = largest_step_gap(period_max_step_);
   std::int64_t fade_ticks_;  ///< live: the update fade, in ticks
   Mailbox* mailbox_ = nullptr;
+  using Intake = typename detail::IntakeOf<SceneT, kStages.live>::type;
+  [[no_unique_address]] Intake intake_{};  ///< live: the loop's index and copies (not shared)
   std::uint64_t updates_applied_ = 0;
 
   // State between ticks: the last tick's outcome (its force is held until the next write).

@@ -65,7 +65,9 @@ class SpscRing {
  public:
   static constexpr std::size_t kCapacity = Capacity;
 
-  /// Producer: copies `item` in, or counts a drop and returns false when full.
+  /// Producer: copies `item` in, or counts a drop and returns false when full. Its indices are
+  /// in the ring: with a consumer that cannot be trusted with them, use push(item, producer).
+  /// Even then the slot written is within the ring (an index modulo the capacity).
   bool push(const T& item) noexcept {
     if (try_push(item)) return true;
     dropped_.store(dropped_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
@@ -80,6 +82,33 @@ class SpscRing {
     }
     slots_[head & (Capacity - 1)] = item;
     head_.store(head + 1, std::memory_order_release);
+    return true;
+  }
+
+  /// The producer's own indices, for a ring whose consumer is another process that may write
+  /// any bytes into the ring (the viewer's server process: its frame ring is in memory the two
+  /// share). Kept in the producer's memory, never in the ring; push(item, producer) reads only
+  /// tail_ from the ring, as a hint.
+  struct Producer {
+    std::size_t head = 0;         ///< the next item's number
+    std::size_t tail_cache = 0;   ///< the consumer's index as last read
+    std::uint64_t dropped = 0;    ///< items dropped because the ring was (or said it was) full
+  };
+  /// Producer: push() with the producer's indices in `p`. The slot written is `p.head` modulo
+  /// the capacity whatever the ring's bytes say; a consumer index the producer has not reached
+  /// or that lags by more than the capacity reads as a full ring (the item is dropped and
+  /// counted in `p`). The consumer may lose its own frames, nothing more.
+  bool push(const T& item, Producer& p) noexcept {
+    if (p.head - p.tail_cache >= Capacity) {
+      p.tail_cache = tail_.load(std::memory_order_acquire);
+      if (p.head - p.tail_cache >= Capacity) {
+        ++p.dropped;
+        return false;
+      }
+    }
+    slots_[p.head & (Capacity - 1)] = item;
+    ++p.head;
+    head_.store(p.head, std::memory_order_release);
     return true;
   }
 

@@ -56,9 +56,13 @@ struct CartoonCliff {
                   number("fall_force", &Params::fall_force_n, "N", Range::kNonNegative, 0.0));
   }
   /// The gap runs across the ground: the axis lies in the ground plane, gap_min < gap_max.
+  /// A file's values are checked in double; a live update's as S holds them, whose rounding
+  /// (Q16.16: up to 2^-17 a component) leaves two perpendicular unit vectors up to about 3e-5
+  /// off, hence the larger tolerance there.
   static void check(const Params& p, schema::Problems& problems, ScalarKind) {
+    constexpr double kTolerance = kIsFixed<S> ? 1e-4 : 1e-6;
     const double across = std::fabs(to_double(dot(p.ground.normal, p.axis)));
-    if (across > 1e-6) problems.add("axis", "must be perpendicular to the normal; |axis.normal| after normalising is", across);
+    if (!(across <= kTolerance)) problems.add("axis", "must be perpendicular to the normal; |axis.normal| after normalising is", across);
     if (!(p.gap_min_m < p.gap_max_m)) problems.add("gap_max", "must be greater than gap_min");
   }
   static constexpr Needs needs(const Params&) noexcept { return kNeeds; }

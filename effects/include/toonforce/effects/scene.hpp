@@ -23,6 +23,7 @@
 
 #include "toonforce/effects/cliff.hpp"
 #include "toonforce/effects/effect.hpp"
+#include "toonforce/effects/params_check.hpp"
 #include "toonforce/effects/surface.hpp"
 
 namespace toonforce {
@@ -158,6 +159,10 @@ class Scene {
 
   Params params_;
 };
+
+/// Defined only by tests and fuzz targets, to write the bytes another process could write into
+/// a live scene's update (control/scene_updates.hpp).
+struct ForgeAccess;
 
 /// The scene a file describes: effects of the kinds `Kinds<S>` (each an Effect template over the
 /// scalar), any number of each up to its kMaxPerScene, forces added in the order they were added.
@@ -305,6 +310,57 @@ class RuntimeSceneOf {
     return fired;
   }
 
+  /// Live scenes: makes this scene the effects of `untrusted`, a copy of bytes another process
+  /// wrote (docs/spec/live-scenes.md), or says it cannot: nothing of `untrusted` but its order's
+  /// kinds and indices and its effects' parameters is used, and those are checked first. For
+  /// each of its effect_count() effects in order (at most kMaxEffects), the kind must be one of
+  /// this scene's, the index the next of that kind (0, 1, 2, ...: below its kMaxPerScene), the
+  /// parameters pass effect::params_ok (params_check.hpp); each is then added again, which
+  /// computes the offsets, counts, needs and which states are kept anew. The counts and offsets
+  /// `untrusted` claims must be those. False: refused (this scene is then partly built: do not
+  /// use it). Bounded work, no allocation.
+  bool assign_checked(const RuntimeSceneOf& untrusted) noexcept {
+    counts_ = {};
+    effect_count_ = active_slots_ = value_count_ = 0;
+    needs_ = Needs::kNone;
+    if (untrusted.effect_count_ > kMaxEffects) return false;
+    // Bounded by the capacity as well: the order is never read past its end.
+    const std::size_t n = untrusted.effect_count_ < kMaxEffects ? untrusted.effect_count_ : kMaxEffects;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Entry& e = untrusted.order_[i];  // its integers only: `stateful` is not loaded
+      if (e.kind >= kKinds) return false;  // (dispatch would find no kind either)
+      bool added = false;
+      dispatch(e, [&]<std::size_t I>(const Entry&) {
+        const std::size_t index = e.index;
+        if (index >= effect::kMaxPerScene<Kind<I>> || index != counts_[I]) return;
+        const auto& p = std::get<I>(untrusted.params_)[index];
+        if (!effect::params_ok<Kind<I>>(p)) return;
+        added = add<I>(p);
+      });
+      if (!added) return false;
+      if (e.active_offset != order_[i].active_offset || e.value_offset != order_[i].value_offset) return false;
+    }
+    return untrusted.counts_ == counts_ && untrusted.active_slots_ == active_slots_ &&
+           untrusted.value_count_ == value_count_;
+  }
+  /// Live scenes: whether `continues` (one per effect of this scene, in order) names, for each,
+  /// -1 (a new effect) or an effect of its kind that `previous` has.
+  constexpr bool continues_ok(const RuntimeSceneOf& previous, const std::int16_t* continues) const noexcept {
+    for (std::size_t i = 0; i < effect_count_; ++i) {
+      const std::int16_t old = continues[i];
+      if (old < -1 || (old >= 0 && static_cast<std::size_t>(old) >= previous.counts_[order_[i].kind])) return false;
+    }
+    return true;
+  }
+  /// Live scenes: whether the i-th effect has an event number `event`, and `value` is a finite
+  /// number S holds.
+  bool takes_event(std::size_t i, std::size_t event, double value) const noexcept {
+    if (i >= effect_count_ || !representable<S>(value)) return false;
+    std::size_t events = 0;
+    dispatch(order_[i], [&]<std::size_t I>(const Entry&) { events = effect::kEvents<Kind<I>>.size(); });
+    return event < events;
+  }
+
   /// How many effects of kind I, and the n-th of them.
   template <std::size_t I>
   constexpr std::size_t count() const noexcept {
@@ -324,6 +380,7 @@ class RuntimeSceneOf {
   }
 
  private:
+  friend struct ForgeAccess;
   struct Entry {
     std::uint8_t kind = 0;
     std::uint8_t index = 0;

@@ -118,6 +118,7 @@ struct RunSummary {
   std::int64_t device_limited_ticks = 0;
   bool live = false;                  ///< the loop took scene updates (--control)
   std::uint64_t updates_applied = 0;  ///< live: scene updates the loop applied
+  std::uint64_t updates_refused = 0;  ///< live: updates the loop refused (failed its checks)
 };
 
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
