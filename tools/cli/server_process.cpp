@@ -196,7 +196,9 @@ class ServerProcess::Sink final : public TelemetrySink {
   explicit Sink(ServerProcess& p) : process_(p) {}
   void publish(const TelemetryFrame& frame) noexcept override {
     if (gone_) return;
-    static_cast<void>(process_.channel_->frames.push(frame));  // full: dropped, never waits
+    // The ring is in memory the server process can write: the producer's indices are kept
+    // here (a forged head or tail can cost the page frames, nothing more); full: dropped.
+    static_cast<void>(process_.channel_->frames.push(frame, producer_));
     if ((++count_ & 255U) == 0) check();
   }
   void finish() noexcept override {}  // ServerProcess::finish() says how the serving ends
@@ -217,6 +219,7 @@ class ServerProcess::Sink final : public TelemetrySink {
  private:
   ServerProcess& process_;
   std::uint64_t count_ = 0;
+  decltype(ServerChannel::frames)::Producer producer_{};
 };
 
 Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& setup) {
