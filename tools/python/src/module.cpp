@@ -740,6 +740,7 @@ class LiveRun {
     d["fault_bits"] = s.fault_bits;
     d["peak_force_n"] = s.peak_force_n;
     d["updates_applied"] = s.updates_applied;
+    d["updates_refused"] = s.updates_refused;
     d["trace_error"] = s.trace_error;
     d["text"] = format_run_summary(s, options_);
     return d;

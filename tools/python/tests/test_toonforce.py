@@ -263,6 +263,7 @@ def test_live_run_takes_changes_and_streams_telemetry(root):
         second = next(p for p in _telemetry_until(r, 50) if p.rows > 0)
         assert second["t"][0] > first["t"][-1]
     assert r.summary["updates_applied"] == 2
+    assert r.summary["updates_refused"] == 0
     assert r.summary["stop_signal"] == signal.SIGINT
     last = r.telemetry()
     assert last.rows >= 1 and (last["fx"][-1], last["fy"][-1], last["fz"][-1]) == (0.0, 0.0, 0.0)
