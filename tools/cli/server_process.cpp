@@ -23,31 +23,14 @@
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/servo_session.hpp"
 #include "toonforce/control/guardian.hpp"
+#include "toonforce/control/server_channel.hpp"
 #include "viewer_support.hpp"
 
 namespace toonforce::cli {
 
-/// What the two processes share (MAP_SHARED, mapped before the fork). Address-free: atomics,
-/// the frame ring, and the mailbox's bytes (a scene's parameters are fixed arrays: no pointer).
-struct ServerChannel {
-  /// As large as the run's own telemetry ring (servo_session.hpp): 16 s at 1 kHz before a
-  /// starved server process loses frames (2048 lost the frames of a fall on a loaded CI host).
-  SpscRing<TelemetryFrame, 16384> frames;
-  std::atomic<int> state{0};               ///< 0 starting, 1 listening, 2 failed
-  std::atomic<int> control_ready{0};       ///< a control client's hello passed
-  std::atomic<int> run_over{0};            ///< 1: keep serving the recording, 2: close now
-  alignas(64) unsigned char mailbox[1];    ///< the live-scene mailbox (mapped with room for it)
-};
-static_assert(std::atomic<int>::is_always_lock_free);
-
 namespace {
 
 void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
-
-/// Room for the largest mailbox of the three scalars (only the run's is placed there).
-constexpr std::size_t kMailboxBytes = std::max({sizeof(SceneMailbox<RuntimeScene<double>>),
-                                                sizeof(SceneMailbox<RuntimeScene<float>>),
-                                                sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
 
 /// Right after the fork: let go of what the loop's process holds and a server must not. A
 /// parser bug handed to an attacker then finds none of it: the guardian's page (whose heartbeat
@@ -224,7 +207,7 @@ class ServerProcess::Sink final : public TelemetrySink {
 
 Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& setup) {
   std::unique_ptr<ServerProcess> p(new ServerProcess());
-  p->channel_bytes_ = sizeof(ServerChannel) + kMailboxBytes;
+  p->channel_bytes_ = kServerChannelBytes;
   void* memory = mmap(nullptr, p->channel_bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (memory == MAP_FAILED) return Error{fmt::format("viewer: cannot map the memory shared with its server: {}", std::strerror(errno))};
   p->channel_ = new (memory) ServerChannel{};

@@ -34,6 +34,10 @@
 #include "toonforce/viewer/hello.hpp"
 #include "toonforce/viewer/viewer_server.hpp"
 
+namespace toonforce {
+struct ServerChannel;
+}  // namespace toonforce
+
 namespace toonforce::cli {
 
 /// A mapping of the loop's process (address, length) the server process must not keep.
@@ -66,7 +70,6 @@ struct ServerSetup {
   std::optional<ServerUser> user;
 };
 
-struct ServerChannel;
 
 class ServerProcess {
  public:
