@@ -59,7 +59,7 @@ list(LENGTH libdir_candidates n)
 expect("one lib*/cmake/toonforce directory, found ${libdir_candidates}" n EQUAL 1)
 get_filename_component(libdir "${libdir_candidates}/../.." ABSOLUTE)
 foreach(file IN ITEMS
-    bin/toonforce
+    bin/toonforce libexec/toonforce/toonforce-guardian
     include/toonforce/effects/scene.hpp include/toonforce/math/fixed.hpp include/toonforce/common/result.hpp
     include/toonforce/hal/device.hpp include/toonforce/control/servo_loop.hpp
     include/toonforce/control/realtime_runner.hpp include/toonforce/host_sim/sim_driver.hpp
@@ -111,6 +111,11 @@ run_step("installed toonforce figures" COMMAND "${prefix}/bin/toonforce" figures
 string(FIND "${figures_out}" "scenes and hand scripts from ${prefix}/share/toonforce\n" at)
 expect("toonforce figures used the installed data:\n${figures_out}" NOT at EQUAL -1)
 expect("toonforce figures wrote fig3_cartoon_wall.csv" EXISTS "${WORK_DIR}/figures/fig3_cartoon_wall.csv")
+
+# The installed run finds its guardian program (../libexec/toonforce from bin/) and runs.
+run_step("installed toonforce run" COMMAND "${prefix}/bin/toonforce" run --device sim
+         --scene "${prefix}/share/toonforce/scenes/wall.toml" --duration 0.2 --allow-non-rt --no-mlock --quiet
+         OUTPUT installed_run_out)
 
 # ---- 3. find_package: the examples --------------------------------------------------------------
 separate_arguments(cxx_flags UNIX_COMMAND "${CXX_FLAGS}")

@@ -64,7 +64,7 @@ function(expect_field package text)
 endfunction()
 
 # ---- toonforce: the program and what a host needs ----------------------------------------------
-expect_files(toonforce ./usr/bin/toonforce ./usr/lib/udev/rules.d/60-novint-falcon.rules
+expect_files(toonforce ./usr/bin/toonforce ./usr/libexec/toonforce/toonforce-guardian ./usr/lib/udev/rules.d/60-novint-falcon.rules
   ./etc/security/limits.d/toonforce.conf ./usr/lib/systemd/system/toonforce@.service
   ./usr/share/toonforce/scenes/wall.toml ./usr/share/toonforce/scenes/hands/strike.toml
   ./usr/share/toonforce/plot_trace.py ./usr/share/doc/toonforce/DEPLOY.md)
