@@ -237,6 +237,49 @@ TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {
   EXPECT_GT(report->ticks, 0);
 }
 
+/// A child that takes stop signals as the loop's process does, and exits 0 some time after the
+/// first (a stop) unless a second one makes it leave at once (128 + the signal). `directs`:
+/// direct SIGTERMs the parent sends after the guardian-style copy. Returns its exit status.
+int stop_signals_in_a_child(int directs) {
+  int fds[2];
+  if (::pipe(fds) != 0) return -1;
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    ::close(fds[0]);
+    static std::atomic<int> stop{0};
+    install_signal_handlers(stop, EmergencyZero{});
+    while (stop.load() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    const char one = '1';
+    static_cast<void>(::write(fds[1], &one, 1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  // As `toonforce run`'s guardian passes a stop on: from the parent, queued, the first copy.
+  sigval value{};
+  value.sival_int = kGuardianFirstCopy;
+  ::sigqueue(pid, SIGTERM, value);
+  char got = 0;
+  static_cast<void>(::read(fds[0], &got, 1));  // the child took it
+  ::close(fds[0]);
+  for (int i = 0; i < directs; ++i) {
+    ::kill(pid, SIGTERM);  // the same group kill's copy sent to it directly, then another stop
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST(RealtimeRunner, TheDirectCopyOfAGroupKillAfterTheGuardiansIsOneStopAndAThirdIsASecond) {
+  // `kill -TERM -PGID`: the guardian (woken at once on the other CPU) may pass its copy on before
+  // the kernel has queued the direct one; the direct one is then the same request, not a second
+  // stop. One more after it is a second stop, which leaves at once.
+  EXPECT_EQ(stop_signals_in_a_child(1), 0);
+  EXPECT_EQ(stop_signals_in_a_child(2), 128 + SIGTERM);
+}
+
 // The advice for a refused SCHED_FIFO names the file the install puts in place
 // (cmake/ToonforceInstallHost.cmake.in: limits.d/toonforce.conf from tools/deploy), the
 // priority asked for, and the way out without real-time scheduling.

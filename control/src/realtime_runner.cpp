@@ -423,6 +423,8 @@ bool use_alternate_signal_stack() noexcept {
 namespace {
 
 std::atomic<int>* g_stop = nullptr;
+/// The stop signal whose direct copy may still come after the guardian's (0: none).
+volatile sig_atomic_t g_direct_copy_expected = 0;
 EmergencyZero g_emergency;
 struct sigaction g_old_pipe {};
 
@@ -436,13 +438,23 @@ extern "C" void on_stop_signal(int signo, siginfo_t* info, void* /*context*/) {
   // `toonforce run`'s guardian passes on each stop signal it gets; the first it marks as a
   // possible duplicate (a service manager or a process-group kill may have sent us the same
   // one): that one is not a second stop (guardian.hpp).
-  const bool guardian_copy = info != nullptr && info->si_code == SI_QUEUE && info->si_pid == getppid() &&
-                             info->si_value.sival_int == kGuardianFirstCopy;
-  if (!g_stop->compare_exchange_strong(expected, signo) && !(guardian_copy && expected == signo)) {
-    // Asked twice: the loop did not stop. Zero force and leave now.
-    g_emergency();
-    _exit(128 + signo);
+  const bool from_guardian = info != nullptr && info->si_code == SI_QUEUE && info->si_pid == getppid();
+  const bool guardian_copy = from_guardian && info->si_value.sival_int == kGuardianFirstCopy;
+  if (g_stop->compare_exchange_strong(expected, signo)) {
+    // The guardian's copy may overtake the one sent to this process directly by the same group
+    // kill (the guardian runs at once on the other CPU): that direct one, when it comes, is the
+    // same request.
+    g_direct_copy_expected = guardian_copy ? signo : 0;
+    return;
   }
+  if (guardian_copy && expected == signo) return;  // the guardian's copy of the one we got
+  if (!from_guardian && g_direct_copy_expected == signo) {
+    g_direct_copy_expected = 0;
+    return;
+  }
+  // Asked twice: the loop did not stop. Zero force and leave now.
+  g_emergency();
+  _exit(128 + signo);
 }
 
 extern "C" void on_fatal_signal(int signo) {
@@ -479,6 +491,7 @@ std::string signal_name(int signo) {
 
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   g_stop = &stop;
+  g_direct_copy_expected = 0;
   g_emergency = emergency;
   static_cast<void>(use_alternate_signal_stack());  // this thread's; the others install their own
   struct sigaction action{};
