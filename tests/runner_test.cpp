@@ -249,6 +249,8 @@ int stop_signals_in_a_child(int directs) {
     ::close(fds[0]);
     static std::atomic<int> stop{0};
     install_signal_handlers(stop, EmergencyZero{});
+    const char ready = 'r';
+    static_cast<void>(::write(fds[1], &ready, 1));  // the handlers are in place
     while (stop.load() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     const char one = '1';
     static_cast<void>(::write(fds[1], &one, 1));
@@ -256,11 +258,12 @@ int stop_signals_in_a_child(int directs) {
     ::_exit(0);
   }
   ::close(fds[1]);
+  char got = 0;
+  static_cast<void>(::read(fds[0], &got, 1));  // its handlers are in place
   // As `toonforce run`'s guardian passes a stop on: from the parent, queued, the first copy.
   sigval value{};
   value.sival_int = kGuardianFirstCopy;
   ::sigqueue(pid, SIGTERM, value);
-  char got = 0;
   static_cast<void>(::read(fds[0], &got, 1));  // the child took it
   ::close(fds[0]);
   for (int i = 0; i < directs; ++i) {
