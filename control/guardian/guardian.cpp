@@ -422,7 +422,11 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
   out.ticks = page.heartbeat.load(std::memory_order_acquire);
   // The wait status is the truth of how it ended: a death by a signal is zeroed whatever the
   // page says (a loop that had ended already commanded zero; once more costs one transfer).
-  out.loop_died = out.device_seen_open && (out.stalled || WIFSIGNALED(status) || !out.loop_ended);
+  // An exit with a status `run` does not give (0, 1, 2) is a death too: a second stop signal
+  // leaves with 128 + its number, possibly after the shut-down tick but before the writer wrote
+  // that tick's row.
+  const bool own_exit = WIFEXITED(status) && WEXITSTATUS(status) <= 2;
+  out.loop_died = out.device_seen_open && (out.stalled || WIFSIGNALED(status) || !out.loop_ended || !own_exit);
   if (options.enable != nullptr && (enabled || enable_dropped_ns != 0 || out.loop_died)) {
     if (options.enable->set(false)) {  // again after a stall's drop: it costs one ioctl
       enabled = false;
