@@ -423,8 +423,10 @@ bool use_alternate_signal_stack() noexcept {
 namespace {
 
 std::atomic<int>* g_stop = nullptr;
-/// The stop signal whose direct copy may still come after the guardian's (0: none).
-volatile sig_atomic_t g_direct_copy_expected = 0;
+/// The stop signal whose direct copy may still come after the guardian's (0: none). Atomic:
+/// handlers may run on any of the process's threads (a lock-free atomic is signal-safe).
+std::atomic<int> g_direct_copy_expected{0};
+static_assert(std::atomic<int>::is_always_lock_free);
 EmergencyZero g_emergency;
 struct sigaction g_old_pipe {};
 
@@ -444,14 +446,12 @@ extern "C" void on_stop_signal(int signo, siginfo_t* info, void* /*context*/) {
     // The guardian's copy may overtake the one sent to this process directly by the same group
     // kill (the guardian runs at once on the other CPU): that direct one, when it comes, is the
     // same request.
-    g_direct_copy_expected = guardian_copy ? signo : 0;
+    g_direct_copy_expected.store(guardian_copy ? signo : 0, std::memory_order_relaxed);
     return;
   }
   if (guardian_copy && expected == signo) return;  // the guardian's copy of the one we got
-  if (!from_guardian && g_direct_copy_expected == signo) {
-    g_direct_copy_expected = 0;
-    return;
-  }
+  int direct = signo;
+  if (!from_guardian && g_direct_copy_expected.compare_exchange_strong(direct, 0, std::memory_order_relaxed)) return;
   // Asked twice: the loop did not stop. Zero force and leave now.
   g_emergency();
   _exit(128 + signo);
@@ -491,7 +491,7 @@ std::string signal_name(int signo) {
 
 void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   g_stop = &stop;
-  g_direct_copy_expected = 0;
+  g_direct_copy_expected.store(0, std::memory_order_relaxed);
   g_emergency = emergency;
   static_cast<void>(use_alternate_signal_stack());  // this thread's; the others install their own
   struct sigaction action{};
