@@ -115,16 +115,6 @@ std::string_view range_text(Range range) {
   return "";
 }
 
-bool in_range(double v, Range range) {
-  switch (range) {
-    case Range::kPositive: return v > 0.0;
-    case Range::kNonNegative: return v >= 0.0;
-    case Range::kNonPositive: return v <= 0.0;
-    case Range::kAny: break;
-  }
-  return true;
-}
-
 }  // namespace
 
 std::optional<std::string> nearest_key(std::string_view key, std::span<const std::string> known) {

@@ -35,17 +35,6 @@ namespace schema {
 template <class T>
 inline constexpr double kUnitTolerance = kIsFixed<T> ? 1e-4 : (std::is_same_v<T, float> ? 1e-5 : 1e-9);
 
-/// Whether `v` satisfies `range` (the scene-file reader's rule).
-constexpr bool in_range(double v, Range range) noexcept {
-  switch (range) {
-    case Range::kPositive: return v > 0.0;
-    case Range::kNonNegative: return v >= 0.0;
-    case Range::kNonPositive: return v <= 0.0;
-    case Range::kAny: break;
-  }
-  return true;
-}
-
 namespace check_detail {
 
 template <class T>

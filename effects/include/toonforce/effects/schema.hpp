@@ -38,6 +38,18 @@ namespace toonforce::schema {
 /// What a number must satisfy.
 enum class Range : std::uint8_t { kAny, kPositive, kNonNegative, kNonPositive };
 
+/// Whether `v` satisfies `range`: the one rule the scene-file reader and the loop's check of a
+/// live update (params_check.hpp) both apply.
+constexpr bool in_range(double v, Range range) noexcept {
+  switch (range) {
+    case Range::kPositive: return v > 0.0;
+    case Range::kNonNegative: return v >= 0.0;
+    case Range::kNonPositive: return v <= 0.0;
+    case Range::kAny: break;
+  }
+  return true;
+}
+
 /// A number stored in a member of scalar type; required unless it has a default.
 template <class P, class T>
 struct Number {
