@@ -25,6 +25,7 @@
 
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/running_clock.hpp"
+#include "toonforce/control/seqlock_fence.hpp"
 
 namespace toonforce::guardian {
 namespace {
@@ -170,7 +171,7 @@ void unmap_shared_page(SharedPage* page) noexcept {
 void publish_frame(SharedPage& page, const TelemetryFrame& frame) noexcept {
   const std::uint32_t seq = page.frame_seq.load(std::memory_order_relaxed);
   page.frame_seq.store(seq + 1, std::memory_order_relaxed);
-  std::atomic_thread_fence(std::memory_order_release);
+  seqlock_write_fence();
   page.frame = frame;
   page.frame_seq.store(seq + 2, std::memory_order_release);
   page.frames.fetch_add(1, std::memory_order_relaxed);
@@ -182,7 +183,7 @@ bool read_frame(const SharedPage& page, TelemetryFrame& out) noexcept {
     if (before == 0) return false;  // none yet
     if ((before & 1U) != 0) continue;
     out = page.frame;
-    std::atomic_thread_fence(std::memory_order_acquire);
+    seqlock_read_fence();
     if (page.frame_seq.load(std::memory_order_relaxed) == before) {
       // The writer's frame, but its counts are the reader's to keep in range.
       out.value_count = static_cast<std::uint16_t>(std::min<std::size_t>(out.value_count, out.values.size()));

@@ -30,6 +30,7 @@
 #include <cstdint>
 #include <concepts>
 
+#include "toonforce/control/seqlock_fence.hpp"
 #include "toonforce/effects/scene.hpp"
 
 namespace toonforce {
@@ -91,7 +92,7 @@ class SceneMailbox {
     if (head - tail_.load(std::memory_order_acquire) >= kCapacity) return false;
     Slot& slot = slots_[head % kCapacity];
     slot.sequence.store(2 * head + 1, std::memory_order_relaxed);
-    std::atomic_thread_fence(std::memory_order_release);  // odd before any byte of the update
+    seqlock_write_fence();  // odd before any byte of the update
     slot.update = u;
     slot.sequence.store(2 * head + 2, std::memory_order_release);
     head_.store(head + 1, std::memory_order_release);
@@ -121,7 +122,7 @@ class SceneMailbox {
     // The slot's bytes as bytes: a writer in another process may change them meanwhile (then
     // the sequence below says so), and the copy is not trusted until check_update passed it.
     Copy::copy(static_cast<void*>(&out), static_cast<const void*>(&slot.update), sizeof(Update));
-    std::atomic_thread_fence(std::memory_order_acquire);  // the copy before the second read
+    seqlock_read_fence();  // the copy before the second read
     return slot.sequence.load(std::memory_order_relaxed) == expected;
   }
   /// Loop: the updates before number `n` are taken (their slots may be written again).
