@@ -251,7 +251,11 @@ int stop_signals_in_a_child(int directs) {
     install_signal_handlers(stop, EmergencyZero{});
     const char ready = 'r';
     static_cast<void>(::write(fds[1], &ready, 1));  // the handlers are in place
-    while (stop.load() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    // Bounded: a stop that never arrives fails the test (exit 2) instead of hanging it.
+    for (int ms = 0; stop.load() == 0; ++ms) {
+      if (ms > 10'000) ::_exit(2);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
     const char one = '1';
     static_cast<void>(::write(fds[1], &one, 1));
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
