@@ -146,7 +146,21 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/scenes/ DESTINATION ${TOONFORCE_INSTALL_
 # `toonforce sim --plot` and `toonforce figures` run it (tools/sim/src/plot.cpp finds it here).
 install(PROGRAMS ${PROJECT_SOURCE_DIR}/tools/plot_trace.py DESTINATION ${TOONFORCE_INSTALL_DATADIR}
         COMPONENT runtime)
-install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/LICENSE ${PROJECT_SOURCE_DIR}/THIRD-PARTY-NOTICES.md
+        DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+# Each Debian package's copyright file, machine-readable (DEP-5), where Debian policy 12.5 puts it:
+# /usr/share/doc/PACKAGE/copyright, PACKAGE being the component's package name
+# (cmake/ToonforcePackaging.cmake).
+set(_toonforce_copyright ${PROJECT_SOURCE_DIR}/cmake/package/debian/copyright)
+install(FILES ${_toonforce_copyright} DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/toonforce COMPONENT runtime)
+install(FILES ${_toonforce_copyright} DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/toonforce-dev COMPONENT devel)
+foreach(_backend IN LISTS TOONFORCE_BACKEND_COMPONENTS)
+  install(FILES ${_toonforce_copyright} DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/toonforce-${_backend}-dev
+          COMPONENT ${_backend}_devel)
+endforeach()
+if(TOONFORCE_PYTHON)
+  install(FILES ${_toonforce_copyright} DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/python3-toonforce COMPONENT python)
+endif()
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}
         COMPONENT runtime FILES_MATCHING PATTERN "*.md")
 install(FILES ${PROJECT_SOURCE_DIR}/hal/falcon/udev/60-novint-falcon.rules

@@ -114,4 +114,16 @@ foreach(backend IN ITEMS falcon gpio omni)
   expect("toonforce-${backend}-dev has its library, .pc and package part: ${backend_files}" n EQUAL 3)
 endforeach()
 
+# ---- the licence in every package ---------------------------------------------------------------
+# Debian policy 12.5: each package's copyright file at /usr/share/doc/PACKAGE/copyright, here
+# machine-readable (DEP-5); the program's package also carries the licence and the notices of
+# what it embeds.
+foreach(package IN ITEMS toonforce toonforce-dev toonforce-falcon-dev toonforce-gpio-dev toonforce-omni-dev)
+  expect_files(${package} ./usr/share/doc/${package}/copyright)
+endforeach()
+expect_files(toonforce ./usr/share/doc/toonforce/LICENSE ./usr/share/doc/toonforce/THIRD-PARTY-NOTICES.md)
+file(READ "${WORK_DIR}/root/usr/share/doc/toonforce/copyright" copyright)
+string(FIND "${copyright}" "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/" at)
+expect("the copyright file is machine-readable (DEP-5)" at EQUAL 0)
+
 message(STATUS "debian_package: all checks passed")
