@@ -33,7 +33,7 @@ DeviceInfo make_info(std::string name, const FalconOptions& o) {
   const Vec3<double> b = falcon_to_scene(kHdalBoxMax, o.workspace_centre_falcon_m);
   info.workspace_min_m = {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
   info.workspace_max_m = {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
-  info.nominal_rate_hz = 1000.0;  // the host paces the device (FALCON.md §3 "Rate and flow")
+  info.nominal_rate_hz = 1000.0;  // the host paces the device (FALCON.md §3)
   info.clocking = Clocking::kHostTimer;
   return info;
 }

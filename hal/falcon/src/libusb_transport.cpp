@@ -137,7 +137,7 @@ std::variant<std::unique_ptr<LibusbTransport>, OpenFailure> LibusbTransport::ope
     }
     return f;
   }
-  // Suggested by FALCON.md §1 (libnifalcon never detaches): release a kernel driver if one
+  // Our own precaution (libnifalcon never detaches, FALCON.md §1): release a kernel driver if one
   // bound itself (ftdi_sio does not know this product id, but a local quirk might).
   (void)libusb_set_auto_detach_kernel_driver(handle, 1);
   r = libusb_claim_interface(handle, kInterface);
