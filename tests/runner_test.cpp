@@ -1,5 +1,5 @@
 // The real-time runner and `toonforce run`, asserting counts and file contents, never times
-// (this VM has multi-millisecond hypervisor stalls: shared/reference/test-environment.md §4).
+// (this VM has multi-millisecond hypervisor stalls: docs/PERFORMANCE.md, measured with cyclictest).
 // In process: every deadline is either ticked or counted as missed; a stalled tick trips the
 // heartbeat watchdog; a sim run writes one trace row per tick plus the final zero-force row.
 // The binary as a child process under signals and faults: fault_injection_test.cpp.

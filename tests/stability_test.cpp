@@ -1,4 +1,4 @@
-// The extreme cases of shared/reference/realtime-safety-stability.md §4, each with the safety
+// The extreme cases of our stability checklist (docs/STABILITY.md), each with the safety
 // layer on: the servo loop (ServoLoop: engage, soft start, velocity limit, workspace, watchdog,
 // passivity observer and controller, thermal model, force-rate limit, clamp last; configured
 // as `toonforce run --device sim` configures it, so the thermal model is inert: the simulated

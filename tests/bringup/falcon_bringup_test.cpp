@@ -70,7 +70,7 @@ class EmulatedPerson final : public Operator {
   Progress poll(const Request& r) override {
     const int n = polls_++;
     if (r.id == "falcon.homing") {
-      // Out to the stop, then straight in (falcon.md §4); a person gives up after a while.
+      // Out to the stop, then straight in (FALCON.md §4); a person gives up after a while.
       if (n == 1) emu_.set_grip_position({0, 0, 0.178});
       if (n == 40) emu_.set_grip_position({0, 0, 0.09});
       if (n == 80) emu_.set_grip_position(kCentre);

@@ -1,5 +1,5 @@
 // The Falcon's 16-byte codec, FTDI status stripping and frame assembly, against the vectors of
-// shared/reference/falcon.md §3 and our own (round trips, every flag bit, extremes).
+// docs/FALCON.md §3 and our own (round trips, every flag bit, extremes).
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -26,7 +26,7 @@ Frame frame_of(std::initializer_list<int> bytes) {
 }
 std::string text_of(const Frame& f) { return std::string(f.begin(), f.end()); }
 
-// ---- vectors from falcon.md §3 "Test vectors" ----
+// ---- vectors from FALCON.md §3 "Test vectors" ----
 
 TEST(FalconCodec, IdleCommandIsAllA) {
   EXPECT_EQ(text_of(encode_command(Command{})), "<AAAAAAAAAAAAAA>");
@@ -71,7 +71,7 @@ TEST(FalconCodec, ReferenceStatusPlusButtonAllHomedHasByte13AboveP) {
 }
 
 TEST(FalconCodec, HeaderDocExampleJfkpIsMinus1447) {
-  // The doc claims "<JFBA..." decodes to 1447; its hex (JFKP) is -1447 (falcon.md §3).
+  // The doc claims "<JFBA..." decodes to 1447; its hex (JFKP) is -1447 (FALCON.md §3).
   Status s;
   ASSERT_TRUE(decode_status(frame_of("<JFKPAAAAAAAAAA>"), s));
   EXPECT_EQ(s.encoder[0], -1447);
@@ -166,7 +166,7 @@ TEST(FalconCodec, RejectsBadFraming) {
 }
 
 TEST(FalconCodec, StatusByte14IsAcceptedWhateverItHolds) {
-  // Its meaning is unknown (falcon.md §3): do not reject what is not understood.
+  // Its meaning is unknown (FALCON.md §3): do not reject what is not understood.
   Frame f = frame_of("<AAAAAAAAAAAAAA>");
   f[14] = 0x20;
   Status s;
@@ -174,7 +174,7 @@ TEST(FalconCodec, StatusByte14IsAcceptedWhateverItHolds) {
   EXPECT_EQ(s.byte14, static_cast<std::uint8_t>(0x20 - 0x41));
 }
 
-// ---- FTDI status bytes (falcon.md §1) ----
+// ---- FTDI status bytes (FALCON.md §1) ----
 
 TEST(FtdiStatus, StripsTwoBytesAtEvery64ByteBoundary) {
   std::vector<std::uint8_t> transfer;
@@ -217,7 +217,7 @@ TEST(FtdiStatus, StopsWhenThePayloadBufferIsFull) {
   EXPECT_EQ(strip_ftdi_status(transfer, payload), 10u);
 }
 
-// ---- frame assembly: split, merged, garbled (falcon.md §3 "Rate and flow") ----
+// ---- frame assembly: split, merged, garbled (FALCON.md §3 "Rate and flow") ----
 
 TEST(FrameAssembler, ReassemblesAFrameSplitByteByByte) {
   const Frame f = encode_status(Status{{10, -20, 30}, kHomedAll | kButtonCentre, 0});

@@ -43,7 +43,7 @@ struct Rig {
     last_write = driver->write(s == DeviceStatus::kOk ? force : Vec3<double>{});
     return s;
   }
-  /// Pull the grip all the way out, push it back in (falcon.md §4). With a hand model the
+  /// Pull the grip all the way out, push it back in (FALCON.md §4). With a hand model the
   /// grip follows its target over some ticks.
   void home() {
     emu.set_grip_position({0, 0, 0.178});
@@ -64,7 +64,7 @@ struct Rig {
   DeviceStatus last_write = DeviceStatus::kOk;
 };
 
-// ---- homing (falcon.md §4) ----
+// ---- homing (FALCON.md §4) ----
 
 TEST(FalconDriver, NotReadyWithRedLedUntilHomedThenGreenAndPositions) {
   Rig rig;
@@ -307,7 +307,7 @@ TEST(FalconDriver, ServoLoopRendersTheWallSceneOnTheEmulatedFalcon) {
   EXPECT_NEAR(pushed.z, 0.0, 0.05);
 }
 
-// ---- replies split or merged across USB packets (falcon.md §3) ----
+// ---- replies split or merged across USB packets (FALCON.md §3) ----
 
 TEST(FalconDriver, RepliesSplitAcrossTransfersAreReassembled) {
   Rig rig;

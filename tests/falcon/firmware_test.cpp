@@ -1,5 +1,5 @@
 // Firmware files (size, boot-table structure, SHA-256 against an allowlist) and the load
-// sequence of falcon.md §2.1 against the emulated Falcon over the in-process transport.
+// sequence of FALCON.md §2.1 against the emulated Falcon over the in-process transport.
 // Synthetic images only: the known-hash check runs on a test allowlist.
 #include <gtest/gtest.h>
 
@@ -182,7 +182,7 @@ TEST(FalconFirmware, ReadsFilesAndNamesThemInErrors) {
   std::filesystem::remove_all(dir);
 }
 
-// ---- loading into the emulated Falcon (falcon.md §2.1) ----
+// ---- loading into the emulated Falcon (FALCON.md §2.1) ----
 
 TEST(FalconFirmwareLoad, LoadsAndTheFirmwareAnswers) {
   const FirmwareImage image = validated(make_boot_image({1000, 300, 17}, 3));
@@ -201,7 +201,7 @@ TEST(FalconFirmwareLoad, LoadsAndTheFirmwareAnswers) {
   ASSERT_FALSE(progress.empty());
   EXPECT_EQ(progress.back(), image.bytes.size());
   EXPECT_TRUE(std::is_sorted(progress.begin(), progress.end()));
-  // Back in normal mode (falcon.md §2.1 step 6).
+  // Back in normal mode (FALCON.md §2.1 step 6).
   EXPECT_EQ(emu.ftdi().divisor, ftdi::kDivisorNormal);
   EXPECT_EQ(emu.ftdi().latency_ms, ftdi::kLatencyNormalMs);
   EXPECT_TRUE(probe_firmware(t).loaded);
@@ -242,7 +242,7 @@ TEST(FalconFirmwareLoad, AcceptsTheHandshakeWithALeadingZero) {
 
 TEST(FalconFirmwareLoad, AStrayByteAfterTheAutobaudEchoIsNotAFailure) {
   // The 'A' came back, so the boot loader has locked its baud rate; a byte after it answers
-  // nothing the host sent (falcon.md §2.1 step 4) and must neither fail the try nor be taken
+  // nothing the host sent (FALCON.md §2.1 step 4) and must neither fail the try nor be taken
   // for the echo of the image's first byte.
   const FirmwareImage image = validated(make_boot_image({64}));
   EmulatorOptions o;

@@ -1,4 +1,4 @@
-// Falcon kinematics against shared/reference/falcon.md §5 and §8: IK vectors, FK round trips,
+// Falcon kinematics against docs/FALCON.md §5 and §8: IK vectors, FK round trips,
 // the Jacobian against finite differences, force -> motor words through the true transpose.
 #include <gtest/gtest.h>
 
@@ -35,7 +35,7 @@ Mat3 finite_difference_dtheta_dp(const Vec3<double>& p, double h = 1e-7) {
 
 double distance(const Vec3<double>& a, const Vec3<double>& b) { return norm(a - b); }
 
-// ---- inverse kinematics: falcon.md §8 "Kinematic vectors" (given to 3 decimals of a degree) ----
+// ---- inverse kinematics: FALCON.md §8 "Kinematic vectors" (given to 3 decimals of a degree) ----
 
 struct IkVector {
   Vec3<double> p;
@@ -169,7 +169,7 @@ TEST(FalconKinematics, AngleJacobianMatchesFiniteDifferences) {
   }
 }
 
-/// libnifalcon's row formula (falcon.md §5 "Jacobian") with its third entry sin^2(theta2)/den,
+/// libnifalcon's row formula (FALCON.md §5 "Jacobian") with its third entry sin^2(theta2)/den,
 /// or issue #66's sin(theta2) sin(theta3)/den: an oracle for the reference table, not our code.
 Mat3 libnifalcon_dtheta_dp(const Vec3<double>& p, bool issue66) {
   const FalconGeometry& g = kGeometry;
@@ -202,7 +202,7 @@ TEST(FalconKinematics, Issue66ThirdEntryIsTheRightOneAndLibnifalconsIsNot) {
 }
 
 TEST(FalconKinematics, PositionJacobianAtTheCentreMatchesTheReferenceTableInXAndY) {
-  // falcon.md §8 "J = dp/dtheta1 at (0, 0, 0.11)". Its x and y rows match; its z row
+  // FALCON.md §8 "J = dp/dtheta1 at (0, 0, 0.11)". Its x and y rows match; its z row
   // (0.032395) comes from libnifalcon's sin^2 entry (reproduced here through the oracle),
   // while finite differences of the IK give 0.024180 (checked just above).
   Mat3 j;
@@ -232,7 +232,7 @@ TEST(FalconKinematics, OneCountIsAbout15MicrometresAlongZAtTheCentre) {
   EXPECT_NEAR((j(0, 0) + j(0, 1) + j(0, 2)) * kRadPerCount, 0.0, 1e-9);
 }
 
-// ---- force -> motor words (falcon.md §5 "Forces", §8 "Motor words") ----
+// ---- force -> motor words (FALCON.md §5 "Forces", §8 "Motor words") ----
 
 TEST(FalconKinematics, TrueTransposeGivesTheListedMotorWordsForXAndYForces) {
   Mat3 j;
@@ -262,7 +262,7 @@ TEST(FalconKinematics, ZForceWordsFollowTheFiniteDifferenceJacobianNotLibnifalco
 }
 
 TEST(FalconKinematics, LibnifalconsAliasedTransposeIsNotWhatWeCompute) {
-  // falcon.md §5: setTranspose in place on column-major storage gives a symmetric matrix built
+  // FALCON.md §5: setTranspose in place on column-major storage gives a symmetric matrix built
   // from J's lower triangle. Rebuild it and check it gives the "with the bug" column of §8.
   Mat3 j;
   ASSERT_TRUE(position_jacobian(kGeometry, {0, 0, 0.11}, j));
@@ -329,7 +329,7 @@ TEST(FalconEnvelope, AlongEachAxisItIsTheForceAtWhichTheLargestWordReaches4095) 
 }
 
 TEST(FalconEnvelope, AtTheCentreXAndYFollowTheReferenceJacobianAndZTheIk) {
-  // falcon.md §8's J at (0, 0, 0.11): the largest |x-row| entry is 0.052725 m/rad, y's
+  // FALCON.md §8's J at (0, 0, 0.11): the largest |x-row| entry is 0.052725 m/rad, y's
   // 0.051940, so 4095 / (10000 * that) = 7.77 N and 7.88 N; along z, where the table's row is
   // libnifalcon's, the IK's own 0.024180 gives 16.9 N (the issue's "7.8, 7.9 and 17 N").
   ForceEnvelope e;

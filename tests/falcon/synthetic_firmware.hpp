@@ -1,5 +1,5 @@
 #pragma once
-// Synthetic Falcon firmware for tests: valid C28x boot tables (falcon.md §2.1 "Derived") with
+// Synthetic Falcon firmware for tests: valid C28x boot tables (FALCON.md §2.1 "Derived") with
 // pseudo-random contents, and a test-only allowlist of their SHA-256. No Novint image is used
 // or needed: the known-image check is exercised through the allowlist parameter.
 #include <cstdint>

@@ -447,7 +447,7 @@ TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) 
 // ---- `toonforce bringup falcon` end to end: the binary against the emulated Falcon ----
 
 /// The person's hands for a bring-up run in another process: once the command stream has
-/// started, pulls the emulated grip out to its stop and pushes it back in (homing, falcon.md
+/// started, pulls the emulated grip out to its stop and pushes it back in (homing, FALCON.md
 /// §4), watching where the grip is (it may be held by a hand spring that takes time).
 // A person homing the Falcon (pull the grip out past the homing sensor, push it back in, let it
 // rest at the centre), scripted in the emulator's own command count: the host runs in a child

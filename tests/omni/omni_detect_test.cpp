@@ -1,5 +1,5 @@
 // Detection of 3D Systems Touch devices against devices emulated with umockdev
-// (shared/reference/test-environment.md §2): the real libusb, hidapi (hidraw) and sysfs code
+// (umockdev README; docs/FALCON.md §9): the real libusb, hidapi (hidraw) and sysfs code
 // paths run against a testbed built in-process. CTest runs this binary under umockdev-wrapper
 // (tests/support/run_under_umockdev); run directly, every test skips. The devices are emulated from the
 // public facts (vendor 0x2988, product ids 0x0302 and 0x0304, CDC-ACM or HID): this proves the

@@ -78,7 +78,7 @@ TEST_F(OmniLoading, TheSameFileLoadedTwiceIsOneLibraryThatStaysLoaded) {
   const hd::LoadOutcome second = hd::load_library(kFakeHd);
   ASSERT_NE(first.library, nullptr) << first.message;
   EXPECT_EQ(first.library, second.library);
-  // Never unloaded (omni.md §2.1): the object is still mapped after any dlclose attempt.
+  // Never unloaded (OMNI.md §2.1): the object is still mapped after any dlclose attempt.
   dlclose(dlopen(kFakeHd, RTLD_LAZY));
   EXPECT_NE(dlopen(kFakeHd, RTLD_LAZY | RTLD_NOLOAD), nullptr);
 }

@@ -1,5 +1,5 @@
 #pragma once
-// An independent reading of shared/spec/effects.md in plain double code, used as the oracle
+// An independent reading of docs/spec/effects.md in plain double code, used as the oracle
 // of the closed-form tests. It shares no code with effects/ or control/ (on purpose: a bug
 // copied into both would pass unseen); it follows the spec's wording line by line, in the
 // spec's own form (dt, not 1/dt), and favours clarity over speed.

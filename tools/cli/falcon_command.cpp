@@ -43,7 +43,7 @@ struct EnvelopeArgs {
 };
 
 /// The force envelope (kinematics.hpp force_envelope) over the HDAL box of the driver's
-/// workspace (falcon.md §5), in the scene frame: x right, y away from the user, z up.
+/// workspace (FALCON.md §5), in the scene frame: x right, y away from the user, z up.
 int run_envelope(const EnvelopeArgs& a) {
   falcon::MotorScale scale;
   std::string source = "libnifalcon's uncalibrated 10000 words per N m";

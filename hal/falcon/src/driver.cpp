@@ -1,4 +1,4 @@
-// FalconDriver: the 1 kHz exchange (falcon.md §3), homing (§4), kinematics (§5).
+// FalconDriver: the 1 kHz exchange (FALCON.md §3), homing (§4), kinematics (§5).
 #include "toonforce/hal/falcon/driver.hpp"
 
 #include <algorithm>
@@ -8,12 +8,12 @@
 namespace toonforce::falcon {
 namespace {
 
-/// The HDAL shim's workspace box in the Falcon frame [m] (falcon.md §5 "Frame").
+/// The HDAL shim's workspace box in the Falcon frame [m] (FALCON.md §5 "Frame").
 constexpr Vec3<double> kHdalBoxMin{-0.060, -0.060, 0.075};
 constexpr Vec3<double> kHdalBoxMax{0.060, 0.060, 0.175};
 
 /// A conservative guess for the thermal model until someone measures a real device: no source
-/// gives the Falcon's motor ratings (falcon.md §5 "Gaps").
+/// gives the Falcon's motor ratings (FALCON.md §5 "Gaps").
 constexpr double kContinuousForceGuessN = 4.0;
 
 DeviceInfo make_info(std::string name, const FalconOptions& o) {
@@ -23,7 +23,7 @@ DeviceInfo make_info(std::string name, const FalconOptions& o) {
   // the +-4095 word cap and the words-per-torque constant (calibrated or not): a force up to
   // this is delivered as asked there; toward the edges the envelope shrinks (docs/FALCON.md,
   // "Force envelope"), and a saturated write is flagged (DeviceReading::force_limited). The
-  // often quoted ~9 N is unverified (falcon.md §5 "Gaps").
+  // often quoted ~9 N is unverified (FALCON.md §5 "Gaps").
   ForceEnvelope centre;
   info.max_force_n = force_envelope_at(FalconGeometry{}, o.workspace_centre_falcon_m, o.motor, centre)
                          ? centre.every_direction_n
@@ -33,7 +33,7 @@ DeviceInfo make_info(std::string name, const FalconOptions& o) {
   const Vec3<double> b = falcon_to_scene(kHdalBoxMax, o.workspace_centre_falcon_m);
   info.workspace_min_m = {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
   info.workspace_max_m = {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
-  info.nominal_rate_hz = 1000.0;  // the host paces the device (falcon.md §3 "Rate and flow")
+  info.nominal_rate_hz = 1000.0;  // the host paces the device (FALCON.md §3)
   info.clocking = Clocking::kHostTimer;
   return info;
 }
@@ -163,7 +163,7 @@ DeviceStatus FalconDriver::read(DeviceReading& reading) noexcept {
   }
   if (!homed_) {
     homed_ = true;
-    fk_.reset();  // homing re-bases the counts: the old warm start is far away (falcon.md §4)
+    fk_.reset();  // homing re-bases the counts: the old warm start is far away (FALCON.md §4)
     led_flags_.store(kLedGreen);
   }
   const Angles theta{encoder_to_theta1_rad(latest.encoder[0]), encoder_to_theta1_rad(latest.encoder[1]),

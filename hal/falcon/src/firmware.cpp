@@ -1,4 +1,4 @@
-// Firmware checks and loading (falcon.md §2). See firmware.hpp for the contract.
+// Firmware checks and loading (FALCON.md §2). See firmware.hpp for the contract.
 //
 // SHA-256 comes from Debian's libnettle (nettle-dev) rather than our own: nettle is a small C
 // library with a three-call API (init/update/digest), no global initialisation (unlike
@@ -36,7 +36,7 @@ constexpr Sha256 digest_of(std::string_view hex) {
   return d;
 }
 
-// falcon.md §2.2 (sizes and SHA-256 "Derived" there from the libnifalcon repository's files).
+// FALCON.md §2.2 (sizes and SHA-256 "Derived" there from the libnifalcon repository's files).
 constexpr std::array<KnownFirmware, 4> kKnown{{
     {"nvent_firmware.bin", 8492,
      digest_of("1119e39c39fab1f37678ea62dfc715b23dd86ee7f13d78f88f707d9f09b896a1"),
@@ -217,7 +217,7 @@ FirmwareProbe probe_firmware(FalconTransport& transport, int max_reads, int rese
     return probe;
   }
   Command idle;
-  idle.flags = kHomingRequest;  // the homing bit is held in every command (falcon.md §4)
+  idle.flags = kHomingRequest;  // the homing bit is held in every command (FALCON.md §4)
   const Frame frame = encode_command(idle);
   FrameAssembler assembler;
   std::array<std::uint8_t, kOneRead> raw{};
@@ -261,7 +261,7 @@ class Loader {
     if (auto e = handshake(); !e.empty()) return e;
     if (auto e = autobaud(); !e.empty()) return e;
     if (auto e = stream(); !e.empty()) return e;
-    // falcon.md §2.1 step 6, then §2.4 to confirm the firmware runs.
+    // FALCON.md §2.1 step 6, then §2.4 to confirm the firmware runs.
     if (auto s = ftdi::enter_normal_mode(t_); s != TransportStatus::kOk) return usb("returning to normal mode", s);
     const FirmwareProbe probe = probe_firmware(t_);
     if (probe.transport != TransportStatus::kOk) return usb("checking the loaded firmware", probe.transport);
@@ -298,7 +298,7 @@ class Loader {
     return s;
   }
 
-  // falcon.md §2.1 step 3: "\nC\r" until the boot ROM answers "\nD,\r" (Linux) or
+  // FALCON.md §2.1 step 3: "\nC\r" until the boot ROM answers "\nD,\r" (Linux) or
   // "\0\nD,\r" (Apple). Both contain "\nD,\r"; it is accepted wherever it appears in this
   // try's payload, since at 9600 baud and a 16 ms latency a reply can trail into the next read.
   std::string handshake() {
@@ -323,7 +323,7 @@ class Loader {
            std::to_string(o_.handshake_tries) + " tries";
   }
 
-  // falcon.md §2.1 step 4: DTR low, ~140 kbaud, 'A' echoed (the C28x SCI autobaud). The echo is
+  // FALCON.md §2.1 step 4: DTR low, ~140 kbaud, 'A' echoed (the C28x SCI autobaud). The echo is
   // the first byte of the answer, after one leading 0x13 that an FTD2XX comment reports ("0x13
   // 0x41"). Bytes after the echo answer nothing we sent (nothing else is on the line yet): they
   // are dropped with this read, so they can never be taken for the image's echo.
@@ -360,7 +360,7 @@ class Loader {
     return "the boot loader answered the autobaud 'A' with " + answer + " instead of echoing 0x41 (alone or after 0x13)";
   }
 
-  // falcon.md §2.1 step 5: 62-byte chunks, each echoed byte for byte before the next.
+  // FALCON.md §2.1 step 5: 62-byte chunks, each echoed byte for byte before the next.
   std::string stream() {
     constexpr std::size_t kChunk = 62;
     const auto& bytes = image_.bytes;

@@ -1,4 +1,4 @@
-// FTDI mode sequences (falcon.md §1 "Open sequence", §2.1 steps 1-2 and 6).
+// FTDI mode sequences (FALCON.md §1 "Open sequence", §2.1 steps 1-2 and 6).
 #include "toonforce/hal/falcon/ftdi.hpp"
 
 #include <initializer_list>

@@ -1,4 +1,4 @@
-// Falcon delta kinematics (falcon.md §5). See kinematics.hpp for the contract.
+// Falcon delta kinematics (FALCON.md §5). See kinematics.hpp for the contract.
 #include "toonforce/hal/falcon/kinematics.hpp"
 
 #include <algorithm>
@@ -8,7 +8,7 @@
 namespace toonforce::falcon {
 namespace {
 
-/// One arm's leg-frame quantities at a point (falcon.md §5 "Inverse kinematics, per arm i").
+/// One arm's leg-frame quantities at a point (FALCON.md §5 "Inverse kinematics, per arm i").
 struct ArmPose {
   double u = 0, v = 0, w = 0;
   double cos_t3 = 0, sin_t3 = 0;

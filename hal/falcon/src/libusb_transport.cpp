@@ -1,4 +1,4 @@
-// FalconTransport over libusb-1.0 (falcon.md §1: interface 0, bulk OUT 0x02, bulk IN 0x81,
+// FalconTransport over libusb-1.0 (FALCON.md §1: interface 0, bulk OUT 0x02, bulk IN 0x81,
 // vendor requests with bmRequestType 0x40, wIndex 0, 1000 ms).
 #include "libusb_transport.hpp"
 
@@ -22,7 +22,7 @@ namespace {
 
 constexpr unsigned kControlTimeoutMs = 1000;
 constexpr int kInterface = 0;
-constexpr std::uint8_t kVendorOut = 0x40;  // vendor | device | host-to-device (falcon.md §1)
+constexpr std::uint8_t kVendorOut = 0x40;  // vendor | device | host-to-device (FALCON.md §1)
 
 void LIBUSB_CALL mark_completed(libusb_transfer* transfer) { *static_cast<int*>(transfer->user_data) = 1; }
 
@@ -137,7 +137,7 @@ std::variant<std::unique_ptr<LibusbTransport>, OpenFailure> LibusbTransport::ope
     }
     return f;
   }
-  // Suggested by falcon.md §1 (libnifalcon never detaches): release a kernel driver if one
+  // Our own precaution (libnifalcon never detaches, FALCON.md §1): release a kernel driver if one
   // bound itself (ftdi_sio does not know this product id, but a local quirk might).
   (void)libusb_set_auto_detach_kernel_driver(handle, 1);
   r = libusb_claim_interface(handle, kInterface);

@@ -1,4 +1,4 @@
-// FTDI status stripping and the frame assembler's buffer management (falcon.md §1, §3).
+// FTDI status stripping and the frame assembler's buffer management (FALCON.md §1, §3).
 #include "toonforce/hal/falcon/protocol.hpp"
 
 #include <algorithm>

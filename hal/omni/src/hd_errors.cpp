@@ -1,4 +1,4 @@
-// Names and meanings of the HD error codes (omni.md §2.3), in our own words.
+// Names and meanings of the HD error codes (OMNI.md §2.3), in our own words.
 #include "toonforce/hal/omni/hd_errors.hpp"
 
 namespace toonforce::hd {

@@ -20,7 +20,7 @@
 namespace toonforce::hd {
 namespace {
 
-// CHAI3D's flags (omni.md §2.1), proven with the real driver; RTLD_NODELETE makes a stray
+// CHAI3D's flags (OMNI.md §2.1), proven with the real driver; RTLD_NODELETE makes a stray
 // dlclose harmless too, since the library must never be unloaded.
 constexpr int kOpenFlags = RTLD_LAZY | RTLD_GLOBAL | RTLD_NODELETE;
 
@@ -178,7 +178,7 @@ std::string dependency_fix(std::string_view name) {
                        kLib64);
   }
   if (name.starts_with("libraw1394.so.8")) {
-    // The FireWire driver was built against libraw1394's older soname (omni.md §5).
+    // The FireWire driver was built against libraw1394's older soname (OMNI.md §5).
     return "the FireWire Omni's driver wants libraw1394.so.8; Debian ships libraw1394.so.11: `sudo apt-get "
            "install libraw1394-11 && sudo ln -s /usr/lib/x86_64-linux-gnu/libraw1394.so.11 "
            "/usr/lib/x86_64-linux-gnu/libraw1394.so.8 && sudo ldconfig`";

@@ -55,7 +55,7 @@ class Tree {
     }
     return false;
   }
-  /// A FireWire node of SensAble's OUI 0x000b99 (omni.md §1.1).
+  /// A FireWire node of SensAble's OUI 0x000b99 (OMNI.md §1.1).
   bool firewire_omni_present() const {
     std::error_code ec;
     for (const auto& e : fs::directory_iterator(at("/sys/bus/firewire/devices"), ec)) {

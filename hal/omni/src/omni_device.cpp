@@ -105,7 +105,7 @@ struct OpenClaim {
 }  // namespace
 
 bool is_firewire_stack(std::string_view hd_version, std::string_view model) {
-  // OpenHaptics 3.4 dropped FireWire; the FireWire Omni runs on AE 3.0 (omni.md §1.1), whose
+  // OpenHaptics 3.4 dropped FireWire; the FireWire Omni runs on AE 3.0 (OMNI.md §1.1), whose
   // HD_VERSION reads like "3.00.66". Any 3.0-3.3 library, or a model named Omni when the
   // version is unknown, is taken for the FireWire stack.
   if (hd::major_version(hd_version) == 3) {
@@ -195,7 +195,7 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
         library.path(), version, hd::kSupportedMajorVersion, hd::kLibraryEnvVar)};
   }
 
-  // Limits, read once (omni.md §2.2 item 8); never hard-coded (§3).
+  // Limits, read once (OMNI.md §2.2 item 8); never hard-coded (§3).
   OmniLimits limits;
   double value = 0.0;
   if (!get_doubles(f, hd::kNominalMaxForce, &value) || !finite_positive(value)) {
@@ -210,7 +210,7 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   };
   limits.max_continuous_force_n = optional_double(hd::kNominalMaxContinuousForce, 1.0);
   // The cap: the continuous force by default, as public drivers cap well below the peak
-  // (sawSensablePhantom at 2 N, omni.md §3); the peak is for short bursts, and only on request.
+  // (sawSensablePhantom at 2 N, OMNI.md §3); the peak is for short bursts, and only on request.
   if (options.max_force_n > 0.0) {
     limits.force_cap_n = std::min(options.max_force_n, limits.max_force_n);
     limits.force_cap_source = options.max_force_n > limits.max_force_n
@@ -604,7 +604,7 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
   drain_errors();
 
   // The clock: the instantaneous rate says how long this tick really was, skipped periods
-  // included (omni.md §2.2 item 7; there is no overrun error code, §2.3).
+  // included (OMNI.md §2.2 item 7; there is no overrun error code, §2.3).
   double rate_hz = 0.0;
   f.hdGetDoublev(hd::kInstantaneousUpdateRate, &rate_hz);
   double dt_s = period_s_;
@@ -615,7 +615,7 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
     tick_ += periods;
     overran = periods > 1;
   } else {
-    // hdStartScheduler enables forces (omni.md §2.2 item 5): off until calibration is OK.
+    // hdStartScheduler enables forces (OMNI.md §2.2 item 5): off until calibration is OK.
     f.hdDisable(hd::kForceOutput);
     forces_enabled_ = false;
   }

@@ -97,7 +97,7 @@ bool known_product(std::uint16_t pid) {
 }
 
 /// 3D Systems' vendor id; one public note lists "0301:2988", which looks byte-swapped
-/// (omni.md §1.2): matched too, so such a device is not missed.
+/// (OMNI.md §1.2): matched too, so such a device is not missed.
 bool is_touch(std::uint16_t vid, std::uint16_t pid) {
   return vid == kTouchUsbVendorId || (vid == 0x0301 && pid == kTouchUsbVendorId);
 }

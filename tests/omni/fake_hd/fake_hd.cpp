@@ -1,5 +1,5 @@
 // A fake OpenHaptics HD library (libHD.so) for tests: our own code, exporting the same C
-// symbols with the behaviour the reference documents (shared/reference/omni.md §2.1-2.3),
+// symbols with the behaviour the reference documents (docs/OMNI.md §2.1-2.3),
 // driven by a simulated Omni (§4: base-joint kinematics with L1 = L2 = 133.35 mm, 15 000
 // encoder counts per revolution, and a point mass under the motor force and a hand). It lets
 // tests inject every HD error, calibration states and scheduler overruns (fake_hd_control.h).
@@ -122,7 +122,7 @@ constexpr HDCallbackCode HD_CALLBACK_DONE = 0;
 
 // ---- the simulated Omni -----------------------------------------------------------------------
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kL1 = 0.13335;  // [m] upper arm (omni.md §4.2, literature value)
+constexpr double kL1 = 0.13335;  // [m] upper arm (OMNI.md §4.2, literature value)
 constexpr double kL2 = 0.13335;  // [m] forearm to the gimbal centre
 constexpr double kCountsPerRad = 15000.0 / (2.0 * kPi);  // base encoders (§1.1)
 constexpr double kMass = 0.15;           // [kg] apparent inertia plus the fingers holding it
@@ -139,7 +139,7 @@ const double kMaxWorkspace[6] = {-105.0, -90.0, -60.0, 105.0, 80.0, 50.0};      
 using V3 = std::array<double, 3>;
 
 /// Base frame (z up at the shoulder, x toward the user at q1 = 0) from the absolute-elbow
-/// joint angles (omni.md §4.3).
+/// joint angles (OMNI.md §4.3).
 V3 forward(const V3& q) {
   const double r = kL1 * std::cos(q[1]) + kL2 * std::sin(q[2]);
   return {r * std::cos(q[0]), r * std::sin(q[0]), kL1 * std::sin(q[1]) - kL2 * std::cos(q[2])};
@@ -196,7 +196,7 @@ struct Fake {
 
   // configuration
   std::string version = "3.4.0";
-  double max_force_n = 3.3;  // widely quoted, unverified datasheet values (omni.md §3)
+  double max_force_n = 3.3;  // widely quoted, unverified datasheet values (OMNI.md §3)
   double max_continuous_force_n = 0.88;
   double stiffness_n_per_mm = 1.26;
   double damping_n_s_per_mm = 0.004;
@@ -434,7 +434,7 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
   ++f.ticks;
   f.frames_this_tick = 0;
   f.tick_start = std::chrono::steady_clock::now();
-  // Active callbacks by decreasing priority (omni.md §2.2 item 4); fixed arrays, so a tick
+  // Active callbacks by decreasing priority (OMNI.md §2.2 item 4); fixed arrays, so a tick
   // allocates nothing and tests can count the backend's allocations on this thread.
   std::array<Callback, kMaxCallbacks> due{};
   int due_count = 0;
@@ -598,7 +598,7 @@ TF_EXPORT void hdEndFrame(HHD device) {
   if (f.force_output && !calibrated) ++f.enabled_uncalibrated;
   if (magnitude > 0.0 && !calibrated) ++f.nonzero_uncalibrated;
 
-  // The library's safety checks (omni.md §2.3), then the motors.
+  // The library's safety checks (OMNI.md §2.3), then the motors.
   V3 applied = command;
   bool force_error = false;
   if (f.force_output) {
@@ -886,7 +886,7 @@ TF_EXPORT void hdStartScheduler() {
       return;
     }
   }
-  f.force_output = true;  // starting the scheduler enables forces (omni.md §2.2 item 5)
+  f.force_output = true;  // starting the scheduler enables forces (OMNI.md §2.2 item 5)
   f.ramp_level_n = 0.0;
   f.stop = false;
   f.running = true;

@@ -1,6 +1,6 @@
 /* Test control of the fake libHD (fake_hd.cpp). The fake exports the HD C functions the
- * backend uses, with the behaviour the OpenHaptics reference documents (shared/reference/
- * omni.md §2), driven by a simulated Omni; these extra functions let a test steer it. The
+ * backend uses, with the behaviour the OpenHaptics reference documents (docs/OMNI.md §2),
+ * driven by a simulated Omni; these extra functions let a test steer it. The
  * tests resolve them with dlsym on the same handle the backend loaded, so the backend reaches
  * the fake only through its ordinary dlopen path.
  *

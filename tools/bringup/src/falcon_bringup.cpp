@@ -1,4 +1,4 @@
-// `toonforce bringup falcon` (see falcon_bringup.hpp). References: falcon.md §1 (USB), §2
+// `toonforce bringup falcon` (see falcon_bringup.hpp). References: FALCON.md §1 (USB), §2
 // (firmware), §3 (one reply per command), §4 (homing), §5 (kinematics, frame, forces).
 #include "toonforce/bringup/falcon_bringup.hpp"
 
@@ -34,15 +34,15 @@ namespace {
 using falcon::FalconDriver;
 using falcon::Mat3;
 
-constexpr double kPeriodS = 1e-3;  // the host paces the Falcon at 1 kHz (falcon.md §3)
+constexpr double kPeriodS = 1e-3;  // the host paces the Falcon at 1 kHz (FALCON.md §3)
 constexpr double kGravity = 9.81;  // [m/s^2]
 
-/// Arms are numbered from the top, clockwise seen from the front (falcon.md §5 "Frame").
+/// Arms are numbered from the top, clockwise seen from the front (FALCON.md §5 "Frame").
 constexpr const char* kArmName[] = {"arm 1 (top)", "arm 2 (right)", "arm 3 (left)"};
 constexpr std::uint8_t kHomedBit[] = {falcon::kHomedArm1, falcon::kHomedArm2, falcon::kHomedArm3};
 
 // The encoders step: what a sweep to the workspace limits must show. A sweep over the central
-// +-40 mm of each axis turns every arm by well over 600 counts (IK of falcon.md §5); half of
+// +-40 mm of each axis turns every arm by well over 600 counts (IK of FALCON.md §5); half of
 // that is demanded, and an encoder that moved less than kDeadSpanCounts while another moved
 // ten times as much is dead (or its cable is).
 constexpr int kNeededSpanCounts = 300;
@@ -172,7 +172,7 @@ StepReport homing(Session& io, const FalconBringupOptions& o) {
   StepReport s = make_step("homing", "Homing");
   FalconDriver& d = io.driver();
   io.idle(0.01);
-  if (d.homed()) return pass(s, "already homed: the encoders count from the homed position (falcon.md §4)");
+  if (d.homed()) return pass(s, "already homed: the encoders count from the homed position (FALCON.md §4)");
   const Request request{"falcon.homing",
                         "Home the Falcon: pull the grip all the way out toward you until it stops, then push it "
                         "straight back in. The LED turns from red to green when all three axes are homed."};
@@ -329,7 +329,7 @@ StepReport motors(Session& io, const FalconBringupOptions& o) {
   io.idle(0.2);
   // A joint torque turns its own arm its way for any passive hold (a hand, a spring): the
   // joint-space compliance J^-1 K^-1 J^-T has a positive diagonal. Torque tau > 0 is word < 0
-  // (word = -k tau, falcon.md §5), and theta1 (so the count) grows with its arm.
+  // (word = -k tau, FALCON.md §5), and theta1 (so the count) grows with its arm.
   for (std::size_t i = 0; i < 3; ++i) {
     if (io.status() != DeviceStatus::kOk) {
       return fail(s, "the Falcon is not ready for forces: " + d.last_error(), "fix that, then run the step again");
@@ -592,7 +592,7 @@ StepReport buttons(Session& io, const FalconBringupOptions& o) {
     const char* id;
     const char* name;
   };
-  // falcon.md §3: bits of status byte 13, on the four-button grip.
+  // FALCON.md §3: bits of status byte 13, on the four-button grip.
   constexpr Button kButtons[] = {{falcon::kButtonPlus, "plus", "far right (+)"},
                                  {falcon::kButtonForward, "forward", "centre-forward"},
                                  {falcon::kButtonCentre, "centre", "centre (circle)"},
@@ -616,7 +616,7 @@ StepReport buttons(Session& io, const FalconBringupOptions& o) {
       return fail(s, fmt::format("pressing the {} button, the Falcon reported buttons 0x{:X} instead of 0x{:X}", b.name, seen,
                                  b.bit),
                   "press only that button; if another one is reported, the grip is not the four-button grip toonforce "
-                  "knows (falcon.md §3) or its wiring differs");
+                  "knows (FALCON.md §3) or its wiring differs");
     }
     io.wait({fmt::format("falcon.button.{}.release", b.id), "Let go of it."}, o.button_timeout_s,
             [&] { return io.driver().last_status().buttons() == 0; });

@@ -1,4 +1,4 @@
-// `toonforce bringup omni` (see omni_bringup.hpp). References: omni.md §2 (the HD API),
+// `toonforce bringup omni` (see omni_bringup.hpp). References: OMNI.md §2 (the HD API),
 // install_check.hpp (the install), omni_device.hpp (calibration, cap, frame).
 #include "toonforce/bringup/omni_bringup.hpp"
 

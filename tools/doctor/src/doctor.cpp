@@ -338,7 +338,7 @@ std::vector<fs::path> usb_devices(const Host& host, const std::string& vendor, c
   for (const auto& entry : fs::directory_iterator(host.path("/sys/bus/usb/devices"), ec)) {
     const std::string v = read_word(entry.path() / "idVendor");
     const std::string p = read_word(entry.path() / "idProduct");
-    // 3D Systems' id also appears byte-swapped as 0301:2988 in one public note (omni.md §1.2);
+    // 3D Systems' id also appears byte-swapped as 0301:2988 in one public note (OMNI.md §1.2);
     // hal/omni matches it too, so the doctor does.
     const bool swapped = vendor == "2988" && v == "0301" && p == "2988";
     if ((v == vendor && (product.empty() || p == product)) || swapped) out.push_back(entry.path());
@@ -404,7 +404,7 @@ void check_falcons(const Host& host, std::vector<Finding>& findings) {
   }
 }
 
-/// A Touch is opened through OpenHaptics' I/O library, on the node of its model (omni.md §1.2,
+/// A Touch is opened through OpenHaptics' I/O library, on the node of its model (OMNI.md §1.2,
 /// as hal/omni's detection does): the USB-serial model's /dev/ttyACM*, else the USB device
 /// itself (libusb). Its hidraw node is reported as a warning only: the library is documented to
 /// use libusb, not hidraw, but one user report points at /dev/hidraw.
@@ -433,7 +433,7 @@ void check_touches(const Host& host, std::vector<Finding>& findings) {
 }
 
 /// The original Phantom Omni on FireWire: SensAble's vendor OUI 0x000b99 on a /dev/fwN node
-/// (omni.md §1.1), opened by OpenHaptics AE 3.0's PHANToM I/O library.
+/// (OMNI.md §1.1), opened by OpenHaptics AE 3.0's PHANToM I/O library.
 void check_firewire_omnis(const Host& host, std::vector<Finding>& findings) {
   std::vector<Node> nodes;
   std::error_code ec;

@@ -1,6 +1,6 @@
 // Cost of the tick-path GPIO calls (Google Benchmark). By default through the umockdev
 // emulation of /dev/gpiochip0: an emulated ioctl is a round trip over a unix socket to
-// umockdev's worker thread (~0.2 ms, test-environment.md), so those numbers are the
+// umockdev's worker thread (~0.2 ms, docs/GPIO.md), so those numbers are the
 // EMULATION's cost and say nothing about hardware. On a bring-up host, point it at real, free
 // lines instead (the output line is toggled, the input only read):
 //   umockdev-wrapper build/release/tools/gpio/toonforce_gpio_bench              # emulated

@@ -1,6 +1,6 @@
 #pragma once
 /// Passivity observer and controller (Hannaford and Ryu, "Time-domain passivity control of
-/// haptic interfaces", IEEE T-RA 18(1), 2002; shared/reference/realtime-safety-stability.md).
+/// haptic interfaces", IEEE T-RA 18(1):1-10, 2002).
 ///
 /// Observer: the energy the virtual environment has absorbed, E_obs = -sum F_{k-1}.(x_k -
 /// x_{k-1}), the zero-order-hold form (the force commanded at tick k-1 acts while the HIP

@@ -1,6 +1,6 @@
 #pragma once
 /// A first-order motor thermal model per device (after OpenHaptics' predicted
-/// HD_MOTOR_TEMPERATURE, shared/reference/realtime-safety-stability.md §5). Copper losses grow
+/// HD_MOTOR_TEMPERATURE, OpenHaptics Reference Guide; docs/OMNI.md §2.3). Copper losses grow
 /// with the current squared, and the current with the force, so with theta the temperature
 /// rise normalised to the rated one (0 cold, 1 rated):
 ///     tau dtheta/dt = (|F| / F_c)^2 - theta,

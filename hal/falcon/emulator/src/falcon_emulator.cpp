@@ -1,4 +1,4 @@
-// The emulated Falcon (falcon.md §8 "What a faithful emulator must reproduce").
+// The emulated Falcon (FALCON.md §8 "What a faithful emulator must reproduce").
 #include "toonforce/hal/falcon/emulator/falcon_emulator.hpp"
 
 #include <algorithm>
@@ -10,7 +10,7 @@ namespace toonforce::falcon::emulator {
 namespace {
 
 constexpr std::size_t kBootHeaderWords = 11;  // key, 8 reserved, 2 entry-point words
-constexpr std::array<std::uint8_t, 2> kModemStatus{0x31, 0x60};  // typical idle (falcon.md §1)
+constexpr std::array<std::uint8_t, 2> kModemStatus{0x31, 0x60};  // typical idle (FALCON.md §1)
 
 std::uint16_t word_at(const std::vector<std::uint8_t>& image, std::size_t word) {
   return static_cast<std::uint16_t>(image[2 * word] | (image[2 * word + 1] << 8));
@@ -50,7 +50,7 @@ void FalconEmulator::power_cycle() {
 }
 
 void FalconEmulator::reset_dsp() {
-  // Inference (falcon.md §2.1): DTR drives the DSP's reset; its firmware is RAM-resident.
+  // Inference (FALCON.md §2.1): DTR drives the DSP's reset; its firmware is RAM-resident.
   state_ = BootState::kBootRom;
   image_.clear();
   next_block_word_ = kBootHeaderWords;
@@ -133,7 +133,7 @@ void FalconEmulator::bulk_out(std::span<const std::uint8_t> bytes) {
 }
 
 void FalconEmulator::boot_rom_byte(std::uint8_t b) {
-  // The autobaud character: DTR low at ~140 kbaud (falcon.md §2.1 step 4).
+  // The autobaud character: DTR low at ~140 kbaud (FALCON.md §2.1 step 4).
   if (state_ == BootState::kHandshaken && ftdi_.divisor == ftdi::kDivisor140k && !ftdi_.dtr) {
     if (b == 0x41) {
       send(std::array<std::uint8_t, 1>{options_.autobaud_echo});
@@ -201,7 +201,7 @@ void FalconEmulator::running_bytes(std::span<const std::uint8_t> bytes) {
   commands_in_.push(bytes);
   Command c;
   while (commands_in_.pop_command(c)) handle_command(c);
-  // Malformed input is ignored (falcon.md §8.3); the assembler resynchronises on '<'.
+  // Malformed input is ignored (FALCON.md §8, item 3); the assembler resynchronises on '<'.
 }
 
 void FalconEmulator::handle_command(const Command& c) {
@@ -218,7 +218,7 @@ void FalconEmulator::handle_command(const Command& c) {
       if (pulled_out_ && grip_m_.z < options_.homing_in_z_m) homed_ = true;  // counts re-based
     }
   } else {
-    if (homed_) ++homing_bit_dropped_;  // the bit must stay set to stay homed (falcon.md §4)
+    if (homed_) ++homing_bit_dropped_;  // the bit must stay set to stay homed (FALCON.md §4)
     homed_ = false;
     pulled_out_ = false;
   }
@@ -288,7 +288,7 @@ Vec3<double> FalconEmulator::motor_force_n() const noexcept {
 void FalconEmulator::step_mechanics() {
   if (dynamic_ && state_ == BootState::kRunning) {
     const double dt = options_.seconds_per_command;
-    constexpr double kGravity = 9.81;  // [m/s^2] along the Falcon's -y (y is up, falcon.md §5)
+    constexpr double kGravity = 9.81;  // [m/s^2] along the Falcon's -y (y is up, FALCON.md §5)
     const Vec3<double> force = (target_m_ - grip_m_) * options_.hand_stiffness_n_per_m -
                                velocity_m_per_s_ * options_.hand_damping_n_s_per_m + motor_force_n() +
                                Vec3<double>{0.0, -kGravity * weight_kg_, 0.0};

@@ -1,5 +1,5 @@
-// Emulated Falcons behind usbfs through umockdev (test-environment.md §2d: the in-process
-// UMockdevIoctlBase handler pattern of fakedev.c, extended with held IN URBs, DISCARDURB,
+// Emulated Falcons behind usbfs through umockdev (FALCON.md §9: an in-process
+// UMockdevIoctlBase handle-ioctl handler, here with held IN URBs, DISCARDURB,
 // USBDEVFS_BULK, DISCONNECT_CLAIM and ENODEV after unplugging).
 #include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
 
@@ -20,14 +20,14 @@ namespace toonforce::falcon::emulator {
 namespace {
 
 // Device (18) + configuration (9) + interface (9, vendor class as an FTDI's) + bulk OUT 0x02
-// and bulk IN 0x81, 64-byte packets (falcon.md §1). Strings: 1 manufacturer, 2 product, 3 serial.
+// and bulk IN 0x81, 64-byte packets (FALCON.md §1). Strings: 1 manufacturer, 2 product, 3 serial.
 constexpr const char* kDescriptors =
     "12010002000000400304" "48CB" "0001" "010203" "01"
     "09022000010100803209040000" "02FFFFFF00"
     "07050202400000"
     "07058102400000";
 constexpr const char* kManufacturer = "Novint (emulated)";
-constexpr const char* kProduct = "FALCON HAPTIC";  // the FTDI description string (falcon.md §1)
+constexpr const char* kProduct = "FALCON HAPTIC";  // the FTDI description string (FALCON.md §1)
 
 std::string testbed_entry(int address, const std::string& serial, std::string& syspath, std::string& devnode) {
   char dev[64];
@@ -120,7 +120,7 @@ struct UsbfsEmulator::Device {
       const auto value = static_cast<std::uint16_t>(data[2] | (data[3] << 8));
       const auto length = static_cast<std::uint16_t>(data[6] | (data[7] << 8));
       std::uint8_t* payload = data + 8;
-      if (type == 0x40) {  // FTDI vendor request, no data stage (falcon.md §1)
+      if (type == 0x40) {  // FTDI vendor request, no data stage (FALCON.md §1)
         u.actual_length = 0;
         return model.vendor_request(request, value) ? 0 : -EPIPE;
       }

@@ -4,7 +4,7 @@
 // A line request must hand back a new fd whose ioctls also reach us. The handler runs in this
 // process, so it opens another emulated node (/dev/gpio-line-handle, with its own handler) and
 // returns that fd; each open is a new umockdev client, which `client-connected` ties to the
-// lines of the request waiting for it (test-environment.md §2f).
+// lines of the request waiting for it (docs/GPIO.md, "The emulation").
 #include "toonforce/hal/gpio/emulated_gpio.hpp"
 
 #include <fcntl.h>

@@ -3,12 +3,12 @@
 /// effective mass the hand feels, viscous and Coulomb friction, the force it can produce, how
 /// finely it measures position and sets force, and the delay of one I/O exchange.
 ///
-/// The presets cite /work/shared/reference/ (copied in the project as the research notes
-/// falcon.md, omni.md, realtime-safety-stability.md); a value no source gives is marked
-/// ESTIMATE with its reasoning. Simplifications, on purpose: the device is isotropic (the
-/// real linkages are not: mass, friction and force limits vary over the workspace and with
-/// direction), the encoder grid is Cartesian (the real one is in joint space), and gravity is
-/// left out (the arm carries the handle's weight as part of its posture).
+/// The presets cite their sources (docs/FALCON.md and docs/OMNI.md, section "Sources", for the
+/// devices' facts); a value no source gives is marked ESTIMATE with its reasoning. Simplifications,
+/// on purpose: the device is isotropic (the real linkages are not: mass, friction and force limits
+/// vary over the workspace and with direction), the encoder grid is Cartesian (the real one is in
+/// joint space), and gravity is left out (the arm carries the handle's weight as part of its
+/// posture).
 
 #include <cstdint>
 #include <optional>
@@ -47,10 +47,10 @@ enum class DevicePreset : std::uint8_t { kFalcon, kOmni };
 std::string_view device_preset_name(DevicePreset preset) noexcept;
 std::optional<DevicePreset> parse_device_preset(std::string_view name) noexcept;
 
-/// Novint Falcon class. Sources (falcon.md unless said otherwise):
-/// - max force 8 N: CHAI3D's nominal Falcon maximum (realtime-safety-stability.md §5; the
-///   often quoted ~9 N, falcon.md §5, is unverified);
-/// - encoder step 20 um: "1 count ~ 20 um along z at the centre" (falcon.md §8, derived from
+/// Novint Falcon class. Sources (docs/FALCON.md unless said otherwise):
+/// - max force 8 N: CHAI3D's nominal Falcon maximum (CHAI3D 3.3.0, src/devices/
+///   CDeltaDevices.cpp; the often quoted ~9 N, FALCON.md §5, is unverified);
+/// - encoder step 20 um: "1 count ~ 20 um along z at the centre" (FALCON.md §8, derived from
 ///   the delta Jacobian); it grows toward the workspace edges;
 /// - force step 8 N / 4095 ~ 2 mN: ESTIMATE. Motor words are 16-bit but Novint's driver
 ///   stayed within +-4095 (§3); we spread that range over the 8 N maximum, ignoring the
@@ -63,28 +63,28 @@ std::optional<DevicePreset> parse_device_preset(std::string_view name) noexcept;
 ///   Omni's stylus) plus motor inertia reflected through the 7.7:1 capstans (§5): about
 ///   three times the Omni's quoted 45 g;
 /// - damping 0.1 N s/m: ESTIMATE, the order of a capstan-driven device's own damping; it is
-///   the b of the worked Colgate-Brown example in realtime-safety-stability.md §4, and tiny
-///   next to the hand's (a few N s/m), which is what keeps stiff walls passive;
+///   the b for which Colgate and Brown's bound b > K T / 2 (ICRA 1994) allows 200 N/m at
+///   1 kHz, and tiny next to the hand's (a few N s/m), which is what keeps stiff walls passive;
 /// - Coulomb 0.2 N: ESTIMATE, a capstan drive like the Omni's, whose back-drive friction is
-///   quoted below 0.26 N (omni.md §3, unverified).
+///   quoted below 0.26 N (OMNI.md §3, unverified).
 DeviceParams falcon_params() noexcept;
 
-/// Phantom Omni / Touch class. Sources (omni.md §3 unless said otherwise):
+/// Phantom Omni / Touch class. Sources (docs/OMNI.md §3 unless said otherwise):
 /// - max force 3.3 N: peak at the arms-orthogonal pose (datasheet figure, unverified; CHAI3D
-///   uses the same nominal value, realtime-safety-stability.md §5);
+///   3.3.0 uses the same nominal value);
 /// - encoder step 56 um: 15 000 counts per joint revolution (verified, raw FireWire drivers)
 ///   on a 133.35 mm link (§4.2): 2 pi x 0.13335 / 15000 = 55.9 um, matching the quoted
 ///   0.055 mm resolution;
 /// - mass 0.045 kg: the quoted apparent inertia of about 45 g (unverified);
 /// - Coulomb 0.26 N: the quoted back-drive friction "< 0.26 N" (unverified), taken at its
 ///   bound;
-/// - force step 3.3 N / 2047 ~ 1.6 mN: ESTIMATE, no public DAC scale exists (§4.4); a 12-bit
+/// - force step 3.3 N / 2047 ~ 1.6 mN: ESTIMATE, no public DAC scale exists (§4.3); a 12-bit
 ///   signed DAC over the peak force;
 /// - damping 0.05 N s/m: ESTIMATE, a lighter capstan drive than the Falcon's;
 /// - one tick of I/O delay: ESTIMATE; hdBeginFrame latches the state and hdEndFrame writes the
 ///   force in the same 1 kHz tick (§2.2), plus the transport;
 /// - workspace about 160 x 120 x 70 mm (quoted, unverified);
-/// - no velocity in the reading: OpenHaptics does report a smoothed velocity (omni.md §2.2),
+/// - no velocity in the reading: OpenHaptics does report a smoothed velocity (OMNI.md §2.2),
 ///   but its filter is not documented, so the controller estimates velocity as for the Falcon.
 DeviceParams omni_params() noexcept;
 

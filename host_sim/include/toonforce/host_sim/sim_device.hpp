@@ -4,7 +4,7 @@
 ///   read():  the position the device reports: the handle's position `io_delay_ticks` ticks
 ///            ago, plus seeded Gaussian noise, quantised to the encoder step (no velocity);
 ///   write(): the force is saturated to the device's maximum (direction kept), quantised per
-///            axis toward zero (as libnifalcon truncates its motor words, falcon.md §5), held
+///            axis toward zero (as libnifalcon truncates its motor words, FALCON.md §5), held
 ///            over the period, and the handle and hand are advanced by one period.
 /// Neither allocates, throws, locks or calls the system. Same inputs, same bits.
 

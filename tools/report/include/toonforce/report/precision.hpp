@@ -1,6 +1,7 @@
 #pragma once
-/// `toonforce report precision`: force error against run time (spec effects.md §8;
-/// shared/reference/realtime-safety-stability.md §7), for each paper scene, scalar type, servo
+/// `toonforce report precision`: force error against run time (spec effects.md §8; the
+/// work-precision diagrams of DiffEqDevTools.jl's WorkPrecisionSet and of Hairer and Wanner,
+/// "Solving Ordinary Differential Equations"), for each paper scene, scalar type, servo
 /// rate and sine method.
 ///
 /// References (issue 15 item 1), each with its own error stated:

@@ -1,6 +1,6 @@
 #pragma once
 /// The Falcon's calibration file: the motor words per newton-metre of joint torque measured on
-/// one device, which the driver uses instead of libnifalcon's uncalibrated 10000 (falcon.md §5
+/// one device, which the driver uses instead of libnifalcon's uncalibrated 10000 (FALCON.md §5
 /// "Forces": "rather random"; §3's captures of Novint's own driver used 2-4 times fewer words
 /// per newton). `toonforce bringup falcon` measures it and writes the file; open_falcon() uses
 /// what a reader it is given parsed (the file format lives with the other file formats, in
@@ -28,7 +28,7 @@
 
 namespace toonforce::falcon {
 
-/// libnifalcon's constant (falcon.md §5), used when no calibration file exists.
+/// libnifalcon's constant (FALCON.md §5), used when no calibration file exists.
 inline constexpr double kUncalibratedWordsPerNewtonMetre = 10000.0;
 /// The range a file may give: outside it a units slip is likelier than a Falcon.
 inline constexpr double kMinWordsPerNewtonMetre = 1000.0;

@@ -1,10 +1,10 @@
 #pragma once
 /// FalconDriver: the Falcon's DeviceDriver over any FalconTransport. open_falcon() builds one
-/// over libusb; tests build one over the in-process emulator. Protocol per tick (falcon.md §3):
+/// over libusb; tests build one over the in-process emulator. Protocol per tick (FALCON.md §3):
 /// at most one command outstanding; read() collects the reply to the previous write() (whole
 /// 16-byte frames from FTDI packets, split or merged), write() sends the next command. Every
 /// command holds the homing bit; the LED is red until the Falcon reports all three axes homed,
-/// green after (falcon.md §4). Until homed, and on any fault, the force sent is zero. A force
+/// green after (FALCON.md §4). Until homed, and on any fault, the force sent is zero. A force
 /// beyond what the +-4095 motor words give at the pose is scaled down keeping its direction,
 /// and the next read() sets DeviceReading::force_limited. info().max_force_n is the force
 /// the words give in every direction at the workspace centre (force_envelope()).

@@ -32,7 +32,7 @@ struct FalconOptions {
   std::string firmware_path;
   falcon::FirmwareLoadOptions firmware{};
   /// The workspace centre in the Falcon frame [m]: the scene-frame origin (effects.md §0).
-  /// z = 0.110 is libnifalcon's examples' centre (falcon.md §5 "Frame").
+  /// z = 0.110 is libnifalcon's examples' centre (FALCON.md §5 "Frame").
   Vec3<double> workspace_centre_falcon_m{0.0, 0.0, 0.110};
   /// The calibration file (hal/falcon calibration.hpp) whose words per N m open_falcon() puts
   /// in `motor`. Empty: the default path for the opened Falcon's serial number

@@ -1,9 +1,9 @@
 #pragma once
 /// Falcon firmware: checking a file the user supplies and loading it into the DSP's RAM.
-/// toonforce never ships firmware (Novint's licence forbids redistribution, falcon.md §2.3):
+/// toonforce never ships firmware (Novint's licence forbids redistribution, FALCON.md §2.3):
 /// the user gives the file from a Novint or nVent driver install, and it is loaded only if its
-/// size, its C28x boot-table structure and its SHA-256 match a known image (falcon.md §2.2).
-/// The load follows libnifalcon's libusb sequence (falcon.md §2.1) over a FalconTransport and
+/// size, its C28x boot-table structure and its SHA-256 match a known image (FALCON.md §2.2).
+/// The load follows libnifalcon's libusb sequence (FALCON.md §2.1) over a FalconTransport and
 /// retries the whole sequence on failure; detection of loaded firmware follows §2.4.
 /// Start-up code: allocates, may take seconds; never called from a tick.
 
@@ -37,10 +37,10 @@ struct KnownFirmware {
   std::string_view origin;  ///< where users find it
 };
 
-/// The four images of falcon.md §2.2 (sizes and SHA-256 only: no content is shipped).
+/// The four images of FALCON.md §2.2 (sizes and SHA-256 only: no content is shipped).
 std::span<const KnownFirmware> known_firmware_images() noexcept;
 
-/// What the boot table holds (falcon.md §2.1 "Derived": key 0x08AA, 8 reserved words, a
+/// What the boot table holds (FALCON.md §2.1 "Derived": key 0x08AA, 8 reserved words, a
 /// 32-bit entry point stored high word first, blocks of (length in words, 32-bit destination,
 /// data), a zero-length block, no trailing bytes; all words little-endian).
 struct BootTable {
@@ -74,8 +74,8 @@ Result<FirmwareImage> read_firmware_file(const std::string& path,
 
 struct FirmwareLoadOptions {
   int attempts = 5;                ///< whole-sequence tries (libnifalcon's callers use 10)
-  int handshake_tries = 100;       ///< "\nC\r" probes per attempt (falcon.md §2.1 step 3)
-  std::uint32_t timeout_ms = 1000;  ///< per USB transfer (falcon.md §2.1)
+  int handshake_tries = 100;       ///< "\nC\r" probes per attempt (FALCON.md §2.1 step 3)
+  std::uint32_t timeout_ms = 1000;  ///< per USB transfer (FALCON.md §2.1)
   int echo_idle_reads = 30;        ///< bulk reads without new echo bytes before giving up
   /// Called after each chunk with (bytes echoed, total) and on each new attempt; may be empty.
   std::function<void(std::size_t done, std::size_t total, int attempt)> progress;
@@ -86,14 +86,14 @@ struct FirmwareLoadReport {
   std::vector<std::string> failures;  ///< one line per failed try, oldest first
 };
 
-/// Loads `image` into the Falcon (falcon.md §2.1): firmware mode, handshake, autobaud 'A',
+/// Loads `image` into the Falcon (FALCON.md §2.1): firmware mode, handshake, autobaud 'A',
 /// 62-byte chunks each echoed byte for byte, then normal mode and the §2.4 probe to confirm the
 /// firmware answers. Retries the whole sequence up to options.attempts times. The error lists
 /// every try's failure and what to do.
 Result<FirmwareLoadReport> load_firmware(FalconTransport& transport, const FirmwareImage& image,
                                          const FirmwareLoadOptions& options = {});
 
-/// falcon.md §2.4: in normal mode, sends an idle command (homing bit held, forces zero) and
+/// FALCON.md §2.4: in normal mode, sends an idle command (homing bit held, forces zero) and
 /// waits for one well-formed 16-byte reply, re-sending every `resend_every` reads. Without
 /// firmware nothing valid comes back. Leaves the FTDI in normal mode.
 struct FirmwareProbe {

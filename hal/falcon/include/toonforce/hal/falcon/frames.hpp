@@ -1,5 +1,5 @@
 #pragma once
-/// Falcon frame <-> scene frame. Falcon (falcon.md §5 "Frame"): x to the user's right, y up,
+/// Falcon frame <-> scene frame. Falcon (FALCON.md §5 "Frame"): x to the user's right, y up,
 /// z toward the user (out of the device), origin inside the device body. Scene (effects.md
 /// §0): x right, y away from the user, z up, origin at the workspace centre. So
 /// scene = (x, -z, y) of (falcon - centre): a proper rotation (det +1), so forces map the same

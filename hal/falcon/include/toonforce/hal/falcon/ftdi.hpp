@@ -1,6 +1,6 @@
 #pragma once
 /// FTDI set-up of the Falcon's USB-serial bridge through vendor requests (libftdi's request
-/// numbers, the values libnifalcon's libusb path uses; falcon.md §1 and §2.1). Two modes:
+/// numbers, the values libnifalcon's libusb path uses; FALCON.md §1 and §2.1). Two modes:
 /// "normal" (1.5 Mbaud, 1 ms latency: the 1 kHz runtime link) and "firmware" (9600 baud,
 /// 16 ms latency, DTR pulsed: the DSP's boot loader). Start-up code, not the tick.
 
@@ -26,7 +26,7 @@ inline constexpr std::uint16_t kRtsHigh = 0x0202;
 inline constexpr std::uint16_t kRtsLow = 0x0200;
 inline constexpr std::uint16_t kFlowNone = 0;
 inline constexpr std::uint16_t k8N1 = 0x0008;
-/// Divisors (falcon.md §1, Derived): 312.5 -> exactly 9600 baud; 21 -> ~142857 baud (the
+/// Divisors (FALCON.md §1, Derived): 312.5 -> exactly 9600 baud; 21 -> ~142857 baud (the
 /// boot loader's autobaud rate); 2 -> 1.5 Mbaud (normal mode).
 inline constexpr std::uint16_t kDivisor9600 = 0x4138;
 inline constexpr std::uint16_t kDivisor140k = 0x0015;
@@ -42,7 +42,7 @@ TransportStatus purge(FalconTransport& t) noexcept;
 /// set explicitly here so a device left in any state comes up the same).
 TransportStatus enter_normal_mode(FalconTransport& t) noexcept;
 
-/// Firmware mode, falcon.md §2.1 steps 1-2: purge, latency 16 ms, 9600 baud, 8N1, no flow
+/// Firmware mode, FALCON.md §2.1 steps 1-2: purge, latency 16 ms, 9600 baud, 8N1, no flow
 /// control, RTS low, DTR low, then DTR high (which, by inference, releases the DSP's reset).
 TransportStatus enter_firmware_mode(FalconTransport& t) noexcept;
 

@@ -1,5 +1,5 @@
 #pragma once
-/// Falcon delta kinematics (R. E. Stamper's model with libnifalcon's constants, falcon.md §5):
+/// Falcon delta kinematics (R. E. Stamper's model with libnifalcon's constants, FALCON.md §5):
 /// closed-form inverse kinematics, the exact Jacobian of that IK (by implicit differentiation,
 /// checked against finite differences), forward kinematics by damped Newton with a fixed
 /// iteration cap warm-started from the previous tick, and force -> motor words through the
@@ -25,7 +25,7 @@ struct Mat3 {
 /// Inverts `a`; false when |det| is below `min_abs_det` (a singular pose).
 bool invert(const Mat3& a, Mat3& inverse, double min_abs_det = 1e-15) noexcept;
 
-/// Link lengths and offsets [m] and arm-plane angles (falcon.md §5 "Constants": libnifalcon's
+/// Link lengths and offsets [m] and arm-plane angles (FALCON.md §5 "Constants": libnifalcon's
 /// FalconGeometry.h after the 2009 r/s swap). PI is exact here; libnifalcon's literal
 /// 3.14159265 differs by 4e-9 rad, far below one encoder count (6.4e-4 rad).
 struct FalconGeometry {
@@ -40,7 +40,7 @@ struct FalconGeometry {
   Angles phi_rad{1.8325957145940461, -0.26179938779914941, -2.3561944901923448};  ///< 105, -15, -135 deg
 };
 
-/// Encoder counts <-> theta1 (falcon.md §5 "Encoder to angle"): 320-slot wheel x 4, capstan
+/// Encoder counts <-> theta1 (FALCON.md §5 "Encoder to angle"): 320-slot wheel x 4, capstan
 /// 0.110/0.01425, count 0 at 35 degrees: theta1 = 35 deg + 0.0364347 deg * count.
 inline constexpr double kRadPerCount = (0.01425 / (320.0 * 4.0) / 0.110) * 2.0 * 3.14159265358979323846;
 inline constexpr double kTheta1AtZeroCountRad = 35.0 * 3.14159265358979323846 / 180.0;
@@ -49,14 +49,15 @@ constexpr double theta1_rad_to_encoder(double theta1_rad) noexcept {
   return (theta1_rad - kTheta1AtZeroCountRad) / kRadPerCount;
 }
 
-/// Closed-form IK (falcon.md §5): false when the point is outside the model's reach (acos
+/// Closed-form IK (FALCON.md §5): false when the point is outside the model's reach (acos
 /// argument out of range or no real root), leaving `theta1` unchanged.
 bool inverse_kinematics(const FalconGeometry& g, const Vec3<double>& p_m, Angles& theta1_rad) noexcept;
 
 /// d(theta1)/d(p) at p, whose IK is `theta1_rad`, by implicit differentiation of the IK's
-/// constraint (A - a cos t1)^2 + (w - a sin t1)^2 = K^2. This equals falcon.md's rows with the
-/// third entry sin(theta2) sin(theta3)/den (issue #66); libnifalcon's sin^2(theta2)/den is off
-/// by ~25% on z (tests/falcon/kinematics_test.cpp compares both with finite differences).
+/// constraint (A - a cos t1)^2 + (w - a sin t1)^2 = K^2. This equals libnifalcon's rows with the
+/// third entry sin(theta2) sin(theta3)/den (libnifalcon issue #66, FALCON.md §5); its
+/// sin^2(theta2)/den is off by ~25% on z (tests/falcon/kinematics_test.cpp compares both with
+/// finite differences).
 bool angle_jacobian(const FalconGeometry& g, const Vec3<double>& p_m, const Angles& theta1_rad,
                     Mat3& dtheta_dp) noexcept;
 
@@ -65,7 +66,7 @@ bool position_jacobian(const FalconGeometry& g, const Vec3<double>& p_m, Mat3& d
 
 /// Joint torques tau = J^T F [N m] for a force F [N] at the grip (virtual work: F.v = tau.w).
 /// J^T is formed explicitly from J's entries; libnifalcon's in-place setTranspose aliasing bug
-/// (which yields a symmetric matrix from J's lower triangle, falcon.md §5/§8) is not copied.
+/// (which yields a symmetric matrix from J's lower triangle, FALCON.md §5/§8) is not copied.
 constexpr Vec3<double> joint_torques(const Mat3& dp_dtheta, const Vec3<double>& force_n) noexcept {
   const auto& j = dp_dtheta;
   return {j(0, 0) * force_n.x + j(1, 0) * force_n.y + j(2, 0) * force_n.z,
@@ -73,9 +74,9 @@ constexpr Vec3<double> joint_torques(const Mat3& dp_dtheta, const Vec3<double>& 
           j(0, 2) * force_n.x + j(1, 2) * force_n.y + j(2, 2) * force_n.z};
 }
 
-/// Motor-word scaling (falcon.md §5 "Forces"): word = -10000 * tau, truncated; libnifalcon
+/// Motor-word scaling (FALCON.md §5 "Forces"): word = -10000 * tau, truncated; libnifalcon
 /// calls both its constants "rather random" (uncalibrated). The command range is limited to
-/// +-4095 (what Novint's own driver stayed within, falcon.md §3 captures).
+/// +-4095 (what Novint's own driver stayed within, FALCON.md §3 captures).
 struct MotorScale {
   double words_per_n_m = 10000.0;
   std::int16_t max_word = 4095;
@@ -121,12 +122,12 @@ bool force_envelope_at(const FalconGeometry& g, const Vec3<double>& p_m, const M
 /// Forward kinematics by damped Newton: p <- p + g J(p) (theta_target - IK(p)), full step
 /// first, halved (and retried) whenever the angle error grows or the IK leaves the reach.
 /// Warm-started from the previous solution, so a 1 kHz loop needs one or two iterations;
-/// `max_iterations` bounds the work per call whatever happens (falcon.md §5: libnifalcon caps
+/// `max_iterations` bounds the work per call whatever happens (FALCON.md §5: libnifalcon caps
 /// at 15 with gain 0.5 and a 0.01 rad tolerance; this solves to 1e-9 rad, far below a count).
 struct FkOptions {
   int max_iterations = 12;
   double tolerance_rad = 1e-9;       ///< stop when |theta_target - IK(p)| is below this
-  Vec3<double> initial_guess_m{0.0, 0.0, 0.11};  ///< the workspace centre (falcon.md §5)
+  Vec3<double> initial_guess_m{0.0, 0.0, 0.11};  ///< the workspace centre (FALCON.md §5)
 };
 
 struct FkResult {
@@ -144,7 +145,7 @@ class ForwardKinematics {
 
   /// Solves for the grip position whose IK gives `theta1_rad`, starting from the last result.
   FkResult solve(const Angles& theta1_rad) noexcept;
-  /// Forget the warm start (after homing re-bases the encoders, falcon.md §4).
+  /// Forget the warm start (after homing re-bases the encoders, FALCON.md §4).
   void reset() noexcept;
 
   const FalconGeometry& geometry() const noexcept { return geometry_; }

@@ -3,7 +3,7 @@
 /// around it, as pure functions: the 16-byte command and status codec, the stripping of the
 /// 2 FTDI status bytes at every 64-byte packet boundary, and a fixed-capacity assembler that
 /// finds whole frames in a byte stream split or merged across USB packets.
-/// Source of every constant: shared/reference/falcon.md §1 and §3. No I/O, no allocation.
+/// Source of every constant: docs/FALCON.md §1 and §3. No I/O, no allocation.
 
 #include <array>
 #include <cstddef>
@@ -12,14 +12,14 @@
 
 namespace toonforce::falcon {
 
-/// One frame in either direction: '<', 14 bytes of value + 0x41, '>' (falcon.md §3).
+/// One frame in either direction: '<', 14 bytes of value + 0x41, '>' (FALCON.md §3).
 inline constexpr std::size_t kFrameBytes = 16;
 using Frame = std::array<std::uint8_t, kFrameBytes>;
 inline constexpr std::uint8_t kFrameStart = 0x3C;  // '<'
 inline constexpr std::uint8_t kFrameEnd = 0x3E;    // '>'
 inline constexpr std::uint8_t kByteOffset = 0x41;  // 'A': every payload byte is value + 0x41
 
-/// Command byte 13 bits (falcon.md §3: the code enum and the boneyard header agree; the doc
+/// Command byte 13 bits (FALCON.md §3: the code enum and the boneyard header agree; the doc
 /// comment's other table is treated as wrong).
 inline constexpr std::uint8_t kHomingRequest = 0x01;
 inline constexpr std::uint8_t kLedGreen = 0x02;
@@ -27,7 +27,7 @@ inline constexpr std::uint8_t kLedBlue = 0x04;
 inline constexpr std::uint8_t kLedRed = 0x08;
 inline constexpr std::uint8_t kCommandFlagsMask = 0x0F;
 
-/// Status byte 13 bits (falcon.md §3): grip buttons in bits 0-3, homed flags in bits 4-6.
+/// Status byte 13 bits (FALCON.md §3): grip buttons in bits 0-3, homed flags in bits 4-6.
 inline constexpr std::uint8_t kButtonPlus = 0x01;     ///< far right ("plus")
 inline constexpr std::uint8_t kButtonForward = 0x02;  ///< centre-forward
 inline constexpr std::uint8_t kButtonCentre = 0x04;   ///< centre (circle)
@@ -113,7 +113,7 @@ constexpr Frame encode_status(const Status& s) noexcept {
 }
 
 /// Byte 13 is decoded by subtracting 0x41, never by a table: with homed flags it exceeds 'P'
-/// (up to 0xC0; falcon.md §3). Byte 14's meaning is unknown, so any value is accepted: a
+/// (up to 0xC0; FALCON.md §3). Byte 14's meaning is unknown, so any value is accepted: a
 /// frame is rejected only for what we know must hold.
 constexpr bool decode_status(const Frame& f, Status& s) noexcept {
   if (f[0] != kFrameStart || f[15] != kFrameEnd) return false;
@@ -128,7 +128,7 @@ constexpr bool decode_status(const Frame& f, Status& s) noexcept {
   return true;
 }
 
-/// FTDI bulk-IN framing (falcon.md §1): every packet of a bulk-IN transfer starts with 2
+/// FTDI bulk-IN framing (FALCON.md §1): every packet of a bulk-IN transfer starts with 2
 /// modem-status bytes, so each 64-byte packet carries at most 62 payload bytes.
 inline constexpr std::size_t kUsbPacketBytes = 64;
 inline constexpr std::size_t kFtdiStatusBytes = 2;
@@ -142,7 +142,7 @@ std::size_t strip_ftdi_status(std::span<const std::uint8_t> transfer, std::span<
                               std::array<std::uint8_t, 2>* modem_status = nullptr) noexcept;
 
 /// Finds whole frames in a byte stream (FTDI status bytes already stripped). Replies may be
-/// split or merged across USB packets (falcon.md §3), so bytes are kept between calls. Unlike
+/// split or merged across USB packets (FALCON.md §3), so bytes are kept between calls. Unlike
 /// libnifalcon it resynchronises: bytes before a '<', or a '<' that does not start a valid
 /// frame, are discarded and counted, so one garbled byte costs one frame, not the stream.
 /// Fixed capacity: when full, the oldest bytes are discarded (and counted).

@@ -1,6 +1,6 @@
 #pragma once
 /// The Falcon's USB link as a small interface: FTDI vendor requests, bulk OUT to 0x02, bulk IN
-/// from 0x81 (falcon.md §1). Everything above it (FTDI set-up, firmware loading, the codec,
+/// from 0x81 (FALCON.md §1). Everything above it (FTDI set-up, firmware loading, the codec,
 /// the 1 kHz exchange) is written against this interface, so it runs unchanged over libusb
 /// (LibusbTransport, the real device or umockdev's emulated one) and over an in-process fake.
 /// Every call is noexcept and returns a status; implementations allocate nothing per call.
@@ -14,7 +14,7 @@
 
 namespace toonforce::falcon {
 
-inline constexpr std::uint16_t kFalconVendorId = 0x0403;   // FTDI (falcon.md §1)
+inline constexpr std::uint16_t kFalconVendorId = 0x0403;   // FTDI (FALCON.md §1)
 inline constexpr std::uint16_t kFalconProductId = 0xCB48;  // Novint Falcon
 inline constexpr std::uint8_t kEndpointOut = 0x02;
 inline constexpr std::uint8_t kEndpointIn = 0x81;
@@ -49,7 +49,7 @@ class FalconTransport {
   FalconTransport(const FalconTransport&) = delete;
   FalconTransport& operator=(const FalconTransport&) = delete;
 
-  /// An FTDI vendor request without data stage: bmRequestType 0x40, wIndex 0 (falcon.md §1).
+  /// An FTDI vendor request without data stage: bmRequestType 0x40, wIndex 0 (FALCON.md §1).
   virtual TransportStatus control(std::uint8_t request, std::uint16_t value) noexcept = 0;
   /// One bulk-OUT transfer; `written` receives the bytes the device accepted.
   virtual TransportStatus write(std::span<const std::uint8_t> data, std::size_t& written,

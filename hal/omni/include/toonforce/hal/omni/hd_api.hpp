@@ -1,6 +1,6 @@
 #pragma once
 /// Our own declarations of the part of the OpenHaptics HD C API this backend calls, written
-/// from the documented ABI (shared/reference/omni.md §2.1-2.3: plain cdecl, HHD/HDenum/HDerror
+/// from the documented ABI (docs/OMNI.md §2.1-2.3: plain cdecl, HHD/HDenum/HDerror
 /// are unsigned int, HDboolean unsigned char, HDErrorInfo returned by value; constant values as
 /// the HD reference documents them). No vendor header is included or needed: the library is
 /// loaded at run time (hd_library.hpp), and none of its files are shipped (licence, §2.3).
@@ -16,7 +16,7 @@
 
 namespace toonforce::hd {
 
-// ---- Types (omni.md §2.1) ------------------------------------------------------------------
+// ---- Types (OMNI.md §2.1) ------------------------------------------------------------------
 using HHD = unsigned int;
 using HDenum = unsigned int;
 using HDerror = unsigned int;
@@ -52,7 +52,7 @@ inline constexpr HDboolean kFalse = 0;
 inline constexpr HDushort kMaxSchedulerPriority = 0xFFFF;
 inline constexpr HDushort kDefaultSchedulerPriority = 0x7FFF;
 
-// ---- Error codes (omni.md §2.3) -------------------------------------------------------------
+// ---- Error codes (OMNI.md §2.3) -------------------------------------------------------------
 inline constexpr HDerror kSuccess = 0x0000;
 // function errors
 inline constexpr HDerror kInvalidEnum = 0x0100;

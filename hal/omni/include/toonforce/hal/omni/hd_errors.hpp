@@ -1,5 +1,5 @@
 #pragma once
-/// HD error codes mapped onto our fault model (omni.md §2.3 and its recommended design):
+/// HD error codes (OMNI.md §2.3) mapped onto our fault model (docs/OMNI.md, HD errors):
 ///  - force errors (HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, ..._IMPULSE, ..._VELOCITY,
 ///    HD_FORCE_ERROR) degrade: zero force for a hold time, then ramp back;
 ///  - communication, timer and scheduler errors stop the loop (HDU's hduIsSchedulerError set),

@@ -1,12 +1,12 @@
 #pragma once
 /// Loads the OpenHaptics HD library at run time with dlopen and resolves the functions of
-/// hd_api.hpp with dlsym (omni.md §2.1 and "Recommended HAL design" §1): nothing of OpenHaptics
+/// hd_api.hpp with dlsym (as CHAI3D and pyOpenHaptics do, OMNI.md §2.1): nothing of OpenHaptics
 /// is needed to build toonforce, and a user without it gets a message saying what to install.
 ///
 /// Search order: an explicit path (an option), else the file named by $TOONFORCE_LIBHD (for a
 /// non-standard install, and how the tests load the fake library), else the dynamic loader's
 /// search for libHD.so, libHD.so.3.4, libHD.so.3.0. A library is never unloaded: CHAI3D found
-/// that the driver fails when it is loaded and closed twice (omni.md §2.1), so a loaded
+/// that the driver fails when it is loaded and closed twice (OMNI.md §2.1), so a loaded
 /// library stays for the life of the process and loading the same file again returns it.
 /// Start-up code: allocates, takes a lock; never call it from a tick.
 

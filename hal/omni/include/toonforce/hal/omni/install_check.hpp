@@ -5,10 +5,10 @@
 ///    Debian/Ubuntu dynamic loader does not search: an /etc/ld.so.conf.d entry is needed
 ///    (`sudo ldconfig` alone changes nothing);
 ///  - the FireWire Omni's driver (PDD 4.3, libPHANToMIO) wants libraw1394.so.8, where Debian 12
-///    ships libraw1394.so.11 (omni.md §5: users link one to the other);
+///    ships libraw1394.so.11 (OMNI.md §5: users link one to the other);
 ///  - the Touch driver (libPhantomIOLib42) keeps its configuration under $GTDD_HOME; its
 ///    installer sets GTDD_HOME=/usr/share/3DSystems in /etc/environment and Touch_Setup writes
-///    $GTDD_HOME/config (omni.md §1.2; public install notes create /usr/share/3DSystems/config).
+///    $GTDD_HOME/config (OMNI.md §1.2; public install notes create /usr/share/3DSystems/config).
 /// Everything is read under a root directory so tests point it at a faked tree. A check is
 /// reported only when it applies (the files it is about are installed, or the device it
 /// matters for is plugged in). Start-up code; allocates.

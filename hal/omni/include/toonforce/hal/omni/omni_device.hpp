@@ -1,6 +1,6 @@
 #pragma once
 /// Phantom Omni / 3D Systems Touch through OpenHaptics' HD library, loaded at run time
-/// (shared/reference/omni.md). The device is clocked by the vendor: OpenHaptics' scheduler owns
+/// (docs/OMNI.md). The device is clocked by the vendor: OpenHaptics' scheduler owns
 /// the servo thread and calls our frame every tick; inside it, between hdBeginFrame and
 /// hdEndFrame, the frame calls one plain tick function (a function pointer and a context: no
 /// std::function, no allocation), which uses read() and write() of this DeviceDriver as any
@@ -16,7 +16,7 @@
 ///    says OK, then ramp in from zero; read() says kNotReady until then;
 ///  - the commanded force never exceeds the cap: HD_NOMINAL_MAX_CONTINUOUS_FORCE by default,
 ///    OmniOptions::max_force_n if given (at most HD_NOMINAL_MAX_FORCE, the peak), read from the
-///    device at open time, never hard-coded (omni.md §3);
+///    device at open time, never hard-coded (OMNI.md §3);
 ///  - HD errors map onto the fault model of hd_errors.hpp: force errors hold zero force, then
 ///    ramp back (read() says kNotReady while held); every other error stops the loop: zero
 ///    force, forces disabled, the callback unscheduled, last_error() naming the HD error;
@@ -48,16 +48,16 @@ class Library;
 struct OmniOptions {
   /// OpenHaptics device name as configured with Touch_Setup ("Default Device"); empty:
   /// HD_DEFAULT_DEVICE. Users report that an explicit name fixes "failed to initialize"
-  /// (omni.md §5).
+  /// (OMNI.md §5).
   std::string device_name;
   /// The libHD file to load; empty: $TOONFORCE_LIBHD, else libHD.so, libHD.so.3.4, libHD.so.3.0
   /// through the dynamic loader (hd_library.hpp).
   std::string library_path;
   /// [Hz] the vendor scheduler's rate; the reference guide lists 500, 1000 and 1600 (FireWire)
-  /// and warns that lower rates cause instability (omni.md §2.2).
+  /// and warns that lower rates cause instability (OMNI.md §2.2).
   double scheduler_rate_hz = 1000.0;
   /// [N] the force cap. 0: the device's HD_NOMINAL_MAX_CONTINUOUS_FORCE, what its motors
-  /// sustain (public drivers cap well below the peak: sawSensablePhantom at 2 N, omni.md §3),
+  /// sustain (public drivers cap well below the peak: sawSensablePhantom at 2 N, OMNI.md §3),
   /// or the peak HD_NOMINAL_MAX_FORCE if it reports no continuous force. > 0: this value, at
   /// most the peak; raise it above the continuous force for short bursts (the library's thermal
   /// model then answers HD_WARM_MOTORS, which holds force at zero until the motors cool).
@@ -74,7 +74,7 @@ struct OmniOptions {
   /// [0..1] HD_MOTOR_TEMPERATURE below which a warm-motors hold may end (when the device has it).
   double warm_motors_resume_temperature = 0.8;
   /// [s] how often hdCheckCalibration runs inside the loop (before and after it is OK: the
-  /// guide recommends periodic checks for auto-calibrating devices, omni.md §2.2).
+  /// guide recommends periodic checks for auto-calibrating devices, OMNI.md §2.2).
   double calibration_check_period_s = 0.1;
   /// [s] how often the motor temperature model is read.
   double temperature_period_s = 0.1;
@@ -82,7 +82,7 @@ struct OmniOptions {
   /// longer than one period).
   int max_consecutive_overruns = 20;
   /// Pass HD_CURRENT_VELOCITY (smoothed by the library) as the measured velocity. Off by
-  /// default: the library's filter is not documented (omni.md §2.2), so the controller's own
+  /// default: the library's filter is not documented (OMNI.md §2.2), so the controller's own
   /// estimator (spec effects.md §0, cutoff from the scene) is used, as on the host
   /// simulation's Omni preset, and the same scene behaves the same on both.
   bool use_device_velocity = false;
@@ -281,7 +281,7 @@ class OmniDevice final : public DeviceDriver {
 
 /// Whether this is OpenHaptics' FireWire stack (AE 3.0 for the FireWire Phantom Omni): an HD
 /// version 3.0 to 3.3 ("3.00.66"), or, when the version is unknown, a model type naming the
-/// Omni. OpenHaptics 3.4 dropped FireWire (omni.md §1.1).
+/// Omni. OpenHaptics 3.4 dropped FireWire (OMNI.md §1.1).
 bool is_firewire_stack(std::string_view hd_version, std::string_view model);
 
 /// Loads OpenHaptics, opens the device, reads its limits and calibrates what can be calibrated

@@ -2,7 +2,7 @@
 /// The OpenHaptics device frame and the scene frame (spec effects.md §0).
 ///
 /// OpenHaptics reports positions in millimetres in a frame with x to the user's right, y up and
-/// z toward the user (omni.md §4.1; the ROS drivers convert it with the same swap). The scene
+/// z toward the user (OMNI.md §4.1; the ROS drivers convert it with the same swap). The scene
 /// frame has x right, y away from the user, z up, in metres, with its origin at the centre of
 /// the device's workspace. So, with c the workspace centre in the device frame [mm]:
 ///
@@ -12,7 +12,7 @@
 /// proper (determinant +1), so it maps a right-handed frame onto a right-handed one and
 /// preserves force magnitudes. The centre c is that of HD_USABLE_WORKSPACE_DIMENSIONS unless
 /// the user gives one: the absolute origin of OpenHaptics positions is device-specific and no
-/// verified source gives it (omni.md §4.2-4.3), so the workspace centre is the one origin the
+/// verified source gives it (OMNI.md §4.2-4.3), so the workspace centre is the one origin the
 /// library itself defines.
 
 #include <array>

@@ -3,7 +3,7 @@
 /// Touch devices are plugged in, whether this user may open the node the vendor driver uses,
 /// and whether OpenHaptics is installed and loadable, each with what to do otherwise.
 ///
-/// A Touch is found by its USB vendor id 0x2988 (omni.md §1.2; product ids 0x0302 and 0x0304
+/// A Touch is found by its USB vendor id 0x2988 (OMNI.md §1.2; product ids 0x0302 and 0x0304
 /// are in public sources). libusb enumerates and tries to open the USB node, which the vendor
 /// I/O library claims for the HID model; hidapi lists the hidraw node of the HID model; the
 /// serial number and the ttyACM node of the older USB-serial model come from sysfs. Nothing is
@@ -20,7 +20,7 @@
 namespace toonforce {
 
 inline constexpr std::uint16_t kTouchUsbVendorId = 0x2988;
-/// Product ids of Touch models seen in public sources (omni.md §1.2).
+/// Product ids of Touch models seen in public sources (OMNI.md §1.2).
 inline constexpr std::uint16_t kTouchUsbProductIds[] = {0x0302, 0x0304};
 
 /// Every device with the 3D Systems vendor id, one entry each.

@@ -2,8 +2,8 @@
 /// Emulated GPIO chips for tests and benchmarks on hosts without GPIO: `/dev/gpiochip0..N-1`
 /// speaking the GPIO character-device uAPI v1 that libgpiod 1.6 uses, served by umockdev
 /// (libumockdev-preload redirects /dev and /sys and forwards ioctls to handlers that run on
-/// umockdev's worker thread in this process). After shared/reference/test-environment.md §2f,
-/// generalised to several chips, named lines, active-low and bias, and injected faults.
+/// umockdev's worker thread in this process; docs/GPIO.md, "The emulation"). Generalised to
+/// several chips, named lines, active-low and bias, and injected faults.
 ///
 /// Only works inside `umockdev-wrapper` (check `available()` first). The ioctl round trip
 /// costs ~0.2 ms, so this proves behaviour, never timing. Not emulated: edge events.

@@ -1,6 +1,6 @@
 #pragma once
 /// An emulated Novint Falcon behind its FTDI bridge, built from the public facts of
-/// falcon.md §8 "What a faithful emulator must reproduce": FTDI request state (divisor,
+/// FALCON.md §8 "What a faithful emulator must reproduce": FTDI request state (divisor,
 /// latency, format, flow, DTR/RTS, purges), 2 status bytes at the start of every 64-byte IN
 /// packet and status-only packets when there is nothing to send, the boot ROM (handshake, 'A'
 /// autobaud, byte echo while parsing the C28x boot table), the running firmware (one reply per
@@ -41,7 +41,7 @@ struct EmulatorOptions {
   std::vector<std::uint8_t> autobaud_trailing_bytes;
   /// When non-empty, an image whose SHA-256 is not listed is "rejected" (the DSP never runs).
   std::vector<Sha256> accepted_images;
-  /// Encoders count from their power-on state until homed (falcon.md §4): this offset is
+  /// Encoders count from their power-on state until homed (FALCON.md §4): this offset is
   /// added to the absolute counts while not homed.
   std::array<std::int16_t, 3> power_on_offset_counts{137, -251, 73};
   Vec3<double> grip_start_m{0.0, 0.0, 0.110};  ///< Falcon frame
@@ -52,7 +52,7 @@ struct EmulatorOptions {
   double hand_damping_n_s_per_m = 5.0;
   double grip_mass_kg = 0.1;
   double seconds_per_command = 0.001;
-  /// Joint torque per motor word (falcon.md §8: 1e-4 N m matches libnifalcon's model;
+  /// Joint torque per motor word (FALCON.md §8: 1e-4 N m matches libnifalcon's model;
   /// torque = -word * this, the inverse of the host's word = -10000 * torque).
   double n_m_per_word = 1e-4;
   /// Homing (an assumption; the mechanism is undocumented): with the homing bit held, the

@@ -1,6 +1,6 @@
 #pragma once
 /// Emulated Falcons at the usbfs boundary, for the real libusb backend: a umockdev testbed
-/// (shared/reference/test-environment.md §2) holds one sysfs device and /dev/bus/usb node per
+/// (docs/FALCON.md §9) holds one sysfs device and /dev/bus/usb node per
 /// Falcon, and an in-process UMockdevIoctlBase handler answers libusb's usbdevfs ioctls
 /// (SUBMITURB/REAPURB[NDELAY]/DISCARDURB, USBDEVFS_BULK, claim/release, string descriptors,
 /// the FTDI vendor requests) from a FalconEmulator. IN URBs complete at once, as an FTDI's do
