@@ -8,6 +8,8 @@
 //   end
 //   count SCENE MOTION TICKS loop SUM MAX effects SUM MAX     instructions per tick
 //   stack SCENE tick BYTES            deepest stack one loop tick used (below its caller)
+//   stackfn SCENE FUNCTION BYTES      the same per counted function (spec_tick, full_tick,
+//                                     effects_and_safety), for the static stack bound
 //   sizeof SCENE controller BYTES     replay's loop's state (scene, states, safety, estimator)
 //   sizeof SCENE loop BYTES           the every-stage loop's state
 //   stack program BYTES               the whole program's high-water mark
@@ -176,6 +178,10 @@ struct Run {
   static inline ActiveForce<S> active[SceneT::kActiveCapacity > 0 ? SceneT::kActiveCapacity : 1]{};
   static inline std::size_t row = 0;
   static inline std::uint32_t tick_stack = 0;  // deepest stack of one loop tick [bytes]
+  // The same per counted function [bytes]: below play()'s stack pointer, which is the one each
+  // call is made from (play's frame is fixed after its prologue), so each is the function's own
+  // depth, its frame and its callees', nothing of the caller's.
+  static inline std::uint32_t spec_stack = 0, full_stack = 0, effects_stack = 0;
 
   // The loops' state in static storage (bss), as on a product, built in place per motion.
   alignas(SpecLoop) static inline unsigned char spec_storage[sizeof(SpecLoop)];
@@ -234,7 +240,7 @@ struct Run {
       TickStatus status;
       whole.add(count([&] { status = spec_tick(spec, motion, row); }));
       const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
-      if (depth > tick_stack) tick_stack = depth;
+      if (depth > spec_stack) spec_stack = depth;
       print_tick(spec.force(), status);
     }
     out << "end\n";
@@ -248,7 +254,7 @@ struct Run {
       const auto k = static_cast<std::size_t>(motion.rows[row].t_ns / kPeriodNs);
       every.add(count([&] { static_cast<void>(full_tick(full, k)); }));
       const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
-      if (depth > tick_stack) tick_stack = depth;
+      if (depth > full_stack) full_stack = depth;
     }
 
     // Pass 3: the effects plus the safety stage alone, on the Q16.16 inputs replay's loop gave
@@ -268,7 +274,10 @@ struct Run {
       in.rate_hz = rate_of(dt_ns);
       in.now = Instant{static_cast<std::int64_t>(row), motion.rows[row].t_ns};
       Vec3<S> f{};
+      paint_window(sp, kTickStackWindow);
       effects.add(count([&] { f = effects_and_safety(in, dt_ns, state, safety); }));
+      const std::uint32_t depth = used_in_window(sp, kTickStackWindow);
+      if (depth > effects_stack) effects_stack = depth;
       agree = agree && f == again.force();  // the shadow is the loop's own computation
     }
     out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
@@ -296,11 +305,17 @@ struct Run {
   static bool play_all() noexcept {
     bool ok = true;
     for (std::size_t m = 0; m < image::kMotionCount; ++m) ok = play(image::kMotions[m]) && ok;
+    tick_stack = spec_stack > full_stack ? spec_stack : full_stack;
     out << "stack " << SceneDef::kName << " tick " << tick_stack << '\n';
-    if (tick_stack >= kTickStackWindow) out << "error: the tick's stack went past the painted window\n";
+    out << "stackfn " << SceneDef::kName << " spec_tick " << spec_stack << '\n';
+    out << "stackfn " << SceneDef::kName << " full_tick " << full_stack << '\n';
+    out << "stackfn " << SceneDef::kName << " effects_and_safety " << effects_stack << '\n';
+    if (tick_stack >= kTickStackWindow || effects_stack >= kTickStackWindow) {
+      out << "error: the tick's stack went past the painted window\n";
+    }
     out << "sizeof " << SceneDef::kName << " controller " << sizeof(SpecLoop) << '\n';
     out << "sizeof " << SceneDef::kName << " loop " << sizeof(FullLoop) << '\n';
-    return ok && tick_stack < kTickStackWindow;
+    return ok && tick_stack < kTickStackWindow && effects_stack < kTickStackWindow;
   }
 };
 
