@@ -106,6 +106,10 @@ constexpr std::uint32_t instructions_of(std::uint32_t counts) noexcept {
 
 std::uint32_t g_empty_window = 0;  // what two back-to-back readings count
 
+/// The deepest the program went inside the painted windows below play()'s frame (they are
+/// repainted before each measured call, which erases the paint's own record of it) [bytes].
+std::uint32_t g_window_high_water = 0;
+
 /// Instructions run by f(), the counter's own reading excluded.
 template <class F>
 [[gnu::always_inline]] inline std::uint32_t count(F&& f) noexcept {
@@ -280,6 +284,11 @@ struct Run {
       if (depth > effects_stack) effects_stack = depth;
       agree = agree && f == again.force();  // the shadow is the loop's own computation
     }
+    const std::uint32_t deepest = spec_stack > full_stack ? spec_stack : full_stack;
+    const std::uint32_t from_top =
+        static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(&__stack_top)) - sp +
+        (effects_stack > deepest ? effects_stack : deepest);
+    if (from_top > g_window_high_water) g_window_high_water = from_top;
     out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
         << static_cast<std::int64_t>(whole.sum) << ' ' << whole.max << " every "
         << static_cast<std::int64_t>(every.sum) << ' ' << every.max << " effects "
@@ -478,7 +487,9 @@ int run_image() {
   ok = check_saturation_flag<image::S>() && ok;
   ok = check_saturating_operators<image::S>() && ok;
   ok = play_scenes(image::Scenes{}) && ok;
-  out << "stack program " << stack_high_water() << '\n';
+  const std::uint32_t painted_high_water = stack_high_water();
+  out << "stack program " << (painted_high_water > g_window_high_water ? painted_high_water : g_window_high_water)
+      << '\n';
   out << (ok ? "done\n" : "failed\n");
   return ok ? 0 : 1;
 }
