@@ -120,7 +120,9 @@ endforeach()
 # and what it must refuse; then per image, each scene's spec_tick, full_tick and
 # effects_and_safety, whose painted depth under QEMU (main.cpp's "stackfn" lines: the stack below
 # the caller's own stack pointer, so the callee's frames and nothing of the caller's) must be at
-# most its bound, and every bound within the reserved stack (__stack_size, mps2.ld).
+# most its bound, and every bound within the reserved stack (__stack_size, mps2.ld); and the
+# function that calls them keeps its sp from its prologue on (--fixed-callers), so that depth is
+# the callee's alone.
 add_test(NAME mcu_m3_stack_bound_analyser COMMAND /usr/bin/python3 ${_wcet}/test_stack_bound.py)
 set_tests_properties(mcu_m3_stack_bound_analyser PROPERTIES LABELS mcu
   ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests")
@@ -129,7 +131,7 @@ foreach(image IN LISTS _mcu_images)
     ${_mcu_m3_dir}/${image}.elf --objects ${_mcu_m3_dir}/CMakeFiles/${image}.dir
     --entry "spec_tick=::spec_tick\\(" --entry "full_tick=::full_tick\\("
     --entry "effects_and_safety=::effects_and_safety\\("
-    --painted ${_mcu_bin}/runs/cortex-m3/${image}/target.txt --reserved
+    --painted ${_mcu_bin}/runs/cortex-m3/${image}/target.txt --reserved --fixed-callers
     --json ${_mcu_bin}/wcet/${image}.stack.json)
   set_tests_properties(mcu_m3_stack_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image})
 endforeach()

@@ -186,6 +186,26 @@ def scanned_frame(f: Function) -> int:
     return total
 
 
+def fixed_frame(f: Function) -> bool:
+    """Whether f moves sp only in its prologue (every decrement before its first branch or call)
+    and otherwise only gives the stack back: then its sp at every call is the one it has after
+    its prologue, which is where main.cpp's painted window starts."""
+    branched = False
+    for _, mnemonic, ops in f.insns:
+        base = re.sub(r"(\.n|\.w)$", "", mnemonic)
+        if _BRANCH.match(mnemonic) or base.startswith("bx") or base in ("tbb", "tbh"):
+            branched = True
+            continue
+        decrement = (base in ("push", "vpush") or (base == "stmdb" and ops.startswith("sp!"))
+                     or (re.match(r"^subw?$", base) and ops.startswith("sp,"))
+                     or re.search(r"\[sp, #-\d+\]!$", ops) is not None)
+        other = ops.startswith("sp,") and not decrement and base not in ("cmp", "cmn", "tst", "teq", "add") \
+            and not re.match(r"^(str|ldr)", base)
+        if (decrement and branched) or other:
+            return False
+    return True
+
+
 def callees(f: Function, functions: dict) -> list:
     out = []
     for addr, mnemonic, ops in f.insns:
@@ -277,6 +297,9 @@ def main(argv=None) -> int:
                    help="the image's output: each 'stackfn SCENE LABEL BYTES' must be at most the bound of LABEL's "
                         "function of SCENE's Run<> (SCENE '-' for a function of no scene), and every bound must have one")
     p.add_argument("--reserved", action="store_true", help="each bound must be within __stack_size")
+    p.add_argument("--fixed-callers", action="store_true",
+                   help="each function that calls a bounded one must have a fixed frame (sp moved only in its "
+                        "prologue, fixed_frame): what --painted's measurement below the caller's sp assumes")
     p.add_argument("--chain", action="store_true", help="print each bound's deepest chain")
     p.add_argument("--json", help="write the bounds here as JSON")
     args = p.parse_args(argv)
@@ -298,6 +321,18 @@ def main(argv=None) -> int:
         print(f"stack_bound: {name}: cannot bound: {e}", file=sys.stderr)
         return 2
     failed = False
+    if args.fixed_callers:
+        bounded = {f.start for f in functions.values() if any(f.name == r["function"] for r in results)}
+        for f in functions.values():
+            calls = set()
+            for _, mnemonic, ops in f.insns:
+                t = re.match(r"^(?:r\d+, )?([0-9a-f]+)\b", ops) if _BRANCH.match(mnemonic) else None
+                if t:
+                    calls.add(int(t.group(1), 16))
+            if calls & bounded and not fixed_frame(f):
+                print(f"stack_bound: {name}: {f.name} calls a bounded function and moves sp after its prologue: "
+                      f"a depth painted below its sp is not the callee's alone", file=sys.stderr)
+                failed = True
     painted = read_painted(args.painted) if args.painted else None
     reserved = absolute.get("__stack_size")
     if args.reserved and reserved is None:

@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Tests of the static stack bound (stack_bound.py) on a hand-made call graph whose deepest chain
 is known (tests/stack/chain.cpp and deep.s: the .su frames of two functions and a hand-written
-function's 216 bytes), and on what it must refuse (recursion, an indirect call, a dynamic frame).
+function's 216 bytes), on a caller whose sp moves after its prologue (--fixed-callers), and on
+what it must refuse (recursion, an indirect call, a dynamic frame).
 
     test_stack_bound.py   (CTest: mcu_m3_stack_bound_analyser; WCET_TEST_DIR: where the test images go)
 """
@@ -108,6 +109,17 @@ class Chain(unittest.TestCase):
         r = analyse(small, objects, "--entry", "t=^entry$", "--reserved")
         self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
         self.assertIn("reserved (__stack_size)", r.stderr)
+
+
+class Callers(unittest.TestCase):
+    def test_a_caller_that_moves_sp_after_its_prologue_fails(self):
+        elf, objects = build("callers", "callers.s")
+        r = analyse(elf, objects, "--entry", "t=^leaf$", "--fixed-callers")
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("moving calls a bounded function", r.stderr)
+        self.assertNotIn("fixed calls", r.stderr)
+        r = analyse(elf, objects, "--entry", "t=^moving$", "--fixed-callers")  # entry's frame is fixed
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
 
 
 class Refused(unittest.TestCase):
