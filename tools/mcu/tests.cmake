@@ -115,6 +115,52 @@ foreach(image IN LISTS _mcu_images)
   set_tests_properties(mcu_m3_wcet_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image}
     FIXTURES_SETUP mcu_m3_wcet_${image})
 endforeach()
+# A static stack bound per counted tick (stack_bound.py: the .su frames of -fstack-usage over the
+# image's call graph, libgcc's helpers from their disassembly): first on a hand-made call graph
+# and what it must refuse; then per image, each scene's spec_tick, full_tick and
+# effects_and_safety, whose painted depth under QEMU (main.cpp's "stackfn" lines: the stack below
+# the caller's own stack pointer, so the callee's frames and nothing of the caller's) must be at
+# most its bound, and every bound within the reserved stack (__stack_size, mps2.ld); and the
+# function that calls them keeps its sp from its prologue on (--fixed-callers), so that depth is
+# the callee's alone.
+add_test(NAME mcu_m3_stack_bound_analyser COMMAND /usr/bin/python3 ${_wcet}/test_stack_bound.py)
+set_tests_properties(mcu_m3_stack_bound_analyser PROPERTIES LABELS mcu
+  ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests")
+foreach(image IN LISTS _mcu_images)
+  add_test(NAME mcu_m3_stack_bound_${image} COMMAND /usr/bin/python3 ${_wcet}/stack_bound.py
+    ${_mcu_m3_dir}/${image}.elf --objects ${_mcu_m3_dir}/CMakeFiles/${image}.dir
+    --entry "spec_tick=::spec_tick\\(" --entry "full_tick=::full_tick\\("
+    --entry "effects_and_safety=::effects_and_safety\\("
+    --painted ${_mcu_bin}/runs/cortex-m3/${image}/target.txt --reserved --fixed-callers
+    --json ${_mcu_bin}/wcet/${image}.stack.json)
+  set_tests_properties(mcu_m3_stack_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image})
+endforeach()
+# The tick as a product runs it (firmware/product.cpp): the cartoon wall's loop ticked by the
+# SysTick interrupt, its device a register block the main loop serves; its forces compared with
+# replay as the cartoon wall image's (the same motions), then its bound from interrupt to return
+# (check_product.py: the handler's static bound plus the TRM's exception entry and exit) within
+# issue 29's 2,500 cycles, the tick the image measured in the handler within the handler's
+# instruction bound, and its stack within the reserved stack.
+set(_product_motions ${TOONFORCE_MCU_MOTIONS})
+foreach(strike IN LISTS TOONFORCE_MCU_STRIKES_cartoon_wall)
+  list(APPEND _product_motions ${strike}=${_mcu_bin}/strikes/${strike}.csv)
+endforeach()
+string(REPLACE ";" "," _product_motions "${_product_motions}")
+add_test(NAME mcu_m3_product_cartoon_wall
+  COMMAND ${CMAKE_COMMAND}
+    -DQEMU=${TOONFORCE_QEMU_ARM} -DMACHINE=mps2-an385 -DCPU=cortex-m3
+    -DSHIFT=${TOONFORCE_MCU_ICOUNT_SHIFT}
+    -DIMAGE=${_mcu_m3_dir}/product_cartoon_wall.elf
+    -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
+    -DSOURCE_DIR=${PROJECT_SOURCE_DIR} -DSCENES=cartoon_wall -DMOTIONS=${_product_motions}
+    -DOUT_DIR=${_mcu_bin}/runs/cortex-m3/product_cartoon_wall
+    -P ${_mcu_src}/run_image.cmake)
+set_tests_properties(mcu_m3_product_cartoon_wall PROPERTIES LABELS mcu TIMEOUT 300
+  FIXTURES_REQUIRED mcu_m3_images FIXTURES_SETUP mcu_m3_run_product_cartoon_wall)
+add_test(NAME mcu_m3_product_bound COMMAND /usr/bin/python3 ${_wcet}/check_product.py
+  ${_mcu_m3_dir}/product_cartoon_wall.elf ${_mcu_bin}/runs/cortex-m3/product_cartoon_wall/target.txt
+  --objects ${_mcu_m3_dir}/CMakeFiles/product_cartoon_wall.dir --budget-cycles 2500)
+set_tests_properties(mcu_m3_product_bound PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_product_cartoon_wall)
 # docs/PERFORMANCE.md's bounds table is the one the scene images give (bounds_table.py --write
 # puts it there): no figure of it drifts from the code.
 set(_bound_jsons)
@@ -159,6 +205,14 @@ foreach(image IN LISTS _mcu_images _mcu_size_images)
     -DIMAGE=${_mcu_m3_dir}/${image}.elf -P ${_mcu_src}/check_q_bit.cmake)
   set_tests_properties(mcu_m3_q_bit_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 endforeach()
+
+# The product image (above), as every whole-loop image: no floating point and nothing else on the Q bit.
+add_test(NAME mcu_m3_no_float_product_cartoon_wall COMMAND ${CMAKE_COMMAND} -DNM=${TOONFORCE_ARM_NM}
+  -DOBJDUMP=${TOONFORCE_ARM_OBJDUMP} -DIMAGE=${_mcu_m3_dir}/product_cartoon_wall.elf -P ${_mcu_src}/check_no_float.cmake)
+add_test(NAME mcu_m3_q_bit_product_cartoon_wall COMMAND ${CMAKE_COMMAND} -DOBJDUMP=${TOONFORCE_ARM_OBJDUMP}
+  -DIMAGE=${_mcu_m3_dir}/product_cartoon_wall.elf -P ${_mcu_src}/check_q_bit.cmake)
+set_tests_properties(mcu_m3_no_float_product_cartoon_wall mcu_m3_q_bit_product_cartoon_wall PROPERTIES LABELS mcu
+  FIXTURES_REQUIRED mcu_m3_images)
 
 # No heap: an image that allocates does not link.
 add_test(NAME mcu_m3_heap_link_fails

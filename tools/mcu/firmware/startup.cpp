@@ -42,12 +42,16 @@ struct VectorTable {
 
 }  // namespace
 
+// The SysTick's handler: an image that ticks from the interrupt defines it (product.cpp); any
+// other image takes this one, as it takes no SysTick interrupt.
+extern "C" [[gnu::weak]] void SysTick_Handler() { trap("unexpected exception"); }
+
 // ARMv7-M ARM B1.5.3: initial SP, then Reset, NMI, HardFault, MemManage, BusFault, UsageFault,
 // 4 reserved, SVCall, DebugMonitor, reserved, PendSV, SysTick. No device interrupts are used.
 [[gnu::section(".vectors"), gnu::used]] const VectorTable kVectorTable = {
     &__stack_top,
     {Reset_Handler, nmi, hard_fault, mem_manage, bus_fault, usage_fault, nullptr, nullptr, nullptr, nullptr,
-     unexpected, unexpected, nullptr, unexpected, unexpected}};
+     unexpected, unexpected, nullptr, unexpected, SysTick_Handler}};
 
 // A 64-bit division by zero (__aeabi_ldivmod) calls these instead of trapping in hardware;
 // Fixed never divides by zero, so reaching one is a bug to stop on.
