@@ -162,6 +162,39 @@ class Strict(unittest.TestCase):
         self.assertRegex(r.stderr, r"an instruction the cycle model does not know `clrex ` at 0x0 in entry")
 
 
+class Gate(unittest.TestCase):
+    """check_bound.py's exact gate: measured <= bound + the count's window, the window measured
+    from the image (tests/gate.s: windows 3, 1 and 2 around bounds 2, 3 and 4)."""
+
+    def gate(self, loop: int, every: int, effects: int, calibration: str = "1 100") -> subprocess.CompletedProcess:
+        elf = build("gate.s")
+        counts = os.path.join(WORK, "gate-counts.txt")
+        with open(counts, "w") as f:
+            f.write(f"calibration {calibration}\ncount wall m 1 loop {loop} {loop} every {every} {every} "
+                    f"effects {effects} {effects}\n")
+        return subprocess.run([sys.executable, os.path.join(HERE, "check_bound.py"), elf, counts],
+                              capture_output=True, text=True)
+
+    def test_the_windows_are_measured(self):
+        r = self.gate(5, 4, 6)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.assertIn("ok:   wall loop: measured 5 <= bound 2 + window 3 instructions", r.stdout)
+        self.assertIn("ok:   wall every: measured 4 <= bound 3 + window 1 instructions", r.stdout)
+        self.assertIn("ok:   wall effects: measured 6 <= bound 4 + window 2 instructions", r.stdout)
+
+    def test_an_under_count_of_one_fails(self):
+        for counts in ((6, 4, 6), (5, 5, 6), (5, 4, 7)):
+            with self.subTest(counts=counts):
+                r = self.gate(*counts)
+                self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+                self.assertRegex(r.stdout, r"over: wall \w+: measured \d+ > bound")
+
+    def test_a_calibration_the_image_does_not_show_fails(self):
+        r = self.gate(5, 4, 6, "1 99")
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("the window measure does not hold", r.stderr)
+
+
 class Path(unittest.TestCase):
     """--path: where the bound goes, per source line, adding up to the bound."""
 

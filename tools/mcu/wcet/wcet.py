@@ -129,6 +129,7 @@ class Image:
 
     def _read_code(self) -> None:
         current = None
+        self.words: dict[int, int] = {}  # literal pool words by address
         for line in self._run("-d", "-C", "--no-show-raw-insn").splitlines():
             fm = _FUNC.match(line)
             if fm:
@@ -144,6 +145,8 @@ class Image:
                 mnemonic = m.group(2)
                 operands = re.sub(r"\s*[;@].*$", "", m.group(3)).strip()
                 if mnemonic.startswith("."):  # literal pool words ($d), not instructions
+                    if mnemonic == ".word" and re.match(r"^0x[0-9a-f]+$", operands):
+                        self.words[addr] = int(operands, 16)
                     continue
                 current.insns.append(Insn(addr, 0, mnemonic, operands, line.strip()))
         for f in self.functions.values():
