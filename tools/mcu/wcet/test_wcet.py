@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Tests of the worst-case analyser (wcet.py) on small functions for the Cortex-M3, assembled or
 compiled here and linked with the images' linker script, whose longest paths are known exactly
-(each file's comment derives its figures), and on what it must refuse.
+(each file's comment derives its figures), on what it must refuse, on each rule of its strict
+cycle model, and on check_bound.py's exact gate (the count's window measured from an image).
 
     test_wcet.py   (CTest: mcu_m3_wcet_analyser; WCET_TEST_DIR: where the test images go)
 """
