@@ -4,11 +4,16 @@
 For IMAGE.elf, wcet.py bounds each scene's three counted functions (replay's loop tick
 `spec_tick`, the every-stage tick `full_tick`, the effects plus safety `effects_and_safety`);
 the image's run (firmware/main.cpp's "count SCENE MOTION TICKS loop SUM MAX every SUM MAX
-effects SUM MAX" lines in COUNTS) gives the dearest tick measured for each. The counted window
-holds, besides the function, the caller's argument loads, the call and the store of the result
-(7 instructions around spec_tick in wall.elf): CALL_SITE below allows for them. Deterministic
-counts only; fails (exit 1) when a measured tick passes its bound, and when the analyser
-refuses the image (exit 2: what it cannot bound).
+effects SUM MAX" lines in COUNTS) gives the dearest tick measured for each. The gate is exact:
+measured <= bound + window, where the window is what the count sees besides the function,
+measured from the image itself (windows()): the caller's instructions between the two SysTick
+readings of main.cpp's count() around the call (the `bl`, and argument loads: 7 around
+spec_tick in wall.elf), less the instructions between the two readings of calibrate()'s empty
+count, which the image subtracts from every count (its "calibration EMPTY NOPS" line; the
+window of its 100 NOPs, measured the same way, must give NOPS, or the gate fails). An analyser
+under-count of one instruction fails it. Deterministic counts only; fails (exit 1) when a
+measured tick passes its bound + window, and when the analyser refuses the image or no window
+can be measured (exit 2).
 
 A ratchet besides: with --ceilings FILE, a bound above the one FILE records for that image,
 scene and variant fails too (a change made a tick dearer in the worst case; if that is meant,
@@ -36,7 +41,8 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-CALL_SITE = 16  # instructions of the count's window outside the counted function, at most
+sys.path.insert(0, HERE)
+import wcet  # noqa: E402  (the image's disassembly, to measure the windows)
 VARIANTS = {"loop": "spec_tick", "every": "full_tick", "effects": "effects_and_safety"}
 
 
@@ -48,9 +54,9 @@ def scene_of(function: str) -> str:
     return re.sub(r"(?<!^)([A-Z])", r"_\1", m.group(1)).lower()
 
 
-def bounds(elf: str, wait: int, covered: str | None) -> tuple[dict, dict]:
+def bounds(elf: str, wait: int, covered: str | None) -> tuple[dict, dict, dict]:
     """(scene, variant) -> (instructions, cycles); and, with `covered`, -> how many instructions
-    of that longest path the run never executed."""
+    of that longest path the run never executed; and -> the function's name."""
     args = [sys.executable, os.path.join(HERE, "wcet.py"), elf, "--wait-states", str(wait)]
     if covered:
         args += ["--covered", covered]
@@ -60,13 +66,190 @@ def bounds(elf: str, wait: int, covered: str | None) -> tuple[dict, dict]:
     if r.returncode != 0:
         sys.stderr.write(r.stderr)
         raise SystemExit(r.returncode)
-    out, never = {}, {}
+    out, never, names = {}, {}, {}
     for line in r.stdout.splitlines():
         label, instructions, cycles, function, *rest = line.split("\t")
         out[(scene_of(function), label)] = (int(instructions), int(cycles))
+        names[(scene_of(function), label)] = function
         if rest:
             never[(scene_of(function), label)] = int(rest[0])
-    return out, never
+    return out, never, names
+
+
+# ---- the count's window outside the counted function, from the image ---------------------------
+
+SYST_CVR = 0xE000E018  # SysTick Current Value Register (ARMv7-M B3.3.2): what board::systick_now() reads
+CALLER_SAVED = {"r0", "r1", "r2", "r3", "r12", "r14"}  # a call may change them (AAPCS 5.1.1)
+
+
+class NoWindow(Exception):
+    """A counted call whose window the image does not show in a straight line."""
+
+
+def _targets(insns: list) -> set:
+    """Addresses a branch can reach inside the function (another path may enter there)."""
+    out = set()
+    for k, insn in enumerate(insns):
+        kind, target = wcet._classify(insn)
+        if target is not None:
+            out.add(target)
+        if kind in ("jump", "cjump", "return", "creturn", "halt", "indirect") and k + 1 < len(insns):
+            out.add(insns[k + 1].addr)
+    return out
+
+
+def _written(insn) -> set:
+    """The registers an instruction may write (its first operand, pairs, lists and writeback)."""
+    op = wcet.operation(insn)
+    ops = insn.operands
+    out = set()
+    if "!" in ops or re.search(r"\]\s*,", ops) or op in ("push", "pop"):
+        out |= wcet.address_registers(insn)
+    if op in wcet._MULTIPLE_LOADS:
+        m = re.search(r"\{([^}]*)\}", ops)
+        out |= wcet._registers(m.group(1)) if m else set()
+        return out
+    if op in wcet._SINGLE_STORES or op in wcet._MULTIPLE_STORES or op in ("strd", "cmp", "cmn", "tst", "teq", "it",
+                                                                           "nop", "msr", "b", "cbz", "cbnz", "bx"):
+        if op in ("strex", "strexb", "strexh"):
+            out |= wcet._registers(ops.split(",")[0])
+        return out
+    fields = [f.strip() for f in ops.split(",")]
+    n = 2 if op in ("ldrd", "umull", "smull", "umlal", "smlal") else 1
+    return out | wcet._registers(",".join(fields[:n]))
+
+
+def _immediate(text: str):
+    m = re.search(r"#(-?(?:0x[0-9a-f]+|\d+))", text)
+    return int(m.group(1), 0) if m else None
+
+
+def constants(image, insns: list) -> list:
+    """For each instruction, the registers that hold a known constant whenever it runs: a
+    forward data flow over the function's branches (a literal load, MOV/MOVW of an immediate
+    and MOVT; a call forgets the caller-saved registers; where paths join, what they agree on)."""
+    index = {insn.addr: k for k, insn in enumerate(insns)}
+    state: list = [None] * len(insns)   # None: not reached yet
+    state[0] = {}
+    work = [0]
+    while work:
+        k = work.pop()
+        insn = insns[k]
+        regs = dict(state[k])
+        kind, target = wcet._classify(insn)
+        if kind == "call":
+            for r in CALLER_SAVED:
+                regs.pop(r, None)
+        else:
+            op = wcet.operation(insn)
+            conditional = bool(wcet.split_mnemonic(insn.mnemonic)[1]) and kind == "plain"
+            for r in _written(insn):
+                value = None
+                m = re.match(r"^\w+,\s*\[pc,\s*#(-?\d+)\]$", insn.operands)
+                if op == "ldr" and m:
+                    value = image.words.get(((insn.addr + 4) & ~3) + int(m.group(1)))
+                elif op in ("mov", "movw") and re.match(r"^\w+,\s*#", insn.operands):
+                    value = _immediate(insn.operands)
+                elif op == "movt" and r in regs and _immediate(insn.operands) is not None:
+                    value = (regs[r] & 0xFFFF) | (_immediate(insn.operands) << 16)
+                if value is None or (conditional and regs.get(r) != value & 0xFFFFFFFF):
+                    regs.pop(r, None)
+                else:
+                    regs[r] = value & 0xFFFFFFFF
+        succs = []
+        if kind in ("plain", "call", "creturn", "cjump") and k + 1 < len(insns):
+            succs.append(k + 1)
+        if kind in ("jump", "cjump") and target in index:
+            succs.append(index[target])
+        for s_ in succs:
+            old = state[s_]
+            new = dict(regs) if old is None else {r: v for r, v in old.items() if regs.get(r) == v}
+            if new != old:
+                state[s_] = new
+                work.append(s_)
+    return [st or {} for st in state]
+
+
+def is_counter_read(insns: list, k: int, known: list) -> bool:
+    """A plain LDR of the SysTick current value (board::systick_now())."""
+    insn = insns[k]
+    m = re.match(r"^(\w+),\s*\[(\w+)(?:,\s*#(-?\d+))?\]$", insn.operands)
+    if wcet.split_mnemonic(insn.mnemonic) != ("ldr", "") or not m or m.group(2) == "pc":
+        return False
+    base = known[k].get(wcet._ALIASES.get(m.group(2), m.group(2)))
+    return base is not None and base + int(m.group(3) or 0) == SYST_CVR
+
+
+def _read_around(insns: list, k: int, step: int, targets: set, known: list):
+    """The counter reading nearest insns[k] going `step` (-1 back, +1 on) in a straight line
+    (no branch, no other call, no branch target in between), or None."""
+    j = k
+    while True:
+        nxt = j + step
+        if nxt < 0 or nxt >= len(insns):
+            return None
+        if insns[max(j, nxt)].addr in targets:
+            return None
+        j = nxt
+        if is_counter_read(insns, j, known):
+            return j
+        if wcet._classify(insns[j])[0] != "plain":
+            return None
+
+
+def windows(image, counted: dict) -> tuple[dict, tuple]:
+    """{function start: instructions the count sees besides the function} for each counted
+    function (dict of starts), and (between the empty count's readings, between the NOPs
+    count's): the window of a count is its instructions strictly between its two readings,
+    the function's own excepted, less those of calibrate()'s empty count (which main.cpp
+    subtracts from every count). Several counted calls of one function: the widest."""
+    out: dict = {}
+    reads_in: dict = {}
+    for f in image.functions.values():
+        insns = f.insns
+        if not insns or not any(wcet.split_mnemonic(i.mnemonic)[0] == "ldr" and "[pc" not in i.operands
+                                for i in insns):
+            continue
+        targets = _targets(insns)
+        known = constants(image, insns)
+        for k, insn in enumerate(insns):
+            kind, target = wcet._classify(insn)
+            if kind == "call" and target in counted:
+                before = _read_around(insns, k, -1, targets, known)
+                after = _read_around(insns, k, +1, targets, known)
+                if before is None or after is None:
+                    continue  # a call no count is around (the plain pass)
+                out[target] = max(out.get(target, 0), after - before - 1)
+            elif kind != "call" and is_counter_read(insns, k, known):
+                reads_in.setdefault(f.start, []).append(k)
+    # calibrate(): the count of 100 NOPs, straight after the empty count.
+    calibration = None
+    for start, reads in reads_in.items():
+        insns = image.functions[start].insns
+        for i in range(2, len(reads)):
+            a, b = reads[i - 2], reads[i - 1]
+            c, d = reads[i], reads[i + 1] if i + 1 < len(reads) else None
+            if d is None:
+                continue
+            body = insns[c + 1:d]
+            if sum(1 for x in body if wcet.operation(x) == "nop") != 100:
+                continue
+            if calibration is not None:
+                raise NoWindow("two counts of 100 NOPs")
+            calibration = (b - a - 1, d - c - 1)
+    if calibration is None:
+        raise NoWindow("no calibration (a count of nothing, then of 100 NOPs) in the image")
+    return {start: w - calibration[0] for start, w in out.items()}, calibration
+
+
+def read_calibration(counts: str):
+    """(EMPTY, NOPS) of the COUNTS file's calibration line, or None."""
+    with open(counts) as f:
+        for line in f:
+            m = re.match(r"^calibration (\d+) (\d+)$", line.strip())
+            if m:
+                return int(m.group(1)), int(m.group(2))
+    return None
 
 
 SEARCHED = "search_"  # the searched inputs' motions (images.cmake names them search_SCENE_K[_late])
@@ -145,12 +328,31 @@ def main() -> int:
         print(f"check_bound: {a.covered}: no coverage of the image's run (its run test failed or did not run)",
               file=sys.stderr)
         return 1
-    b, never = bounds(a.elf, a.wait_states, a.covered)
+    b, never, names = bounds(a.elf, a.wait_states, a.covered)
     m, m_bundled = measured(a.counts)
     if not m:
         print(f"check_bound: {a.counts}: no count lines", file=sys.stderr)
         return 1
+    image_ = wcet.Image(a.elf, "arm-none-eabi-objdump")
+    starts = {image_.by_name[n].start: key for key, n in names.items()}
+    try:
+        per_start, (empty_between, nops_between) = windows(image_, starts)
+    except NoWindow as e:
+        print(f"check_bound: {a.elf}: cannot measure the count's window: {e}", file=sys.stderr)
+        return 2
+    window = {starts[s]: w for s, w in per_start.items()}
     failed = False
+    # The image's own calibration must see what its disassembly says: 100 NOPs between the
+    # readings of the NOPs count, less the empty count's, is the NOPS it printed.
+    calibration = read_calibration(a.counts)
+    if calibration is None or nops_between - empty_between != calibration[1]:
+        print(f"over: the calibration: the image's NOPs count holds {nops_between} instructions between its readings "
+              f"and its empty count {empty_between}, so it should print {nops_between - empty_between}; COUNTS has "
+              f"{calibration}: the window measure does not hold for this image", file=sys.stderr)
+        failed = True
+    else:
+        print(f"calibration: empty count {empty_between} instructions between its readings (EMPTY {calibration[0]}), "
+              f"NOPs count {nops_between} (NOPS {calibration[1]})")
     rows = []
     for key in sorted(m):
         if key not in b:
@@ -158,12 +360,17 @@ def main() -> int:
             return 1
         instructions, cycles = b[key]
         worst = m[key]
-        ok = worst <= instructions + CALL_SITE
+        if key not in window:
+            print(f"check_bound: no counted call of {names[key]} in {a.elf} (no two SysTick readings straight "
+                  "around it)", file=sys.stderr)
+            return 2
+        w = window[key]
+        ok = worst <= instructions + w
         failed = failed or not ok
         print(f"{'ok:  ' if ok else 'over:'} {key[0]} {key[1]}: measured {worst} {'<=' if ok else '>'} bound {instructions} "
-              f"(+{CALL_SITE} call site) instructions; bound {cycles} cycles")
+              f"+ window {w} instructions; bound {cycles} cycles")
         row = {"scene": key[0], "variant": key[1], "measured_max": worst, "measured_max_bundled": m_bundled.get(key, 0),
-               "bound_instructions": instructions, "bound_cycles": cycles}
+               "bound_instructions": instructions, "bound_cycles": cycles, "window": w}
         if a.min_witness is not None and 100 * worst < a.min_witness * instructions:
             failed = True
             print(f"loose: {key[0]} {key[1]}: the dearest tick measured, {worst}, is {100 * worst / instructions:.1f} % "

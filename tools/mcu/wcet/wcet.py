@@ -12,14 +12,35 @@ each edge is taken (flow conservation, one entry, each loop's back edges at most
 its entries), solved by GLPK's glpsol, once for instructions and once for cycles. A callee's own
 bound is a constant cost of its call site (context-insensitive: sound, maybe loose).
 
-Cycles: the Cortex-M3 Technical Reference Manual's instruction timings (r2p1, table 3-1 "Cortex-M3
-instruction set summary"), worst case of each range (UMULL 5, UDIV/SDIV 12, a taken branch or a
-write of the PC 1 + 3 for the pipeline refill), with its "Load/store timings" rules for what a
-load or store costs after the instruction before it (a stall +1 when a data-processing result is
-its address, +1 for a PC-relative load, -1 for a load or store pipelined after a load: see
-pair_cycles), plus WAIT cycles for every instruction fetch and every data word moved (a
-pessimistic model of wait states; 0 for the AN385's SRAM). No interrupt is assumed inside the
-function.
+Cycles: the strict model, the Cortex-M3 Technical Reference Manual's timings (r2p1, section 3.3
+and table 3-1 "Cortex-M3 instruction set summary") with every range at its top and no optimistic
+credit. Per instruction, plus WAIT cycles (--wait-states) per instruction fetch and per data word
+moved:
+- data processing (MOV, MVN, ADD/ADC/SUB/SBC/RSB, AND/ORR/EOR/BIC/ORN, shifts, CMP/CMN/TST/TEQ,
+  NEG, CLZ, RBIT, REV*, SXT*/UXT*, UBFX/SBFX/BFI/BFC, SSAT/USAT, MOVW/MOVT, ADR, NOP, IT): 1;
+- MUL 1, MLA/MLS 2, UMULL/SMULL 5 ("3-5"), UMLAL/SMLAL 7 ("4-7"), UDIV/SDIV 12 ("2-12");
+- MRS, MSR, CPSID/CPSIE 2 ("1 or 2");
+- LDR/STR and their byte, halfword and exclusive forms 2; LDRD/STRD 3; LDM/STM/PUSH/POP 1 + N;
+- a taken branch or any write of the PC (B, BL, BX, CBZ/CBNZ taken, POP {..pc}, LDR pc) + P,
+  P = 3 ("1 to 3" for the pipeline refill); a conditional branch not taken 1.
+What an instruction costs after the one before it (3.3.1 "Load/store timings", pair_cycles):
++1 for a load or store whose address register the data processing straight before it wrote (an
+IT looked through; a conditional instruction may not run, so the one before it counts too);
++1 for a load that may read the code region (0x00000000-0x1FFFFFFF, where the D-code bus shares
+the memory with instruction fetch): a PC-relative load always ("might add a cycle because of
+contention with the fetch unit"), every load when the image has data there (an allocated,
+non-empty, non-executable section other than `.vectors`, from the ELF's section headers:
+Image.data_in_code); no -1 for a load or store pipelined after a load ("when possible" is no
+guarantee: wait states, the write buffer and the other bus master decide it). Where a block's
+first instruction may follow more than one instruction, the dearest (a branch writes no
+register: the instruction laid out before it).
+
+Assumptions left (what the bound does not cover): WAIT wait states on every fetch and data word
+and no other stall (0 for the AN385's zero-wait-state SSRAM; a board with wait states or a
+flash accelerator needs its own --wait-states); no interrupt or exception inside the function
+(its entry, handler and exit, and an exclusive monitor cleared by one, are not counted); no
+other bus master (DMA, a debugger) contending for the buses; every data access aligned (an
+unaligned one takes more bus transfers; CCR.UNALIGN_TRP, ARMv7-M B3.2.8, makes it fault instead).
 
 --path LABEL says where a bound goes: the longest path (in instructions) that the bound counts,
 as instructions per source line (addr2line: the innermost inlined function's line), adding up to
@@ -28,7 +49,9 @@ need take (context-insensitive), and where a witness input would start.
 
 It refuses (exit status 2, naming the function and address) what it cannot bound: a loop without
 annotation, an irreducible cycle, an indirect branch or call, a jump table, recursion, a call to
-an address outside any function.
+an address outside any function; SVC, BKPT, WFI, WFE, SEV, DMB, DSB and ISB (an exception entry,
+a wait or a barrier: no cycles of its own bound them; a halt like `b .` or UDF that ends a trap
+stays a halt); and any instruction the model does not know (never a silent 1).
 """
 from __future__ import annotations
 
@@ -42,6 +65,7 @@ import tempfile
 from dataclasses import dataclass, field
 
 LOOP_SECTION = ".toonforce.loop_bounds"
+CODE_REGION_END = 0x20000000  # ARMv7-M's system address map (B3.1): the Code region ends here
 
 
 class Refusal(Exception):
@@ -80,6 +104,8 @@ class Image:
         self._read_symbols()
         self._read_code()
         self.bounds = self._read_bounds()
+        self.data_sections = self._read_data_in_code()
+        self.data_in_code = bool(self.data_sections)
 
     def _run(self, *args: str) -> str:
         return subprocess.run([self.objdump, *args, self.elf], check=True, capture_output=True, text=True).stdout
@@ -87,8 +113,11 @@ class Image:
     def _read_symbols(self) -> None:
         # objdump -t -C: "ADDR l/g  F .text  SIZE NAME"
         sizes: dict[int, tuple[int, str]] = {}
+        self._named_sections = set()  # sections some symbol other than their own lies in
         for line in self._run("-t", "-C").splitlines():
             m = re.match(r"^([0-9a-f]{8}) (.{7}) (\S+)\s+([0-9a-f]{8}) (.*)$", line)
+            if m and "d" not in m.group(2):
+                self._named_sections.add(m.group(3))
             if not m or "F" not in m.group(2):
                 continue
             addr = int(m.group(1), 16) & ~1
@@ -100,6 +129,7 @@ class Image:
 
     def _read_code(self) -> None:
         current = None
+        self.words: dict[int, int] = {}  # literal pool words by address
         for line in self._run("-d", "-C", "--no-show-raw-insn").splitlines():
             fm = _FUNC.match(line)
             if fm:
@@ -115,6 +145,8 @@ class Image:
                 mnemonic = m.group(2)
                 operands = re.sub(r"\s*[;@].*$", "", m.group(3)).strip()
                 if mnemonic.startswith("."):  # literal pool words ($d), not instructions
+                    if mnemonic == ".word" and re.match(r"^0x[0-9a-f]+$", operands):
+                        self.words[addr] = int(operands, 16)
                     continue
                 current.insns.append(Insn(addr, 0, mnemonic, operands, line.strip()))
         for f in self.functions.values():
@@ -123,6 +155,29 @@ class Image:
                 insn.size = 4 if (".w" in insn.mnemonic or (nxt is not None and nxt - insn.addr == 4)) else 2
             if f.end <= f.start and f.insns:  # no size in the symbol table: up to its last instruction
                 f.end = f.insns[-1].addr + f.insns[-1].size
+
+    def _read_data_in_code(self) -> list:
+        """The sections that put data in the code region (0x00000000-0x1FFFFFFF, where a load
+        contends with instruction fetch), from the ELF's section headers (readelf -S): allocated,
+        not executable and not empty. Empty: no bytes, or alignment padding (no contents, under a
+        word and no symbol in it: what a linker script's ALIGN(4) leaves after no input).
+        `.vectors` is no such data: the core reads it on an exception entry, no load in a
+        function does. Literal pools are inside the executable code (charged as PC-relative)."""
+        readelf = self.objdump.replace("objdump", "readelf")
+        out = subprocess.run([readelf, "-S", "-W", self.elf], check=True, capture_output=True, text=True).stdout
+        found = []
+        for line in out.splitlines():
+            m = re.match(r"^\s*\[\s*\d+\]\s+(\S+)\s+(\S+)\s+([0-9a-f]+)\s+[0-9a-f]+\s+([0-9a-f]+)\s+[0-9a-f]+\s+"
+                         r"([A-Za-z]*)\s+\d+\s+\d+\s+\d+$", line)
+            if not m:
+                continue
+            name, kind, addr, size, flags = m.group(1), m.group(2), int(m.group(3), 16), int(m.group(4), 16), m.group(5)
+            if "A" not in flags or "X" in flags or addr >= CODE_REGION_END or name == ".vectors":
+                continue
+            if size == 0 or (kind == "NOBITS" and size < 4 and name not in self._named_sections):
+                continue
+            found.append(name)
+        return found
 
     def _read_bounds(self) -> list[tuple[int, int]]:
         out = subprocess.run([self.objdump, "-s", "-j", LOOP_SECTION, self.elf], capture_output=True, text=True)
@@ -170,6 +225,48 @@ class Image:
 
 
 # ---- instruction classes and the TRM's timings -------------------------------------------------
+#
+# The strict model: the Cortex-M3 Technical Reference Manual r2p1, section 3.3 and table 3-1
+# ("Cortex-M3 instruction set summary"), every range at its top and no optimistic credit.
+
+_DATA_PROCESSING = {
+    "mov", "mvn", "add", "addw", "adc", "sub", "subw", "sbc", "rsb", "and", "orr", "eor", "bic", "orn", "lsl", "lsr",
+    "asr", "ror", "rrx", "cmp", "cmn", "tst", "teq", "neg", "clz", "rbit", "rev", "rev16", "revsh", "sxth", "sxtb",
+    "uxth", "uxtb", "ubfx", "sbfx", "bfi", "bfc", "ssat", "usat", "movw", "movt", "adr", "nop",
+}
+# Own cycles of what is not a load, a store or a branch (table 3-1, the top of each range):
+# MUL 1, MLA/MLS 2, UMULL/SMULL "3-5", UMLAL/SMLAL "4-7", UDIV/SDIV "2-12", and MRS, MSR,
+# CPSID/CPSIE "1 or 2" (the core may wait for the previous instruction's flags or registers).
+_OWN = {op: 1 for op in _DATA_PROCESSING} | {
+    "mul": 1, "mla": 2, "mls": 2, "umull": 5, "smull": 5, "umlal": 7, "smlal": 7, "udiv": 12, "sdiv": 12,
+    "mrs": 2, "msr": 2, "cpsid": 2, "cpsie": 2,
+}
+_FLAG_SETTING = _DATA_PROCESSING | {"mul", "umull", "smull", "umlal", "smlal"}  # take an "s" (ADDS, MULS)
+_SINGLE_LOADS = {"ldr", "ldrb", "ldrh", "ldrsb", "ldrsh", "ldrex", "ldrexb", "ldrexh"}
+_SINGLE_STORES = {"str", "strb", "strh", "strex", "strexb", "strexh"}
+_MULTIPLE_LOADS = {"pop", "ldm", "ldmia", "ldmfd", "ldmdb", "ldmea"}
+_MULTIPLE_STORES = {"push", "stm", "stmia", "stmea", "stmdb", "stmfd"}
+_LOADS = _SINGLE_LOADS | _MULTIPLE_LOADS | {"ldrd"}
+_MEMORY = _LOADS | _SINGLE_STORES | _MULTIPLE_STORES | {"strd"}
+_BRANCHES = {"b", "bl", "bx", "cbz", "cbnz"}
+_INDIRECT = {"blx", "tbb", "tbh"}  # refused by the control-flow graph (a target the disassembly lacks)
+_HALTS = {"udf"}                   # a trap's end: the run stops there
+# Refused in a counted function: what waits for something outside it (an event, an interrupt, the
+# bus draining) or hands the core to an exception, so that no cycle count of its own bounds it.
+_REFUSED = {
+    "svc": "a supervisor call (an exception entry and a handler outside the analysis)",
+    "bkpt": "a breakpoint (halts the core or enters the debug monitor)",
+    "wfi": "a wait for an interrupt (unbounded)",
+    "wfe": "a wait for an event (unbounded)",
+    "sev": "an event sent (wakes a core that waits: a side effect outside the analysis)",
+    "dmb": "a memory barrier (waits for the bus to drain: no bound in table 3-1)",
+    "dsb": "a memory barrier (waits for the bus to drain: no bound in table 3-1)",
+    "isb": "a barrier that flushes the pipeline (no bound in table 3-1)",
+}
+_KNOWN = (set(_OWN) | _MEMORY | _BRANCHES | _INDIRECT | _HALTS | set(_REFUSED) | {"it"})
+_BASES = _KNOWN | {op + "s" for op in _FLAG_SETTING}
+_IT = re.compile(r"^it[te]{0,3}$")
+
 
 def split_mnemonic(mnemonic: str) -> tuple[str, str]:
     """(base, condition) of objdump's mnemonic: "bne.n" -> ("b", "ne"), "popeq" -> ("pop", "eq")."""
@@ -177,22 +274,33 @@ def split_mnemonic(mnemonic: str) -> tuple[str, str]:
     for c in _CONDS:
         if base.endswith(c) and len(base) > len(c):
             stem = base[: -len(c)]
-            # "bls", "bhi", "teq", "bics", "vmls" and "mls" must not split wrongly: stems that are
-            # instructions with a condition. Known ambiguous stems resolved by the list below.
+            # "bls", "bhi", "teq", "bics", "adcs" and "mls" must not split wrongly: only a stem that
+            # is an instruction takes a condition.
             if stem in _BASES:
                 return stem, c
     return base, ""
 
 
-_BASES = {
-    "b", "bl", "bx", "blx", "pop", "push", "ldm", "ldmia", "ldmfd", "ldr", "ldrb", "ldrh", "ldrsb", "ldrsh", "ldrd",
-    "str", "strb", "strh", "strd", "stm", "stmia", "stmdb", "ldmdb", "mov", "movs", "movw", "movt", "mvn", "mvns",
-    "add", "adds", "adc", "adcs", "sub", "subs", "sbc", "sbcs", "rsb", "rsbs", "and", "ands", "orr", "orrs", "orn",
-    "orns", "eor", "eors", "bic", "bics", "lsl", "lsls", "lsr", "lsrs", "asr", "asrs", "ror", "rors", "rrx", "rrxs",
-    "cmp", "cmn", "tst", "teq", "mul", "muls", "mla", "mls", "umull", "smull", "umlal", "smlal", "udiv", "sdiv",
-    "clz", "rbit", "rev", "rev16", "revsh", "sxth", "sxtb", "uxth", "uxtb", "ubfx", "sbfx", "bfi", "bfc", "ssat",
-    "usat", "neg", "negs", "nop", "adr", "ldrex", "strex", "ldrexb", "strexb", "ldrexh", "strexh",
-}
+def operation(insn: Insn) -> str | None:
+    """The instruction's operation as the model names it ("adds.w" -> "add", "ittt" -> "it"), or
+    None when the model does not know it."""
+    base, _ = split_mnemonic(insn.mnemonic)
+    if _IT.match(base):
+        return "it"
+    if base in _KNOWN:
+        return base
+    if base.endswith("s") and base[:-1] in _FLAG_SETTING:
+        return base[:-1]
+    return None
+
+
+def check_known(insn: Insn, where) -> None:
+    """Refuses (Refusal) what the model has no cycles for, and what it refuses outright."""
+    op = operation(insn)
+    if op is None:
+        raise Refusal(f"an instruction the cycle model does not know `{insn.mnemonic} {insn.operands}` at {where()}")
+    if op in _REFUSED:
+        raise Refusal(f"`{insn.mnemonic} {insn.operands}`, {_REFUSED[op]}, at {where()}")
 
 
 def reg_list_len(operands: str) -> int:
@@ -207,40 +315,36 @@ def reg_list_len(operands: str) -> int:
     return n
 
 
-PIPELINE_REFILL = 3  # P: 1 to 3 cycles to refill the pipeline after a taken branch (TRM), worst
+PIPELINE_REFILL = 3  # P: "1 to 3" cycles to refill the pipeline after a taken branch (TRM table 3-1), the top
 
 
 def writes_pc(base: str, operands: str) -> bool:
-    if base in ("pop", "ldm", "ldmia", "ldmfd", "ldmdb"):
+    if base in _MULTIPLE_LOADS:
         return "pc" in operands
     first = operands.split(",")[0].strip()
-    return first == "pc" and base not in ("str", "strb", "strh", "strd", "cmp", "cmn", "tst", "teq", "push", "stm")
+    return first == "pc" and base not in _SINGLE_STORES | _MULTIPLE_STORES | {"strd", "cmp", "cmn", "tst", "teq"}
 
 
 def cycles(insn: Insn, wait: int) -> tuple[int, int]:
-    """(cycles when it does not branch, extra cycles when it does) for one instruction."""
+    """(cycles when it does not branch, extra cycles when it does) for one instruction, on its
+    own (pair_cycles adds what it costs after the one before it)."""
+    op = operation(insn)
     base, _ = split_mnemonic(insn.mnemonic)
     ops = insn.operands
     fetch = wait  # each instruction fetched once (pessimistic: two 16-bit ones share a word)
-    if base in ("umull", "smull"):
-        c = 5
-    elif base in ("umlal", "smlal"):
-        c = 7
-    elif base in ("udiv", "sdiv"):
-        c = 12
-    elif base in ("mla", "mls"):
-        c = 2
-    elif base in ("ldr", "ldrb", "ldrh", "ldrsb", "ldrsh", "str", "strb", "strh") or base.startswith(("ldrex", "strex")):
-        c = 2 + wait
-    elif base in ("ldrd", "strd"):
-        c = 3 + 2 * wait
-    elif base in ("push", "pop", "ldm", "ldmia", "ldmfd", "ldmdb", "stm", "stmia", "stmdb"):
+    if op in _SINGLE_LOADS or op in _SINGLE_STORES:
+        c = 2 + wait                      # LDR/STR and their byte, halfword and exclusive forms: 2
+    elif op in ("ldrd", "strd"):
+        c = 3 + 2 * wait                  # LDRD/STRD: 1 + N, N = 2
+    elif op in _MULTIPLE_LOADS or op in _MULTIPLE_STORES:
         n = reg_list_len(ops)
-        c = 1 + n + n * wait
+        c = 1 + n + n * wait              # LDM/STM/PUSH/POP: 1 + N
+    elif op in _OWN:
+        c = _OWN[op]
     else:
-        c = 1
+        c = 1                             # B, BL, BX, CBZ/CBNZ, IT, UDF: 1 (+ P below when they branch)
     taken = 0
-    if base in ("b", "bl", "bx", "blx", "cbz", "cbnz") or writes_pc(base, ops):
+    if op in _BRANCHES or writes_pc(base, ops):
         taken = PIPELINE_REFILL
     return c + fetch, taken
 
@@ -248,22 +352,17 @@ def cycles(insn: Insn, wait: int) -> tuple[int, int]:
 # The TRM's "Load/store timings" (r2p1, 3.3.1) change a load's or store's cost by what ran just
 # before it, so a block's cycles are not only the sum of its instructions' own:
 # - "Any load or store that generates an address dependent on the result of a preceding data
-#   processing operation will stall the pipeline for an additional cycle": +1;
-# - "LDR Rx,[PC,#imm] might add a cycle because of contention with the fetch unit": +1;
-# - "LDR [any] are pipelined when possible ... if the next instruction is an LDR or STR, and the
-#   destination of the first LDR is not used to compute the address for the next instruction,
-#   then one cycle is removed from the cost of the next instruction": -1, taken only where it
-#   surely applies (both unconditional single loads/stores without writeback, neither PC-relative,
-#   one straight after the other inside a block, zero wait states: the TRM's timings assume none).
-# STR Rx,[Ry,#imm]'s single cycle through the write buffer is not taken (whether the buffer can
-# accept depends on the bus: a store stays at 2).
+#   processing operation will stall the pipeline for an additional cycle": +1 (any instruction
+#   that writes a register and is not a load, a store or a branch counts as data processing);
+# - "LDR Rx,[PC,#imm] might add a cycle because of contention with the fetch unit": +1, and the
+#   same for every load that may read the code region (0x00000000-0x1FFFFFFF), where the D-code
+#   bus shares the memory with instruction fetch: every load when the image has data there
+#   (code_loads: Image.data_in_code), PC-relative loads only when all its data is above;
+# - "LDR [any] are pipelined when possible": NOT taken (no -1). "When possible" is no guarantee:
+#   wait states, the write buffer and the other bus master decide it, and none is known here.
+# STR Rx,[Ry,#imm]'s single cycle through the write buffer is not taken either (whether the
+# buffer can accept depends on the bus): a store stays at 2.
 
-_SINGLE_LOADS = ("ldr", "ldrb", "ldrh", "ldrsb", "ldrsh")
-_SINGLE_STORES = ("str", "strb", "strh")
-_MEMORY = _SINGLE_LOADS + _SINGLE_STORES + ("ldrd", "strd", "push", "pop", "ldm", "ldmia", "ldmfd", "ldmdb",
-                                            "stm", "stmia", "stmdb")
-_NOT_DATA_PROCESSING = _MEMORY + ("b", "bl", "bx", "blx", "cbz", "cbnz", "cmp", "cmn", "tst", "teq", "it",
-                                  "nop", "dmb", "dsb", "isb", "udf", "bkpt", "svc", "wfi", "wfe", "sev")
 _ALIASES = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12", "sp": "r13", "lr": "r14", "pc": "r15"}
 
 
@@ -272,17 +371,17 @@ def _registers(text: str) -> set:
 
 
 def _is_it(insn: Insn) -> bool:
-    return insn.mnemonic.startswith("it")
+    return operation(insn) == "it"
 
 
 def address_registers(insn: Insn) -> set:
     """The registers a load or store computes its address from (empty for anything else)."""
-    base, _ = split_mnemonic(insn.mnemonic)
-    if base in ("push", "pop"):
+    op = operation(insn)
+    if op in ("push", "pop"):
         return {"r13"}
-    if base.startswith(("ldm", "stm")):
+    if op in _MULTIPLE_LOADS or op in _MULTIPLE_STORES:
         return _registers(insn.operands.split(",")[0])
-    if base in _MEMORY or base.startswith(("ldrex", "strex")):
+    if op in _MEMORY:
         m = re.search(r"\[([^\]]*)\]", insn.operands)
         return _registers(m.group(1)) if m else set()
     return set()
@@ -291,55 +390,70 @@ def address_registers(insn: Insn) -> set:
 def data_processing_writes(insn: Insn) -> set:
     """The registers a data-processing instruction writes (empty for loads, stores, branches,
     compares and hints)."""
-    base, _ = split_mnemonic(insn.mnemonic)
-    if base in _NOT_DATA_PROCESSING or base.startswith(("ldrex", "strex", "it")):
+    op = operation(insn)
+    if op not in _OWN or op in ("cmp", "cmn", "tst", "teq", "nop", "msr", "cpsid", "cpsie"):
         return set()
     fields = [f.strip() for f in insn.operands.split(",")]
-    written = fields[:2] if base in ("umull", "smull", "umlal", "smlal") else fields[:1]
+    written = fields[:2] if op in ("umull", "smull", "umlal", "smlal") else fields[:1]
     return _registers(",".join(written))
 
 
-def _pipelinable(insn: Insn, loads_only: bool) -> bool:
-    base, cond = split_mnemonic(insn.mnemonic)
-    kinds = _SINGLE_LOADS if loads_only else _SINGLE_LOADS + _SINGLE_STORES
-    ops = insn.operands
-    return (base in kinds and not cond and "!" not in ops and not re.search(r"\]\s*,", ops)
-            and "r15" not in address_registers(insn))
+def is_load(insn: Insn) -> bool:
+    return operation(insn) in _LOADS
 
 
-def pair_cycles(prev: Insn | None, insn: Insn, wait: int, credit: bool = True) -> int:
-    """Cycles `insn` costs beyond cycles(insn) when `prev` ran straight before it (None: unknown,
-    or a branch, a call or a return: no pairing). `credit`: whether a pipelining credit may be
-    taken (not when `prev` only may have run just before)."""
+def pair_cycles(written: set, insn: Insn, code_loads: bool) -> int:
+    """Cycles `insn` costs beyond cycles(insn) when the data processing that may have run just
+    before it wrote the registers `written` (empty: none, or a branch, a call or a return)."""
     address = address_registers(insn)
     if not address:
         return 0
-    extra = 1 if "r15" in address else 0
-    if prev is None:
-        return extra
-    if data_processing_writes(prev) & address:
-        return extra + 1
-    if (credit and wait == 0 and _pipelinable(prev, loads_only=True) and _pipelinable(insn, loads_only=False)
-            and not (_registers(prev.operands.split(",")[0]) & address)):
-        return extra - 1
+    extra = 1 if is_load(insn) and ("r15" in address or code_loads) else 0
+    if written & address:
+        extra += 1
     return extra
 
 
-def block_cycles(insns: list, before: Insn | None, wait: int) -> int:
+def _conditional(insn: Insn) -> bool:
+    """A conditional instruction that is not a branch (in an IT block): it may not run, and then
+    the instruction before it is the one just before the next."""
+    base, cond = split_mnemonic(insn.mnemonic)
+    return bool(cond) and operation(insn) not in _BRANCHES
+
+
+def written_before(insns: list, k: int) -> set:
+    """The registers the data processing that may run just before insns[k] (laid out before it,
+    falling through) writes: the instruction before it, looking through an IT, and through a
+    conditional one to the one before it too (either may be the last to run: the dearest)."""
+    written: set = set()
+    j = k - 1
+    while j >= 0:
+        insn = insns[j]
+        j -= 1
+        if _is_it(insn):
+            continue
+        written |= data_processing_writes(insn)
+        if not _conditional(insn):
+            break
+    return written
+
+
+def block_cycles(insns: list, before: set, wait: int, code_loads: bool) -> int:
     """A block's cycles when it does not branch: its instructions' own, and what each pairs with
-    the one before it (an IT folds into the instruction after it: looked through). `before`: the
-    instruction laid out just before the block, which may have run just before its first one
-    (or a branch did): a stall counts, a pipelining credit does not."""
+    the one before it (an IT looked through). `before`: what written_before gives for its first
+    instruction (a branch into it writes no register: the fall-through is the dearest)."""
     total = 0
-    prev, first = before, True
+    written = set(before)
     for insn in insns:
         total += cycles(insn, wait)[0]
         if _is_it(insn):
             continue
-        total += pair_cycles(prev, insn, wait, credit=not first)
-        prev, first = insn, False
+        total += pair_cycles(written, insn, code_loads)
+        if _conditional(insn):
+            written |= data_processing_writes(insn)
+        else:
+            written = data_processing_writes(insn)
     return total
-
 
 # ---- control-flow graph of one function --------------------------------------------------------
 
@@ -388,7 +502,7 @@ def _classify(insn: Insn) -> tuple[str, int | None]:
         if base == "ldr" and re.match(r"^pc,\s*\[sp\],\s*#4$", ops):
             return ("creturn" if cond else "return"), None
         return "indirect", None
-    if base in ("udf", "bkpt"):
+    if base in _HALTS:
         return "halt", None
     return "plain", None
 
@@ -404,6 +518,7 @@ class Cfg:
         leaders = {insns[0].addr}
         kinds = []
         for k, insn in enumerate(insns):
+            check_known(insn, lambda: image.where(insn.addr))
             kind, target = _classify(insn)
             if kind == "indirect":
                 raise Refusal(f"indirect branch or call `{insn.mnemonic} {insn.operands}` at {image.where(insn.addr)}")
@@ -746,10 +861,8 @@ class Analysis:
             laid_out = {insn.addr: k for k, insn in enumerate(func.insns)}
             for b, blk in cfg.blocks.items():
                 n = len(blk.insns)
-                k = laid_out[b] - 1
-                while k >= 0 and _is_it(func.insns[k]):
-                    k -= 1
-                cyc = block_cycles(blk.insns, func.insns[k] if k >= 0 else None, self.wait)
+                before = written_before(func.insns, laid_out[b])
+                cyc = block_cycles(blk.insns, before, self.wait, self.image.data_in_code)
                 last = blk.insns[-1]
                 taken_cost[b] = cycles(last, self.wait)[1]
                 # a call's branch and its return's refill are both taken branches
