@@ -115,6 +115,24 @@ foreach(image IN LISTS _mcu_images)
   set_tests_properties(mcu_m3_wcet_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image}
     FIXTURES_SETUP mcu_m3_wcet_${image})
 endforeach()
+# A second, independent worst case (wcet/longest_path.py: LLVM's llvm-objdump as the decoder, its
+# own reading of the ELF, a plain longest path on the acyclic graph once loops are collapsed, no
+# solver) must give exactly wcet.py's instructions and cycles for every counted function of every
+# image, with 0 and 1 wait states: a decoding or graph error of either shows as a difference.
+# Its own tests first (small functions assembled here, each figure derived by hand).
+find_program(TOONFORCE_LLVM_OBJDUMP llvm-objdump REQUIRED)
+add_test(NAME mcu_m3_wcet_longest_path COMMAND /usr/bin/python3 ${_wcet}/test_longest_path.py)
+set_tests_properties(mcu_m3_wcet_longest_path PROPERTIES LABELS mcu
+  ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests;TOONFORCE_LLVM_OBJDUMP=${TOONFORCE_LLVM_OBJDUMP}")
+foreach(image IN LISTS _mcu_images _mcu_size_images)
+  set(entries)
+  if(image MATCHES "^size_")  # a size image holds replay's loop only
+    set(entries --entry "loop=::spec_tick\\(")
+  endif()
+  add_test(NAME mcu_m3_wcet_agree_${image} COMMAND /usr/bin/python3 ${_wcet}/compare_bounds.py
+    ${_mcu_m3_dir}/${image}.elf --wait-states 0,1 --llvm-objdump ${TOONFORCE_LLVM_OBJDUMP} ${entries})
+  set_tests_properties(mcu_m3_wcet_agree_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
 # docs/PERFORMANCE.md's bounds table is the one the scene images give (bounds_table.py --write
 # puts it there): no figure of it drifts from the code.
 set(_bound_jsons)
