@@ -92,11 +92,13 @@ def loop_annotations(sections: list) -> list:
 
 def data_in_code_region(sections: list) -> bool:
     """Whether any allocated, non-executable section lies in the Code region (where a load
-    competes with instruction fetch for the code memory, TRM 3.3.1). Not data: an empty section,
-    and a NOBITS one under a word (the padding a linker script's ALIGN(4) leaves after no input)."""
+    competes with instruction fetch for the code memory, TRM 3.3.1). Not data a load reads: an
+    empty section, a NOBITS one under a word (the padding a linker script's ALIGN(4) leaves
+    after no input), and the vector table (.vectors), which the exception entry reads (ARMv7-M
+    ARM B1.5.6), not a load instruction."""
     return any(flags & SHF_ALLOC and not flags & SHF_EXECINSTR and addr < CODE_REGION_END
-               and size and not (stype == SHT_NOBITS and size < 4)
-               for _, addr, size, flags, stype, _ in sections)
+               and size and not (stype == SHT_NOBITS and size < 4) and name != ".vectors"
+               for name, addr, size, flags, stype, _ in sections)
 
 
 # ---- the disassembly, read from llvm-objdump --------------------------------------------------
@@ -559,6 +561,15 @@ class Program:
             bound[h] = n
             marked[h].add(b)
         for h in sorted(loops):
+            ops = [i.op for i in blocks[h]["ins"]]
+            if h not in bound and loops[h] == {h} and len(ops) <= 5 and ops[0] in ("ldrex", "ldrexb", "ldrexh") \
+                    and any(o.startswith("strex") for o in ops) and ops[-1] in ("b", "cbnz"):
+                # An exclusive load/store retry (std::atomic's exchange), one block: the store fails
+                # only when the local monitor was cleared in between, which on one core takes an
+                # exception entry or return (ARMv7-M ARM A3.4, "Synchronization and semaphores");
+                # with no interrupt inside the function (the analysis's assumption) it runs once.
+                bound[h] = 1
+                marked[h].add(h)
             if h not in bound:
                 raise Refused(f"loop without a bound: header {self.where(f, h)}")
         # loop nesting: a loop's parent is the smallest other loop holding its header

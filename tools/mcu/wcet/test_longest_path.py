@@ -83,6 +83,11 @@ class Paths(unittest.TestCase):
                 "4:\tnop\n\tnop\n\tnop\n\tnop\n\tbx lr\n3:\tbx lr\n")
         self.assertEqual(bound("mark_exit", body, bounds_of("2b, 3")), (23, 37))
 
+    def test_exclusive_retry_runs_once(self):
+        """An LDREX/STREX retry without interrupts: once. ldrexb 2, strexb 2, cmp 1, bne 1, bx 4."""
+        body = "1:\tldrexb r3, [r0]\n\tstrexb r2, r1, [r0]\n\tcmp r2, #0\n\tbne 1b\n\tbx lr\n"
+        self.assertEqual(bound("exclusive", body), (5, 10))
+
     def test_nested_loops_collapse_innermost_first(self):
         """4 x 3: 1 + 4 + 12 x 2 + 4 x 2 + 1 = 38; cycles 1 + 4 + 24 + 8 x 3 + 8 + 3 x 3 + 4 = 74."""
         body = "\tmovs r2, #4\n1:\tmovs r3, #3\n2:\tsubs r3, #1\n\tbne 2b\n\tsubs r2, #1\n\tbne 1b\n\tbx lr\n"
@@ -92,6 +97,11 @@ class Paths(unittest.TestCase):
         """push 3, 2 x (bl 1 + 3 + leaf (1 + 4)), pop with pc 1 + 2 + 3: 8 instructions, 27 cycles."""
         leaf = "\t.type leaf, %function\nleaf:\n\tadds r0, #1\n\tbx lr\n\t.size leaf, .-leaf\n"
         self.assertEqual(bound("call", "\tpush {r4, lr}\n\tbl leaf\n\tbl leaf\n\tpop {r4, pc}\n", leaf), (8, 27))
+
+    def test_tail_call_is_one_taken_branch(self):
+        """adds 1, b leaf 1 + 3 (one refill: the b's), leaf adds 1, bx 1 + 3: 4 instructions, 10."""
+        leaf = "\t.type leaf, %function\nleaf:\n\tadds r0, #1\n\tbx lr\n\t.size leaf, .-leaf\n"
+        self.assertEqual(bound("tail", "\tadds r0, #1\n\tb leaf\n", leaf), (4, 10))
 
     def test_a_halt_ends_the_path(self):
         """cmp, bne + 3 to a halt (`b .`, 1): the return path cmp, bne, movs, bx (4 / 7) against
@@ -142,6 +152,8 @@ class Cycles(unittest.TestCase):
         body = "\tldr r1, [r0]\n\tbx lr\n"
         self.assertEqual(bound("code_data_none", body), (2, 6))
         self.assertEqual(bound("code_data", body, '\t.section .rodata\n\t.word 1\n'), (2, 7))
+        # a vector table there is no data a load reads (the exception entry reads it)
+        self.assertEqual(bound("code_vectors", body, '\t.section .vectors,"a"\n\t.word 1\n'), (2, 6))
 
     def test_wait_states_per_fetch_and_per_word(self):
         """W = 1: push {r4, lr} 3 + 3, pop {r4, pc} 3 + 3 + P 3: 15; W = 0: 9."""
