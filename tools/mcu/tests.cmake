@@ -115,6 +115,27 @@ foreach(image IN LISTS _mcu_images)
   set_tests_properties(mcu_m3_wcet_bound_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_${image}
     FIXTURES_SETUP mcu_m3_wcet_${image})
 endforeach()
+# docs/PERFORMANCE.md's bounds table is the one the scene images give (bounds_table.py --write
+# puts it there): no figure of it drifts from the code.
+set(_bound_jsons)
+set(_bound_fixtures)
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  list(APPEND _bound_jsons ${_mcu_bin}/wcet/${scene}.json)
+  list(APPEND _bound_fixtures mcu_m3_wcet_${scene})
+endforeach()
+add_test(NAME mcu_m3_wcet_bounds_table COMMAND /usr/bin/python3 ${_wcet}/bounds_table.py
+  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_bound_jsons})
+set_tests_properties(mcu_m3_wcet_bounds_table PROPERTIES LABELS mcu FIXTURES_REQUIRED "${_bound_fixtures}")
+# And its breakdown of the every-stage bound by stage and by kind is the one the images give
+# (stages_table.py --write): the prose's "where the bound goes" cannot drift either.
+set(_stage_elfs)
+foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
+  list(APPEND _stage_elfs ${_mcu_m3_dir}/${scene}.elf)
+endforeach()
+add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_table.py
+  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
+set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
 # A second, independent worst case (wcet/longest_path.py: LLVM's llvm-objdump as the decoder, its
 # own reading of the ELF, a plain longest path on the acyclic graph once loops are collapsed, no
 # solver) must give exactly wcet.py's instructions and cycles for every counted function of every
@@ -139,27 +160,6 @@ if(EXISTS ${_mcu_src}/firmware/product.cpp)  # the interrupt-started image: its 
     --entry "handler=^SysTick_Handler$")
   set_tests_properties(mcu_m3_wcet_agree_product_cartoon_wall PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 endif()
-# docs/PERFORMANCE.md's bounds table is the one the scene images give (bounds_table.py --write
-# puts it there): no figure of it drifts from the code.
-set(_bound_jsons)
-set(_bound_fixtures)
-foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
-  list(APPEND _bound_jsons ${_mcu_bin}/wcet/${scene}.json)
-  list(APPEND _bound_fixtures mcu_m3_wcet_${scene})
-endforeach()
-add_test(NAME mcu_m3_wcet_bounds_table COMMAND /usr/bin/python3 ${_wcet}/bounds_table.py
-  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_bound_jsons})
-set_tests_properties(mcu_m3_wcet_bounds_table PROPERTIES LABELS mcu FIXTURES_REQUIRED "${_bound_fixtures}")
-# And its breakdown of the every-stage bound by stage and by kind is the one the images give
-# (stages_table.py --write): the prose's "where the bound goes" cannot drift either.
-set(_stage_elfs)
-foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
-  list(APPEND _stage_elfs ${_mcu_m3_dir}/${scene}.elf)
-endforeach()
-add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_table.py
-  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
-set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
-file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
 
 # No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table, for
 # every whole-loop image (measuring and size images: the loop, its device, its start-up) and
