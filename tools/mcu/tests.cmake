@@ -183,6 +183,30 @@ add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_
   --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
 set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
+# A second, independent worst case (wcet/longest_path.py: LLVM's llvm-objdump as the decoder, its
+# own reading of the ELF, a plain longest path on the acyclic graph once loops are collapsed, no
+# solver) must give exactly wcet.py's instructions and cycles for every counted function of every
+# image, with 0 and 1 wait states: a decoding or graph error of either shows as a difference.
+# Its own tests first (small functions assembled here, each figure derived by hand).
+find_program(TOONFORCE_LLVM_OBJDUMP llvm-objdump REQUIRED)
+add_test(NAME mcu_m3_wcet_longest_path COMMAND /usr/bin/python3 ${_wcet}/test_longest_path.py)
+set_tests_properties(mcu_m3_wcet_longest_path PROPERTIES LABELS mcu
+  ENVIRONMENT "WCET_TEST_DIR=${_mcu_bin}/wcet/tests;TOONFORCE_LLVM_OBJDUMP=${TOONFORCE_LLVM_OBJDUMP}")
+foreach(image IN LISTS _mcu_images _mcu_size_images)
+  set(entries)
+  if(image MATCHES "^size_")  # a size image holds replay's loop only
+    set(entries --entry "loop=::spec_tick\\(")
+  endif()
+  add_test(NAME mcu_m3_wcet_agree_${image} COMMAND /usr/bin/python3 ${_wcet}/compare_bounds.py
+    ${_mcu_m3_dir}/${image}.elf --wait-states 0,1 --llvm-objdump ${TOONFORCE_LLVM_OBJDUMP} ${entries})
+  set_tests_properties(mcu_m3_wcet_agree_${image} PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+endforeach()
+if(EXISTS ${_mcu_src}/firmware/product.cpp)  # the interrupt-started image: its handler is what is counted
+  add_test(NAME mcu_m3_wcet_agree_product_cartoon_wall COMMAND /usr/bin/python3 ${_wcet}/compare_bounds.py
+    ${_mcu_m3_dir}/product_cartoon_wall.elf --wait-states 0,1 --llvm-objdump ${TOONFORCE_LLVM_OBJDUMP}
+    --entry "handler=^SysTick_Handler$")
+  set_tests_properties(mcu_m3_wcet_agree_product_cartoon_wall PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
+endif()
 
 # No floating point in a Q16.16 image: no __aeabi_d*/__aeabi_f* helper in its symbol table, for
 # every whole-loop image (measuring and size images: the loop, its device, its start-up) and
