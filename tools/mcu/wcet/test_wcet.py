@@ -126,6 +126,12 @@ class Strict(unittest.TestCase):
         self.assertEqual(text_bound("skipped", "\tadds r3, r0, #4\n\tit eq\n\tmoveq r5, r6\n\tldr r0, [r3]\n"
                                                "\tbx lr\n"), (5, 10))
 
+    def test_a_tail_call_refills_once(self):
+        # adds 1, b leaf 1 + 3 (its taken edge; no second refill as for a BL), leaf: adds 1,
+        # bx lr 1 + 3: 4 instructions, 10 cycles (13 when the B were charged as a call too).
+        leaf = "\t.type leaf, %function\nleaf:\n\tadds r0, #1\n\tbx lr\n\t.size leaf, .-leaf\n"
+        self.assertEqual(text_bound("tail", "\tadds r0, #1\n\tb leaf\n", leaf), (4, 10))
+
     # A load from a register, a PC-relative load (of the address of a word of data in SECTION,
     # which keeps the word from --gc-sections), a return.
     CODE = "\tldr r0, [r1]\n\tldr r2, 1f\n\tbx lr\n\t.align 2\n1:\t.word datum\n"

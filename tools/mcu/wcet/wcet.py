@@ -865,11 +865,14 @@ class Analysis:
                 cyc = block_cycles(blk.insns, before, self.wait, self.image.data_in_code)
                 last = blk.insns[-1]
                 taken_cost[b] = cycles(last, self.wait)[1]
-                # a call's branch and its return's refill are both taken branches
-                for callee in blk.calls:
+                # A call's BL refills the pipeline (its return's refill is in the callee's bound);
+                # a tail call's B refills it too, but that is its block's taken edge to the exit,
+                # already charged there: not twice.
+                for callee, site in zip(blk.calls, blk.call_sites):
                     cb = self.bound(self.image.function_at(callee).start)
                     n += cb.instructions
-                    cyc += cb.cycles + PIPELINE_REFILL
+                    tail = blk.tail_call == callee and site == last.addr
+                    cyc += cb.cycles + (0 if tail else PIPELINE_REFILL)
                     callees.append(self.image.function_at(callee).name)
                 instr_cost[b] = n
                 cycle_cost[b] = cyc
