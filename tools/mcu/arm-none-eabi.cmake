@@ -5,6 +5,10 @@
 #   cortex-m4f  ARMv7E-M with the single-precision FPU (QEMU mps2-an386): hard-float ABI
 # C++ without exceptions, RTTI, thread-safe statics or atexit: none exists on the target.
 # No start files (the image brings its own vector table and reset code) and newlib-nano.
+# -mno-unaligned-access: every load and store the compiler emits is aligned to its size. By
+# default GCC merges neighbouring narrow stores into one that may be unaligned (two bool members
+# into a halfword store at an odd offset): an extra bus cycle on the M3 (TRM r2p1 3.3.1), and a
+# UsageFault with CCR.UNALIGN_TRP set, which the images' start-up sets (firmware/startup.cpp).
 set(CMAKE_SYSTEM_NAME Generic)
 set(CMAKE_SYSTEM_PROCESSOR arm)
 set(CMAKE_C_COMPILER arm-none-eabi-gcc)
@@ -23,6 +27,8 @@ elseif(TOONFORCE_MCU_CPU STREQUAL "cortex-m4f")
 else()
   message(FATAL_ERROR "TOONFORCE_MCU_CPU must be cortex-m3 or cortex-m4f, not '${TOONFORCE_MCU_CPU}'")
 endif()
+
+set(_toonforce_cpu_flags "${_toonforce_cpu_flags} -mno-unaligned-access")
 
 set(CMAKE_C_FLAGS_INIT "${_toonforce_cpu_flags} -ffunction-sections -fdata-sections")
 set(CMAKE_CXX_FLAGS_INIT

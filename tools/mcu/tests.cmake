@@ -238,6 +238,20 @@ add_test(NAME mcu_m3_q_bit_product_cartoon_wall COMMAND ${CMAKE_COMMAND} -DOBJDU
   -DIMAGE=${_mcu_m3_dir}/product_cartoon_wall.elf -P ${_mcu_src}/check_q_bit.cmake)
 set_tests_properties(mcu_m3_no_float_product_cartoon_wall mcu_m3_q_bit_product_cartoon_wall PROPERTIES LABELS mcu
   FIXTURES_REQUIRED mcu_m3_images)
+# The start-up's traps are live (firmware/startup.cpp sets CCR.UNALIGN_TRP and CCR.DIV_0_TRP
+# before anything else runs): a probe image doing one unaligned word load, and one dividing by
+# zero, must each end in its named UsageFault (QEMU 7.2 implements both for M-profile). With the
+# traps live, any unaligned access or division by zero in an image fails its run above.
+foreach(probe unaligned:UNALIGNED div0:DIVBYZERO)
+  string(REPLACE ":" ";" probe "${probe}")
+  list(GET probe 0 mode)
+  list(GET probe 1 fault)
+  add_test(NAME mcu_m3_trap_${mode}
+    COMMAND ${TOONFORCE_QEMU_ARM} -machine mps2-an385 -cpu cortex-m3 -display none -monitor none -serial none
+      -semihosting-config enable=on,target=native -kernel ${_mcu_m3_dir}/trap_probe_${mode}.elf)
+  set_tests_properties(mcu_m3_trap_${mode} PROPERTIES LABELS mcu TIMEOUT 60 FIXTURES_REQUIRED mcu_m3_images
+    PASS_REGULAR_EXPRESSION "trap: UsageFault ${fault} pc 0x[0-9a-f]+ cfsr" FAIL_REGULAR_EXPRESSION "no trap")
+endforeach()
 
 # No heap: an image that allocates does not link.
 add_test(NAME mcu_m3_heap_link_fails

@@ -151,7 +151,7 @@ class ServoLoop {
   /// One tick at `now`; with ServoConfig::time_from_stamps its stamp gives dt (replay).
   TickStatus tick(Instant now) noexcept {
     pins_.tick.toggle();
-    if constexpr (kIsFixed<S>) static_cast<void>(take_fixed_saturated());  // this tick's flag only
+    if constexpr (kIsFixed<S>) clear_fixed_saturated();  // this tick's flag only (read at its end)
     const TickTime time = clock_.advance(now);
 
     // In: the device, and whether force may flow at all.
@@ -196,7 +196,7 @@ class ServoLoop {
     if (derated) out.limits = out.limits | Limit::kThermal;
     if (reading.force_limited) out.limits = out.limits | Limit::kDeviceLimited;
     if constexpr (kIsFixed<S>) {
-      if (take_fixed_saturated()) out.faults.set(Fault::kFixedSaturation);
+      if (fixed_saturated()) out.faults.set(Fault::kFixedSaturation);
     }
     return finish(out, gate, read, write);
   }

@@ -60,7 +60,7 @@ template <typename A, typename B>
   if (!std::is_constant_evaluated()) asm("" : "+r"(a), "+r"(b));
 }
 
-// The flag's three operations, on whichever storage the target has. `raise_saturation_flag`
+// The flag's four operations, on whichever storage the target has. `raise_saturation_flag`
 // takes the saturated value, which sets the Q bit (below) and is ignored elsewhere.
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
 /// A bare-metal Arm core with SSAT (Armv7-M: the Cortex-M3 images) keeps the flag where the
@@ -83,6 +83,14 @@ inline void clear_saturation_flag() noexcept {
   std::uint32_t apsr;
   asm volatile("mrs %0, apsr" : "=r"(apsr));
   asm volatile("msr apsr_nzcvq, %0" : : "r"(apsr & ~(1U << 27)) : "cc");
+}
+/// Clears Q with N, Z, C and V, all at once: one MSR of zero and no MRS (MRS and MSR take up to
+/// 2 cycles each, Cortex-M3 TRM r2p1 table 3-1). The condition flags are clobbered ("cc"), so
+/// the compiler keeps nothing in them across it. The move of zero is in the same asm, so that
+/// tools/mcu/check_q_bit.cmake can tell this write of Q from any other.
+inline void reset_saturation_flag() noexcept {
+  std::uint32_t zero;
+  asm volatile("movs %0, #0\n\tmsr apsr_nzcvq, %0" : "=&r"(zero) : : "cc");
 }
 // Single-path saturation (issue 29): the test, the limit and the flag in one IT block, the
 // same instructions whether or not the value saturates. A branch around the saturation path
@@ -161,6 +169,7 @@ TOONFORCE_FIXED_FLAG_STORAGE bool fixed_saturated_flag = false;
 inline void raise_saturation_flag(std::int32_t) noexcept { fixed_saturated_flag = true; }
 inline bool saturation_flag() noexcept { return fixed_saturated_flag; }
 inline void clear_saturation_flag() noexcept { fixed_saturated_flag = false; }
+inline void reset_saturation_flag() noexcept { fixed_saturated_flag = false; }
 #endif
 }  // namespace detail
 
@@ -320,7 +329,11 @@ constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
 inline bool fixed_saturated() noexcept { return detail::saturation_flag(); }
-/// Reads and clears the sticky saturation flag (the safety stage does this once per tick).
+/// Clears the sticky saturation flag unconditionally (a servo loop's tick does this first, and
+/// reads the flag with fixed_saturated() last: its own saturations only, one write and one read).
+/// On an Armv7-M image it clears the condition flags too, which no C++ code keeps across a call.
+inline void clear_fixed_saturated() noexcept { detail::reset_saturation_flag(); }
+/// Reads and clears the sticky saturation flag.
 inline bool take_fixed_saturated() noexcept {
   const bool was = detail::saturation_flag();
   if (was) detail::clear_saturation_flag();
