@@ -181,19 +181,34 @@ def is_counter_read(insns: list, k: int, known: list) -> bool:
 
 
 def _read_around(insns: list, k: int, step: int, targets: set, known: list):
-    """The counter reading nearest insns[k] going `step` (-1 back, +1 on) in a straight line
-    (no branch, no other call, no branch target in between), or None."""
-    j = k
+    """(index, instructions stepped over) of the counter reading nearest insns[k] going `step`
+    (-1 back, +1 on) along the one path there is: no branch, no other call in between, and no
+    branch target, except going back into a block that only an unconditional B enters (GCC puts
+    a literal pool before the call and jumps over it): the path goes on from that B, which is
+    one instruction of the window. None when there is no such reading."""
+    j, passed = k, 0
     while True:
         nxt = j + step
         if nxt < 0 or nxt >= len(insns):
             return None
         if insns[max(j, nxt)].addr in targets:
-            return None
+            if step > 0:
+                return None
+            entry = insns[j].addr
+            jumps = [i for i, x in enumerate(insns) if wcet._classify(x) == ("jump", entry)]
+            before_block = nxt  # the padding NOPs before a literal pool do not run
+            while before_block > 0 and wcet.operation(insns[before_block]) == "nop":
+                before_block -= 1
+            falls = wcet._classify(insns[before_block])[0] in ("plain", "call", "cjump", "creturn")
+            others = [i for i, x in enumerate(insns) if wcet._classify(x)[1] == entry and i not in jumps]
+            if len(jumps) != 1 or falls or others:
+                return None
+            nxt = jumps[0]
         j = nxt
         if is_counter_read(insns, j, known):
-            return j
-        if wcet._classify(insns[j])[0] != "plain":
+            return j, passed
+        passed += 1
+        if wcet._classify(insns[j])[0] != "plain" and not (step < 0 and wcet._classify(insns[j])[0] == "jump"):
             return None
 
 
@@ -219,7 +234,7 @@ def windows(image, counted: dict) -> tuple[dict, tuple]:
                 after = _read_around(insns, k, +1, targets, known)
                 if before is None or after is None:
                     continue  # a call no count is around (the plain pass)
-                out[target] = max(out.get(target, 0), after - before - 1)
+                out[target] = max(out.get(target, 0), before[1] + 1 + after[1])
             elif kind != "call" and is_counter_read(insns, k, known):
                 reads_in.setdefault(f.start, []).append(k)
     # calibrate(): the count of 100 NOPs, straight after the empty count.

@@ -142,7 +142,13 @@ struct Surface {
         f += tangential;
       }
       if constexpr (Tangential::kMayInject) {
-        if (Tangential::injects(p.tangential)) active[0] = {tangential, touching, false};
+        // Member by member: a brace-initialized copy of the 14-byte part became a memcpy call
+        // on the Cortex-M3 built with -mno-unaligned-access, whose loop no bound covers.
+        if (Tangential::injects(p.tangential)) {
+          active[0].force_n = tangential;
+          active[0].in_episode = touching;
+          active[0].triggered = false;
+        }
       }
     }
     return f;
