@@ -529,6 +529,20 @@ TEST(Fixed, FractionOfTwoSumsIsWithinTwoOfTheExactQuotient) {
   EXPECT_NEAR(detail::fraction_q16(1, 2), 32768U, 2U);
 }
 
+// The 64-bit count of leading zeros built from the two words without a branch: the same as
+// std::countl_zero for every bit position of either word, with the bits below it set or not,
+// and for 0 (64).
+TEST(Fixed, LeadingZerosFromTwoWordsAgreeWithTheStandardCount) {
+  EXPECT_EQ(detail::countl_zero_words(0), 64);
+  static_assert(detail::countl_zero_words(0) == 64 && detail::countl_zero_words(1) == 63);
+  for (int bit = 0; bit < 64; ++bit) {
+    const std::uint64_t top = std::uint64_t{1} << bit;
+    for (const std::uint64_t v : {top, top | (top - 1), top | (top >> 1), top | 1U}) {
+      ASSERT_EQ(detail::countl_zero_words(v), std::countl_zero(v)) << std::hex << v;
+    }
+  }
+}
+
 TEST(Vec3Fixed, NormIsNotBuiltFromSaturatedSquares) {
   // Each square (40000) is outside Q16.16; the norm (346.41) is not (spec §7).
   const Vec3<Q> v{Q::from_double(200.0), Q::from_double(200.0), Q::from_double(200.0)};

@@ -218,6 +218,28 @@ constexpr std::uint64_t div_u64_u32_digits(std::uint64_t n, std::uint32_t d) noe
   return (q1 << 16) + q0;  // q1 < 2^16: fits 32 bits
 }
 
+/// std::countl_zero of a 64-bit value from its two words without a branch: the high word's
+/// count, plus the low word's when the high word is 0 (its count is then 32, bit 5 set).
+/// GCC's 64-bit count on a 32-bit core tests the high word and branches out of line and
+/// back for the low word's count: two pipeline refills on a path the tick's bound takes.
+/// (Each word's count is Arm's CLZ, which gives 32 for 0: std::countl_zero's own test for 0
+/// stays a branch in GCC's code.)
+constexpr int countl_zero_word(std::uint32_t v) noexcept {
+#if defined(__arm__)
+  if (!std::is_constant_evaluated()) {
+    std::uint32_t n;
+    asm("clz %[n], %[v]" : [n] "=r"(n) : [v] "r"(v));
+    return static_cast<int>(n);
+  }
+#endif
+  return std::countl_zero(v);
+}
+constexpr int countl_zero_words(std::uint64_t v) noexcept {
+  const int high = countl_zero_word(static_cast<std::uint32_t>(v >> 32));
+  const int low = countl_zero_word(static_cast<std::uint32_t>(v));
+  return high + (low & -(high >> 5));
+}
+
 /// n / d for 0 <= n <= d and d > 0, as a fraction in units of 2^-16 (so 1 is 2^16), within 2
 /// of the exact n 2^16 / d: one 32-bit division of the top bits of both, normalised so that
 /// d's top bit is set (16 bits of divisor: the quotient's relative error is under 2^-15).
@@ -225,7 +247,7 @@ constexpr std::uint64_t div_u64_u32_digits(std::uint64_t n, std::uint32_t d) noe
 /// the library-free 64/32 division and the sign handling of a Q16.16 quotient cost three times
 /// as much (issue 29).
 constexpr std::uint32_t fraction_q16(std::uint64_t n, std::uint64_t d) noexcept {
-  const int s = std::countl_zero(d);
+  const int s = countl_zero_words(d);
   const auto divisor = static_cast<std::uint32_t>((d << s) >> 48);    // in [2^15, 2^16)
   const auto dividend = static_cast<std::uint32_t>((n << s) >> 32);   // n <= d: below 2^32
   const std::uint32_t q = dividend / divisor;                          // at most 2^16 + 2
