@@ -1,4 +1,4 @@
-// toonforce_mcu_gen: the host half of the microcontroller images (issue 18, tools/mcu/README.md).
+// toonforce_mcu_gen: the host half of the microcontroller images (tools/mcu/README.md).
 //
 //   toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] [--sine METHOD]
 //                              --scene NAME=SCENE.toml ... --motion NAME=MOTION.csv ...

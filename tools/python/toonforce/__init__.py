@@ -1,5 +1,5 @@
 """toonforce from Python: the C++ controller's scene loader, checks, closed-loop simulation,
-replay and figures, through the same code as the ``toonforce`` program (issue 30).
+replay and figures, through the same code as the ``toonforce`` program.
 
     import toonforce
     trace = toonforce.sim("scenes/cartoon_wall.toml", "scenes/hands/strike.toml")

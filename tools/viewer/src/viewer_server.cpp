@@ -348,7 +348,7 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
 /// One /control connection (live scenes): each text message goes to a ControlSession on this,
 /// the server's only thread, and its reply comes back in order. A failed hello closes it.
 ///
-/// Bounded by construction (issue 27): the next message is read only once the reply to the
+/// Bounded by construction: the next message is read only once the reply to the
 /// last has been written, so a connection holds at most one message (max_message_bytes) and
 /// one reply, whatever its client reads. A connection that has not said hello holds one of
 /// max_control_pending slots, for control_hello_deadline_s at most; its hello moves it to one

@@ -39,7 +39,7 @@ struct ReplayOptions {
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;  ///< overrides the scene's sine method
   /// Non-null and set (to a signal's number): stop after the row under way; the output ends on
-  /// that whole row (a stop signal, issue 27: replay left a cut 80 MB CSV).
+  /// that whole row (a stop signal: replay once left a cut 80 MB CSV).
   const std::atomic<int>* stop = nullptr;
 };
 

@@ -31,7 +31,7 @@ struct SharedPage;
 }  // namespace guardian
 
 
-/// Live scenes (issue 19, `--control`): the mailbox the run's loop takes scene updates from,
+/// Live scenes (`--control`): the mailbox the run's loop takes scene updates from,
 /// for the run's scalar type (the others stay null). The application's side (the control
 /// protocol's SceneEditor) pushes into it; it outlives the run.
 struct LiveMailboxes {
