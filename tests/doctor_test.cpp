@@ -187,7 +187,7 @@ TEST_F(FakeHost, NoIsolatedCpuWarns) {
   EXPECT_NE(i.fix.find("isolcpus"), std::string::npos);
 }
 
-// Issue 16: on a 2-CPU host doctor advised --cpu 3, a CPU the host does not have.
+// On a 2-CPU host doctor advised --cpu 3, a CPU the host does not have.
 TEST_F(FakeHost, TheIsolationAdviceNamesTheLastCpuThisHostHas) {
   write("sys/devices/system/cpu/isolated", "\n");
   write("sys/devices/system/cpu/online", "0-1\n");

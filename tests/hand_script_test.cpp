@@ -229,7 +229,7 @@ TEST(HandScriptText, ParsesFromTextWithTheGivenSourceName) {
       << bad.error();
 }
 
-// Issue 16: `force = 1e308` drove `sim` to NaN and exited 0.
+// `force = 1e308` drove `sim` to NaN and exited 0.
 TEST(HandScriptText, AForceNoHandCanPressWithIsRefusedWithItsRange) {
   const auto bad = parse_hand_script(
       "[hand]\nstart = [0, 0, 0]\n[[segment]]\ntype = \"hold\"\nduration = 1\nforce = 1e308\n", "hand.toml");

@@ -215,7 +215,7 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
   EXPECT_NEAR(info.workspace_max_m.z, 0.060, 1e-12);
 }
 
-// ---- the force envelope (issue 17) ----
+// ---- the force envelope ----
 
 TEST(FalconDriver, TheAdvertisedMaximumIsWhatTheWordsGiveInEveryDirectionAtTheCentre) {
   Rig rig;

@@ -532,7 +532,7 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
 }
 
 
-// ---- the guardian (issue 28): the Falcon zeroed from outside the process that drove it ----
+// ---- the guardian: the Falcon zeroed from outside the process that drove it ----
 
 TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) {
   // The driver pushes with a steady force; a stand-in loop process ticks the shared heartbeat

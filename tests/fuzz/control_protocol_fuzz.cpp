@@ -3,7 +3,7 @@
 // the JSON to TOML conversion and the scene files' reader. The first byte chooses before the
 // hello (the message is the connection's first) or after it; the rest is one message, up to
 // 64 KiB. Any bytes must give exactly one bounded reply, never a crash, a sanitizer report, an
-// exception or a hang (issue 27: keys nested 20,000 deep crashed the run).
+// exception or a hang (keys nested 20,000 deep crashed the run).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
