@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Engage and soft start, the first stage of the safety chain (spec effects.md §6 "The servo
 /// loop adds more"): after start, enable and re-arm, forces come on only once the scene force

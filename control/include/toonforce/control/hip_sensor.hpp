@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The handle as the loop sees it on one tick (spec effects.md §0): the device's position
 /// converted to the scalar once, and its velocity, the device's own when it measures one, else

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Passivity observer and controller (Hannaford and Ryu, "Time-domain passivity control of
 /// haptic interfaces", IEEE T-RA 18(1):1-10, 2002).

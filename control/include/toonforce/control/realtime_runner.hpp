@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The self-timed real-time runner behind `toonforce run` (Linux): a dedicated thread at
 /// SCHED_FIFO where permitted, memory locked (mlockall), optionally pinned to a CPU, waking on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scene's force for one tick, with the non-finite guard (spec effects.md §6.1): a scene
 /// force that is not finite does not count: the effects' states stay as they were and the tick

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Live scenes (docs/spec/live-scenes.md): how an application's thread changes the
 /// scene a running servo loop renders.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Settings of the servo loop (spec effects.md §6 "The servo loop adds more"), in double as a
 /// scene file or a program gives them; the loop converts them once. Defaults are the documented

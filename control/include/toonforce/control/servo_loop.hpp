@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The servo loop: the one closed loop of toonforce (`run` on every device, `sim`, `figures`,
 /// `replay`, the examples and the tests all drive it). One tick at integer time k, data flowing

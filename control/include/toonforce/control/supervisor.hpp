@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The supervisor: the servo loop's first stage after the device read, a pure state machine
 /// (no clock, no I/O: it is told the tick's inputs) that decides whether force may flow at all

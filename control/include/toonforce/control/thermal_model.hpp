@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A first-order motor thermal model per device (after OpenHaptics' predicted
 /// HD_MOTOR_TEMPERATURE, OpenHaptics Reference Guide; docs/OMNI.md §2.3). Copper losses grow

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Velocity estimator for devices and inputs that give no velocity (spec effects.md §0): a
 /// first-order low-pass of the backward difference,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The cartoon cliff: you fall only once you slow down (paper §4.3; spec effects.md §5).
 ///

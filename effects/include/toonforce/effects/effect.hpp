@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What an effect is, and how the rest of the stack asks it for what it carries. An effect is a
 /// type with

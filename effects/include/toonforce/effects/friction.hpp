@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Tangential laws of a surface, applied only while the HIP is in contact and added to the
 /// wall force (spec effects.md §2-3). Each takes the tangential velocity v_t = v - (n.v) n and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Exaggerated recoil and oscillation on impact (paper §4.2; spec effects.md §4).
 ///

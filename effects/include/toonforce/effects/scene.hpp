@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Scenes: the sum of their effects' forces, in order (spec effects.md §0).
 ///

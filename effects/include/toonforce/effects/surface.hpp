@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A surface (scene-file table `[[surface]]`): a plane rendered by a penalty wall, optionally
 /// with one tangential law (realistic friction or the super-slippery surface, never both: they

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What every force law sees on one servo tick (spec effects.md §0), and the geometry of the
 /// HIP against a plane. Frame: the scene frame, SI units.

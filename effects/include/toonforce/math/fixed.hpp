@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Q-format fixed point for FPU-less targets: a signed 32-bit integer with `FracBits` fraction
 /// bits. Every operation rounds to nearest and saturates instead of wrapping; saturation sets a

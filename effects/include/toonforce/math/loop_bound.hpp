@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// TOONFORCE_LOOP_BOUND(n), placed in a loop's body: that body runs at most n times each time the
 /// loop is entered, n a constant expression of the code (a template parameter, an array's size,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scalar types the force laws are instantiated for, and the few math functions the laws
 /// use, spelled the same for all of them: `double` (the reference), `float`, and `Q16_16`.

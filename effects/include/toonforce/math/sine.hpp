@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// sin(2 pi p) for a phase `p` in turns, three ways, for every scalar type. The impact
 /// transient needs a sine (spec effects.md §4: "computed any way ... so long as the error

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A 3-vector in the scene frame (spec effects.md §0: x right, y away from the user, z up;
 /// SI units). For Q types, dot products and norms accumulate raw products in 64 bits and round

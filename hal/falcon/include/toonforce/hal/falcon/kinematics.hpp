@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Falcon delta kinematics (R. E. Stamper's model with libnifalcon's constants, FALCON.md §5):
 /// closed-form inverse kinematics, the exact Jacobian of that IK (by implicit differentiation,
