@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The viewer's server on Boost.Beast (HTTP and WebSocket) over Boost.Asio, one thread.
 //
 // Why Beast (Boost 1.74 in Debian 12, package libboost-dev): of the three well-kept servers

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The story page: a short cartoon level in the paper's spirit, played on a
 // running `toonforce run --view --control` with scenes/story/level.toml. The character is the
 // handle (the HIP); the page's own logic changes the scene through the control protocol

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The control protocol of live scenes (docs/spec/control-protocol.md): JSON text
 /// messages on a WebSocket at /control of the viewer's server, from a game engine, a browser

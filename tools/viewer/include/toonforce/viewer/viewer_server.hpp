@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The live viewer's server: serves the page (its own files only, embedded in the
 /// binary) and streams telemetry to it over a WebSocket, from a thread of its own that never
