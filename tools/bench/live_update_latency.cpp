@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How long a live scene's change takes to reach the servo loop
 // (docs/PERFORMANCE.md "Live scene updates"). A benchmark, never a test: it prints timings.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Benchmark (never a test): how many simulated seconds the host simulation runs per second
 // of wall-clock time, for each of the paper's figure scenarios, on one thread. Target:
 // at least 1000x real time at 1 kHz. Two numbers per scenario: the closed loop alone

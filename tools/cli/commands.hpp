@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Subcommands of the toonforce command line. Each add_* registers a subcommand whose callback
 // runs it and stores the process exit status.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself.
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
 // plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when

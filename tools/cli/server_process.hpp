@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `run --view`'s server process (docs/DEPLOY.md section 6): the viewer's page
 // and the control protocol's server, which parse whatever a local connection sends, run in a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # What the microcontroller images are, in one place for the host build (CMakeLists.txt), its
 # tests (tests.cmake) and the cross build (firmware/CMakeLists.txt).
 # One image per paper scene and one with all five; each plays every motion (more ticks

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # CTest tests of the microcontroller images, included by tests/CMakeLists.txt when
 # TOONFORCE_MCU is on. Label mcu: `ctest -L mcu`, the cortex-m3 test preset.
 set(_mcu_src ${PROJECT_SOURCE_DIR}/tools/mcu)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/doctor/doctor.hpp"
 
 #include <sys/stat.h>

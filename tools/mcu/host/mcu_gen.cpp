@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce_mcu_gen: the host half of the microcontroller images (tools/mcu/README.md).
 //
 //   toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] [--sine METHOD]

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Gate: every tick an image measured under QEMU stays within the static bound.
 
 For IMAGE.elf, wcet.py bounds each scene's three counted functions (replay's loop tick

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Worst case by construction: a static bound on a function of a linked Cortex-M3 image.
 
 From the ELF (arm-none-eabi-objdump's disassembly and symbol table), for each entry function:

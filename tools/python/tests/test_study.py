@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """toonforce.study: simulated participants with a known threshold play sessions on the
 simulated device (each interval a closed-loop run of the real servo loop through toonforce.sim);
 the procedures and the fits must find the threshold, and a session killed mid-trial must resume

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The module against the `toonforce` program: the same numbers, errors and verdicts.
 
 Each comparison runs the program on the same inputs and reads what it writes. The CSVs print

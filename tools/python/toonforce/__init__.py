@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """toonforce from Python: the C++ controller's scene loader, checks, closed-loop simulation,
 replay and figures, through the same code as the ``toonforce`` program.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The measured ticks. This file is compiled with -O3 in every build type (CMakeLists.txt), and
 // every function that runs a tick is flattened, so what is timed and counted is the same
 // machine code whatever the build.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A study session: one folder, nothing lost.
 
     FOLDER/session.json   the experiment file's text and SHA-256, the participant, the seed,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A simulated participant playing a session on the simulated device: each interval
 is a closed-loop run of the condition's scene (the level set at its `vary` key) with the
 experiment's hand script, through `toonforce.sim` (the real servo loop); the model observer

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Live scenes, the application's side (docs/spec/live-scenes.md): changes to the
 /// scene of a running servo loop, from the application's thread.

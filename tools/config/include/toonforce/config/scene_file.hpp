@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Scene files (spec interfaces.md "Scene files"): a TOML description of effects, checked
 /// completely at load time, then turned into a run-time scene and a ServoConfig. Every error

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Reading TOML files that people write by hand (scenes, hand scripts) with errors that name
 /// the file, the line and the key, and that reject what they do not know: an unknown key, a

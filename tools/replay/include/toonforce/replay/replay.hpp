@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce replay`: forces for a given motion, open loop (spec interfaces.md). Each input row
 /// is one tick of the servo loop (ServoLoop with the spec's stages, kSpecStages: velocity

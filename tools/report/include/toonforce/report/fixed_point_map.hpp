@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Where Q16.16 saturates (docs/PERFORMANCE.md "Fixed point (Q16.16)"): the
 /// largest servo rate and scene values the load-time guards accept, found by asking the guards

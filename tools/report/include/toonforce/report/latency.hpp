@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report latency`: the cost of one servo tick of each effect (by branch), of the
 /// safety stage, of each paper scene (effects plus ForceSafety) as Scene<...> and as the

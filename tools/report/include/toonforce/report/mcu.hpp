@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report mcu`: the microcontroller figures of docs/PERFORMANCE.md
 /// (tools/mcu/README.md). For a directory of built Cortex-M3 images (and the Cortex-M4F ones

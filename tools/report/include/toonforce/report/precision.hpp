@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report precision`: force error against run time (spec effects.md §8; the
 /// work-precision diagrams of DiffEqDevTools.jl's WorkPrecisionSet and of Hairer and Wanner,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The numerical pieces of the precision report, free of the servo
 /// loop so that tests can check them on data whose answer is known:

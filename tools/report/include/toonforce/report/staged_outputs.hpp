@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// How `report` writes its documents, CSVs and plots: never in place. Each step
 /// (latency, precision, stability, mcu) writes every file it makes under a hidden name beside

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What the latency report and the benchmarks time and count: one servo tick of an effect, of
 /// the safety stage, of a paper scene (its effects plus the safety stage, ForceSafety), or of

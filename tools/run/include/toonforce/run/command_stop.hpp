@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A command's stop path outside its servo loop: before the loop (the scene loading,
 /// the device opening, the viewer starting, `--control-wait`) and after it (the viewer serving

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce run`: the servo loop on a device in real time (spec interfaces.md), as a library
 /// so tests drive it without a process. The command line's part only: which device and files,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The plausibility report: a scene's numbers against what the chosen device
 /// can do, before anything runs. `toonforce check` prints it whole; `run` and `sim` print its

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A trace: a CSV file whose first ten columns are fixed by the spec (interfaces.md, `toonforce
 /// sim` and `toonforce run`): t,x,y,z,vx,vy,vz,fx,fy,fz (time [s], HIP position [m] and velocity
