@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Instruction budgets per tick, counted by callgrind (deterministic: the same binary on the
 // same inputs counts the same instructions, whatever the machine's load; no time is measured
 // here), on scenarios that drive every branch of each paper scene (tools/report/src/

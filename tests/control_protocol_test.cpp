@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The control protocol without a socket (tools/viewer/control_protocol.hpp): what a message
 // becomes, with time given by the test (the rate limit is counted in the messages' own times).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce doctor against faked /sys, /proc and /dev trees: each check finds what the tree
 // says, fails or warns with a fix, and the exit status says whether the host is ready.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fault injection on the real binary: `run`, `sim`, `replay` and `check` as child
 // processes under every terminating signal, a reader that leaves, outputs that cannot be
 // written or would overwrite an input, a trace size limit, and hostile command lines and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GPIO: line specs and the CLI options; then the real backend (libgpiod 1.6 C API)
 // against emulated /dev/gpiochip0 and /dev/gpiochip1 (umockdev, hal/gpio/emulator): pins that
 // toggle once per tick, inputs read in the same call with their active level, lights, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hand script files: every committed script loads, and malformed files get errors that name
 // the file, the line and the key (the same standard as scene files).
 #include <gtest/gtest.h>

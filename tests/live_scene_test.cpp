@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Live scenes (docs/spec/live-scenes.md): changes from the application's thread reach
 // the servo loop whole at a tick boundary, checked as scene files are, and cannot kick the
 // handle: the force stays continuous and the difference fades out, counted by the passivity

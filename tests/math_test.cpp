@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Q16.16 type, vectors and the sine methods.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The precision report's references and norms: the analytic wall
 // equals the law's closed form, the hold's error is first order as theory says, the reference
 // ladder converges at the order theory gives, events are seen within a tick, and the drift

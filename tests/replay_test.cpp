@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce replay against the closed forms of effects.md (an independent implementation of
 // the spec in tests/support/spec_oracle.hpp), on random motions through random scenes: double
 // must match to a relative error of 1e-9. Also the command itself, end to end, and its errors.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The short form of the reports CI runs:
 # `toonforce report all --quick` into a scratch directory, then each document must have its
 # sections (a report that stopped half-way, or wrote nothing, fails). The numbers are not

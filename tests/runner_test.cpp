@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real-time runner and `toonforce run`, asserting counts and file contents, never times
 // (this VM has multi-millisecond hypervisor stalls: docs/PERFORMANCE.md, measured with cyclictest).
 // In process: every deadline is either ticked or counted as missed; a stalled tick trips the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scene files (spec interfaces.md): every bundled scene loads for every scalar type, and
 // malformed files are rejected with the file, the line and the key in the message.
 #include <gtest/gtest.h>

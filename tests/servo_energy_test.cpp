@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The servo loop's energy-side safety: the first-order thermal model against its closed form
 // over simulated minutes, derating with the clamp last; the Hannaford-Ryu observer against the
 // simulated device's own work integral; the passivity controller holding a slippery surface's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The servo loop as replay runs it (effects.md §6 stages only): velocity estimator, the safety
 // stage of effects.md §6, the non-finite guard, determinism, and no allocation in a tick.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stability maps' linear analysis (tools/report: spectral.hpp, stability.hpp SampledLoop):
 // the eigenvalue routine on matrices whose eigenvalues are known by construction, and the
 // sampled loop's transition matrix against closed forms, against the passivity bound it must

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The extreme cases of our stability checklist (docs/STABILITY.md), each with the safety
 // layer on: the servo loop (ServoLoop: engage, soft start, velocity limit, workspace, watchdog,
 // passivity observer and controller, thermal model, force-rate limit, clamp last; configured

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The live viewer's server side, over real sockets on 127.0.0.1 with a Beast client:
 // only the embedded files are served (path traversal spellings are 404), the Host and Origin
 // checks, the socket is read-only (a message closes it with 1008 and changes nothing), a page

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Falcon kinematics against docs/FALCON.md §5 and §8: IK vectors, FK round trips,
 // the Jacobian against finite differences, force -> motor words through the true transpose.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real libusb backend (LibusbTransport, open_falcon, detect_falcons, the toonforce CLI)
 // against emulated Falcons at the usbfs boundary through umockdev. CTest runs this binary
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the control server's message handler (ControlSession::on_message,
 // docs/spec/control-protocol.md) over a real scene editor, so changes that parse go on through
 // the JSON to TOML conversion and the scene files' reader. The first byte chooses before the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # CTest install_consumer: installs this build tree into a temporary prefix, moves the
 # prefix elsewhere (the package must be relocatable), then uses it as a program embedding
 # toonforce would:

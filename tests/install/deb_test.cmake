@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # CTest debian_package: builds the Debian packages of this build tree with CPack and
 # checks what dpkg would install from them: the program, scenes, udev rule, limits snippet
 # (a conffile) and unit template in `toonforce`, written for /usr and /etc; headers, libraries
