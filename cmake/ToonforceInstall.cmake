@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Install: what `cmake --install` puts where, in components, and the package
 # config (find_package(toonforce)) and pkg-config files a program embedding toonforce uses.
 #

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Debian packages with CPack, one per install component (cmake/ToonforceInstall.cmake):
 #   cpack --config build/<preset>/CPackConfig.cmake -G DEB      (or: cd build/<preset> && cpack -G DEB)
 # gives toonforce_<v>_<arch>.deb (the program, scenes, udev rule, limits snippet, unit
