@@ -1,4 +1,5 @@
-# Install (issue 10): what `cmake --install` puts where, in components, and the package
+# SPDX-License-Identifier: Apache-2.0
+# Install: what `cmake --install` puts where, in components, and the package
 # config (find_package(toonforce)) and pkg-config files a program embedding toonforce uses.
 #
 #   component      what                                                     Debian package

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The layers' link graph, for the layering test (tests/layers/check_layers.py): every target the
 # project defines, the folder it is defined in and the libraries it links directly, written at
 # configure time to ${PROJECT_BINARY_DIR}/layers/targets.txt (one line a target:

@@ -1,4 +1,5 @@
-# The Omni backend's architecture check (issue 17): OpenHaptics for Linux is 64-bit x86-64,
+# SPDX-License-Identifier: Apache-2.0
+# The Omni backend's architecture check: OpenHaptics for Linux is 64-bit x86-64,
 # and on 32-bit x86 the vendor's headers declare the HD API __stdcall, while our own
 # declarations (hal/omni hd_api.hpp) are the plain cdecl of 64-bit Linux: through a 32-bit
 # libHD every call would leave the stack corrupted. So a 32-bit x86 build is refused here, at

@@ -1,4 +1,5 @@
-# Debian packages with CPack (issue 10), one per install component (cmake/ToonforceInstall.cmake):
+# SPDX-License-Identifier: Apache-2.0
+# Debian packages with CPack, one per install component (cmake/ToonforceInstall.cmake):
 #   cpack --config build/<preset>/CPackConfig.cmake -G DEB      (or: cd build/<preset> && cpack -G DEB)
 # gives toonforce_<v>_<arch>.deb (the program, scenes, udev rule, limits snippet, unit
 # template), toonforce-dev (headers, core libraries, CMake and pkg-config files) and one -dev
@@ -84,7 +85,7 @@ foreach(backend IN LISTS TOONFORCE_BACKEND_COMPONENTS)
       "COMPONENTS ${backend}) and pkg-config toonforce-${backend}.")
 endforeach()
 
-# The Python module (issue 30, TOONFORCE_PYTHON): python3-toonforce, into Debian's python3
+# The Python module (TOONFORCE_PYTHON): python3-toonforce, into Debian's python3
 # (tools/python/CMakeLists.txt installs it under lib/python3/dist-packages).
 if(TOONFORCE_PYTHON)
   list(APPEND CPACK_COMPONENTS_ALL python)

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Warnings as an INTERFACE target, linked privately by every toonforce target (not global
 # add_compile_options, so third-party code is not held to them).
 # The options are BUILD_INTERFACE only: the installed static libraries name this target as a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Embedding toonforce, 1 of 3: a scene composed at compile time from a library effect (a
 // penalty-wall floor) and an effect written here (a magnetic detent), run by the servo loop on
 // the simulated Falcon with a simulated hand holding it, in simulated time.

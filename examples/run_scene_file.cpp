@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Embedding toonforce, 2 of 3: a scene from a TOML file, loaded and checked through the library
 // (toonforce::config), run by the servo loop with the scene's own safety settings on the
 // simulated Falcon, held by a simulated hand that follows a hand script file.

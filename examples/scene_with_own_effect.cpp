@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Embedding toonforce, 3 of 3: an effect written here (a slick magnet) used from a scene file
 // by its key, next to the library's own effects, with nothing in the library edited to admit it.
 //

@@ -1,11 +1,12 @@
+// SPDX-License-Identifier: Apache-2.0
 // Instruction budgets per tick, counted by callgrind (deterministic: the same binary on the
 // same inputs counts the same instructions, whatever the machine's load; no time is measured
 // here), on scenarios that drive every branch of each paper scene (tools/report/src/
 // scenario.cpp; scenario_test.cpp checks that they do). toonforce_tick_count compiles the
 // ticks with -O3 in every build type, so this debug test budgets what a release build runs.
-//   - issue 8: a paper scene's effects plus the safety stage (ForceSafety), double: at most 400
+//   - a paper scene's effects plus the safety stage (ForceSafety), double: at most 400
 //     instructions on every tick;
-//   - issue 14: the whole servo loop tick, read to write, every safety stage on (engage and
+//   - the whole servo loop tick, read to write, every safety stage on (engage and
 //     soft start, passivity, thermal, velocity and workspace limits, rate limit, clamp),
 //     scripted device, double: at most 600 instructions mean over the scenario, for the scene
 //     composed at compile time and for the scene file's run-time scene.
@@ -103,7 +104,7 @@ TEST(InstructionBudget, TheWholeLoopTickOfEveryPaperSceneAveragesAtMost600Instru
 #endif
 }
 
-// Q16.16 (issue 15 item 7: it had no budget). On x86 under callgrind, as the double budgets;
+// Q16.16 (it had no budget). On x86 under callgrind, as the double budgets;
 // the Cortex-M3's own counts are tools/mcu's. The budgets are the measured figures plus about
 // 15 % (docs/PERFORMANCE.md, "What is worst by construction"): room for the compiler's drift,
 // not for a regression of that size. Measured when they were set (2026-11-23, g++ 12 -O3):
@@ -150,7 +151,7 @@ TEST(InstructionBudget, Q16EveryTickOfEveryPaperSceneAndTheWholeLoopStayWithinTh
 #endif
 }
 
-// Issue 15 item 7: the scenarios drive every branch but not every combination of them in one
+// The scenarios drive every branch but not every combination of them in one
 // tick, and a Q16.16 tick costs more on larger vectors (its square root runs a round per two
 // bits). The search cases (workloads.cpp, search_path and search_config: strikes deeper and
 // faster than the scenarios, with the soft start, the thermal derating, the passivity damping,
@@ -158,7 +159,7 @@ TEST(InstructionBudget, Q16EveryTickOfEveryPaperSceneAndTheWholeLoopStayWithinTh
 // (2026-11-24, g++ 12 -O3, x86 under callgrind): effects plus safety at most 285 in double and
 // 1,589 in Q16.16 (the slippery surface); the whole loop, every stage, at most 820 in double
 // and 2,964 in Q16.16 (the slippery surface; its scenario's most expensive tick is 1,817). The
-// budgets are the issue-8 bar for double effects plus safety, and the others those maxima plus
+// budgets are the 400-instruction bar for double effects plus safety, and the others those maxima plus
 // about 15 %: room for the compiler's drift, not for a regression of that size. They are
 // maxima found by a seeded search, not bounds (docs/PERFORMANCE.md says so).
 constexpr double kSearchDoubleLoopBudget = 1000.0;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The control protocol without a socket (tools/viewer/control_protocol.hpp): what a message
 // becomes, with time given by the test (the rate limit is counted in the messages' own times).
 
@@ -123,7 +124,7 @@ std::string nested(std::size_t levels, const std::string& open, const std::strin
   return out;
 }
 
-// Issue 27: keys nested 20,000 arrays deep (40 KB) overflowed the stack in the JSON to TOML
+// Keys nested 20,000 arrays deep (40 KB) overflowed the stack in the JSON to TOML
 // conversion (SIGSEGV); 10,800 objects deep copied the key path at every level (~244 MB).
 // The depth is counted in one pass over the text before anything is parsed.
 TEST(ControlProtocol, NestingDeeperThanTheLimitIsRefusedBeforeItIsParsed) {
@@ -151,7 +152,7 @@ TEST(ControlProtocol, NestingDeeperThanTheLimitIsRefusedBeforeItIsParsed) {
   EXPECT_FALSE(s.on_message(R"({"type":"status"})", 0.0).close) << "the connection carries on";
 }
 
-// Issue 27: the spec closes the connection (1008) on any first message that is not a good
+// The spec closes the connection (1008) on any first message that is not a good
 // hello; not JSON, not an object or no type got an error and the connection stayed open.
 TEST(ControlProtocol, AnyRefusedFirstMessageClosesTheConnection) {
   for (const std::string& first : {std::string("{not json"), std::string("[1,2]"), std::string("42"),
@@ -167,7 +168,7 @@ TEST(ControlProtocol, AnyRefusedFirstMessageClosesTheConnection) {
   }
 }
 
-// Issue 27: "id": null was not echoed (presence is what counts); an id is short or refused;
+// "id": null was not echoed (presence is what counts); an id is short or refused;
 // a reply refused by the rate limit carries the id too.
 TEST(ControlProtocol, TheIdIsEchoedWhenPresentShortOrRefused) {
   Recorder r;
@@ -195,7 +196,7 @@ TEST(ControlProtocol, TheIdIsEchoedWhenPresentShortOrRefused) {
   EXPECT_EQ(limited["id"], 7);
 }
 
-// Issue 27: with a key given twice the last one won, so "token":"wrong","token":"<the token>"
+// With a key given twice the last one won, so "token":"wrong","token":"<the token>"
 // passed; a NUL byte ended the text the parser read. Both are refused.
 TEST(ControlProtocol, DuplicateKeysAndNulBytesAreRefused) {
   {
@@ -224,7 +225,7 @@ TEST(ControlProtocol, DuplicateKeysAndNulBytesAreRefused) {
   EXPECT_EQ(r2.calls.size(), 1U);
 }
 
-// Issue 27: error replies echoed the type, a field or a key whole (up to 64 KiB each), which
+// Error replies echoed the type, a field or a key whole (up to 64 KiB each), which
 // a client that never reads turned into memory. What a reply quotes is cut short.
 TEST(ControlProtocol, ARefusalQuotesAShortPrefixOfWhatItRefuses) {
   Recorder r;

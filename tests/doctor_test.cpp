@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce doctor against faked /sys, /proc and /dev trees: each check finds what the tree
 // says, fails or warns with a fix, and the exit status says whether the host is ready.
 #include <gtest/gtest.h>
@@ -187,7 +188,7 @@ TEST_F(FakeHost, NoIsolatedCpuWarns) {
   EXPECT_NE(i.fix.find("isolcpus"), std::string::npos);
 }
 
-// Issue 16: on a 2-CPU host doctor advised --cpu 3, a CPU the host does not have.
+// On a 2-CPU host doctor advised --cpu 3, a CPU the host does not have.
 TEST_F(FakeHost, TheIsolationAdviceNamesTheLastCpuThisHostHas) {
   write("sys/devices/system/cpu/isolated", "\n");
   write("sys/devices/system/cpu/online", "0-1\n");

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce report all` rewrites only its own part of docs/PERFORMANCE.md: the sections other
 // commands measured (the servo loop beside cyclictest, the host simulation's speed) must stay
 // byte for byte.

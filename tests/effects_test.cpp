@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Each force law against the closed forms of docs/spec/effects.md, edges included, in
 // double (the reference scalar). Scalar agreement is in scalar_agreement_test.cpp.
 #include <gtest/gtest.h>

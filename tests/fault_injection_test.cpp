@@ -1,4 +1,5 @@
-// Fault injection on the real binary (issue 16): `run`, `sim`, `replay` and `check` as child
+// SPDX-License-Identifier: Apache-2.0
+// Fault injection on the real binary: `run`, `sim`, `replay` and `check` as child
 // processes under every terminating signal, a reader that leaves, outputs that cannot be
 // written or would overwrite an input, a trace size limit, and hostile command lines and
 // files. Each test asserts what the user is left with (the last trace row whole and at zero
@@ -201,7 +202,7 @@ TEST_P(StopSignal, LeavesTheForceZeroAndATraceValidToItsLastRow) {
   for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
 }
 
-/// Every catchable signal whose default action ends a process (issue 16: SIGHUP is what a
+/// Every catchable signal whose default action ends a process (SIGHUP is what a
 /// dropped SSH session sends; SIGXFSZ what a file-size limit sends).
 const auto kTerminatingSignals =
     ::testing::Values(SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ);
@@ -294,7 +295,7 @@ TEST_P(SimStopSignal, EndsWithTheSummaryAndTheShutDownTickAsAWholeLastRow) {
 }
 INSTANTIATE_TEST_SUITE_P(SimCommand, SimStopSignal, kTerminatingSignals, kSignalTestName);
 
-// ---- outputs that cannot be written, outputs that are inputs (issue 16) -------------------------
+// ---- outputs that cannot be written, outputs that are inputs -------------------------
 
 /// Runs the binary to its end; its exit status and everything it printed.
 std::pair<int, std::string> run_binary(const std::vector<std::string>& args) {
@@ -685,7 +686,7 @@ TEST(Plausibility, AWarningIsSaidBeforeTheRunAndStrictRefusesToStart) {
   for (const auto& p : {scene, trace}) std::filesystem::remove(p);
 }
 
-// ---- Q16.16 guards (issue 15 item 6; scene_file.hpp fixed_point) ------------------------------
+// ---- Q16.16 guards (scene_file.hpp fixed_point) ------------------------------
 // 1/dt must fit Q16.16, whose largest value is (2^31 - 1) / 2^16 = 32767.99998: whole rates up
 // to 32767 Hz. A rate refused is a bad command-line value (exit 2), before anything runs.
 
@@ -778,7 +779,7 @@ TEST(RunCommand, Q16RefusesARateTheCliffsFilterCannotHoldBeforeTheDeviceOpens) {
   std::filesystem::remove(scene);
 }
 
-// ---- issue 27: every stop signal in every phase, file-size limits, closed standard error -------
+// ---- every stop signal in every phase, file-size limits, closed standard error -------
 
 bool has_viewer() {
   const auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--help"});
@@ -1040,7 +1041,7 @@ TEST(BringupCommand, AReportThatWouldOverwriteAnInputOrIsADirectoryIsRefusedBefo
 }
 
 // Every numeric option range-checked when the command line is read: exit status 2 and a line
-// naming the option and its range, before anything slow runs (issue 27).
+// naming the option and its range, before anything slow runs.
 TEST(Cli, NumericOptionsOutsideTheirRangeAreRefusedAtOnceWithExit2) {
   const std::vector<std::vector<std::string>> bad = {
       {"report", "stability", "--duration", "1e308"},
@@ -1147,7 +1148,7 @@ TEST(RunCommand, TooLittleAddressSpaceIsCannotStartNotAnAbort) {
 }
 
 
-// ---- the guardian (issue 28): the loop's process killed, stalled, or left alone ---------------
+// ---- the guardian: the loop's process killed, stalled, or left alone ---------------
 
 
 /// The loop's process of a `run` started by this test: the guardian's only child.
@@ -1538,7 +1539,7 @@ TEST(RunCommand, AStopSignalFromItsFirstMillisecondsIsAStopBeforeTheLoopNeverADe
   std::filesystem::remove(output);
 }
 
-// ---- the server process (issue 28): its failures cannot reach the loop ----------------------
+// ---- the server process: its failures cannot reach the loop ----------------------
 
 /// The viewer's server process of a `run --view` started by this test (the loop process's child).
 pid_t server_process_of(pid_t guardian) {
@@ -1806,7 +1807,7 @@ TEST(RunCommand, ServerUserThatDoesNotExistIsAnError) {
   EXPECT_NE(text.find("--server-user no-such-user-toonforce: no such user"), std::string::npos) << text;
 }
 
-// Issue 27, "every phase": a stop signal that came while the device opened (the command's flag,
+// A stop signal in any phase, even one that came while the device opened (the command's flag,
 // set before the loop's handlers exist) stops the loop before its first tick: no force at all,
 // the shut-down row, the summary naming the signal.
 TEST(RunServo, AStopThatCameWhileTheDeviceOpenedStopsTheLoopBeforeItsFirstTick) {
@@ -1831,7 +1832,7 @@ TEST(RunServo, AStopThatCameWhileTheDeviceOpenedStopsTheLoopBeforeItsFirstTick) 
   std::filesystem::remove(o.trace_path);
 }
 
-// ---- report and check: a stop path, and no cut file (issue 27) ----------------------------------
+// ---- report and check: a stop path, and no cut file ----------------------------------
 
 /// Every file under `dir` whose name starts with '.' (report's staged files).
 std::vector<std::string> hidden_files_under(const std::filesystem::path& dir) {

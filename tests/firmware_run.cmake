@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The firmware-style build's test run (cmake -P): the toonforce binary built with
 # TOONFORCE_FIRMWARE=ON runs the servo loop on the simulated device in Q16.16, and refuses a
 # floating-point scalar. Variables: BINARY, SOURCE_DIR, OUT_DIR.

@@ -1,4 +1,5 @@
-// GPIO (issue 7): line specs and the CLI options; then the real backend (libgpiod 1.6 C API)
+// SPDX-License-Identifier: Apache-2.0
+// GPIO: line specs and the CLI options; then the real backend (libgpiod 1.6 C API)
 // against emulated /dev/gpiochip0 and /dev/gpiochip1 (umockdev, hal/gpio/emulator): pins that
 // toggle once per tick, inputs read in the same call with their active level, lights, the
 // start-up errors, and no allocation on the tick path. The emulation tests need
@@ -665,7 +666,7 @@ TEST_F(GpioEmulation, ListsTheChips) {
 }
 
 
-// ---- the amplifier-enable line, held by `toonforce run`'s guardian (issue 28) -----------------
+// ---- the amplifier-enable line, held by `toonforce run`'s guardian -----------------
 
 TEST_F(GpioEmulation, TheGuardianHoldsTheAmplifierEnableActiveWhileTheLoopTicksAndDropsItWhenItsProcessIsKilled) {
   auto spec = gpio::parse_line_spec("gpiochip0:2:active-low");

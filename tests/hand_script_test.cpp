@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hand script files: every committed script loads, and malformed files get errors that name
 // the file, the line and the key (the same standard as scene files).
 #include <gtest/gtest.h>
@@ -229,7 +230,7 @@ TEST(HandScriptText, ParsesFromTextWithTheGivenSourceName) {
       << bad.error();
 }
 
-// Issue 16: `force = 1e308` drove `sim` to NaN and exited 0.
+// `force = 1e308` drove `sim` to NaN and exited 0.
 TEST(HandScriptText, AForceNoHandCanPressWithIsRefusedWithItsRange) {
   const auto bad = parse_hand_script(
       "[hand]\nstart = [0, 0, 0]\n[[segment]]\ntype = \"hold\"\nduration = 1\nforce = 1e308\n", "hand.toml");

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The host simulation's physics against closed forms and stated bounds: the free
 // mass-spring-damper, each integrator's order of convergence, energy, the simulated device's
 // quantisation, delay and saturation, the hand's intent, and the run-time driver.

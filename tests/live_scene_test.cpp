@@ -1,4 +1,5 @@
-// Live scenes (issue 19; docs/spec/live-scenes.md): changes from the application's thread reach
+// SPDX-License-Identifier: Apache-2.0
+// Live scenes (docs/spec/live-scenes.md): changes from the application's thread reach
 // the servo loop whole at a tick boundary, checked as scene files are, and cannot kick the
 // handle: the force stays continuous and the difference fades out, counted by the passivity
 // controller; events fire the effects' own laws.
@@ -204,7 +205,7 @@ TEST(LiveScene, AnImpactOnDemandIsTheLawOfSection4FromItsFiringTick) {
   EXPECT_FALSE(live.editor->fire("surface1", "look_down", 0.0)) << "a surface cannot look down";
 }
 
-// Issue 27: fire answered ok to speeds whose transient the loop's numbers cannot hold (5 m/s on
+// Fire answered ok to speeds whose transient the loop's numbers cannot hold (5 m/s on
 // Q16.16 with these gains; 1e300 in double), which the loop then turned into faults with zero
 // force. The speed is refused, with the range for this table and scalar in the message.
 TEST(LiveScene, AnImpactSpeedTheLoopCannotRepresentIsRefusedWithTheRange) {

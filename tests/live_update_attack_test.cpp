@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Live scenes from an untrusted process (docs/spec/live-scenes.md, "What the loop checks"): the
 // mailbox is in memory shared with the viewer's server process, which may write any bytes there
 // at any time. Each test writes what such a process could (through ForgeAccess, the hook the

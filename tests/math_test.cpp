@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Q16.16 type, vectors and the sine methods.
 #include <gtest/gtest.h>
 
@@ -472,7 +473,7 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
   static_assert(detail::div_u64_by_digits(0xFFFF'FFFFULL << 32, detail::divisor_of(0xFFFF'FFFFU)) == std::uint64_t{1} << 32);
 }
 
-// The passivity controller's 1 / |v| (issue 29: one 32-bit division for two quotients): the
+// The passivity controller's 1 / |v| (one 32-bit division for two quotients): the
 // quotient the 64-bit division gives, saturating as it does, for every small raw value (where
 // the quotient is large and saturates) and at random over the whole positive range.
 TEST(Fixed, ReciprocalOfAPositiveValueIsTheExactQuotient) {
@@ -499,7 +500,7 @@ TEST(Fixed, ReciprocalOfAPositiveValueIsTheExactQuotient) {
   EXPECT_DOUBLE_EQ(reciprocal_of_positive(4.0), 0.25);
 }
 
-// The passivity stage's applied share (issue 29): n / d in [0, 1] in units of 2^-16 from one
+// The passivity stage's applied share: n / d in [0, 1] in units of 2^-16 from one
 // 32-bit division of the normalised top bits, within 2 of the exact quotient, over the whole
 // 64-bit range of both sums, and exactly 0 and 1 at the ends.
 TEST(Fixed, FractionOfTwoSumsIsWithinTwoOfTheExactQuotient) {

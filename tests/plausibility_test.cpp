@@ -1,4 +1,5 @@
-// The plausibility report (issue 15 item 8): each finding is asserted against the bound and
+// SPDX-License-Identifier: Apache-2.0
+// The plausibility report: each finding is asserted against the bound and
 // the limits it is computed from (control/passivity_bound.hpp, the device model), so the
 // warnings move where the physics says they should: with the rate, the hand, the controller.
 #include <gtest/gtest.h>

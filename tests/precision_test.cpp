@@ -1,4 +1,5 @@
-// The precision report's references and norms (issue 15 items 1 and 3): the analytic wall
+// SPDX-License-Identifier: Apache-2.0
+// The precision report's references and norms: the analytic wall
 // equals the law's closed form, the hold's error is first order as theory says, the reference
 // ladder converges at the order theory gives, events are seen within a tick, and the drift
 // fit recovers a known slope. No timing is asserted (the report times, but nothing here reads it).
@@ -94,7 +95,7 @@ TEST(Precision, TheWallsReferenceLadderConvergesAtSecondOrderAwayFromEvents) {
 }
 
 TEST(Precision, TheHeldErrorOfARampIsTheHoldsExactFirstOrderError) {
-  // Issue 32 item 2. A force ramp F = a t held over ticks of T is off by a s at s into a tick:
+  // A force ramp F = a t held over ticks of T is off by a s at s into a tick:
   // RMS a T / sqrt(3) and max a T (at the tick's end), exactly, whatever the reference's rate.
   // The reference here is the ramp at 32 times the rate (10 kHz against 320 kHz in the report);
   // reading the error at each reference tick's left end only gave 0.977 of that RMS.
@@ -114,7 +115,7 @@ TEST(Precision, TheHeldErrorOfARampIsTheHoldsExactFirstOrderError) {
 }
 
 TEST(Precision, TheStatedReferenceErrorBoundsItsDifferenceToAFinerRunAtEventsToo) {
-  // Issue 32 item 1. The reference (the ladder's finest run) must be within its stated error of
+  // The reference (the ladder's finest run) must be within its stated error of
   // the truth at every tick, events included. The truth is taken as a run 8 times finer (not
   // the report's own check rung of 5: an event lands differently on it). realistic_friction's
   // contact end drops 0.27 N through the 2000 N/s rate limit, and at 160 and 320 kHz it landed

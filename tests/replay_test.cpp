@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce replay against the closed forms of effects.md (an independent implementation of
 // the spec in tests/support/spec_oracle.hpp), on random motions through random scenes: double
 // must match to a relative error of 1e-9. Also the command itself, end to end, and its errors.
@@ -341,7 +342,7 @@ TEST(ReplayCommand, Q16RefusesRowsWhoseOneOverDtDoesNotFitNamingTheLine) {
 }
 
 TEST(ReplayCommand, Q16TakesAMotionRecordedAtTheHighestRateItAllowsDespiteWholeNanosecondStamps) {
-  // Issue 32 item 5: `sim` runs Q16.16 at 32767 Hz (the rule's limit, scene_file.hpp), a tick of
+  // `sim` runs Q16.16 at 32767 Hz (the rule's limit, scene_file.hpp), a tick of
   // 30518.51 ns. Replay rounds t to whole ns, which makes some gaps 30518 ns (32767.55 Hz): the
   // rule is about the recording's rate, not that rounding, so the motion must be taken. One
   // Hz faster (32768 Hz, gaps of 30517 ns) it is over the limit whatever the rounding did.
@@ -379,14 +380,14 @@ TEST(MotionCsv, AcceptsColumnsInAnyOrderAndReportsExtraOnes) {
   EXPECT_EQ(m->ignored_columns[0], "fx");
 }
 
-// Issue 16: an Excel "CSV UTF-8" file starts with a byte order mark; it made "no column 't'".
+// An Excel "CSV UTF-8" file starts with a byte order mark; it made "no column 't'".
 TEST(MotionCsv, AUtf8ByteOrderMarkBeforeTheHeaderIsReadPast) {
   const auto motion = parse_motion_csv("\xEF\xBB\xBFt,x,y,z\n0,0,0,0\n0.001,0,0,0\n", "excel.csv");
   ASSERT_TRUE(motion) << motion.error();
   EXPECT_EQ(motion->rows.size(), 2U);
 }
 
-// Issue 16: a directory was "empty", an unreadable file had no reason.
+// A directory was "empty", an unreadable file had no reason.
 TEST(MotionCsv, ADirectoryOrAMissingFileIsNamedWithTheReason) {
   const auto dir = read_motion_csv(std::filesystem::temp_directory_path().string());
   ASSERT_FALSE(dir);
@@ -425,7 +426,7 @@ const BadMotion kBadMotions[] = {
 };
 INSTANTIATE_TEST_SUITE_P(MotionCsv, BadMotionCsv, ::testing::ValuesIn(kBadMotions));
 
-// Issue 27: a full disk or a killed writer leaves a last row without its newline, possibly cut
+// A full disk or a killed writer leaves a last row without its newline, possibly cut
 // mid-number ("0.00" of "0.0042"): it is left out with a warning naming the file and line,
 // never read as data.
 TEST(MotionCsv, ALastRowWithoutItsEndOfLineIsLeftOutAndNamed) {
@@ -438,7 +439,7 @@ TEST(MotionCsv, ALastRowWithoutItsEndOfLineIsLeftOutAndNamed) {
   EXPECT_TRUE(whole->note.empty()) << whole->note;
 }
 
-// Issue 27: a field quoted in a message is escaped and cut (printable, as scene messages): an
+// A field quoted in a message is escaped and cut (printable, as scene messages): an
 // escape sequence retitled or cleared the terminal, a 20 MB field made a 20 MB line.
 TEST(MotionCsv, AFieldQuotedInAMessageIsEscapedAndCut) {
   const auto m = parse_motion_csv("t,x,y,z\n0,0,\x1b]0;owned\x07,0\n", "m.csv");

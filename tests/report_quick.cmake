@@ -1,4 +1,5 @@
-# The short form of the reports CI runs (issue 15: "CI runs a short form of the reports"):
+# SPDX-License-Identifier: Apache-2.0
+# The short form of the reports CI runs:
 # `toonforce report all --quick` into a scratch directory, then each document must have its
 # sections (a report that stopped half-way, or wrote nothing, fails). The numbers are not
 # judged here (timings never are in tests); the budget and scenario tests check what can be.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real-time runner and `toonforce run`, asserting counts and file contents, never times
 // (this VM has multi-millisecond hypervisor stalls: docs/PERFORMANCE.md, measured with cyclictest).
 // In process: every deadline is either ticked or counted as missed; a stalled tick trips the
@@ -138,7 +139,7 @@ TEST(RealtimeRunner, AStalledTickIsSkippedNotBurstedAndTripsTheHeartbeatWatchdog
   EXPECT_GE(g_emergency_calls.load(), 1);
 }
 
-// ---- a stack overflow in the servo thread still commands zero force (issue 27) -----------------
+// ---- a stack overflow in the servo thread still commands zero force -----------------
 // Without an alternate signal stack the fatal-signal handler had no stack to run on: the
 // process died of SIGSEGV with the device's last force still commanded. A child process runs
 // the real runner with its handlers; its device writes every command into a pipe, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // float and Q16.16 against the double reference (spec effects.md §8), scene by scene, each
 // with the bound it must meet and where the bound comes from. Motions stay clear of the laws'
 // discontinuities (the contact boundary, the cliff's strip edges and speed threshold): there a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The latency and precision reports time and compare the paper scenes on scripted scenarios
 // (tools/report/src/scenario.cpp) that claim to drive every branch of each scene, the
 // expensive ones included. These tests check the claim on the scene's own diagnostics and

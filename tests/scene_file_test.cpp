@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scene files (spec interfaces.md): every bundled scene loads for every scalar type, and
 // malformed files are rejected with the file, the line and the key in the message.
 #include <gtest/gtest.h>
@@ -176,7 +177,7 @@ const Malformed kMalformed[] = {
     {"TOML syntax error", "[[surface]]\npoint = [0, 0, 0\n", "TOML syntax", 2},
     {"boolean where a number goes", "[device]\nvelocity_cutoff = true\n", "must be a number, not a boolean", 2},
     // Found by tests/fuzz/scene_file_fuzz.cpp: toml++ 3.3 (Debian 12's) reaches undefined
-    // behaviour on these (its issues #190 and #295); the loader rejects them first.
+    // behaviour on these (marzer/tomlplusplus#190 and #295); the loader rejects them first.
     {"non-ASCII outside comments and strings", "# \xc2\xa7 in a comment is fine\n[device]\nmax_force = 8 \xc2\xa7\n",
      "a non-ASCII character outside a comment or a string", 3},
     {"a combining mark at the top level (toml++ #295)", "name = \"ok\"\n\xcc\xaa\n",
@@ -187,7 +188,7 @@ const Malformed kMalformed[] = {
 };
 INSTANTIATE_TEST_SUITE_P(SceneFile, MalformedScene, ::testing::ValuesIn(kMalformed));
 
-// Issue 16: stiffness = 1e308 loaded, and the force's square overflowed: the clamp scaled it to
+// Stiffness = 1e308 loaded, and the force's square overflowed: the clamp scaled it to
 // a silent 0 and the wall vanished.
 TEST(SceneFile, AValueLargeEnoughToOverflowTheLawIsRefusedWithTheAllowedRange) {
   const auto scene = parse_scene("name = \"w\"\n[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n"
@@ -434,7 +435,7 @@ TEST(SceneFile, RefusesMoreSurfacesThanASceneHolds) {
   EXPECT_NE(scene.error().find("more than the 16 a scene holds"), std::string::npos) << scene.error();
 }
 
-// ---- depth and size before the parser (issue 27) -------------------------------------------------
+// ---- depth and size before the parser -------------------------------------------------
 // A dotted key ~40,000 deep crashed check, replay, sim and run inside toml++ (it recurses once
 // per level), and a `load` message the same: the text is measured first, in one pass.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scenes: compile-time composition pays only for its effects; the run-time scene sums its
 // effects in file order and matches the compile-time one.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The server process's seccomp filter (tools/cli/server_sandbox.hpp), shown to act: each case
 // forks a child of this test, installs the very filter the server installs, and makes one call.
 // What serving needs goes through; what an attacker who took the parser over would try next

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The servo loop's [device] keys in scene files (toonforce extensions, interfaces.md): values,
 // defaults, range and type errors that name file, line and key; old scenes keep working.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The servo loop's energy-side safety: the first-order thermal model against its closed form
 // over simulated minutes, derating with the clamp last; the Hannaford-Ryu observer against the
 // simulated device's own work integral; the passivity controller holding a slippery surface's
@@ -276,7 +277,7 @@ TYPED_TEST(ServoEnergy, PassivityControllerKeepsASlipperySurfacesInjectedEnergyU
   EXPECT_GT(damped, 1000);
 }
 
-// The applied share (Passivity::settle) comes from the exact sums (issue 29): a wanted force
+// The applied share (Passivity::settle) comes from the exact sums: a wanted force
 // past 181 N, whose square does not fit Q16.16, clamped while a slippery contact's episode runs,
 // is no saturation fault (it was one when the share divided two Q16.16 dot products).
 TYPED_TEST(ServoEnergy, AWantedForcePast181NewtonsWhileAnEpisodeRunsIsClampedWithoutAFault) {
@@ -294,7 +295,7 @@ TYPED_TEST(ServoEnergy, AWantedForcePast181NewtonsWhileAnEpisodeRunsIsClampedWit
 
 // A Q16.16 loop whose device reads in Q16.16 (a microcontroller's, tools/mcu) takes the step
 // since the last counted tick once, in the sensor, for the velocity estimate and the passivity
-// observer alike (issue 29); a loop whose device reads in double keeps the observer's own last
+// observer alike; a loop whose device reads in double keeps the observer's own last
 // position. On the same positions (exact Q16.16 values) through a slippery stroke whose episodes
 // go over budget, late ticks and a failed read, the two give the same forces, damping,
 // velocities and energies, bit for bit.
@@ -378,7 +379,7 @@ TYPED_TEST(ServoEnergy, PassivityControllerLeavesAnEpisodeWithinBudgetUntouched)
 // The damping for an episode over its budget is -alpha v with alpha = min(X rate / |v|^2,
 // max_damping, max_force / |v|) (the excess X, HR's rule capped twice), nothing below 1 mm/s:
 // each cap binding in turn, against that closed form from the controller's own energy. In
-// Q16.16 from the inverse root (issue 29), within 0.1 % and a few LSB.
+// Q16.16 from the inverse root, within 0.1 % and a few LSB.
 TYPED_TEST(ServoEnergy, PassivityDampingIsTheExcessOverTheSpeedSquaredCappedTwice) {
   using S = TypeParam;
   PassivityConfig config;

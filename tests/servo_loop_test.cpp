@@ -1,4 +1,5 @@
-// The servo loop's safety layer, one behaviour at a time (spec effects.md §6, issue 3), in
+// SPDX-License-Identifier: Apache-2.0
+// The servo loop's safety layer, one behaviour at a time (spec effects.md §6), in
 // double and in Q16.16 (the firmware scalar): clamp, rate limit, soft start, engage, velocity
 // limit, workspace, watchdog latch and re-arm, device silence, e-stop, enable, homing, lights,
 // integer time.

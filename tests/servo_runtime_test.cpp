@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What makes the servo loop fit for real time, checked by counts, never by times: the same
 // inputs give bit-identical forces; a tick allocates nothing (with every safety feature on);
 // the telemetry ring never blocks, keeps order, counts what it drops and allocates nothing.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Test doubles for the servo loop: a scripted device (position, statuses, what was written),
 // GPIO pins whose levels the test sets, and scene/config helpers. None of them allocates in

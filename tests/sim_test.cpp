@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce sim` and the paper's figures: each figure scenario asserts the fact the paper
 // shows, measured from its trace; runs are byte-for-byte reproducible; the loop is the servo
 // loop `run` drives, its safety layer included, and its scene force is what replay computes

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The servo loop as replay runs it (effects.md §6 stages only): velocity estimator, the safety
 // stage of effects.md §6, the non-finite guard, determinism, and no allocation in a tick.
 #include <gtest/gtest.h>
@@ -119,7 +120,7 @@ TEST(NonFiniteGuard, NonFiniteSceneForceGivesZeroAndKeepsEffectStates) {
   EXPECT_FALSE(r.faults);
 }
 
-// Issue 16: stiffness = 1e308 gave a finite force (1e305 N) whose square overflows; the clamp
+// Stiffness = 1e308 gave a finite force (1e305 N) whose square overflows; the clamp
 // measured it as infinite and scaled it to a silent 0 with no fault ("peak 0 N, faults none").
 // Such a force is a fault, with zero force, like a non-finite one.
 TEST(NonFiniteGuard, AFiniteForceWhoseSquareOverflowsIsAFaultNotASilentZero) {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stability maps' linear analysis (tools/report: spectral.hpp, stability.hpp SampledLoop):
 // the eigenvalue routine on matrices whose eigenvalues are known by construction, and the
 // sampled loop's transition matrix against closed forms, against the passivity bound it must
@@ -257,7 +258,7 @@ TEST(StabilityModel, ColgateSchenkelsRequiredDampingIsTheBoundForASpringADamperA
 }
 
 TEST(StabilityModel, TheDelayAwareBoundIsExactWithoutDelayOrWithoutWallDampingAndOnlyABoundWithBoth) {
-  // Issue 32 item 3: (1 + 2 d) K T / 2 + |B| is what passivity_bound.hpp, `check` and the maps
+  // (1 + 2 d) K T / 2 + |B| is what passivity_bound.hpp, `check` and the maps
   // use. Without delay the spring's need K T / 2 is the same at every theta, so it adds to the
   // damper's wherever that peaks: exact. With delay the spring needs most at theta -> 0, as a
   // negative damping (B <= 0, the slippery gain) does: exact again. A wall damping B > 0 needs

@@ -1,10 +1,11 @@
+// SPDX-License-Identifier: Apache-2.0
 // The extreme cases of our stability checklist (docs/STABILITY.md), each with the safety
 // layer on: the servo loop (ServoLoop: engage, soft start, velocity limit, workspace, watchdog,
 // passivity observer and controller, thermal model, force-rate limit, clamp last; configured
 // as `toonforce run --device sim` configures it, so the thermal model is inert: the simulated
 // device's continuous force is its peak) on the host simulation's
 // device (host_sim::SimDevice: mass, damping, friction, encoder and DAC steps, I/O delay,
-// saturation) held by a simulated hand. Every test checks what the issue asks: the commanded
+// saturation) held by a simulated hand. Every test checks the same properties: the commanded
 // force stays within the clamp, the energy stays bounded, nothing becomes NaN, and the loop
 // recovers or re-arms as designed. Counts and simulated quantities only; no time is measured.
 #include <gtest/gtest.h>

@@ -1,8 +1,9 @@
-// The live viewer's server side (issue 9), over real sockets on 127.0.0.1 with a Beast client:
+// SPDX-License-Identifier: Apache-2.0
+// The live viewer's server side, over real sockets on 127.0.0.1 with a Beast client:
 // only the embedded files are served (path traversal spellings are 404), the Host and Origin
 // checks, the socket is read-only (a message closes it with 1008 and changes nothing), a page
 // that does not read loses queued batches (counted, bounded queue) while publish() never waits
-// or allocates, and frames arrive in order with their sequence numbers. As a server (issue 16):
+// or allocates, and frames arrive in order with their sequence numbers. As a server:
 // the page cap under hundreds of concurrent upgrades, the bytes and resident memory they cost,
 // the accept loop out of descriptors, the Host check on other addresses and the names given.
 // Also the hello message, trace reading for `toonforce view`, and the run and sim hooks. Counts
@@ -400,7 +401,7 @@ std::string read_status(int fd) {
   return head.rfind("HTTP/1.1 ", 0) == 0 ? head.substr(9, 3) : "garbage";
 }
 
-// Issue 16, item 7: 300 valid upgrades at once from a local process got 133 pages past the cap
+// 300 valid upgrades at once from a local process got 133 pages past the cap
 // of 16 (the count went up only once each handshake was written, so every request read before
 // then passed the check), and each page queued a copy of the whole history: 3.4 GB, kept after
 // the pages closed. Counts are exact; resident memory gets a generous bound (a page's copy of
@@ -537,7 +538,7 @@ int highest_fd() {
   return highest;
 }
 
-// Issue 16, item 7: out of file descriptors, accept() fails with EMFILE while the connection
+// Out of file descriptors, accept() fails with EMFILE while the connection
 // stays in the backlog, so the listener is readable again at once and the accept loop spun at
 // 100 % CPU. The test runs the process out of descriptors (a lower RLIMIT_NOFILE, the rest
 // taken by dup), connects, and counts the accepts that fail over a wall interval: the server
@@ -605,7 +606,7 @@ std::vector<std::string> other_ipv4_addresses() {
   return out;
 }
 
-// Issue 16, item 7: with --view-address 0.0.0.0 any Host with the right port was accepted, so a
+// With --view-address 0.0.0.0 any Host with the right port was accepted, so a
 // page of evil.example, its name rebound to this host, could read the viewer (DNS rebinding).
 // On every address the Host must name this server: the loopback names, this host's addresses,
 // or a name it was given.
@@ -743,7 +744,7 @@ TEST(ViewerServer, RefusesAnAddressItCannotUse) {
   auto bad = ViewerServer::start(options, "{}");
   ASSERT_FALSE(bad);
   EXPECT_NE(bad.error().find("--view-address not-an-address: not an IP address"), std::string::npos) << bad.error();
-  // `toonforce view` calls it --address (issue 16: its errors named --view-address).
+  // `toonforce view` calls it --address (its errors named --view-address).
   options.address_option = "--address";
   auto bad_view = ViewerServer::start(options, "{}");
   ASSERT_FALSE(bad_view);
@@ -828,7 +829,7 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
   EXPECT_NE(error("").find("empty"), std::string::npos);
 }
 
-// Issue 16: a SIGKILLed run or a full disk leaves a trace whose last row has no end of line;
+// A SIGKILLed run or a full disk leaves a trace whose last row has no end of line;
 // the viewer shows the rows before it and says so (it refused the whole trace).
 TEST(TraceFile, ACutLastRowIsLeftOutAndNamedNotRefused) {
   auto cut = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0,0\n0.002,0,0,0,0,0,0.", "cut.csv");
@@ -906,7 +907,7 @@ TEST(ViewerHooks, SimWithAViewerWritesTheSameTrace) {
 
 }  // namespace
 
-// ---- /control as a server (issue 27): bounded by construction whatever a connection sends ----
+// ---- /control as a server: bounded by construction whatever a connection sends ----
 
 namespace {
 
@@ -1012,7 +1013,7 @@ int server_side(std::uint16_t server_port, const tcp::endpoint& client) {
 
 }  // namespace
 
-// Issue 27: replies to pipelined messages waited ~44 ms for the client's delayed ACK (Nagle).
+// Replies to pipelined messages waited ~44 ms for the client's delayed ACK (Nagle).
 // Every accepted socket (/control, the viewer's /ws, plain HTTP) has TCP_NODELAY.
 TEST(ControlServer, EveryAcceptedSocketHasNoDelay) {
   FakeControl control;
@@ -1032,7 +1033,7 @@ TEST(ControlServer, EveryAcceptedSocketHasNoDelay) {
   }
 }
 
-// Issue 27: a binary message was read as text. It gets an error and the connection closes
+// A binary message was read as text. It gets an error and the connection closes
 // with 1003 (unsupported data), as the spec says.
 TEST(ControlServer, ABinaryMessageIsRefusedAndTheConnectionClosedWith1003) {
   FakeControl control;
@@ -1052,7 +1053,7 @@ TEST(ControlServer, ABinaryMessageIsRefusedAndTheConnectionClosedWith1003) {
   EXPECT_EQ(control.sequence.load(), 0U) << "nothing changed";
 }
 
-// Issue 27: only the first of two Host (or Origin) headers was checked.
+// Only the first of two Host (or Origin) headers was checked.
 TEST(ControlServer, ARequestWithTwoHostOrOriginHeadersIsRefused) {
   FakeControl control;
   auto server = start_server(control_options(control));
@@ -1073,7 +1074,7 @@ TEST(ControlServer, ARequestWithTwoHostOrOriginHeadersIsRefused) {
   }
 }
 
-// Issue 27: the server read the next message whatever replies it still had to send, so a client
+// The server read the next message whatever replies it still had to send, so a client
 // that sends and never reads grew the process without bound. Now a connection reads its next
 // message only once its reply has been written: a client that does not read stops the reading.
 TEST(ControlServer, AClientThatNeverReadsStopsBeingReadAndHoldsOneReply) {
@@ -1096,7 +1097,7 @@ TEST(ControlServer, AClientThatNeverReadsStopsBeingReadAndHoldsOneReply) {
   EXPECT_EQ(server->stats().control_messages, 1U + kSent);
 }
 
-// Issue 27: connections that never said hello held every control slot as long as they liked.
+// Connections that never said hello held every control slot as long as they liked.
 // They have slots of their own now and a deadline for the hello.
 TEST(ControlServer, SilentConnectionsGetADeadlineAndSlotsOfTheirOwn) {
   FakeControl control;
@@ -1134,7 +1135,7 @@ TEST(ControlServer, SilentConnectionsGetADeadlineAndSlotsOfTheirOwn) {
   EXPECT_EQ(second.ws.reason().code, websocket::close_code::try_again_later);
 }
 
-// Issue 27: a client that sends its request a header line now and then held a connection for
+// A client that sends its request a header line now and then held a connection for
 // 30 s. The whole request must come within request_deadline_s.
 TEST(ControlServer, ARequestNotReadInTimeEndsTheConnection) {
   ViewerOptions options;
@@ -1150,7 +1151,7 @@ TEST(ControlServer, ARequestNotReadInTimeEndsTheConnection) {
   EXPECT_TRUE(eventually([&] { return server->stats().requests_late == 1U; }));
 }
 
-// Issue 27: a page that connected after a live change was shown the starting scene.
+// A page that connected after a live change was shown the starting scene.
 TEST(ControlServer, APageThatComesAfterAChangeGetsTheSceneAsChanged) {
   FakeControl control;
   auto server = start_server(control_options(control));
@@ -1168,7 +1169,7 @@ TEST(ControlServer, APageThatComesAfterAChangeGetsTheSceneAsChanged) {
   EXPECT_NE(text.find(R"("test":true)"), std::string::npos) << "the rest of the hello kept: " << text;
 }
 
-// Issue 27: 32 slow clients (a header line every 5 s) held every connection slot, and each new
+// 32 slow clients (a header line every 5 s) held every connection slot, and each new
 // connection was closed at once for 20-30 s per wave. With every slot taken, the connection
 // that has been reading its request longest makes room for the new one.
 TEST(ControlServer, WithEverySlotTakenByReadersTheOldestMakesRoom) {

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Map of the Novint Falcon's force envelope over its workspace (docs/FALCON.md, "Force envelope").
 
 Usage:

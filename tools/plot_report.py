@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots for `toonforce report` (docs/PERFORMANCE.md, docs/STABILITY.md).
 
 Usage:

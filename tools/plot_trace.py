@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plot a `toonforce sim` trace (columns: tools/sim/include/toonforce/sim/sim_trace.hpp).
 
 Usage: plot_trace.py [--kind auto|stroke|wall|cliff|overview] [--title TEXT]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The Falcon backend's part of toonforce's CMake package: toonforce::hal_falcon, a static
 # library that links libusb-1.0 and nettle through the imported targets pkg-config makes
 # (the same names as in toonforce's build: PkgConfig::LIBUSB, PkgConfig::NETTLE).

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The GPIO backend's part of toonforce's CMake package: toonforce::hal_gpio, a static library
 # that links libgpiod (1.6) through the imported target pkg-config makes (PkgConfig::LIBGPIOD,
 # the name in toonforce's build).

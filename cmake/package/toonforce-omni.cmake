@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # The Omni backend's part of toonforce's CMake package: toonforce::hal_omni, a static library
 # that links libusb-1.0 and hidapi-hidraw through the imported targets pkg-config makes (the
 # names in toonforce's build: PkgConfig::TOONFORCE_LIBUSB, PkgConfig::TOONFORCE_HIDAPI), and

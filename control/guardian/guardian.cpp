@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The guardian's watch (guardian.hpp; docs/DEPLOY.md "Processes").
 #include "toonforce/control/guardian.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce-guardian: the guardian process of `toonforce run` (guardian.hpp). `run` forks, and
 // its parent execs this program, so the loop's process is this process's child:
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Explicit instantiations of the control stages for every scalar type, so each provably
 // builds for double, float and Q16.16: the servo loop with every stage on the run-time device
 // seam and the library's run-time scene, and replay's loop (effects.md §6 stages only).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce run`'s process split (process_split.hpp).
 #include "toonforce/control/process_split.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real-time runner (Linux). See realtime_runner.hpp for the contract; the method follows
 // cyclictest (rt-tests): absolute CLOCK_MONOTONIC deadlines with clock_nanosleep(TIMER_ABSTIME),
 // SCHED_FIFO, mlockall, and latency = wake-up time - deadline.

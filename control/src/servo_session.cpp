@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A real-time run of a servo loop (servo_session.hpp): signals, the telemetry writer thread,
 // the terminal's commands, and the runner on the device's clock.
 #include "toonforce/control/servo_session.hpp"

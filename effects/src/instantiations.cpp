@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Explicit instantiations of every law for every scalar type (see instantiations.hpp).
 #include "toonforce/effects/instantiations.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/host_sim/device_model.hpp"
 
 namespace toonforce::host_sim {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/host_sim/sim_driver.hpp"
 
 #include <fmt/format.h>

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Writes the bundled motions in scenes/motions/ (open-loop HIP paths for `toonforce replay`).
 
 Run with Debian's python (no third-party modules): /usr/bin/python3 scenes/motions/make_motions.py

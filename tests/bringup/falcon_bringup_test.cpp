@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup falcon` against the emulated Falcon (hal/falcon/emulator) in process, with
 // an emulated person who does what each request asks: a healthy Falcon passes every step, and
 // each hardware fault the emulator injects is caught by the step that should catch it, with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup gpio` against emulated /dev/gpiochip0 (umockdev, hal/gpio/emulator), with
 // an emulated person who presses the switches and reads the tick pin on an emulated scope: the
 // e-stop gives zero force in the tick the servo loop sees it, and an e-stop wired with the

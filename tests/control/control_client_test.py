@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """The control protocol of live scenes (docs/spec/control-protocol.md) from a client in another
 language than C++: Python with Debian's python3-websockets, against `toonforce run --device sim
 --view 0 --control`. Each check states what the spec says; the script exits non-zero on the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Falcon's calibration file (hal/falcon calibration.hpp): its format, its errors (file,
 // line, key, as scene files), where it lives, and how open_falcon() chooses it. The driver
 // over libusb reading a file runs in usb_test.cpp.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Falcon's toonforce subcommands that need no device: `toonforce falcon udev-rule` and the
 // errors of `toonforce falcon firmware` for files that are not known images. (`toonforce
 // devices` and loads against emulated Falcons run in usb_test.cpp, under umockdev.)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Falcon's 16-byte codec, FTDI status stripping and frame assembly, against the vectors of
 // docs/FALCON.md §3 and our own (round trips, every flag bit, extremes).
 #include <gtest/gtest.h>

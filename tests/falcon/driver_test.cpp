@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // FalconDriver (the DeviceDriver) against the emulated Falcon over the in-process transport:
 // homing, positions in the scene frame, force -> motor words, split and merged replies, and
 // each fault (dropped, garbled, USB timeout, unplugged). The same scenarios run over the real
@@ -215,7 +216,7 @@ TEST(FalconDriver, InfoIsInTheSceneFrame) {
   EXPECT_NEAR(info.workspace_max_m.z, 0.060, 1e-12);
 }
 
-// ---- the force envelope (issue 17) ----
+// ---- the force envelope ----
 
 TEST(FalconDriver, TheAdvertisedMaximumIsWhatTheWordsGiveInEveryDirectionAtTheCentre) {
   Rig rig;

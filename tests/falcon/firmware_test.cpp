@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Firmware files (size, boot-table structure, SHA-256 against an allowlist) and the load
 // sequence of FALCON.md §2.1 against the emulated Falcon over the in-process transport.
 // Synthetic images only: the known-hash check runs on a test allowlist.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Falcon kinematics against docs/FALCON.md §5 and §8: IK vectors, FK round trips,
 // the Jacobian against finite differences, force -> motor words through the true transpose.
 #include <gtest/gtest.h>
@@ -170,7 +171,7 @@ TEST(FalconKinematics, AngleJacobianMatchesFiniteDifferences) {
 }
 
 /// libnifalcon's row formula (FALCON.md §5 "Jacobian") with its third entry sin^2(theta2)/den,
-/// or issue #66's sin(theta2) sin(theta3)/den: an oracle for the reference table, not our code.
+/// or libnifalcon/libnifalcon#66's sin(theta2) sin(theta3)/den: an oracle for the reference table, not our code.
 Mat3 libnifalcon_dtheta_dp(const Vec3<double>& p, bool issue66) {
   const FalconGeometry& g = kGeometry;
   const Angles t1 = ik(p);
@@ -297,7 +298,7 @@ TEST(FalconKinematics, LargeForcesScaleDownKeepingTheDirection) {
   EXPECT_FALSE(force_to_motor_words(j, {0.5, 0.5, 0.5}).saturated);
 }
 
-// ---- the force envelope (issue 17: what the +-4095 words allow, per pose and direction) ----
+// ---- the force envelope (what the +-4095 words allow, per pose and direction) ----
 
 /// The oracle: the largest force along u from the finite-difference Jacobian of the IK, by
 /// bisection on the words' magnitude (no closed form shared with the code under test).
@@ -331,7 +332,7 @@ TEST(FalconEnvelope, AlongEachAxisItIsTheForceAtWhichTheLargestWordReaches4095) 
 TEST(FalconEnvelope, AtTheCentreXAndYFollowTheReferenceJacobianAndZTheIk) {
   // FALCON.md §8's J at (0, 0, 0.11): the largest |x-row| entry is 0.052725 m/rad, y's
   // 0.051940, so 4095 / (10000 * that) = 7.77 N and 7.88 N; along z, where the table's row is
-  // libnifalcon's, the IK's own 0.024180 gives 16.9 N (the issue's "7.8, 7.9 and 17 N").
+  // libnifalcon's, the IK's own 0.024180 gives 16.9 N (the expected "7.8, 7.9 and 17 N").
   ForceEnvelope e;
   ASSERT_TRUE(force_envelope_at(kGeometry, {0, 0, 0.11}, {}, e));
   EXPECT_NEAR(e.axis_n.x, 4095.0 / (10000.0 * 0.052725), 0.001);

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Runs the toonforce executable built with the tests (TOONFORCE_BINARY) and captures what it
 // prints; a child inherits umockdev's preload and testbed, so it sees the emulated devices.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Synthetic Falcon firmware for tests: valid C28x boot tables (FALCON.md §2.1 "Derived") with
 // pseudo-random contents, and a test-only allowlist of their SHA-256. No Novint image is used

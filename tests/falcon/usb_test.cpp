@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real libusb backend (LibusbTransport, open_falcon, detect_falcons, the toonforce CLI)
 // against emulated Falcons at the usbfs boundary through umockdev. CTest runs this binary
 // under tests/support/run_under_umockdev; run by hand without it, every test skips.
@@ -532,7 +533,7 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
 }
 
 
-// ---- the guardian (issue 28): the Falcon zeroed from outside the process that drove it ----
+// ---- the guardian: the Falcon zeroed from outside the process that drove it ----
 
 TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) {
   // The driver pushes with a steady force; a stand-in loop process ticks the shared heartbeat

@@ -1,9 +1,10 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the control server's message handler (ControlSession::on_message,
 // docs/spec/control-protocol.md) over a real scene editor, so changes that parse go on through
 // the JSON to TOML conversion and the scene files' reader. The first byte chooses before the
 // hello (the message is the connection's first) or after it; the rest is one message, up to
 // 64 KiB. Any bytes must give exactly one bounded reply, never a crash, a sanitizer report, an
-// exception or a hang (issue 27: keys nested 20,000 deep crashed the run).
+// exception or a hang (keys nested 20,000 deep crashed the run).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>

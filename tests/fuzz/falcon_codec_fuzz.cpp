@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the Novint Falcon codec (hal/falcon/protocol.hpp), the bytes a device or a
 // garbled USB link can send. The first byte picks the property checked on the rest:
 //   0: any 16 bytes as a status frame and as a command frame: if it decodes, encoding the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: hand scripts (docs/HAND_SCRIPTS.md). Any bytes must give a planned script or
 // errors, never a crash, a sanitizer report or a hang; a script that loads must plan an intent
 // that is finite at every instant and drive the simulated device for a few ticks.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: a live servo loop whose scene mailbox, and a telemetry ring, are written by
 // another process that may write any bytes (docs/spec/live-scenes.md, "What the loop checks").
 // Whatever the bytes, for the double and the Q16.16 loop: no crash, no sanitizer report, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: scene files. Any bytes must give a scene or errors, never a crash, a
 // sanitizer report or a hang; a scene that loads must build and run a few ticks.
 #include <cstddef>

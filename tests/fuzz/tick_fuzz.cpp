@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: the servo loop's tick fed arbitrary doubles as positions, velocities and
 // periods, through every bundled scene in every scalar type, as replay runs it (effects.md §6
 // stages, stamped time) and as a device runs it (every stage, fixed period). Whatever comes in,

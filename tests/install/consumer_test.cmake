@@ -1,4 +1,5 @@
-# CTest install_consumer (issue 10): installs this build tree into a temporary prefix, moves the
+# SPDX-License-Identifier: Apache-2.0
+# CTest install_consumer: installs this build tree into a temporary prefix, moves the
 # prefix elsewhere (the package must be relocatable), then uses it as a program embedding
 # toonforce would:
 #   1. the layout: every file where ToonforceInstall.cmake says, nothing pointing back into the
@@ -159,7 +160,7 @@ expect("run_scene_file --realtime exits 0 or 1 (got ${rc})" rc EQUAL 0 OR rc EQU
 string(FIND "${out}" "real time: " at)
 expect("run_scene_file --realtime reports its timing" NOT at EQUAL -1)
 
-# An effect the library does not know, from a scene file by its key (issue 14).
+# An effect the library does not know, from a scene file by its key.
 set(examples_data "${prefix}/share/doc/toonforce/examples/scenes")
 function(check_own_effect program)
   run_step("${program} magnet.toml" COMMAND "${program}" "${examples_data}/magnet.toml" "${examples_data}/visit_magnet.toml"

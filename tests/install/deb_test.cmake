@@ -1,4 +1,5 @@
-# CTest debian_package (issue 10): builds the Debian packages of this build tree with CPack and
+# SPDX-License-Identifier: Apache-2.0
+# CTest debian_package: builds the Debian packages of this build tree with CPack and
 # checks what dpkg would install from them: the program, scenes, udev rule, limits snippet
 # (a conffile) and unit template in `toonforce`, written for /usr and /etc; headers, libraries
 # and package files in `toonforce-dev`; each backend in its own -dev package depending on it;

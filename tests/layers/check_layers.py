@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """The layers, checked: no include and no link points up.
 
 The allowed graph is written down once, below (LAYERS). Every #include "toonforce/..." in a

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """The licence, the third-party notice and the Debian copyright file, checked against what the
 build uses (CTest `licence`).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Steers the fake libHD (fake_hd/fake_hd.cpp) from a test. The test maps the same file the
 // backend loads and resolves the fake's extra tf_fake_hd_* functions from it; the backend

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup omni` against the fake libHD (our own simulated Omni behind the documented
 // HD API), with an emulated person who steps the fake's scheduler while acting: a healthy
 // device passes, and a device whose calibration needs the inkwell is caught by the calibration

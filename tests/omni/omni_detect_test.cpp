@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Detection of 3D Systems Touch devices against devices emulated with umockdev
 // (umockdev README; docs/FALCON.md §9): the real libusb, hidapi (hidraw) and sysfs code
 // paths run against a testbed built in-process. CTest runs this binary under umockdev-wrapper

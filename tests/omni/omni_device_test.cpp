@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OmniDevice against the fake libHD: opening, limits, frames, the device-clocked tick, the
 // lock-free status, overruns and every HD error class. The fake is our own code; these tests
 // prove the binding against the documented HD API behaviour, not against the real driver.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What `toonforce devices` will say about OpenHaptics and about a Touch it cannot open. The
 // OpenHaptics check loads fakes of our own (tests/omni/fake_hd/): it proves the check against
 // the documented library layout, not against a real installation. Permission failures cannot

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenHaptics frame (x right, y up, z toward the user, mm) against the scene frame of spec
 // effects.md §0 (x right, y away from the user, z up, m, origin at the workspace centre):
 // scene = (x, -z, y) after removing the centre. Expected values are worked out by hand from

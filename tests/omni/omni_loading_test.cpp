@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Loading OpenHaptics at run time (hd_library.hpp): every way it can fail gives a message that
 // says what is wrong and what to install or fix. The libraries loaded here are fakes of our own
 // (tests/omni/fake_hd/): these tests prove the loader and binding against the documented HD

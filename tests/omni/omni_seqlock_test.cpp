@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Omni backend's snapshot between the vendor's servo thread and the application
 // (hal/omni seqlock.hpp): a reader racing a writer that never waits sees only whole values,
 // in the order they were stored. Run under ThreadSanitizer too (CMakePresets.json, tsan),

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The device-clocked path end to end, as `toonforce run --device omni` drives it: the vendor
 // scheduler (the fake libHD's) calls our frame, which calls a plain tick function that runs
 // the servo loop (every stage) on the RuntimeScene of scenes/wall.toml. The fake is our own

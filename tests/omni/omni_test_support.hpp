@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Shared fixture of the Omni device tests: a fake libHD in manual-stepping mode (each tick runs
 // when the test asks), the device opened through the ordinary dlopen path, and a probe tick

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Global operator new/delete replacements that count allocations per thread.
 #include "alloc_counter.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Counts heap allocations made through operator new on this thread (the test binary replaces
 // the global operator new), so a test can assert that a tick allocates nothing, after Drake's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The guardian (control/guardian.hpp) watching a stand-in for the loop's process: a forked
 // child that only ticks the shared heartbeat every millisecond, as the runner does, until this

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A light-weight simulated device for the servo loop's tests (`toonforce run --device sim` uses
 /// the host simulation, host_sim/). It exercises what host_sim's SimDriver does not: a device

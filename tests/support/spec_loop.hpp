@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The servo loop as `toonforce replay` runs it (effects.md §6 stages only), fed one device
 // sample per tick by the test: what the foundation's tests, the scalar agreement and the

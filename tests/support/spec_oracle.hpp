@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // An independent reading of docs/spec/effects.md in plain double code, used as the oracle
 // of the closed-form tests. It shares no code with effects/ or control/ (on purpose: a bug

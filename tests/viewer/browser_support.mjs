@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the browser tests share (viewer_browser.test.mjs, story_browser.test.mjs): the command
 // line, Debian's Chromium launched headless through playwright-core, a toonforce started with a
 // viewer (resolving with the URL it serves), and a page that records every error it meets.

@@ -1,4 +1,5 @@
-// The story page (issue 19, item 4) played through in a real browser: Debian's Chromium,
+// SPDX-License-Identifier: Apache-2.0
+// The story page played through in a real browser: Debian's Chromium,
 // headless, through playwright-core, on `toonforce run --device sim` with the story's level and
 // a scripted player (scenes/story/). The page's own logic changes the scene through the control
 // protocol; this test checks what happened twice: as the page tells it (slid, bounced, fell,

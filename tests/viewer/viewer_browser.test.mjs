@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The viewer page in a real browser: Debian's Chromium, headless, driven by playwright-core,
 // against `toonforce sim --view` of each of the paper's scenes (the six figure scenarios of
 // tools/sim/src/figures.cpp). For each: the page loads without a console error or a failed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Google Benchmark over the latency report's cases (tools/report/include/toonforce/report/
 // workloads.hpp): every effect by branch, the safety stage, the five paper scenes as Scene<...>
 // and as RuntimeScene, and the servo loop, for double, float and Q16.16. Google Benchmark

@@ -1,6 +1,7 @@
+// SPDX-License-Identifier: Apache-2.0
 // Benchmark (never a test): how many simulated seconds the host simulation runs per second
-// of wall-clock time, for each of the paper's figure scenarios, on one thread. Target (issue
-// 4): at least 1000x real time at 1 kHz. Two numbers per scenario: the closed loop alone
+// of wall-clock time, for each of the paper's figure scenarios, on one thread. Target:
+// at least 1000x real time at 1 kHz. Two numbers per scenario: the closed loop alone
 // (device reading, controller, device and hand physics) and with the trace formatted and
 // written to /dev/null as `toonforce sim` does. Each figure is measured `--repeats` times and
 // the fastest is reported (throughput on a shared machine: the slower runs measure the

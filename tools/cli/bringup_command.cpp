@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce bringup falcon|omni|gpio [--only STEPS] [--skip STEPS] [--non-interactive]
 //                                   [--answer ID=VALUE]... [--report BASE] [device options]
 // The guided hardware-in-the-loop bring-up of one device (tools/bringup): each step passes or

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce check SCENE [HAND_SCRIPT] [--device falcon|omni] [--rate HZ] [--scalar ...] [--allow-empty]
 // Everything `run` and `sim` check at load, without running: the scene's and the hand script's
 // errors (file:line:key and the allowed range), the servo configuration for the device class,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Subcommands of the toonforce command line. Each add_* registers a subcommand whose callback
 // runs it and stores the process exit status.
@@ -30,7 +31,7 @@ void add_view(CLI::App& app);
 #endif
 
 /// Numeric option checks. CLI11's print their bounds with %f (the largest double in 309
-/// digits, issue 16) and take "inf" for a positive number; these say the range with %g and
+/// digits) and take "inf" for a positive number; these say the range with %g and
 /// want a finite number, so a bad value is one short line.
 CLI::Validator number_in(double lo, double hi);
 CLI::Validator positive_number();

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce devices [--no-probe]
 // Lists the haptic devices on this host and, for each, whether this user may open it and what
 // to do if not (spec interfaces.md "toonforce devices"), then the software prerequisites.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce doctor [--root DIR] [--priority P]: is this host ready for a real-time loop?
 #include <cstdio>
 #include <cstdlib>

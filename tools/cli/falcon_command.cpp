@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce falcon firmware FILE [--serial S | --index N] [--attempts N] [--reload]
 // toonforce falcon udev-rule
 // toonforce falcon envelope [--calibration FILE] [--csv OUT] [--step MM]

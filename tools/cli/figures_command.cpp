@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce figures [--out DIR] [--format png|svg] [--root DIR] [--no-plot]
 #include <cstdio>
 #include <memory>

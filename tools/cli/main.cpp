@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce: the command line (spec interfaces.md). Each subcommand lives in its own file and
 // registers itself here; this file only parses and dispatches.
 #include <csignal>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Numeric option checks shared by every subcommand (commands.hpp says why they replace CLI11's).
 #include <sys/stat.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce replay --scene S.toml --input motion.csv --output forces.csv [--scalar ...] [--sine ...]
 #include <atomic>
 #include <cctype>

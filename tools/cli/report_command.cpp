@@ -1,4 +1,5 @@
-// toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself (issue 8).
+// SPDX-License-Identifier: Apache-2.0
+// toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself.
 // Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
 // plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when
 // the Cortex-M3 images are built (mcu.hpp).
@@ -62,7 +63,7 @@ void add_latency(CLI::App& report) {
   CLI::App* cmd = report.add_subcommand(
       "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
   cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
-  // Every numeric option's range is checked here, before anything runs (issue 27: 2^64-1 cold
+  // Every numeric option's range is checked here, before anything runs (2^64-1 cold
   // ticks ran without end, 1e308 seconds aborted in llround).
   cmd->add_option("--ticks", options->ticks, "Timed ticks per row, 1..1e10 (default 10^7)")
       ->check(number_in(1, kMaxTicks));
@@ -223,7 +224,7 @@ void add_stability(CLI::App& report) {
   });
 }
 
-/// The microcontroller figures (issue 18): the Cortex-M3 images (and the M4F ones beside them)
+/// The microcontroller figures: the Cortex-M3 images (and the M4F ones beside them)
 /// under QEMU, their tables; --docs regenerates their block of PERFORMANCE.md.
 void add_mcu(CLI::App& report) {
   auto options = std::make_shared<report::McuOptions>();

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce run --device sim|falcon|omni --scene S.toml [--rate HZ] [--duration S] [--trace out.csv]
 //               [--stats-json FILE] [--cpu N] [--priority P] [--allow-non-rt] [--no-mlock] [--scalar ...]
 //               [--view [PORT]] [--view-address ADDR] [--server-user NAME]
@@ -261,7 +262,7 @@ void add_run(CLI::App& app) {
 #if TOONFORCE_VIEWER
   auto view = std::make_shared<ViewFlags>();
   add_view_flags(cmd, *view);
-  // Live scenes (issue 19; docs/spec/control-protocol.md): the control protocol at /control of
+  // Live scenes (docs/spec/control-protocol.md): the control protocol at /control of
   // the viewer's server. Its state lives as long as the command's callback.
   auto control = std::make_shared<bool>(false);
   auto control_token = std::make_shared<std::string>();
@@ -289,7 +290,7 @@ void add_run(CLI::App& app) {
 #endif
   cmd->callback([=] {
     options->lock_memory = !*no_mlock;
-    // The guardian first (issue 28): before any thread, device or server exists, `run` forks;
+    // The guardian first: before any thread, device or server exists, `run` forks;
     // this process becomes the guardian and the child does all the rest.
     if (*no_guardian && !options->gpio.amp_enable_pin.empty()) {
       std::fputs("--amp-enable-pin: the guardian process holds the amplifier-enable line; --no-guardian has none\n", stderr);
@@ -318,8 +319,8 @@ void add_run(CLI::App& app) {
     options->early_stop = &command_stop();
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
 #if TOONFORCE_VIEWER
-    // The viewer and the control protocol's server run in a process of their own (issue 28;
-    // server_process.hpp), forked here, before this process has any thread: the writer thread
+    // The viewer and the control protocol's server run in a process of their own
+    // (server_process.hpp), forked here, before this process has any thread: the writer thread
     // (never the servo thread) hands it frames, and its checked scene updates come back through
     // the live-scene mailbox in the memory they share.
     std::unique_ptr<ServerProcess> server;

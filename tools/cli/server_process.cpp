@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `run --view`'s server process (server_process.hpp).
 #include "server_process.hpp"
 

@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-// `run --view`'s server process (issue 28, item 1; docs/DEPLOY.md section 6): the viewer's page
+// `run --view`'s server process (docs/DEPLOY.md section 6): the viewer's page
 // and the control protocol's server, which parse whatever a local connection sends, run in a
 // process of their own, forked by the loop process before it has any thread, device or locked
 // memory. That process has no real-time priority and may get none (RLIMIT_RTPRIO 0), locks no

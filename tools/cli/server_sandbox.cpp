@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The server process's seccomp filter (server_sandbox.hpp).
 #include "server_sandbox.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The seccomp filter of `run --view`'s server process (server_process.hpp; docs/DEPLOY.md
 // section 6). That process parses whatever the network sends; if a parser bug hands it to an

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce sim --scene S.toml --script hand.toml --duration SECONDS --trace out.csv [--plot out.svg|out.png]
 //   [--device falcon|omni] [--integrator ...] [--substeps N] [--rate HZ] [--seed N]
 //   [--sensor-noise M] [--scalar ...] [--sine ...] [--view [PORT]] [--view-address ADDR] [--view-pace X]

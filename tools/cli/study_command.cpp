@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce study run|resume|analyze ...: perception studies (docs/STUDIES.md). The study runner
 // is Python (scipy fits the psychometric functions, the participant's page is served by it, each
 // interval is a toonforce run it drives through the control protocol), in the Python module's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce view TRACE.csv [--scene S.toml] [--port P] [--address ADDR] [--host NAME ...]
 // A recorded trace (from `toonforce run --trace` or `toonforce sim --trace`) in the viewer page,
 // to play, pause and scrub; served until Ctrl-C. Only in builds with TOONFORCE_VIEWER.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "viewer_support.hpp"
 
 #include "commands.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The viewer's command-line flags and the life of its server around a run (only in builds with
 // TOONFORCE_VIEWER): `--view [PORT]`, `--view-address ADDR` and `--view-host NAME` on run and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # CMake toolchain file: bare-metal Arm Cortex-M with Debian's arm-none-eabi GCC, newlib and
 # libstdc++ headers (packages gcc-arm-none-eabi, libnewlib-arm-none-eabi,
 # libstdc++-arm-none-eabi-newlib). TOONFORCE_MCU_CPU picks the core:

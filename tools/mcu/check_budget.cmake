@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # An instruction budget per tick on the target (as tests/budget_test.cpp's callgrind one on the
 # host): every tick of every motion of SCENE, as counted exactly by its image under QEMU
 # (firmware/main.cpp's "count" lines in OUTPUT), costs at most BUDGET instructions for WHAT:

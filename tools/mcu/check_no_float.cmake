@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Fails if a Q16.16 image links any floating-point helper of the Arm run-time ABI: the
 # __aeabi_d* / __aeabi_f* functions (RTABI 4.1.2; libgcc also names them __adddf3,
 # __fixdfsi, ...), through which an FPU-less core does every float and double operation.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Fails if anything in a Q16.16 image could set the APSR's Q bit besides the saturation flag's
 # own `ssat rX, #1, rY` (math/fixed.hpp keeps the sticky flag there on an Armv7-M core): a
 # compiler's clamp compiled to SSAT or USAT, or an MSR writing the flags, would raise or clear

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # A test of `toonforce report mcu --docs`: it regenerates the microcontroller block of a copy of
 # docs/PERFORMANCE.md from the built images, and the block must hold what is true of any run,
 # whatever the numbers: a row per paper scene in each table, sizes that add up, the wall's image

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs one microcontroller image under qemu-system-arm and compares its forces with the
 # host's `toonforce replay --scalar SCALAR` of each of its scenes and motions, bit for bit.
 # Variables: QEMU MACHINE CPU SHIFT IMAGE TOONFORCE GEN SOURCE_DIR SCENES MOTIONS OUT_DIR

@@ -1,4 +1,5 @@
-# CTest tests of the microcontroller images (issue 18), included by tests/CMakeLists.txt when
+# SPDX-License-Identifier: Apache-2.0
+# CTest tests of the microcontroller images, included by tests/CMakeLists.txt when
 # TOONFORCE_MCU is on. Label mcu: `ctest -L mcu`, the cortex-m3 test preset.
 set(_mcu_src ${PROJECT_SOURCE_DIR}/tools/mcu)
 set(_mcu_bin ${PROJECT_BINARY_DIR}/tools/mcu)
@@ -47,7 +48,7 @@ endforeach()
 # Instruction budgets per paper scene on the target, from its image's exact counts (the same on
 # every run and machine, so a regression of one instruction fails), for replay's loop (`loop`),
 # the loop with every stage at 1 kHz (`every`) and the effects plus the safety stage
-# (`effects`). Issue 18's goal, a whole Q16.16 loop tick under 2,000 instructions (2 % of a
+# (`effects`). The goal, a whole Q16.16 loop tick under 2,000 instructions (2 % of a
 # 1 kHz period at 100 MHz), is held as the mean over each motion. Every single tick is held to
 # 3,200 (3.2 %): the few that pass 2,000 are the cartoon wall's impact trigger and one tick of
 # the cliff on crossing_slow, where the safety stage scales the force (64-bit roots and
@@ -69,7 +70,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   endforeach()
 endforeach()
 
-# Worst case by construction (issue 29, tools/mcu/wcet): the static analyser on small functions
+# Worst case by construction (tools/mcu/wcet): the static analyser on small functions
 # whose longest paths are known exactly, on each rule of its strict cycle model, on what it must
 # refuse and on the exact gate (assembled and compiled for the Cortex-M3 here); then, per image,
 # the bound of each scene's counted ticks (replay's loop, the every-stage loop, the effects plus
@@ -78,7 +79,7 @@ endforeach()
 # measured under QEMU passes its bound plus the count's window (measured from the image: no
 # slack), when a bound passes the one recorded in wcet/ceilings.txt (a ratchet: no change makes
 # a tick dearer in the worst case unnoticed), or when the effects plus safety's bound passes
-# issue 29's budget of 1,500 instructions, or an every-stage bound passes its budget (below).
+# the effects' budget of 1,500 instructions, or an every-stage bound passes its budget (below).
 # Debian's Python and GLPK's glpsol (tools/debian-packages.txt).
 find_program(TOONFORCE_GLPSOL glpsol REQUIRED)
 set(_wcet ${_mcu_src}/wcet)
@@ -94,7 +95,7 @@ set(_mcu_every_budget_met wall realistic_friction slippery cartoon_wall cliff)
 foreach(image IN LISTS _mcu_images)
   # A scene's image plays the inputs built to take its longest paths (the searched strikes,
   # with and without late ticks): its dearest ticks must come within 10 % of every bound
-  # (issue 29's witness). The five-scene image plays the bundled motions only.
+  # (the worst-case witness). The five-scene image plays the bundled motions only.
   set(witness)
   if(image IN_LIST TOONFORCE_MCU_SCENES)
     set(witness --min-witness 90)
@@ -140,7 +141,7 @@ endforeach()
 # SysTick interrupt, its device a register block the main loop serves; its forces compared with
 # replay as the cartoon wall image's (the same motions), then its bound from interrupt to return
 # (check_product.py: the handler's static bound plus the TRM's exception entry and exit) within
-# issue 29's 2,500 cycles, the tick the image measured in the handler within the handler's
+# the 2,500-cycle budget, the tick the image measured in the handler within the handler's
 # instruction bound, and its stack within the reserved stack.
 set(_product_motions ${TOONFORCE_MCU_MOTIONS})
 foreach(strike IN LISTS TOONFORCE_MCU_STRIKES_cartoon_wall)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // toonforce_tick_count: runs the latency cases' ticks for callgrind to count (never timed).
 // Run under
 //   valgrind --tool=callgrind --collect-atstart=no --toggle-collect='*measured_tick*'

@@ -1,4 +1,5 @@
-// Builds the viewer page (web/index.html) and the story page (web/story.html, issue 19) into
+// SPDX-License-Identifier: Apache-2.0
+// Builds the viewer page (web/index.html) and the story page (web/story.html) into
 // dist/, which is committed and compiled into the toonforce binary (cmake/embed_assets.cmake).
 // Deterministic for the locked versions (package-lock.json): .ci/run rebuilds and compares with
 // the committed dist/ (scripts/check-dist.mjs).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the Falcon's calibration file lives (calibration.hpp). Its format is read and written in
 // tools/config (falcon_calibration_file.hpp): this layer parses nothing.
 #include "toonforce/hal/falcon/calibration.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // FalconDriver: the 1 kHz exchange (FALCON.md §3), homing (§4), kinematics (§5).
 #include "toonforce/hal/falcon/driver.hpp"
 

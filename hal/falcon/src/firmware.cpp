@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Firmware checks and loading (FALCON.md §2). See firmware.hpp for the contract.
 //
 // SHA-256 comes from Debian's libnettle (nettle-dev) rather than our own: nettle is a small C

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // FTDI mode sequences (FALCON.md §1 "Open sequence", §2.1 steps 1-2 and 6).
 #include "toonforce/hal/falcon/ftdi.hpp"
 

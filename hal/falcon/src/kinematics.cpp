@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Falcon delta kinematics (FALCON.md §5). See kinematics.hpp for the contract.
 #include "toonforce/hal/falcon/kinematics.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // FalconTransport over libusb-1.0 (FALCON.md §1: interface 0, bulk OUT 0x02, bulk IN 0x81,
 // vendor requests with bmRequestType 0x40, wIndex 0, 1000 ms).
 #include "libusb_transport.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // FalconTransport over libusb-1.0 (private to the backend). Bulk transfers use two libusb
 // transfer objects allocated at open and reused, driven to completion with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Falcon backend's entry points: open_falcon, load_falcon_firmware, detect_falcons.
 #include <unistd.h>
 

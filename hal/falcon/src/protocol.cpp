@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // FTDI status stripping and the frame assembler's buffer management (FALCON.md §1, §3).
 #include "toonforce/hal/falcon/protocol.hpp"
 

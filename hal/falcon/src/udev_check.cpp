@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host checks for `toonforce devices` and permission errors (see udev_check.hpp).
 #include "udev_check.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Host checks behind `toonforce devices` and the permission advice in errors: is a udev rule
 // for the Falcon installed, and is this user in the group it grants access to?

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tick-path GPIO calls: the libgpiod C API only (see gpio_pins.hpp for why not gpiod.hpp).
 // gpiod_line_set_value/get_value (libgpiod 1.6 lib/core.c) put a one-line bulk on the stack and
 // make a single GPIOHANDLE_{SET,GET}_LINE_VALUES ioctl on the line-handle fd: no allocation,

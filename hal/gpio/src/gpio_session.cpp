@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Start-up: from the command-line strings to requested lines, or to messages a person can act
 // on. Uses the libgpiod 1.6 C API (gpiod.h): one chip handle per chip, errno for each failure.
 #include "toonforce/hal/gpio/gpio_session.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/hal/gpio/line_spec.hpp"
 
 #include <array>

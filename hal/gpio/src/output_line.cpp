@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One output line held on its own (output_line.hpp), through libgpiod 1.6.
 #include "toonforce/hal/gpio/output_line.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Names and meanings of the HD error codes (OMNI.md §2.3), in our own words.
 #include "toonforce/hal/omni/hd_errors.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // dlopen/dlsym of the OpenHaptics HD library; every failure becomes a message saying what to
 // install or fix. See hd_library.hpp for the search order and the never-unload rule.
 #include "toonforce/hal/omni/hd_library.hpp"

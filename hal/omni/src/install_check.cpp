@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checks of an OpenHaptics install (see install_check.hpp).
 #include "toonforce/hal/omni/install_check.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Omni/Touch device over OpenHaptics HD: start-up (open_omni), the frame the vendor
 // scheduler calls every tick, and the messages. See omni_device.hpp for the contract.
 #include "toonforce/hal/omni/omni_device.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Finding Touch devices with libusb, hidapi and sysfs, and checking OpenHaptics; see
 // touch_detect.hpp. No request is ever sent to a device.
 #include "toonforce/hal/omni/touch_detect.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Links the Falcon, GPIO and Omni backends as installed and calls into each (libusb, nettle,
 // libgpiod, hidapi, libdl), so an export that forgot a dependency fails to link or to run. Argument: the installed udev
 // rule, which must be the rule built into the backend (`toonforce falcon udev-rule`).

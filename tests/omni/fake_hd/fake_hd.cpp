@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A fake OpenHaptics HD library (libHD.so) for tests: our own code, exporting the same C
 // symbols with the behaviour the reference documents (docs/OMNI.md §2.1-2.3),
 // driven by a simulated Omni (§4: base-joint kinematics with L1 = L2 = 133.35 mm, 15 000

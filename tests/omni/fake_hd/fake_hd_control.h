@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: Apache-2.0 */
 /* Test control of the fake libHD (fake_hd.cpp). The fake exports the HD C functions the
  * backend uses, with the behaviour the OpenHaptics reference documents (docs/OMNI.md §2),
  * driven by a simulated Omni; these extra functions let a test steer it. The

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup falcon` (see falcon_bringup.hpp). References: FALCON.md §1 (USB), §2
 // (firmware), §3 (one reply per command), §4 (homing), §5 (kinematics, frame, forces).
 #include "toonforce/bringup/falcon_bringup.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup gpio` (see gpio_bringup.hpp).
 #include "toonforce/bringup/gpio_bringup.hpp"
 

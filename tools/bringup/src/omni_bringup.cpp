@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `toonforce bringup omni` (see omni_bringup.hpp). References: OMNI.md §2 (the HD API),
 // install_check.hpp (the install), omni_device.hpp (calibration, cap, frame).
 #include "toonforce/bringup/omni_bringup.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The person at the device (see operator.hpp).
 #include "toonforce/bringup/operator.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bring-up reports (see report.hpp).
 #include "toonforce/bringup/report.hpp"
 

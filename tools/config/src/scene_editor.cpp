@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Live scene changes, checked as scene files are (scene_editor.hpp; docs/spec/live-scenes.md).
 // The document is the scene's TOML: each change edits a copy of it and reads the copy with the
 // scene files' own reader, so a change is refused with the very message a file would get.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/config/toml_reader.hpp"
 
 #include <algorithm>
@@ -193,7 +194,7 @@ std::optional<double> TableReader::to_number(std::string_view key, const toml::n
   }
   // No quantity of a scene or a hand script comes near 1e12 in SI units; beyond it the force
   // laws' products (stiffness x depth, squared by the clamp) overflow a float and soon a
-  // double (issue 16: stiffness = 1e308 made the wall vanish).
+  // double (stiffness = 1e308 made the wall vanish).
   if (std::abs(value) > kMaxMagnitude) {
     error(key, fmt::format("{:g} is too large: allowed magnitudes are up to {:g} (larger ones overflow the force laws)",
                            value, kMaxMagnitude));
@@ -470,7 +471,7 @@ class DepthScan {
 /// Checks what toml++ 3.3 (Debian 12's) cannot be trusted with: invalid UTF-8, and non-ASCII
 /// characters where the parser classifies whitespace (outside comments and strings, and right
 /// after a line-ending backslash in a multi-line string). There its whitespace lookup reaches
-/// an "unreachable" branch, which is undefined behaviour (toml++ issues #190 and #295, found
+/// an "unreachable" branch, which is undefined behaviour (marzer/tomlplusplus#190 and #295, found
 /// here by tests/fuzz/scene_file_fuzz.cpp). TOML allows non-ASCII only in comments and strings
 /// anyway, so rejecting it elsewhere, with its line, costs a valid file nothing.
 bool check_text(std::string_view text, ErrorList& errors) {
@@ -552,7 +553,7 @@ bool check_text(std::string_view text, ErrorList& errors) {
 }  // namespace
 
 std::optional<toml::table> parse_toml_file(const std::string& path, ErrorList& errors) {
-  // The reason, not a line: it was "FILE:0: cannot open the file for reading" (issue 16).
+  // The reason, not a line: it was "FILE:0: cannot open the file for reading".
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
     errors.add(0, "", "is a directory, not a TOML file");

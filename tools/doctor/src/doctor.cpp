@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/doctor/doctor.hpp"
 
 #include <sys/stat.h>
@@ -261,7 +262,7 @@ Finding check_isolation(const Host& host) {
   f.verdict = Verdict::kWarn;
   f.finding = "none: the loop shares its CPU with everything else";
   // The last CPU this host has ("0-1" in /sys/devices/system/cpu/online: CPU 1), not a
-  // made-up 3 (issue 16: doctor advised --cpu 3 on a 2-CPU host).
+  // made-up 3 (doctor advised --cpu 3 on a 2-CPU host).
   const std::string online = host.read("/sys/devices/system/cpu/online").value_or("");
   const std::size_t cut = online.find_last_of("-,");
   int last = -1;

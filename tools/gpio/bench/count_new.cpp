@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Replaces the global operator new to count calls on this thread (how many allocations one
 // GPIO call makes). In its own translation unit so the compiler does not inline the
 // replacement next to its callers and then warn about malloc/free pairing.

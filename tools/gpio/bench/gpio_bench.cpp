@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Cost of the tick-path GPIO calls (Google Benchmark). By default through the umockdev
 // emulation of /dev/gpiochip0: an emulated ioctl is a round trip over a unix socket to
 // umockdev's worker thread (~0.2 ms, docs/GPIO.md), so those numbers are the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/gpio_cli/gpio_options.hpp"
 
 namespace toonforce::cli {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The board under the images: QEMU's mps2-an385 (Cortex-M3) and mps2-an386 (Cortex-M4F).
 /// Output and exit go through Arm semihosting (QEMU -semihosting-config enable=on); the

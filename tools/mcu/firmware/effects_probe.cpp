@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The effects plus the safety stage of an image's scenes, alone, on Q16.16 inputs (no
 // servo loop, no double DeviceReading): the part of the tick that is already free of floating point
 // on an FPU-less core, which the no-float test checks. The inputs are read through volatile

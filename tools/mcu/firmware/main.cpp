@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The image: each of its compile-time scenes runs each of its motions through the servo tick,
 // the way `toonforce replay` does on the host (one row = one tick, stamped time), and writes
 // the forces out for the host to compare bit for bit. Around the ticks it counts instructions

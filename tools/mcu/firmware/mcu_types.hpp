@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What the generated image.hpp and motions.cpp (toonforce_mcu_gen) describe: motions as data
 /// in the image, and the list of compile-time scenes an image carries.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tick as a product runs it: the SysTick interrupt starts each servo tick, and the tick talks
 // to its device through memory-mapped registers, in the loop's own code (the device's read and
 // write below are volatile loads and stores). QEMU's AN385 has no such peripheral, so the register

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The stack's high-water mark by painting: fill the unused stack with a pattern, run, then
 /// find the deepest word that no longer holds it. Exact for what ran, as long as no code

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reset and fault handling for the mps2 boards: unaligned-access, divide-by-zero and fault
 // traps on first, then the stack painted (for its high-water mark), the read-only data, motions
 // and .data copied to RAM and .bss zeroed, then run_image(). A fault reports which one, its

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Proof that the start-up's traps are live (startup.cpp: CCR.UNALIGN_TRP and CCR.DIV_0_TRP,
 // ARMv7-M ARM B3.2.8): built once per mode, each does one access the images must never do and
 // must end in the named UsageFault, which the CTest tests mcu_m3_trap_* expect. Reaching the

@@ -1,4 +1,5 @@
-// toonforce_mcu_gen: the host half of the microcontroller images (issue 18, tools/mcu/README.md).
+// SPDX-License-Identifier: Apache-2.0
+// toonforce_mcu_gen: the host half of the microcontroller images (tools/mcu/README.md).
 //
 //   toonforce_mcu_gen generate --out-dir DIR [--scalar q16.16|float] [--sine METHOD]
 //                              --scene NAME=SCENE.toml ... --motion NAME=MOTION.csv ...

@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""The bounds table of docs/PERFORMANCE.md (issue 29), from check_bound.py's JSON of each scene
+# SPDX-License-Identifier: Apache-2.0
+"""The bounds table of docs/PERFORMANCE.md, from check_bound.py's JSON of each scene
 image: per scene and loop variant the static bound in instructions and cycles, the dearest tick
 measured under QEMU over the bundled motions and with the searched inputs, that tick as a share
 of the bound (the witness), how much of the longest path no tick ran, and the highest servo

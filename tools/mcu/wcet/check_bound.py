@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Gate (issue 29): every tick an image measured under QEMU stays within the static bound.
+# SPDX-License-Identifier: Apache-2.0
+"""Gate: every tick an image measured under QEMU stays within the static bound.
 
 For IMAGE.elf, wcet.py bounds each scene's three counted functions (replay's loop tick
 `spec_tick`, the every-stage tick `full_tick`, the effects plus safety `effects_and_safety`);
@@ -18,7 +19,7 @@ can be measured (exit 2).
 A ratchet besides: with --ceilings FILE, a bound above the one FILE records for that image,
 scene and variant fails too (a change made a tick dearer in the worst case; if that is meant,
 --update-ceilings rewrites the image's rows with its bounds, to commit with the change). The
-budgets of issue 29 are reported against; --gate-budget GATE fails on one (tests.cmake gates the
+budgets (docs/PERFORMANCE.md) are reported against; --gate-budget GATE fails on one (tests.cmake gates the
 effects plus safety's 1,500 instructions, which every scene meets, the every-stage loop's 2,000
 instructions in the images of the scenes that meet them (every-instructions), and its 2,000
 instructions and 2,500 cycles in those of the scenes that meet both (every); the others stay
@@ -287,7 +288,7 @@ def measured(counts: str) -> tuple[dict, dict]:
     return worst, bundled
 
 
-BUDGETS = {"every": (2000, 2500), "effects": (1500, None)}  # issue 29 item 4: instructions, cycles
+BUDGETS = {"every": (2000, 2500), "effects": (1500, None)}  # instructions, cycles (docs/PERFORMANCE.md)
 # What --gate-budget can gate: a variant's whole budget, or the every-stage loop's instructions
 # alone (met by more scenes than its cycles are): gate -> (variant, instructions, cycles or None).
 GATES = {"every": ("every", 2000, 2500), "every-instructions": ("every", 2000, None), "effects": ("effects", 1500, None)}
@@ -328,11 +329,11 @@ def main() -> int:
                                      "longest paths' code that no tick executed")
     p.add_argument("--min-witness", type=float, metavar="PERCENT",
                    help="fail when a variant's dearest measured tick is under PERCENT %% of its bound (the witness "
-                        "that the bound is tight: issue 29 asks for 90)")
+                        "that the bound is tight: the aim is 90)")
     p.add_argument("--ceilings", help="fail when a bound passes the one this file records (a ratchet)")
     p.add_argument("--update-ceilings", action="store_true", help="write this image's bounds into --ceilings")
     p.add_argument("--gate-budget", action="append", default=[], choices=sorted(GATES), metavar="GATE",
-                   help="fail when a bound passes the issue-29 budget GATE names (one the scenes meet: a variant's, "
+                   help="fail when a bound passes the budget GATE names (one the scenes meet: a variant's, "
                         "or every-instructions, the every-stage loop's instructions alone); the other budgets are "
                         "reported")
     a = p.parse_args()
@@ -424,7 +425,7 @@ def main() -> int:
             meets = instructions <= max_i and (max_c is None or cycles <= max_c)
             status = "met" if meets else "instructions met, cycles not" if instructions <= max_i else "not met"
             gates = [g for g in a.gate_budget if GATES[g][0] == variant]
-            print(f"budget (issue 29, {'gated: ' + ', '.join(gates) if gates else 'reported'}): {scene} {variant}: "
+            print(f"budget ({'gated: ' + ', '.join(gates) if gates else 'reported'}): {scene} {variant}: "
                   f"{instructions} instructions, {cycles} cycles against {max_i}{'' if max_c is None else f', {max_c}'}: "
                   f"{status}")
             for g in gates:

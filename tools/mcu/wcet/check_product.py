@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """The product image's tick (product_cartoon_wall.elf, firmware/product.cpp): its bound from the
 SysTick interrupt to the return, and its stack.
 

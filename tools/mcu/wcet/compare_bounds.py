@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """The two worst-case analysers must agree: wcet.py (GNU objdump, an integer program solved by
 glpsol) and longest_path.py (LLVM's llvm-objdump, a plain longest path on the acyclic graph),
 run on the same image's counted functions, give the same instructions and the same cycles, at

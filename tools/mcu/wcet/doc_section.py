@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A generated section of a document: the lines between a begin and an end marker line, which a
 tool writes (--write) or checks against what it would write (--check, a CTest), so a figure in
 the prose cannot drift from the code (bounds_table.py, stages_table.py)."""

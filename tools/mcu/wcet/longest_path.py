@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """A second, independent worst case of a function of a linked Cortex-M3 image: its own decoder
 (LLVM's llvm-objdump), its own reading of the ELF, and a plain longest path instead of an integer
 program. It shares no code with wcet.py, and CTest requires the two to agree (compare_bounds.py).

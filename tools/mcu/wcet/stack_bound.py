@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """A static bound on the stack a function of a linked Cortex-M3 image uses, its callees' included.
 
 The deepest stack of a function is its own frame plus the deepest of its callees'; the call graph

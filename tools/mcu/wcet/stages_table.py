@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Where the every-stage bound goes (issue 29): the instructions of each scene image's longest
+# SPDX-License-Identifier: Apache-2.0
+"""Where the every-stage bound goes: the instructions of each scene image's longest
 path (wcet.py's bound of the every-stage tick, `full_tick`) by the stage of the servo loop they
 belong to, and by the kind of work, as two tables of docs/PERFORMANCE.md.
 

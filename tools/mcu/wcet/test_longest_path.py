@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Tests of the second worst-case analyser (longest_path.py) on small Thumb-2 functions assembled
 and linked here for the Cortex-M3, whose longest paths in instructions and in strict-model
 cycles are worked out by hand beside each source, and on what it must refuse. Each case is there

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Tests of the static stack bound (stack_bound.py) on a hand-made call graph whose deepest chain
 is known (tests/stack/chain.cpp and deep.s: the .su frames of two functions and a hand-written
 function's 216 bytes), on a caller whose sp moves after its prologue (--fixed-callers), and on

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Tests of the worst-case analyser (wcet.py) on small functions for the Cortex-M3, assembled or
 compiled here and linked with the images' linker script, whose longest paths are known exactly
 (each file's comment derives its figures), on what it must refuse, on each rule of its strict

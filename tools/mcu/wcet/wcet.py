@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Worst case by construction (issue 29): a static bound on a function of a linked Cortex-M3 image.
+# SPDX-License-Identifier: Apache-2.0
+"""Worst case by construction: a static bound on a function of a linked Cortex-M3 image.
 
 From the ELF (arm-none-eabi-objdump's disassembly and symbol table), for each entry function:
 the control-flow graph of it and of everything it calls (libgcc's helpers included), its loops

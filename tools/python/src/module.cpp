@@ -1,4 +1,5 @@
-// toonforce._toonforce: the C++ libraries `toonforce` is built from, for Python (issue 30). Thin
+// SPDX-License-Identifier: Apache-2.0
+// toonforce._toonforce: the C++ libraries `toonforce` is built from, for Python. Thin
 // by design: every check, message and number comes from the same functions the command line
 // calls (scene_file.hpp, check.hpp, sim_run.hpp, replay.hpp, figures.hpp); this file only
 // converts arguments and results. The package around it is tools/python/toonforce.

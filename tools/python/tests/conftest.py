@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Shared set-up: the `toonforce` program to compare with (TOONFORCE_CLI, set by CTest) and the
 source tree's scenes (TOONFORCE_SOURCE_DIR)."""
 import os

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """toonforce.control against a real `toonforce run --device sim --view 0 --control` (what the
 spec says a run does with each message) and against a stand-in server (what the client must
 do when a server misbehaves: a reply out of order, a refusal for the rate).

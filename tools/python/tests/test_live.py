@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """toonforce.live: a real-time run on the simulated device from Python. What the loop does is
 checked against the physics (a penalty wall's force is its stiffness times the depth, before
 and after a live change) and the stop path against the trace (every way a script ends, the

@@ -1,4 +1,5 @@
-"""toonforce.study (issue 31): simulated participants with a known threshold play sessions on the
+# SPDX-License-Identifier: Apache-2.0
+"""toonforce.study: simulated participants with a known threshold play sessions on the
 simulated device (each interval a closed-loop run of the real servo loop through toonforce.sim);
 the procedures and the fits must find the threshold, and a session killed mid-trial must resume
 with nothing lost or repeated."""

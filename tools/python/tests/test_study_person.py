@@ -1,4 +1,5 @@
-"""toonforce study with a person: the participant's page and the device's run (issue 31), on the
+# SPDX-License-Identifier: Apache-2.0
+"""toonforce study with a person: the participant's page and the device's run, on the
 simulated device with a scripted hand, the person played by this test through the page's own
 requests. The abort key must end the run on a zero-force tick and keep every answered trial;
 resume must go on to the end."""

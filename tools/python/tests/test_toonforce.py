@@ -1,4 +1,5 @@
-"""The module against the `toonforce` program: the same numbers, errors and verdicts (issue 30).
+# SPDX-License-Identifier: Apache-2.0
+"""The module against the `toonforce` program: the same numbers, errors and verdicts.
 
 Each comparison runs the program on the same inputs and reads what it writes. The CSVs print
 every double in shortest round-trip form, so float() of a field is the double the program held:

@@ -1,5 +1,6 @@
+# SPDX-License-Identifier: Apache-2.0
 """toonforce from Python: the C++ controller's scene loader, checks, closed-loop simulation,
-replay and figures, through the same code as the ``toonforce`` program (issue 30).
+replay and figures, through the same code as the ``toonforce`` program.
 
     import toonforce
     trace = toonforce.sim("scenes/cartoon_wall.toml", "scenes/hands/strike.toml")

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Type stubs of toonforce._toonforce, the C++ extension (tools/python/src/module.cpp). Use the
 package ``toonforce``, which wraps it; units are SI (m, s, N, Hz)."""
 from typing import Any, Dict, List, Optional, Tuple

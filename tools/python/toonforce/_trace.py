@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Traces as numpy arrays: one array per column, named as the command line's CSV columns."""
 from __future__ import annotations
 

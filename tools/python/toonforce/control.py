@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A client of the control protocol of live scenes (docs/spec/control-protocol.md), for a
 `toonforce run ... --view PORT --control` in another process: change the running scene from a
 script or a Jupyter notebook.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A real-time run from Python: `toonforce run` on the simulated device, a Falcon or an Omni, in
 a process of its own (its loop never waits for Python: the GIL cannot touch the tick), changed
 through the live-scene API and read as numpy arrays while it runs.

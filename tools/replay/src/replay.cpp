@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/replay/replay.hpp"
 
 #include "toonforce/config/toml_reader.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/report/documents.hpp"
 
 #include <filesystem>
@@ -61,7 +62,7 @@ constexpr const char* kPerformanceHead =
     "pass/fail tests.\n";
 
 constexpr const char* kProxyComparison =
-    "For comparison (not measured here: the figure is the issue's): a mesh-and-proxy renderer of the CHAI3D kind "
+    "For comparison (not measured here: a quoted figure): a mesh-and-proxy renderer of the CHAI3D kind "
     "(a finger proxy on a triangle mesh with friction) costs about 9,000 to 14,000 instructions and about one heap "
     "allocation per contact tick on a friction plane. A toonforce paper scene's tick above is a few hundred "
     "instructions and allocates nothing (tests/servo_runtime_test.cpp counts allocations).";
@@ -85,7 +86,7 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "beyond what came in, whatever the user does); it is sufficient for the stability of the loop with any "
         "passive termination, not necessary: a given loop can be stable outside it (a heavier mass, a damped hand).\n\n";
   {
-    // Where the delay-aware bound is exact and where it only bounds (issue 32 item 3): against
+    // Where the delay-aware bound is exact and where it only bounds: against
     // Colgate and Schenkel's b_req of the same discrete law, computed here.
     SampledLoop delayed_damped_wall;
     delayed_damped_wall.delay_ticks = 1;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/report/fixed_point_map.hpp"
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/report/latency.hpp"
 
 #include <pthread.h>
@@ -45,7 +46,7 @@ Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress&
     return static_cast<double>(net) / cycles_per_ns;
   };
 
-  // Cache-cold ticks (issue 15: the figures were warm only, and a cold tick cost about five
+  // Cache-cold ticks (the figures were warm only, and a cold tick cost about five
   // warm ones): 64 MiB, more than this VM's last-level cache, written a line at a time between
   // ticks, so the tick's data (scene, loop state, inputs) comes from memory. The instruction
   // cache and the branch predictors are not flushed: what they keep, this does not measure.
@@ -151,7 +152,7 @@ std::string limits_words(std::uint8_t limits, std::uint32_t faults) {
   return words.empty() ? std::string("none") : fmt::format("{}", fmt::join(words, ", "));
 }
 
-/// Issue 15 item 7: the searched inputs, per scene and scalar: the most expensive tick found,
+/// The searched inputs, per scene and scalar: the most expensive tick found,
 /// what the loop did on it, and each stage's expensive branch: how often it was reached and the
 /// most expensive tick on which it was.
 std::string search_markdown(const LatencyReport& r) {
@@ -248,8 +249,8 @@ std::string latency_markdown(const LatencyReport& r) {
   md += "### Paper scenes: effects plus the safety stage\n\n";
   md += fmt::format(
       "One tick = `scene.force()` then `ForceSafety::limit()` (rate limit, clamp), inputs from the scene's scripted "
-      "scenario at 1 kHz (tools/report/src/scenario.cpp: every branch, the expensive ones included). Target (issue "
-      "8), double: at most {:.0f} instructions and at most {:.0f} ns median per tick.\n\n",
+      "scenario at 1 kHz (tools/report/src/scenario.cpp: every branch, the expensive ones included). Target, "
+      "double: at most {:.0f} instructions and at most {:.0f} ns median per tick.\n\n",
       kTargetInstructionsPerTick, kTargetMedianNsPerTick);
   md += "| scene | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";
@@ -286,7 +287,7 @@ std::string latency_markdown(const LatencyReport& r) {
       "the non-finite guard, and the safety chain. **every stage**: engage and soft start, passivity observer and "
       "controller, thermal model, velocity limit and workspace, rate limit, clamp, all configured on (the "
       "`run` loop); **spec stages**: only effects.md §6's (rate limit, clamp), as `toonforce replay` runs it. "
-      "Target (issue 14), double, every stage: at most {:.0f} instructions mean per tick.\n\n",
+      "Target, double, every stage: at most {:.0f} instructions mean per tick.\n\n",
       kTargetLoopInstructionsPerTick);
   md += "| scene | stages | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";

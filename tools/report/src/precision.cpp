@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/report/precision.hpp"
 
 #include <time.h>
@@ -1145,8 +1146,8 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
               [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; }, true);
   md += "\n";
 
-  // What makes a "vs double at the same rate" figure large: an event on another tick (issue 32
-  // item 4), with the position that decided it and that position as Q16.16 holds it.
+  // What makes a "vs double at the same rate" figure large: an event on another tick,
+  // with the position that decided it and that position as Q16.16 holds it.
   // Listed for the rows whose figure stands out: more than 3 times the smallest of their scene,
   // scalar type and sine method (the law's floor, table "Error floor per law").
   std::string shifts;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/report/process.hpp"
 #include "toonforce/report/staged_outputs.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The measured ticks. This file is compiled with -O3 in every build type (CMakeLists.txt), and
 // every function that runs a tick is flattened, so what is timed and counted is the same
 // machine code whatever the build.
@@ -327,7 +328,7 @@ std::vector<Vec3<double>> scenario_samples(std::string_view scene, double rate_h
   return samples;
 }
 
-/// Issue 15 item 7: inputs constructed to drive the expensive branches of every stage at once,
+/// Inputs constructed to drive the expensive branches of every stage at once,
 /// then searched. A search pass is kSearchStrikes strikes of kSearchStrikeTicks ticks at 1 kHz.
 /// Each strike starts a fresh loop at the scenario's first point (out of contact: the loop
 /// engages there). The first is constructed (below); each other follows a smooth path (cubic
@@ -515,7 +516,7 @@ class CaseBuilder {
     }
   }
 
-  /// Issue 15 item 7: effects plus safety, and the whole loop, on the search path (form
+  /// Effects plus safety, and the whole loop, on the search path (form
   /// "search"; the scene file's run-time scene, the dearer form).
   void scene_searches() {
     for (const auto& [name, desc] : paper_scenes()) {

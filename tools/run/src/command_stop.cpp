@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A command's stop path outside its servo loop (command_stop.hpp).
 #include "toonforce/run/command_stop.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The guardian's epilogue: the trace's zero-force row, the words, the statistics
 // (guardian_report.hpp).
 #include "toonforce/run/guardian_report.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/run/run.hpp"
 
 #include <unistd.h>
@@ -288,7 +289,7 @@ Result<RunSummary> run_servo(const RunOptions& options) {
     return Error{std::move(empty)};
   }
   {
-    // The plausibility report's warnings, before the device is opened (issue 15 item 8), for
+    // The plausibility report's warnings, before the device is opened, for
     // the device class's model: the simulated one, or the Falcon's or the Omni's.
     const auto preset = options.device == "sim" ? host_sim::parse_device_preset(options.sim_device)
                                                 : host_sim::parse_device_preset(options.device);
@@ -356,7 +357,7 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   while (!notes.empty() && notes.back() == '\n') notes.pop_back();
   if (!notes.empty()) text += fmt::format("note     {}\n", notes);
   const std::string why = stop_reason(r.stop_signal);
-  // Two watchdogs, named apart (issue 16: "watchdog trips 0" stood beside a latched watchdog
+  // Two watchdogs, named apart ("watchdog trips 0" stood beside a latched watchdog
   // fault): the heartbeat thread outside the loop, which zeroes the device when the loop
   // stalls, and the loop's own gap check, a fault in the "faults" line.
   text += fmt::format("run      {} ticks at {} Hz over {:.3f} s{}; {} deadline(s) missed; heartbeat watchdog "

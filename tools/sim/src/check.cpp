@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/sim/check.hpp"
 
 #include <fmt/format.h>
@@ -68,7 +69,7 @@ CheckReport check_scene(const CheckOptions& o) {
       auto session = SimSession::create(scene.value(), *hand, config);
       if (!session) out.errors.push_back(session.error());
     }
-    // The plausibility report (issue 15 item 8): the scene's numbers against the device's.
+    // The plausibility report: the scene's numbers against the device's.
     PlausibilityReport plausible = check_plausibility(scene.value(), o.scene_path, config.device, o.rate_hz);
     out.notes = std::move(plausible.notes);
     out.warnings = std::move(plausible.warnings);

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "toonforce/sim/sim_run.hpp"
 
 #include "toonforce/sim/plausibility.hpp"
@@ -115,7 +116,7 @@ Result<SimSummary> run_sim(const SimOptions& options) {
     return Error{std::move(empty)};
   }
   {
-    // The plausibility report's warnings, before anything runs (issue 15 item 8).
+    // The plausibility report's warnings, before anything runs.
     const PlausibilityReport plausible =
         check_plausibility(scene.value(), options.scene_path, sim_config(options).device, options.rate_hz);
     if (!plausible.warnings.empty()) {

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # cmake -DDIST=<dir> -DOUT=<file.cpp> -P embed_assets.cmake
 # Writes a C++ file holding every file under DIST as a byte array, with its URL path and
 # content type (toonforce/viewer/assets.hpp). Run at build time whenever a file in DIST changes.

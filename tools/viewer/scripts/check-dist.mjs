@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rebuilds the page into a temporary directory and compares it with the committed dist/: the
 // committed build must be exactly what the committed sources and locked packages give, so it
 // cannot go stale. Exit 1 with the differences; `npm run build` updates dist/.

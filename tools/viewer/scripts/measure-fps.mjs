@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Measures the viewer page's frame rate while a 1 kHz `toonforce run` streams to it: headless
 // Debian Chromium (software rendering: --disable-gpu), the page following the run live.
 //   node tools/viewer/scripts/measure-fps.mjs --binary build/release/bin/toonforce [--seconds 10]

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The control protocol's messages (control_protocol.hpp; docs/spec/control-protocol.md).
 // Parsing with nlohmann's JSON (Debian's nlohmann-json3-dev); a change's keys are written as
 // TOML so that the scene files' reader checks them with its own rules and messages.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The viewer's server on Boost.Beast (HTTP and WebSocket) over Boost.Asio, one thread.
 //
 // Why Beast (Boost 1.74 in Debian 12, package libboost-dev): of the three well-kept servers
@@ -348,7 +349,7 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
 /// One /control connection (live scenes): each text message goes to a ControlSession on this,
 /// the server's only thread, and its reply comes back in order. A failed hello closes it.
 ///
-/// Bounded by construction (issue 27): the next message is read only once the reply to the
+/// Bounded by construction: the next message is read only once the reply to the
 /// last has been written, so a connection holds at most one message (max_message_bytes) and
 /// one reply, whatever its client reads. A connection that has not said hello holds one of
 /// max_control_pending slots, for control_hello_deadline_s at most; its hello moves it to one

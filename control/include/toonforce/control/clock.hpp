@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The loop's time (spec effects.md §0): integer ticks on a fixed period, so a loop that has run
 /// for a day computes dt exactly as in its first second, and a skipped tick gives dt = 2T. A

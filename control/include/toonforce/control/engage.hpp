@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Engage and soft start, the first stage of the safety chain (spec effects.md §6 "The servo
 /// loop adds more"): after start, enable and re-arm, forces come on only once the scene force
@@ -41,7 +42,7 @@ class Engage {
     // bound's path, where a taken branch costs 1 + 3 cycles and one not taken 1 (Cortex-M3 TRM r2p1
     // table 3-1); no value changes.
     if (state_ == LoopState::kEngaging) [[likely]] {
-      // By the squares (exact in a Q format): no square root on the tick (issue 29).
+      // By the squares (exact in a Q format): no square root on the tick.
       // (The hint: the dearer side in line, for the bound.)
       if (!norm_below(scene_force_n, engage_force_squared_)) [[unlikely]] return S{};
       start(k);
@@ -57,7 +58,7 @@ class Engage {
         return kOne;
       }
       // (k - start) T / soft_start as (k - start) times a 32-bit fraction per tick, rounded
-      // once: no division on the tick (issue 29). The fraction is within 2^-33 of T /
+      // once: no division on the tick. The fraction is within 2^-33 of T /
       // soft_start, so the gain is within (k - start) 2^-17 LSB of the exact quotient (under
       // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33,
       // and ticks < ramp_ticks_ <= 2^32 lets it be one 32x32 product.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Faults and limit flags of one tick, as bitmask values (no exceptions on the hot path).
 /// A fault means the force could not be computed as the scene says (it is zero or suspect);

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The safety stage every force passes on its way out (spec effects.md §6), in this order:
 ///   1. non-finite guard: a non-finite input or scene force gives exactly 0, bypassing the rate

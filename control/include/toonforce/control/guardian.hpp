@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce run`'s guardian: a program of its own (`toonforce-guardian`, guardian_main.cpp)
 /// that holds what stops the force from outside the loop's process, and nothing else. `run`

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The handle as the loop sees it on one tick (spec effects.md §0): the device's position
 /// converted to the scalar once, and its velocity, the device's own when it measures one, else
@@ -115,7 +116,7 @@ class HipSensor {
     }
     // The step since the last tick that counted, once for the estimator and, in a Q loop that
     // reads in S (every tick with a position counts there: a Q value is finite), the passivity
-    // observer (kStep), which took the same difference on its own (issue 29).
+    // observer (kStep), which took the same difference on its own.
     const bool estimating = kMayEstimate && estimate_ && !reading.has_velocity;
     if constexpr (kStep) {
       static_assert(kIsFixed<S>);
@@ -142,7 +143,7 @@ class HipSensor {
   /// time of the last tick that counted are kept once, here (the estimator keeps the velocity
   /// it estimated): the step of the next tick is taken from them, and the loop's telemetry
   /// reads them (SceneStage::describe, the frame), where the scene stage and the loop used to
-  /// copy them again on every tick (issue 29: 22-40 cycles of the bound for the position and
+  /// copy them again on every tick (22-40 cycles of the bound for the position and
   /// time).
   constexpr void commit(const Hip<S>& h, const TickTime& time) noexcept {
     position_m_ = h.position_m;
@@ -203,7 +204,7 @@ class HipSensor {
   }
   /// Q formats on the period's ticks: the gain after `since` periods from the table
   /// (bit for bit what estimator_.gain(periods_rate_.after(since)) gives: no reciprocal in the
-  /// tick, issue 29); past it 1, the gain's limit as the gap grows (the backward difference
+  /// tick); past it 1, the gain's limit as the gap grows (the backward difference
   /// over the gap itself; the exact gain is 0.91 at 33 periods of 1 ms with the default 50 Hz
   /// cutoff and nearer 1 after longer gaps, which the default watchdog has faulted the loop for).
   S gain_after([[maybe_unused]] std::int64_t since) const noexcept {

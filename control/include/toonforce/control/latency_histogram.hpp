@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A fixed-size histogram of durations in nanoseconds: sized at construction (start-up), then
 /// record() only increments a counter (no allocation, no lock), so the real-time thread can

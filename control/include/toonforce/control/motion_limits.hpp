@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Where and how fast the handle may be while force flows (spec effects.md §6): above
 /// `max_velocity` (OpenHaptics-style software velocity limit) or outside the workspace box

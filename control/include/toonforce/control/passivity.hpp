@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Passivity observer and controller (Hannaford and Ryu, "Time-domain passivity control of
 /// haptic interfaces", IEEE T-RA 18(1):1-10, 2002).
@@ -68,10 +69,10 @@ class PassivityController {
   /// [m/s] below this speed no damping is applied.
   static constexpr double kMinSpeedMPerS = 1e-3;
   /// A compiled scene's few slots: the loops over them run to kSlots, a count GCC unrolls, and
-  /// stop at the slots in use, so one slot is straight code (issue 29: the loops' counters and
+  /// stop at the slots in use, so one slot is straight code (the loops' counters and
   /// back edges were 66-74 cycles of an image's bound). A run-time scene's many slots keep the
   /// loop to the slots in use (unrolled to its capacity, the double loop's mean grew 2
-  /// instructions, past issue 14's 600).
+  /// instructions, past the 600-instruction budget).
   static constexpr bool kUnrolled = kSlots <= 4;
   /// [J] an excess is capped here before it is turned into a force (keeps X * rate in range).
   static constexpr double kMaxExcessJ = 1.0;
@@ -98,7 +99,7 @@ class PassivityController {
       if (kUnrolled && i >= slots) break;
       Slot& s = slots_[i];
       if (!s.in_episode) continue;
-      if constexpr (kIsFixed<S>) {  // the work, then its share: one rounding, no Q16.16 product (issue 29)
+      if constexpr (kIsFixed<S>) {  // the work, then its share: one rounding, no Q16.16 product
         s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m).times_fraction(applied);
       } else {  // floating point: as it was (the figures' double runs unchanged)
         s.energy += Wide<S>::dot(s.force_n + s.damping_n, displacement_m * applied);
@@ -145,8 +146,8 @@ class PassivityController {
       if (!enabled_ || !(s.energy > budget_)) continue;
       if (!speed_known) {
         if constexpr (kIsFixed<S>) {
-          // 1 / |v| from the inverse root of the exact |v|^2: no root and no division (issue 29:
-          // the root, its reciprocal and four products were 180 instructions of the bound).
+          // 1 / |v| from the inverse root of the exact |v|^2: no root and no division (the
+          // root, its reciprocal and four products were 180 instructions of the bound).
           const std::uint64_t squares = detail::raw_squares(velocity_m_per_s);
           if (squares > min_speed_squared_.value) {
             inverse_speed = S::from_raw(static_cast<typename S::Raw>(
@@ -160,7 +161,7 @@ class PassivityController {
         speed_known = true;
       }
       // Below kMinSpeed nothing is dissipated. (No flag of its own: one more instruction on every
-      // tick of issue 14's 600-instruction double loop, which the cartoon wall's just passed.)
+      // tick of the double loop, whose 600-instruction budget the cartoon wall's just meets.)
       if constexpr (kIsFixed<S>) {
         if (inverse_speed.raw() == 0) continue;  // |v| < 56,756 m/s in Q16.16: 1 / |v| is never 0
       } else {
@@ -206,7 +207,7 @@ class PassivityController {
   /// The last update() damped some slot.
   constexpr bool damped() const noexcept { return damped_; }
 
-  /// A live scene's update moved the active parts between slots (issue 19): which episode is
+  /// A live scene's update moved the active parts between slots: which episode is
   /// whose is no longer known, so every slot of the new layout continues an episode that has
   /// spent the most any running one had. Conservative: an update never gives an active part a
   /// fresh budget (a part not in an episode at its next tick starts one from zero, as always).
@@ -269,7 +270,7 @@ class PassivityController {
     return __builtin_expect(p >= scaled_up(cap), 0) ? cap : rounded(p);
   }
   // -alpha v, each product rounded as operator* rounds it (half away from zero, so the sign
-  // can go on the result) without the saturation test (issue 29: three of the bound's):
+  // can go on the result) without the saturation test (three of the bound's):
   // alpha <= max_force / |v| rounded up by at most 2^-17 N s/m (alpha_cap), so |alpha v_i| <=
   // max_force + |v| 2^-17 <= 16,384 + 0.25 N, far inside the range.
   static constexpr Vec3<S> opposed(const Vec3<S>& v, S alpha) noexcept {
@@ -312,7 +313,7 @@ class Passivity {
   }
   /// The same with the HIP's step since the last good position already taken (`stepped`: there
   /// was a last position): a Q loop whose device reads in its scalar, where every tick with a
-  /// position counts, so HipSensor's step since the last counted tick is this one (issue 29: the
+  /// position counts, so HipSensor's step since the last counted tick is this one (the
   /// stage kept its own last position and took the same difference again).
   void observe_step(const Vec3<S>& held_force_n, const Vec3<S>& step_m, bool stepped) noexcept {
     if (!stepped) return;
@@ -342,7 +343,7 @@ class Passivity {
       static_assert(S::kFracBits == 16, "fraction_q16 gives 2^-16 units");
       // The share out.wanted / |wanted|^2 from the exact 64-bit sums (no Q16.16 square to
       // saturate past 181 N), as a fraction within 2^-15 of it: one 32-bit division
-      // (detail::fraction_q16; issue 29: a Q16.16 quotient and two rounded dot products were
+      // (detail::fraction_q16; a Q16.16 quotient and two rounded dot products were
       // the stage's dearest step after the update).
       const std::uint64_t wanted_squared = detail::raw_squares(wanted_n);
       const std::int64_t projection = Wide<S>::dot(out_n, wanted_n).raw();

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The passivity bound of a sampled virtual wall, with the device's I/O delay.
 ///

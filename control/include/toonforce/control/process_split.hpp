@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce run`'s process split (docs/DEPLOY.md "Processes"): the first thing `run` does is
 /// fork. The child goes on as the loop's process (scene, device, servo loop, the server process

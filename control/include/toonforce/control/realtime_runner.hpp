@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The self-timed real-time runner behind `toonforce run` (Linux): a dedicated thread at
 /// SCHED_FIFO where permitted, memory locked (mlockall), optionally pinned to a CPU, waking on
@@ -132,7 +133,7 @@ inline constexpr int kGuardianFirstCopy = 0x74676331;
 void restore_signals();
 /// Gives the calling thread an alternate signal stack (64 KiB, mapped once per thread, before
 /// its loop; released when the thread ends). Without one, a thread that overflowed its stack
-/// died of SIGSEGV with no zero-force command (issue 27): the handler had no stack to run on.
+/// died of SIGSEGV with no zero-force command: the handler had no stack to run on.
 /// False if it could not be set up (the handler then runs on the thread's own stack).
 bool use_alternate_signal_stack() noexcept;
 /// Whether a SIGXFSZ is the kernel's for a file-size limit (`ulimit -f`), which every stop

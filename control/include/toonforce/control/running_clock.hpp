@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Time a watcher itself was running, for its stall checks (the heartbeat watchdog, the
 /// guardian). A watcher polls: between two of its looks at the heartbeat, the monotonic clock

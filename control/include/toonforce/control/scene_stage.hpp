@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scene's force for one tick, with the non-finite guard (spec effects.md §6.1): a scene
 /// force that is not finite does not count: the effects' states stay as they were and the tick
@@ -5,7 +6,7 @@
 /// the state only if the tick counts. The active parts (the slippery force, a running impact)
 /// are reported by the effects themselves, for the passivity controller.
 ///
-/// A live stage (kLive, issue 19; docs/spec/live-scenes.md) also takes whole scene updates
+/// A live stage (kLive; docs/spec/live-scenes.md) also takes whole scene updates
 /// between ticks (`apply`) and keeps the force continuous across them: the difference between
 /// the old scene's force and the new one's at the update's tick is added to the new scene's
 /// force and faded out linearly over the fade time, so a surface that appears around the handle
@@ -58,9 +59,9 @@ class SceneStage {
     Vec3<S> f;
     if constexpr (kIsFixed<S>) {
       // A Q force is always finite, so the tick always commits: the effects update their
-      // states in place (issue 29: the copy of the states was on every tick's bound). Only an
+      // states in place (the copy of the states was on every tick's bound). Only an
       // update flips current_, so a stage that is not live has its states at index 0: a fixed
-      // address (issue 29 again: the cliff's state accesses each added the index).
+      // address (the bound again: the cliff's state accesses each added the index).
       f = scene_.force(in, states_[kLive ? current_ : 0], active_.data());
     } else {
       f = scene_.force(in, states_[current_], states_[1 - current_], active_.data());
@@ -69,7 +70,7 @@ class SceneStage {
     // One test for the three components: the squared magnitude is non-finite if any component
     // is, and also when a finite force is so large that its square overflows (stiffness = 1e308):
     // the clamp and the rate limit measure the force by that square, and would scale such a
-    // force to a silent 0 (issue 16). Such a force is a fault, like a NaN. A Q value is always
+    // force to a silent 0. Such a force is a fault, like a NaN. A Q value is always
     // finite (it saturates instead).
     if constexpr (!kIsFixed<S>) {
       if (!is_finite(dot(f, f))) return {};

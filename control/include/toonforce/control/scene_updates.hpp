@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// Live scenes (issue 19; docs/spec/live-scenes.md): how an application's thread changes the
+/// Live scenes (docs/spec/live-scenes.md): how an application's thread changes the
 /// scene a running servo loop renders.
 ///
 /// An update is a whole scene, already checked by the application's side (config/

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The two fences of a sequence lock whose data are plain bytes shared with another process
 /// (the guardian's page, the live-scene mailbox): the writer's, between making the sequence odd

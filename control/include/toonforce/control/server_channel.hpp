@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The memory `run --view` shares with its server process (tools/cli/server_process.hpp): one
 /// MAP_SHARED region, mapped by the loop's process before it forks the server. Address-free:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Settings of the servo loop (spec effects.md §6 "The servo loop adds more"), in double as a
 /// scene file or a program gives them; the loop converts them once. Defaults are the documented
@@ -31,17 +32,17 @@ struct LoopStages {
   bool passivity = true;      ///< observer, and the controller for the active effects' budgets
   bool thermal = true;        ///< the motor thermal model derating the clamp
   bool motion_limits = true;  ///< velocity limit and workspace bounds
-  bool live = false;          ///< takes scene updates between ticks (issue 19; scene_updates.hpp)
+  bool live = false;          ///< takes scene updates between ticks (scene_updates.hpp)
   /// May take dt from time stamps (ServoConfig::time_from_stamps: replay). A loop without it
   /// runs on its fixed period only, and computes what depends on dt from the tick count with
-  /// 32-bit divisions at most (its worst case has no 64-bit one, issue 29).
+  /// 32-bit divisions at most (its worst case has no 64-bit one).
   bool stamps = false;
 };
 /// Every stage: a loop that drives a device (run, sim, the examples).
 inline constexpr LoopStages kEveryStage{};
 /// Only effects.md §6 (non-finite guard, force-rate limit, clamp), time from stamps or a period: replay.
 inline constexpr LoopStages kSpecStages{false, false, false, false, false, false, true};
-/// Every stage, and a scene an application changes while the loop runs (issue 19).
+/// Every stage, and a scene an application changes while the loop runs.
 inline constexpr LoopStages kLiveStages{true, true, true, true, true, true};
 
 struct SafetyConfig {

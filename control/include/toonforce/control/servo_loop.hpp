@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The servo loop: the one closed loop of toonforce (`run` on every device, `sim`, `figures`,
 /// `replay`, the examples and the tests all drive it). One tick at integer time k, data flowing
@@ -326,7 +327,7 @@ class ServoLoop {
       return cut(o, -1);
     }
     // A Q scene without active parts has no damping, and 0 + f is f: the saturating add is an
-    // asm statement GCC cannot fold away, so it is not written (issue 29: 16 instructions of
+    // asm statement GCC cannot fold away, so it is not written (16 instructions of
     // the bound). Floating point adds as it did (f + 0 turns -0 into the +0 traces print).
     const Vec3<S> wanted = [&] {
       if constexpr (kIsFixed<S> && kSlots == 0) {
@@ -390,7 +391,7 @@ class ServoLoop {
   S max_step_of(const TickTime& time) const noexcept {
     if constexpr (kIsFixed<S>) {  // integer time: 1e9 / dt_ns
       if (!kStages.stamps || time.period_ns > 0) {
-        // A fixed period: gap periods' step, no division in the tick (issue 29). Past the
+        // A fixed period: gap periods' step, no division in the tick. Past the
         // largest gap that fits it saturates, with the flag, as the division did.
         if (time.gap == 1) return period_max_step_;
         if (time.gap > max_step_gaps_) {
@@ -398,7 +399,7 @@ class ServoLoop {
                                             : S{};  // a step of 0 (rate T below 2^-16 N) stays 0
         }
         // gap <= max_step_gaps_ = floor((2^31 - 1) / step): the product fits 32 bits, so it is
-        // one 32-bit multiply without a saturation test (issue 29: a 64-bit one was three).
+        // one 32-bit multiply without a saturation test (a 64-bit one was three).
         return S::from_raw(period_max_step_.raw() * static_cast<typename S::Raw>(time.gap));
       }
       // Stamps: a dt of the configured period takes the step computed once.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A real-time run of a servo loop on a device (`toonforce run`, the examples): the loop ticks
 /// on the device's clock (the host's timer or the device's own thread, realtime_runner.hpp);

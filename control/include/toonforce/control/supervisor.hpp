@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The supervisor: the servo loop's first stage after the device read, a pure state machine
 /// (no clock, no I/O: it is told the tick's inputs) that decides whether force may flow at all
@@ -84,7 +85,7 @@ class Supervisor {
   /// The gate for a tick `gap` periods after the previous one.
   Gate admit(std::int64_t gap, PinLevel estop, PinLevel enable, DeviceStatus read) noexcept {
     // Re-arm requests are counted by the requester; one not seen yet is asked for. A plain
-    // load: no exclusive-access retry loop in the tick (issue 29: the exchange this replaced
+    // load: no exclusive-access retry loop in the tick (the exchange this replaced
     // was about 15 cycles of the bound), and requests made before this tick coalesce, as the
     // flag's did.
     const std::uint32_t requests = rearm_requests_.load(std::memory_order_relaxed);

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Telemetry from the servo thread: one `TelemetryFrame` per tick, in double and SI units, and
 /// `SpscRing`, the fixed-capacity lock-free single-producer/single-consumer ring that carries

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A first-order motor thermal model per device (after OpenHaptics' predicted
 /// HD_MOTOR_TEMPERATURE, OpenHaptics Reference Guide; docs/OMNI.md §2.3). Copper losses grow
@@ -16,7 +17,7 @@
 /// loop gives the allowed force to the clamp (ForceSafety::set_max_force), which stays last.
 /// With F_c >= max_force there is nothing to derate.
 ///
-/// Cost per tick (issue 29, a bound by construction): in the fixed-point build no tick raises
+/// Cost per tick (a bound by construction): in the fixed-point build no tick raises
 /// r to a power. r^n for the gaps a running loop has (1, a late tick, a few missed ones, up to
 /// kTabulatedGaps) is a table computed at configuration time; a longer gap (past the
 /// supervisor's default watchdog of 30 periods, which latches a fault) takes a factor that
@@ -27,7 +28,7 @@
 /// The heating u = |F|^2 / F_c^2 comes, in the fixed-point build, from the exact 64-bit squares
 /// of the force times 1/F_c^2 held as a 32-bit mantissa and a shift (HeatScale, from the
 /// configuration): one 64x32 product and the shifts, where scaling each component by 1/F_c
-/// first took three saturating Q16.16 products (issue 29) and rounded 1/F_c to 2^-16 (u off by
+/// first took three saturating Q16.16 products and rounded 1/F_c to 2^-16 (u off by
 /// up to a few 10^-5 of itself; now by about 2^-31).
 
 #include <array>
@@ -80,7 +81,7 @@ class ThermalModel {
       const Wide<S> target = heat_.target(detail::raw_squares(held_force_n));  // u = (|F| / F_c)^2
       // theta and u are >= 0, so theta - u is in range, and u + (theta - u) r^n with r^n in
       // [0, 1] (rounded never past theta - u) lies between u and theta: the same values
-      // without the saturation tests (issue 29).
+      // without the saturation tests.
       const Wide<S> difference = Wide<S>::from_raw(temperature_.raw() - target.raw());
       temperature_ = Wide<S>::from_raw(target.raw() + (difference * decay_over(ticks, target)).raw());
     } else {
@@ -93,7 +94,7 @@ class ThermalModel {
   constexpr S allowed_force() const noexcept {
     if (!enabled_) return max_force_n_;
     if constexpr (kIsFixed<S>) {
-      // From theta in Q32.32, not rounded to Q16.16 first (issue 29: a rounding, a saturating
+      // From theta in Q32.32, not rounded to Q16.16 first (a rounding, a saturating
       // product and a min were 40 cycles of the bound): theta - derate_start is exact (both >= 0);
       // past the span the clamp is F_c; below it the drop is (theta - derate_start) times the
       // slope (max - F_c) / (1 - derate_start), floored at configuration, so below 2^32 times

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Velocity estimator for devices and inputs that give no velocity (spec effects.md §0): a
 /// first-order low-pass of the backward difference,
@@ -49,7 +50,7 @@ class VelocityEstimator {
     }
   }
   /// a = 1 / (1 + rate / (2 pi f_c)), for a rate >= 0 (a denominator of at least 1: in a Q
-  /// format its reciprocal is one 32-bit division, issue 29).
+  /// format its reciprocal is one 32-bit division).
   constexpr S gain(S rate_hz) const noexcept {
     constexpr S kOne = scalar_cast<S>(1.0);
     if constexpr (kIsFixed<S>) {
@@ -80,7 +81,7 @@ class VelocityEstimator {
  private:
   /// Q formats: the same filter as v (1 - a) + dx (rate a): per component two raw products
   /// summed exactly and rounded once, where the floating-point form rounds and saturates five
-  /// times (issue 29: a third of the operations). |dx rate a| <= 2^62 since rate a <= rate, and
+  /// times (a third of the operations). |dx rate a| <= 2^62 since rate a <= rate, and
   /// |v (1 - a)| < 2^47, so the sum stays in 64 bits. With a in (0, 1] (gain()), 1 - a is in
   /// [0, 1) and |rate a| <= |rate|: neither needs the saturation test.
   constexpr Vec3<S> filtered([[maybe_unused]] const Vec3<S>& dx, [[maybe_unused]] S rate_hz,

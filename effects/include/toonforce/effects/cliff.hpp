@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The cartoon cliff: you fall only once you slow down (paper §4.3; spec effects.md §5).
 ///
@@ -73,12 +74,12 @@ struct CartoonCliff {
     const S lateral_speed = norm(tangential_part(in.velocity_m_per_s, n, c.normal_speed_m_per_s));
     // dt/(tau + dt) written with the rate 1/dt: 1 / (1 + tau/dt). In a Q format the gain is
     // that reciprocal (one 32-bit division: the denominator is at least 1) times the step,
-    // rounded twice; no 64-bit division on the tick (issue 29).
+    // rounded twice; no 64-bit division on the tick.
     constexpr S kOne = scalar_cast<S>(1.0);
     if constexpr (kIsFixed<S>) {
       // Both speeds are >= 0 (a norm, and its filter from 0), so their difference is in range;
       // a gain in (0, 1] keeps the step within it and the new value between the two: no
-      // saturation test but the gain's own (issue 29). The values are operator-'s, * and +'s.
+      // saturation test but the gain's own. The values are operator-'s, * and +'s.
       const S gain = S::reciprocal_of_at_least_one(kOne + p.tau_s * in.rate_hz);
       const typename S::Raw filtered = s.filtered_speed_m_per_s.raw();
       const typename S::Raw difference = lateral_speed.raw() - filtered;
@@ -99,7 +100,7 @@ struct CartoonCliff {
 
     if (!s.fallen) return times_in_range(n, PenaltyWall<S>::normal_force(p.wall, c));  // unit n, push >= 0
     // A unit vector times a force none of whose components can leave the range, so without the
-    // saturation test (times_in_range; issue 29): the fall force and a ledge's push are >= 0
+    // saturation test (times_in_range): the fall force and a ledge's push are >= 0
     // (scene files: fall_force >= 0, stiffness > 0), and either negated is never lowest().
     if (in_strip) return times_in_range(n, -p.fall_force_n);
     if (c.penetration_m > S{}) {  // under a ledge: its side face pushes back toward the strip
@@ -109,7 +110,7 @@ struct CartoonCliff {
     return {};
   }
 
-  /// A live scene's one-shot event (issue 19, docs/spec/live-scenes.md): "look_down" zeroes
+  /// A live scene's one-shot event (docs/spec/live-scenes.md): "look_down" zeroes
   /// the filtered lateral speed s_f, as a cartoon character stops and looks down. Over the gap
   /// the next tick's filter leaves s_f below the threshold unless the HIP is that fast within
   /// one tick, so it falls by §5's own rule; elsewhere it walks on (s_f recovers with tau).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What an effect is, and how the rest of the stack asks it for what it carries. An effect is a
 /// type with
@@ -18,7 +19,7 @@
 ///   static constexpr std::size_t kMaxPerScene;        // capacity in a run-time scene (default 8)
 ///   static constexpr std::array<std::string_view, N> kEvents;  // one-shot events a live scene
 ///   static constexpr bool fire(const Params&, State&, std::size_t event, double value,
-///                              Instant now) noexcept;  // may fire (issue 19; false: refused)
+///                              Instant now) noexcept;  // may fire (false: refused)
 /// force() runs on every servo tick: no allocation, exception, lock, system call or clock.
 /// Those five optional parts are what the scene-file reader, the run-time scene, the passivity
 /// controller, telemetry and the viewer take from an effect; nothing else in the library names

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Tangential laws of a surface, applied only while the HIP is in contact and added to the
 /// wall force (spec effects.md §2-3). Each takes the tangential velocity v_t = v - (n.v) n and
@@ -58,7 +59,7 @@ struct RealisticFriction {
                                  S normal_force_n) noexcept {
     if constexpr (kIsFixed<S>) {
       // mu_c N / max(|v_t|, v_reg) from the inverse root of the larger exact square: no root
-      // and no division (issue 29: they were about 140 instructions and four UDIVs of the
+      // and no division (they were about 140 instructions and four UDIVs of the
       // Cortex-M3 tick's bound), and no rounding of the speed (v_reg = 0.02 m/s is 1,311 LSB:
       // a rounded speed was 4e-4 off, the gain now within 2^-26 and half an LSB).
       const S push = p.coulomb * normal_force_n;  // [N], >= 0 in a scene file: mu_c >= 0, N >= 0

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Exaggerated recoil and oscillation on impact (paper §4.2; spec effects.md §4).
 ///
@@ -57,7 +58,7 @@ struct ImpactTransient {
     S impact_speed_m_per_s{};          ///< v_i of the running transient
     /// delta of the previous tick; before the first, a depth inside (1 m), so that the first
     /// tick is no entry whatever its delta (a flag for "no previous tick" was a branch the
-    /// Cortex-M3 bound took out of line and back, issue 29)
+    /// Cortex-M3 bound took out of line and back)
     S previous_penetration_m = scalar_cast<S>(1.0);
     bool armed = true;
     bool running = false;
@@ -119,7 +120,7 @@ struct ImpactTransient {
     S phase;  // f t [turns]
     S left;   // d - t [s]: taken before the sine in a Q format, after it in floating point, the
               // orders in which GCC schedules each loop shortest (7 instructions of the image's
-              // bound; 3 of the double loop's mean, issue 14's 600)
+              // bound; 3 of the double loop's mean, whose budget is 600)
     if constexpr (kIsFixed<S>) {
       // A Q scalar times in integer nanoseconds: t <= d tested exactly, t rounded once, no
       // floating point (an FPU-less target, tools/mcu). 2^46 ns is past any Q16.16 duration;
@@ -132,7 +133,7 @@ struct ImpactTransient {
         out.triggered = false;
         return out;
       }
-      // 0 <= t <= d: neither t nor d - t can leave the range (issue 29: no saturation tests).
+      // 0 <= t <= d: neither t nor d - t can leave the range (no saturation tests).
       // Only the phase's fraction matters to the sine, and the low word of the rounded product
       // holds it exactly even where f t passes the range (scene files cannot: check()), so the
       // product is not saturated either.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scalar types every law is built for (spec effects.md §8), as extern templates: the
 /// definitions live in effects/src/instantiations.cpp, so each law provably compiles for

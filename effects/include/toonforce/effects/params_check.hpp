@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Parameters that come from outside the process: a live scene's update (docs/spec/
 /// live-scenes.md) is written by another process, which may write anything. Before the servo

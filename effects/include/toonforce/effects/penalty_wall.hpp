@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Penalty wall, the realistic baseline (paper §4.2; spec effects.md §1):
 ///   F_n = max(0, k delta - b (n.v)) along n while delta > 0, else 0.

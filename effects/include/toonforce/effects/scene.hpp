@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Scenes: the sum of their effects' forces, in order (spec effects.md §0).
 ///
@@ -124,7 +125,7 @@ class Scene {
   constexpr Vec3<S> sum(const TickInput<S>& in, State& state, ActiveForce<S>* active,
                         std::index_sequence<I0, I...>) const noexcept {
     // The first effect's force is the start: 0 + f is f in a Q format, so a one-effect scene
-    // adds nothing (issue 29: three saturating adds of every tick's bound). Floating point
+    // adds nothing (three saturating adds of every tick's bound). Floating point
     // starts from +0 as it did: 0 + (-0) is +0, and the traces print the sign.
     Vec3<S> total{};
     if constexpr (kIsFixed<S>) {
@@ -271,7 +272,7 @@ class RuntimeSceneOf {
     return info;
   }
 
-  /// Live scenes (issue 19). `now` holds, for each effect of this scene, the state of the effect
+  /// Live scenes. `now` holds, for each effect of this scene, the state of the effect
   /// of the previous scene's `from` it continues (`continues[i]` for this scene's i-th effect in
   /// order: the index among effects of its kind in the previous scene, or -1 for a new effect,
   /// whose state starts fresh). Between two ticks, never inside one.

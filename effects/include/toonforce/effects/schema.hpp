@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// How an effect describes its scene-file table (spec interfaces.md "Scene files"), so that the
 /// effect is written in one place and the scene-file reader, the run-time scene, the viewer and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A surface (scene-file table `[[surface]]`): a plane rendered by a penalty wall, optionally
 /// with one tangential law (realistic friction or the super-slippery surface, never both: they
@@ -63,7 +64,7 @@ struct Surface {
       Impact::check(p.impact, problems, scalar);
     }
   }
-  /// A live scene's one-shot event (issue 19, docs/spec/live-scenes.md): "impact" starts this
+  /// A live scene's one-shot event (docs/spec/live-scenes.md): "impact" starts this
   /// surface's transient now as if the HIP had entered at `value` m/s (> 0), the law of spec
   /// effects.md §4 from t = 0 whether or not the HIP touches it; refused without an impact.
   static constexpr std::array<std::string_view, Impact::kPresent ? 1 : 0> kEvents = [] {
@@ -129,9 +130,9 @@ struct Surface {
       const bool touching = c.penetration_m > S{};
       Vec3<S> tangential{};
       if (touching && Tangential::present(p.tangential)) {
-        // A Q format takes the contact's n.v (issue 29); floating point computes it again, as
+        // A Q format takes the contact's n.v; floating point computes it again, as
         // it did: with the contact's, GCC laid out the double runtime cartoon wall's tick (which
-        // never runs this) 2 instructions dearer, past issue 14's 600.
+        // never runs this) 2 instructions dearer, past the 600-instruction budget.
         Vec3<S> v_t;
         if constexpr (kIsFixed<S>) {
           v_t = p.plane.tangential(in.velocity_m_per_s, c.normal_speed_m_per_s);

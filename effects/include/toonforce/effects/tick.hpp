@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What every force law sees on one servo tick (spec effects.md §0), and the geometry of the
 /// HIP against a plane. Frame: the scene frame, SI units.
@@ -108,7 +109,7 @@ struct Plane {
 /// known at compile time: what a compiled Q-format scene uses for such a plane (tools/mcu's
 /// generator picks it when a file's normal is exactly an axis; every paper scene's is). Each
 /// product with the normal is then a copy or a negation of one component, not three 64-bit
-/// products (issue 29: a slippery surface's tick took six for its contact and three for each
+/// products (a slippery surface's tick took six for its contact and three for each
 /// vector along or across the normal). Every result is bit for bit Plane's with that normal
 /// (raw +-2^F on the axis, 0 elsewhere), saturations and their flag included:
 /// tests/effects_test.cpp compares them on edge and random values, and surfaces on both.

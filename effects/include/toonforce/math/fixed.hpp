@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Q-format fixed point for FPU-less targets: a signed 32-bit integer with `FracBits` fraction
 /// bits. Every operation rounds to nearest and saturates instead of wrapping; saturation sets a
@@ -48,7 +49,7 @@ namespace detail {
 /// 64-bit quotient or product, a sign-extended raw value) as that value and multiplies its high
 /// word too, always 0 or a copy of the sign there (an MLA, or a MOV and an MLA, per product on
 /// a 32-bit core); an empty asm that may change the register leaves it only the word. The
-/// tick's static bound counts each of those (issue 29). Two operands go through one asm: two
+/// tick's static bound counts each of those. Two operands go through one asm: two
 /// separate ones changed what GCC keeps in registers around them (the slippery surface's bound
 /// +119 cycles).
 template <typename Word>
@@ -67,7 +68,7 @@ template <typename A, typename B>
 /// hardware keeps its own: the APSR's sticky Q bit, which an exception saves and restores with
 /// the rest of the xPSR. Setting it is one SSAT of the saturated value (never in [-1, 0]) to
 /// one bit, no load or store, in every operation's saturation path (the tick's static bound
-/// counts that path for each operation, issue 29). Nothing else in an image may touch Q: a
+/// counts that path for each operation). Nothing else in an image may touch Q: a
 /// compiler emits SSAT/USAT for clamps, so tools/mcu/check_q_bit.cmake fails an image with any
 /// SSAT, USAT or flag-writing MSR but these.
 inline void raise_saturation_flag(std::int32_t saturated_value) noexcept {
@@ -92,7 +93,7 @@ inline void reset_saturation_flag() noexcept {
   std::uint32_t zero;
   asm volatile("movs %0, #0\n\tmsr apsr_nzcvq, %0" : "=&r"(zero) : : "cc");
 }
-// Single-path saturation (issue 29): the test, the limit and the flag in one IT block, the
+// Single-path saturation: the test, the limit and the flag in one IT block, the
 // same instructions whether or not the value saturates. A branch around the saturation path
 // costs as many cycles when not taken (a taken branch refills the pipeline) and as many
 // instructions when taken, and out of line it costs a second taken branch; so the tick's static
@@ -177,13 +178,13 @@ namespace detail {
 /// Whether the target divides 64-bit integers in hardware (a 64-bit host: one instruction).
 /// There the exact quotient and root take the target's cheapest methods; the routines below
 /// without loop or library call are for a 32-bit core (tools/mcu), whose tick is bounded by
-/// its structure (issue 29). Both give the same results, exactly (math_test checks each).
+/// its structure. Both give the same results, exactly (math_test checks each).
 inline constexpr bool kWideHardware = sizeof(void*) >= 8;
 
 /// floor(n / d) for 0 < d < 2^32, exactly, when the quotient fits 32 bits; 2^32 when it does not
 /// (every caller saturates such a quotient). On a 32-bit core a 64-bit division is a library
 /// call of about a hundred instructions (__aeabi_uldivmod); this is two 32-bit divisions (UDIV
-/// on a Cortex-M3) of 16-bit digits, and no loop (the tick's bound is its structure, issue 29):
+/// on a Cortex-M3) of 16-bit digits, and no loop (the tick's bound is its structure):
 /// Hacker's Delight's divlu (Warren, 2nd ed., 9-4), with each digit's estimate (un / vn1, at
 /// most 2 too large for a normalised divisor: Knuth, TAOCP vol. 2, 4.3.1 theorem B) corrected
 /// by the sign of the remainder rather than by branches: 42 instructions on the Cortex-M3 on
@@ -245,7 +246,7 @@ constexpr int countl_zero_words(std::uint64_t v) noexcept {
 /// d's top bit is set (16 bits of divisor: the quotient's relative error is under 2^-15).
 /// For a share in [0, 1] of two exact 64-bit sums (the passivity stage's applied share), where
 /// the library-free 64/32 division and the sign handling of a Q16.16 quotient cost three times
-/// as much (issue 29).
+/// as much.
 constexpr std::uint32_t fraction_q16(std::uint64_t n, std::uint64_t d) noexcept {
   const int s = countl_zero_words(d);
   const auto divisor = static_cast<std::uint32_t>((d << s) >> 48);    // in [2^15, 2^16)
@@ -427,7 +428,7 @@ class Fixed {
   /// trigger, tested against its duration first): by the reciprocal of 1e9 prepared at compile
   /// time (detail::Divisor), a multiplication and two corrections, where from_ratio's 64/32
   /// division took about 50 instructions of the tick's bound and the limits and the sign 20
-  /// more (issue 29).
+  /// more.
   static constexpr Fixed from_ns_in_range(std::uint64_t ns) noexcept {
     constexpr detail::Divisor kSecond = detail::divisor_of(1'000'000'000);
     return from_raw(static_cast<Raw>(detail::div_round_by(ns << FracBits, kSecond)));
@@ -457,7 +458,7 @@ class Fixed {
 
   /// Saturates a wide intermediate into range, setting the flag when it had to.
   /// (Every operation of the tick ends here, so its worst path is what the tick's static bound
-  /// counts most often, issue 29: the test is one comparison of the high word with the low
+  /// counts most often: the test is one comparison of the high word with the low
   /// word's sign, and the limit is picked from the high word's sign without a branch.)
   [[gnu::always_inline]] static constexpr Fixed from_wide(Wide wide) noexcept {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
@@ -504,7 +505,7 @@ class Fixed {
   // Sums and differences overflow only past the 32-bit range, toward the first operand's sign.
   // An operand the compiler knows to be 0 (a component a vector along an axis does not have:
   // effects/tick.hpp's AxisPlane) takes the plain form, which it folds to the other operand;
-  // the asm statement it cannot fold (issue 29: two of a slippery surface's three sums).
+  // the asm statement it cannot fold (two of a slippery surface's three sums).
   [[gnu::always_inline]] friend constexpr Fixed operator+(Fixed a, Fixed b) noexcept {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
     if constexpr (sizeof(Raw) == 4) {
@@ -533,7 +534,7 @@ class Fixed {
   }
   [[gnu::always_inline]] friend constexpr Fixed operator-(Fixed a) noexcept {
 #if defined(TOONFORCE_FIXED_FLAG_IN_Q_BIT)
-    if constexpr (sizeof(Raw) == 4) {  // 0 - a, single-path as the difference (issue 29)
+    if constexpr (sizeof(Raw) == 4) {  // 0 - a, single-path as the difference
       if (!std::is_constant_evaluated() && !__builtin_constant_p(a.raw_)) {
         return from_raw(detail::saturating_words<true>(0, a.raw_));
       }
@@ -715,7 +716,7 @@ constexpr std::uint64_t isqrt_round_wide(std::uint64_t v) noexcept {
   return r_wide > q_wide ? q_wide + 1 : q_wide;
 }
 
-/// floor(sqrt(v) + 0.5) for a 64-bit value, from two 32-bit divisions and no loop (issue 29: a
+/// floor(sqrt(v) + 0.5) for a 64-bit value, from two 32-bit divisions and no loop (a
 /// bound by structure; one path for every v but 0). The digit-by-digit method it replaces took
 /// 16 or 32 steps, 330 instructions in the bound for any force's norm. Here v is first
 /// normalised to m = v 4^k with its top two bits not both 0, so that m's high word H is in
@@ -779,7 +780,7 @@ constexpr std::uint64_t isqrt_round_divided(std::uint64_t v) noexcept {
 }
 
 /// The leading-bit method, the 32-bit one for a value that fits 32 bits (the method before
-/// issue 29): fewer rounds for small values, and a branch in each. A 64-bit host's root.
+/// the loop-free one): fewer rounds for small values, and a branch in each. A 64-bit host's root.
 constexpr std::uint64_t isqrt_round_leading(std::uint64_t v) noexcept {
   if (v <= std::numeric_limits<std::uint32_t>::max()) return isqrt_round_bitwise(static_cast<std::uint32_t>(v));
   return isqrt_round_wide(v);
@@ -796,7 +797,7 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
   }
 }
 
-/// 1 / sqrt(v) for v > 0 without a root or a division (issue 29: scaling a vector to a limit
+/// 1 / sqrt(v) for v > 0 without a root or a division (scaling a vector to a limit
 /// took a root and a 64/32 division, about 125 instructions of a tick's bound each time, and
 /// four UDIVs): v = m 2^(32 - 2 shift) with m its top 32 bits, normalised to [2^30, 2^32) (the
 /// bits below them dropped, under 2^-30 of v), and `y` 1 / sqrt(m 2^-32), in (1, 2], in units
@@ -804,7 +805,7 @@ constexpr std::uint64_t isqrt_round(std::uint64_t v) noexcept {
 /// segment (its top byte, 192 of them over [1/4, 1)), within 2^-16 of the inverse root; one
 /// Newton step y (3 - x y^2) / 2 of three 32x32 products squares that error (1.5 2^-32, from
 /// below) and leaves the truncations'. A table of seeds at the segments' midpoints, within
-/// 2^-8, took a second step (issue 29: three products more on each of a tick's roots). y is
+/// 2^-8, took a second step (three products more on each of a tick's roots). y is
 /// never above 1 / sqrt(v) and within 2^-26 of it (math_test checks both against long double).
 struct InverseRoot {
   std::uint32_t y = 0;  ///< in units of 2^-30
@@ -843,7 +844,7 @@ constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
   auto low = static_cast<std::uint32_t>(v);
   // Pairs of zero bits shifted in (in 32-bit words: no 64-bit variable shift). A high word of
   // 0 takes the low word's place by a mask, not a branch (GCC made selects branches, and the
-  // bound took them out of line and back, issue 29).
+  // bound took them out of line and back).
   const std::uint32_t small = 0U - static_cast<std::uint32_t>(high == 0);  // all ones: high is 0
   int shift = static_cast<int>(small & 16U);
   high |= low & small;
@@ -871,7 +872,7 @@ constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexc
   const auto p_high = static_cast<std::uint32_t>(p >> 32);
   const auto p_low = static_cast<std::uint32_t>(p);
   // p >> (30 - shift), shift 0..31, as (2p) >> (31 - shift) (2p < 2^63): one shift by 0..31
-  // in 32-bit words, and no branch (issue 29: shift 31, v <= 3, and shift 30 were cases of
+  // in 32-bit words, and no branch (shift 31, v <= 3, and shift 30 were cases of
   // their own, branches the bound took out of line and back).
   const int down = 31 - r.shift;  // 0..31
   const std::uint32_t twice_high = (p_high << 1) | (p_low >> 31);

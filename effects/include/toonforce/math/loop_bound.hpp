@@ -1,9 +1,10 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// TOONFORCE_LOOP_BOUND(n), placed in a loop's body: that body runs at most n times each time the
 /// loop is entered, n a constant expression of the code (a template parameter, an array's size,
 /// the digits of a type), never a number typed beside it. On an Arm target it emits the pair
 /// (address of this point, n) into the non-allocated ELF section .toonforce.loop_bounds, where
-/// the worst-case analyser (tools/mcu/wcet, issue 29) finds it and bounds the innermost loop of
+/// the worst-case analyser (tools/mcu/wcet) finds it and bounds the innermost loop of
 /// the linked image that holds that address. It emits no instruction; on any other target, and
 /// in constant evaluation, it is nothing. A loop the compiler unrolls completely leaves an
 /// annotation that no loop holds: the analyser ignores it. The pair's section is linked to the

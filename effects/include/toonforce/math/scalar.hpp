@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scalar types the force laws are instantiated for, and the few math functions the laws
 /// use, spelled the same for all of them: `double` (the reference), `float`, and `Q16_16`.
@@ -67,7 +68,7 @@ inline bool is_finite(double x) noexcept { return std::isfinite(x); }
 inline bool is_finite(float x) noexcept { return std::isfinite(x); }
 
 /// 1 / x for x > 0: in a Q format `Fixed::reciprocal_of_positive`, one 32-bit division (a
-/// quotient that divides several values is cheaper as this and products, issue 29).
+/// quotient that divides several values is cheaper as this and products).
 template <Scalar S>
 constexpr S reciprocal_of_positive(S x) noexcept {
   if constexpr (kIsFixed<S>) {

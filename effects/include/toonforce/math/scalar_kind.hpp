@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The scalar type as a run-time choice (`--scalar double|float|q16.16`, a scene checked for
 /// Q16.16), and the one place where that choice becomes a template argument:

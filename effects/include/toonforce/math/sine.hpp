@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// sin(2 pi p) for a phase `p` in turns, three ways, for every scalar type. The impact
 /// transient needs a sine (spec effects.md §4: "computed any way ... so long as the error
@@ -119,7 +120,7 @@ constexpr S fixed_polynomial(S q) noexcept {
 }
 
 /// The same polynomial for Q16.16 in 32-bit words: four 32x32 products whose high word is the
-/// next step (issue 29: the 64-bit products above were 59 instructions of the Cortex-M3 tick's
+/// next step (the 64-bit products above were 59 instructions of the Cortex-M3 tick's
 /// bound; these are about 20). Each step keeps what its range allows: q in Q33 (q <= 1/4 fills
 /// an unsigned word), q^2 in Q34, the Horner sums in Q23 (c5 + c7 q^2 in [76, 82]), Q25 ([-42,
 /// -36]) and Q27 ([3.7, 6.3]), the sine in Q28. c1 is rounded up by 2 units of 2^-27 (1.5e-8):
@@ -185,7 +186,7 @@ constexpr S sin_turns(S turns, SineMethod method) noexcept {
   if (method == SineMethod::kTable) {
     const auto& table = detail::SineTable<S>::kValues;
     if constexpr (kIsFixed<S>) {
-      // Steps none of which can leave the range, so without a saturation test (issue 29: the
+      // Steps none of which can leave the range, so without a saturation test (the
       // method is chosen at run time, so the tick's bound counts the dearer one): q * 1024 is
       // exact, a shift (q <= 1/4: below 2^(F + 8)); hi - lo is a few LSB; lo plus a share of it
       // lies between lo and hi. The values are operator*'s and operator+'s.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A 3-vector in the scene frame (spec effects.md §0: x right, y away from the user, z up;
 /// SI units). For Q types, dot products and norms accumulate raw products in 64 bits and round
@@ -71,7 +72,7 @@ constexpr typename S::Wide raw_dot_unit(const Vec3<S>& n, const Vec3<S>& v) noex
 }  // namespace detail
 
 /// n.v for a unit vector n (each component in [-1, 1]: a plane's normal, an axis): what dot()
-/// gives, without its overflow tests (issue 29: a plane's contact takes two such products a tick).
+/// gives, without its overflow tests (a plane's contact takes two such products a tick).
 template <Scalar S>
 constexpr S dot_unit(const Vec3<S>& n, const Vec3<S>& v) noexcept {
   if constexpr (kIsFixed<S>) {
@@ -106,7 +107,7 @@ namespace detail {
 /// |v|^2 of a Q-format vector, exact: its raw squares in unsigned 64 bits (each <= 2^62, three
 /// of them < 2^64), in units of 2^-2F. Each square is a signed product (it fits: at most 2^62)
 /// taken as unsigned, so the sum is a signed multiply-accumulate (SMLAL) with no |r| first
-/// (issue 29: two instructions a component, five sums a tick).
+/// (two instructions a component, five sums a tick).
 template <Scalar S>
 constexpr std::uint64_t raw_squares(const Vec3<S>& v) noexcept {
   const auto sq = [](typename S::Raw r) {
@@ -214,7 +215,7 @@ constexpr bool is_finite(const Vec3<S>& v) noexcept {
 namespace detail {
 /// Each component of a Q-format `v` times a fraction `factor` in units of 2^-32 (below 1), as
 /// |c| times it rounded to nearest with the sign put back: nothing can saturate, and no
-/// division per component (the tick's static bound counts each one, issue 29).
+/// division per component (the tick's static bound counts each one).
 template <Scalar S>
 constexpr Vec3<S> scaled_by_fraction(const Vec3<S>& v, std::uint32_t factor) noexcept {
   using Raw = typename S::Raw;
@@ -258,7 +259,7 @@ constexpr Vec3<S> scale_to_norm(const Vec3<S>& v, S numerator, const NormOf<S>& 
 /// 0), else nothing: every magnitude limit of the tick (the rate limit, the clamp, the
 /// slippery law's). In a Q format the squares are compared exactly, as norm_if_above, and the
 /// factor limit / |v| is limit times the inverse root of |v|^2 (detail::inverse_root): no root
-/// and no division (issue 29: they were about 125 instructions of a tick's bound per limit,
+/// and no division (they were about 125 instructions of a tick's bound per limit,
 /// and four UDIVs). The factor is never above the ratio and within 2^-26 of it, so a component
 /// is never past the exactly scaled one rounded to nearest, and under the exact one by at most
 /// 2^-26 of it and half an LSB (at most one LSB under the rounded one below 512 N): the limit
@@ -283,7 +284,7 @@ constexpr std::optional<Vec3<S>> scaled_if_above(const Vec3<S>& v, S limit) noex
 /// gain), or v a unit vector (each component in [-1, 1]: a plane's normal) and k >= 0 (a
 /// wall's push) or the negation of one (never lowest(), whose product with -1 would not fit).
 /// Each product is then at most |c| or |k| in magnitude, so in a Q format it is rounded as
-/// operator* rounds it, without the saturation test (issue 29: three a vector).
+/// operator* rounds it, without the saturation test (three a vector).
 template <Scalar S>
 constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
   if constexpr (kIsFixed<S>) {
@@ -296,7 +297,7 @@ constexpr Vec3<S> times_in_range(const Vec3<S>& v, S k) noexcept {
 }
 
 /// A unit vector `unit` (each component in [-1, 1]: a plane's normal) times any `k`, in a Q
-/// format without the saturation test (issue 29: three a vector): k = lowest() is taken as
+/// format without the saturation test (three a vector): k = lowest() is taken as
 /// -max() first, the one k whose product with a component of -1 would not fit. That changes
 /// a product by at most one raw unit, and only for a k at the end of the range (a force that
 /// saturated, or exactly -32,768 N in Q16.16). Floating point multiplies.
@@ -312,7 +313,7 @@ constexpr Vec3<S> times_unit(const Vec3<S>& unit, S k) noexcept {
 /// a + b where no component can leave the range: b a step from a toward some c in range,
 /// scaled down (each b_i of c_i - a_i's sign and at most its magnitude; c - a itself may have
 /// saturated, toward the true difference), so a_i + b_i lies between a_i and c_i. In a Q
-/// format the raw values add without the saturation test (issue 29: three a vector).
+/// format the raw values add without the saturation test (three a vector).
 template <Scalar S>
 constexpr Vec3<S> plus_in_range(const Vec3<S>& a, const Vec3<S>& b) noexcept {
   if constexpr (kIsFixed<S>) {

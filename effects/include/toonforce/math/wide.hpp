@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Accumulators for the safety layer's slow states and energies: the thermal model's
 /// temperature and the passivity observer's energies change by a few parts in 10^5 per tick,

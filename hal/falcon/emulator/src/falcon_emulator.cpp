@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The emulated Falcon (FALCON.md §8 "What a faithful emulator must reproduce").
 #include "toonforce/hal/falcon/emulator/falcon_emulator.hpp"
 

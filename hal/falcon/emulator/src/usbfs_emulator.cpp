@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Emulated Falcons behind usbfs through umockdev (FALCON.md §9: an in-process
 // UMockdevIoctlBase handle-ioctl handler, here with held IN URBs, DISCARDURB,
 // USBDEVFS_BULK, DISCONNECT_CLAIM and ENODEV after unplugging).

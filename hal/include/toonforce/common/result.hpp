@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Result<T> for start-up code (opening devices, loading scenes): a value or an error message
 /// meant for a person. g++ 12 in C++20 mode has no std::expected; this is the small part of it

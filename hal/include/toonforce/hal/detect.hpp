@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What `toonforce devices` reports about each device a backend finds on this host: whether
 /// this user may open it and, if not, what to do. Backends provide the detection; the command

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The device seam (after modm's Bmi088Transport concept and libfranka's RobotControl): the
 /// servo loop is a template over a `ServoDevice`, so the host simulation inlines in tests and

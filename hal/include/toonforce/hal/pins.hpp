@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Digital I/O the servo loop may use on a bring-up host: a tick pin toggled every tick (a
 /// scope shows the true period and jitter), an emergency-stop input, an enable (deadman)

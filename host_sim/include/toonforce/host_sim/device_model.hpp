@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Parameters of a simulated haptic device, lumped at the handle in the scene frame: the
 /// effective mass the hand feels, viscous and Coulomb friction, the force it can produce, how

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What the simulated hand intends at any instant: the point it aims for (its reference r and
 /// the reference's velocity), the force it presses with, and whether it grasps the handle. The

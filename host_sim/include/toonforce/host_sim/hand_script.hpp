@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Hand scripts in memory: where the simulated hand starts, its arm impedance, and a list of
 /// segments (move, stroke, strike, cross, hold, release) it performs one after the other. The

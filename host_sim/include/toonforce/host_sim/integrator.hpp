@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The integrators the host simulation offers, chosen per run. Each advances the device and
 /// hand over one sub-step h (a servo period divided into `substeps`); the device force is held

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The physical part of the host simulation: the device's handle and the hand that grasps it,
 /// one rigid body in the scene frame, driven by the device force (held over each servo period)

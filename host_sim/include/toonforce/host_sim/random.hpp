@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A small seeded random generator for sensor noise, written out so the numbers are the same
 /// on every standard library (std::normal_distribution's algorithm is unspecified):

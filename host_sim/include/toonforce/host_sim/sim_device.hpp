@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A simulated haptic device with a hand on it, behind the same seam as the real backends
 /// (hal/device.hpp, concept ServoDevice). One read/write exchange is one servo period:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The simulated device and hand behind the run-time seam (DeviceDriver), so a real-time
 /// runner (`toonforce run --device sim`) drives it like any backend: every read/write exchange

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Falcon's calibration file (falcon_calibration_file.hpp), read with TableReader so its errors
 // look like a scene file's.
 #include "toonforce/config/falcon_calibration_file.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // TOONFORCE_LOOP_BOUND from the real header, compiled for the Cortex-M3 by the test: the loop's
 // bound comes from the template parameter; the unused function, which --gc-sections drops,
 // takes its annotation with it.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`python3 -m toonforce.study`: run, resume and analyze study sessions (docs/STUDIES.md).
 
     python3 -m toonforce.study run EXPERIMENT --participant N --out FOLDER --simulated-threshold T

@@ -1,4 +1,5 @@
-"""`toonforce study analyze SESSIONS...` (issue 31): a Markdown report with plots. Per session
+# SPDX-License-Identifier: Apache-2.0
+"""`toonforce study analyze SESSIONS...`: a Markdown report with plots. Per session
 and block: a staircase's track and threshold (mean of its last reversals), a constant-stimuli
 block's psychometric fit (maximum likelihood, with lapse) with its threshold and bootstrap
 95 % interval; then per block, the thresholds across participants."""

@@ -1,4 +1,5 @@
-"""Experiment files (TOML) of `toonforce study` (issue 31): conditions as named scene variants,
+# SPDX-License-Identifier: Apache-2.0
+"""Experiment files (TOML) of `toonforce study`: conditions as named scene variants,
 the design, and one procedure per block. Checked when read, with file:line: key errors as the
 scene files' are. The keys are in docs/STUDIES.md.
 """

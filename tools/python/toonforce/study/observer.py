@@ -1,5 +1,6 @@
+# SPDX-License-Identifier: Apache-2.0
 """Simulated participants: model observers of two-interval forced choice on a physical quantity
-of the simulated device's trace (issue 31), with a known threshold, so that the tests can check
+of the simulated device's trace, with a known threshold, so that the tests can check
 that the procedures and the fits find it.
 
 The observer perceives each interval's quantity q with independent Gaussian noise of standard

@@ -1,4 +1,5 @@
-"""A person on a device (issue 31): each interval is the condition's scene loaded into a running
+# SPDX-License-Identifier: Apache-2.0
+"""A person on a device: each interval is the condition's scene loaded into a running
 `toonforce run --control` (toonforce.live) on the Falcon, the Omni or the simulated device, and
 the participant answers on a page served here, http://127.0.0.1:PORT/ (the instructions, each
 trial's prompt and answer by key or click, a break between blocks, and an abort key).

@@ -1,4 +1,5 @@
-"""The psychophysical procedures of a study block (issue 31), as state machines that take one
+# SPDX-License-Identifier: Apache-2.0
+"""The psychophysical procedures of a study block, as state machines that take one
 answer at a time: `next_level()` says what to present, `record(correct)` takes the answer. Each
 is rebuilt exactly by replaying its recorded answers (a resumed session goes on where it was).
 

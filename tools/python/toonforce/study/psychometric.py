@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Psychometric functions fitted by maximum likelihood (scipy), with bootstrap confidence
 intervals, for two-interval forced choice (guess rate 1/2) and other designs.
 

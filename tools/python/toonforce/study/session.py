@@ -1,4 +1,5 @@
-"""A study session (issue 31): one folder, nothing lost.
+# SPDX-License-Identifier: Apache-2.0
+"""A study session: one folder, nothing lost.
 
     FOLDER/session.json   the experiment file's text and SHA-256, the participant, the seed,
                           the software's version, the device, the block order, the start time

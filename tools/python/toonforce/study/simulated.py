@@ -1,4 +1,5 @@
-"""A simulated participant playing a session on the simulated device (issue 31): each interval
+# SPDX-License-Identifier: Apache-2.0
+"""A simulated participant playing a session on the simulated device: each interval
 is a closed-loop run of the condition's scene (the level set at its `vary` key) with the
 experiment's hand script, through `toonforce.sim` (the real servo loop); the model observer
 (observer.py) perceives the experiment's quantity of each trace and answers."""

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The toonforce viewer page. Read-only: it opens one WebSocket to the server that served it,
 // receives the hello (scene, columns, names), batches of frames and status messages, and sends
 // nothing. Live, it follows the newest frame; paused, or once the run is over (or for a

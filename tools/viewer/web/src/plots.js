@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Live plots of position and force against time, as in the paper's figure 3, on a 2D canvas:
 // each series is reduced to its minimum and maximum per pixel column, so a 1 kHz stream costs
 // the same to draw as a slow one. And the wake-up latency histogram of the loop.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The scene in 3D (three.js): the scene file's surfaces as slabs under their planes, the
 // cliff's ground as two ledges with the gap between them (a bridge over the gap while the cliff
 // holds, gone when it has dropped the HIP), the HIP with a small cartoon character standing on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The frames the page has received, in order, as one growing Float64Array (stride values per
 // frame, columns named by the server's hello), plus what the page derives from them frame by
 // frame (the cliff's label), and the wake-up latency histogram of every frame received.

@@ -1,4 +1,5 @@
-// The story page (issue 19, item 4): a short cartoon level in the paper's spirit, played on a
+// SPDX-License-Identifier: Apache-2.0
+// The story page: a short cartoon level in the paper's spirit, played on a
 // running `toonforce run --view --control` with scenes/story/level.toml. The character is the
 // handle (the HIP); the page's own logic changes the scene through the control protocol
 // (docs/spec/control-protocol.md) as the character goes, and reads what the loop did from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce bringup falcon`: a guided hardware-in-the-loop bring-up of one Novint Falcon, run
 /// once per device and after any change. Steps, in order, each passing or failing with what to

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce bringup gpio`: the guided bring-up of a real-time host's GPIO lines (docs/GPIO.md).
 /// Steps: lines (every configured line opens, as `toonforce run` opens them), tick (the tick

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce bringup omni`: the guided bring-up of a Phantom Omni / Touch through OpenHaptics.
 /// Steps: found (libHD loads, with the install checks of install_check.hpp, and the device

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The person at the device during a bring-up. The bring-up says what to do and asks what it
 /// cannot measure; the Operator is how that reaches a person (ConsoleOperator: interactive, on

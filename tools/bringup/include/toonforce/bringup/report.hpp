@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What a bring-up found, step by step, as a person reads it (Markdown) and as a program or a
 /// bug report carries it (JSON). Each step passes, warns, fails or is skipped, with what was

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Hand script files (docs/HAND_SCRIPTS.md): TOML describing where the simulated hand starts,
 /// its arm impedance and the segments it performs. Checked completely at load time with the

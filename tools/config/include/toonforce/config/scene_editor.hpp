@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// Live scenes, the application's side (issue 19; docs/spec/live-scenes.md): changes to the
+/// Live scenes, the application's side (docs/spec/live-scenes.md): changes to the
 /// scene of a running servo loop, from the application's thread.
 ///
 ///   SceneMailbox<RuntimeScene<double>> mailbox;           // sized at start-up, outlives both

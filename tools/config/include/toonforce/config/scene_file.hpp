@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Scene files (spec interfaces.md "Scene files"): a TOML description of effects, checked
 /// completely at load time, then turned into a run-time scene and a ServoConfig. Every error
@@ -94,7 +95,7 @@ Result<SceneDescription> parse_scene(std::string_view text, std::string_view sou
 
 /// A scene without one effect renders zero force everywhere: far more often a wrong or
 /// truncated file than a wish, so `run`, `sim`, `replay` and `check` refuse it unless asked
-/// (--allow-empty; issue 16). The message for `path`, or empty when the scene has an effect.
+/// (--allow-empty). The message for `path`, or empty when the scene has an effect.
 std::string empty_scene_problem(const SceneDescription& scene, std::string_view path);
 
 /// The servo loop's settings a scene asks for, at servo period `period_s` > 0 (before the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Reading a scene file against any effect kinds (scene_file.hpp): each `[[KEY]]` table is
 /// read by its effect's schema, every key with its unit, range and default, then the effect's

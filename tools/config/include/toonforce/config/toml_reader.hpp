@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Reading TOML files that people write by hand (scenes, hand scripts) with errors that name
 /// the file, the line and the key, and that reject what they do not know: an unknown key, a
@@ -28,7 +29,7 @@ inline constexpr double kMaxMagnitude = 1e12;
 /// Where errors go: "FILE:LINE: WHERE.KEY: PROBLEM". Shown sorted by line (the order a person
 /// fixes them in, whatever order the reader found them), and at most kShown of them: a file
 /// with thousands of errors is not one a person reads to the end, and printing them all took
-/// seconds (issue 16). Every error is counted.
+/// seconds. Every error is counted.
 class ErrorList {
  public:
   static constexpr std::size_t kShown = 20;     ///< errors text() shows
@@ -135,7 +136,7 @@ std::optional<std::string> nearest_key(std::string_view key, std::span<const std
 
 /// The deepest structure a TOML text may have: tables, dotted keys, arrays and inline tables
 /// counted together (an upper estimate, see check_text). toonforce's files need fewer than 8;
-/// toml++ recurses once per level, and ~32,000 levels overflowed a thread's stack (issue 27),
+/// toml++ recurses once per level, and ~32,000 levels overflowed a thread's stack,
 /// so the text is measured before the parser sees it.
 inline constexpr std::uint32_t kMaxTomlDepth = 64;
 /// The largest TOML text read: a scene or hand script is a few KiB.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce doctor`: what decides real-time behaviour on this host, each with its finding and
 /// its fix. Everything is read through a root directory (default "/") so tests point it at a

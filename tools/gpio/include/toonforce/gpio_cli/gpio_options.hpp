@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The GPIO options of `toonforce run` (docs/GPIO.md), registered on any CLI11 (sub)command:
 ///   --tick-pin CHIP:OFFSET            toggled every tick (scope / logic analyser)

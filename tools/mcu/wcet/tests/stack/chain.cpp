@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The static stack bound's hand-made case (test_stack_bound.py): entry -> middle -> deep, where
 // deep (deep.s) has no .su line and takes its frame from its disassembly (216 bytes), and
 // middle's other callee, leaf, calls libgcc's 64-bit division (__aeabi_ldivmod, then

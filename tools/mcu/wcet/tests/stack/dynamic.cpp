@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // entry's frame grows with its argument (alloca): -fstack-usage says "dynamic" (refused).
 extern "C" int entry(unsigned n) {
   auto* p = static_cast<volatile char*>(__builtin_alloca(n + 1));

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Motion files for `toonforce replay` (spec interfaces.md): a header row, then one row per
 /// servo tick with columns t,x,y,z [s, m] and optionally all three of vx,vy,vz [m/s], in any

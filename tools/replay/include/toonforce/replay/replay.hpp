@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce replay`: forces for a given motion, open loop (spec interfaces.md). Each input row
 /// is one tick of the servo loop (ServoLoop with the spec's stages, kSpecStages: velocity
@@ -39,7 +40,7 @@ struct ReplayOptions {
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;  ///< overrides the scene's sine method
   /// Non-null and set (to a signal's number): stop after the row under way; the output ends on
-  /// that whole row (a stop signal, issue 27: replay left a cut 80 MB CSV).
+  /// that whole row (a stop signal: replay once left a cut 80 MB CSV).
   const std::atomic<int>* stop = nullptr;
 };
 

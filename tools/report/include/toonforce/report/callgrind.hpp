@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Instructions per tick, counted by valgrind's callgrind (deterministic: the same binary on
 /// the same inputs counts the same, whatever the load). Runs toonforce_tick_count under

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report all`: runs the latency, precision and stability reports and regenerates
 /// docs/PERFORMANCE.md (its generated part only: everything outside the markers

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report latency`: the cost of one servo tick of each effect (by branch), of the
 /// safety stage, of each paper scene (effects plus ForceSafety) as Scene<...> and as the
@@ -22,9 +23,9 @@
 
 namespace toonforce::report {
 
-/// The issue's targets for a paper scene's tick (effects plus safety stage, double).
+/// The targets for a paper scene's tick (effects plus safety stage, double).
 inline constexpr double kTargetInstructionsPerTick = 400.0;
-/// Issue 14: the whole servo loop tick (read to write, every safety stage on), mean instructions, double.
+/// The whole servo loop tick (read to write, every safety stage on), mean instructions, double.
 inline constexpr double kTargetLoopInstructionsPerTick = 600.0;
 inline constexpr double kTargetMedianNsPerTick = 100.0;
 
@@ -52,7 +53,7 @@ struct LatencyRow {
   std::optional<double> instructions_max;   ///< scenarios: the most expensive tick of the pass
   std::optional<double> cold_median_ns;     ///< data caches cold (LatencyOptions::cold_ticks)
   std::optional<double> cold_p99_ns;
-  /// Search rows (issue 15 item 7): the index of the most expensive tick in the pass.
+  /// Search rows: the index of the most expensive tick in the pass.
   std::optional<std::size_t> instructions_argmax;
   /// Loop search rows: what the loop did on each tick (workloads.hpp search_loop_ticks) and
   /// each tick's instructions (harness subtracted), in pass order.

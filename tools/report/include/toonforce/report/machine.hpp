@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What a measured figure depends on besides the code: the machine, its load while measuring,
 /// the compiler. Reports print it beside every table of times.

@@ -1,6 +1,7 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report mcu`: the microcontroller figures of docs/PERFORMANCE.md (issue 18,
-/// tools/mcu/README.md). For a directory of built Cortex-M3 images (and the Cortex-M4F ones
+/// `toonforce report mcu`: the microcontroller figures of docs/PERFORMANCE.md
+/// (tools/mcu/README.md). For a directory of built Cortex-M3 images (and the Cortex-M4F ones
 /// beside it, when built) it runs what the tables need, as tools/mcu/figures used to:
 /// `arm-none-eabi-size -A` on each size image, each scene image under `qemu-system-arm` in
 /// -icount mode (exact instruction counts), then `toonforce_mcu_gen figures` for the tables.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Where the reports find their inputs (scenes/, tools/*.py) and put their outputs.
 

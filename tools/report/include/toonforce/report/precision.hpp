@@ -1,10 +1,11 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report precision`: force error against run time (spec effects.md §8; the
 /// work-precision diagrams of DiffEqDevTools.jl's WorkPrecisionSet and of Hairer and Wanner,
 /// "Solving Ordinary Differential Equations"), for each paper scene, scalar type, servo
 /// rate and sine method.
 ///
-/// References (issue 15 item 1), each with its own error stated:
+/// References, each with its own error stated:
 ///   - the analytic wall: the wall's law along a sinusoidal penetration path, where the force is
 ///     known in closed form at every instant (precision_reference.hpp: AnalyticWall); its only
 ///     error is double rounding;
@@ -14,7 +15,7 @@
 ///     with only the second compared. The finest is the reference; its own error is the
 ///     Richardson estimate from the last doubling and the observed order, checked against a
 ///     run at 5 times its rate and bounded at events from how far it can have moved one
-///     (issue 32: two rungs can see an event alike by chance). Every compared rate
+///     (two rungs can see an event alike by chance). Every compared rate
 ///     divides it, so each of their ticks falls on a reference tick:
 ///       - sampled error: |F(t_k) - F_ref(t_k)| at the configuration's own ticks, every tick and
 ///         away from events (a window of 2 ticks before and 2 ticks plus the force-rate ramp
@@ -26,7 +27,7 @@
 ///       - event lateness: each kind of event's time in the configuration minus the reference's.
 /// Cost: the mean and median ns of that configuration's loop tick (TSC, each tick alone).
 ///
-/// Drift (issue 15 item 3): hours of the closed loop (tools/sim SimSession: the servo loop with
+/// Drift: hours of the closed loop (tools/sim SimSession: the servo loop with
 /// every stage on the simulated device and hand) with a seeded, varied hand; per scalar type,
 /// the passivity observer's energy against the plant's true port work, and float and Q16.16
 /// against double, each difference fitted by a line against time.
@@ -106,7 +107,7 @@ struct PrecisionRow {
   std::uint64_t fault_ticks = 0;   ///< ticks with a fault (Q16.16 saturation) in the compared pass
   std::vector<EventTiming> events; ///< lateness per kind of event
   /// Events this configuration saw on another tick than double (library sine) at the same rate:
-  /// what makes a "max vs double, same rate" figure large (issue 32 item 4).
+  /// what makes a "max vs double, same rate" figure large.
   struct EventShift {
     EventKind kind = EventKind::kContactOnset;
     double double_t_s = 0.0;     ///< when double saw it
@@ -132,7 +133,7 @@ struct ConvergenceStep {
 struct SceneConvergence {
   std::string scene;
   std::vector<ConvergenceStep> steps;
-  /// The check rung (issue 32 item 1): the reference against double at `check_rate_hz` (a
+  /// The check rung: the reference against double at `check_rate_hz` (a
   /// multiple of it, not a doubling: a rung that an event may land on differently than on the
   /// ladder's), compared at the reference's ticks; orders NaN. check_rate_hz 0: none.
   double check_rate_hz = 0.0;
@@ -196,7 +197,7 @@ struct DriftSeries {
   double cpu_s = 0.0;               ///< CPU time of the whole scene's run (all scalars)
 };
 
-/// The closed loop (issue 15 item 2): one scalar type and rate against the converged double
+/// The closed loop: one scalar type and rate against the converged double
 /// closed loop, the same seeded hand, the same simulated device.
 struct ClosedLoopRow {
   std::string scene;

@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// The numerical pieces of the precision report (issue 15 items 1 and 3), free of the servo
+/// The numerical pieces of the precision report, free of the servo
 /// loop so that tests can check them on data whose answer is known:
 ///   - the analytic wall: a spring wall (effects.md §1, F = K depth n) along a sinusoidal
 ///     penetration path, whose force is known in closed form at every instant;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Running the helper programs the reports need (valgrind, /usr/bin/python3), start-up code.
 

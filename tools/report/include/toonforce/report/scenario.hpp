@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Scripted HIP motions for the reports: for each of the five bundled paper scenes, one
 /// periodic path that drives every branch of its laws (in and out of contact; Coulomb below

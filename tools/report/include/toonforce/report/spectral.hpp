@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Eigenvalues of small dense real matrices, for the stability maps' linear analysis: the
 /// transition matrix of a sampled loop is stable (every disturbance decays) if and only if its

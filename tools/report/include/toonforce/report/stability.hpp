@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report stability`: sweeps of virtual stiffness K, virtual damping B, slippery
 /// gain mu, servo period T, device damping b and impact speed on the host simulation (host_sim:

@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// How `report` writes its documents, CSVs and plots (issue 27): never in place. Each step
+/// How `report` writes its documents, CSVs and plots: never in place. Each step
 /// (latency, precision, stability, mcu) writes every file it makes under a hidden name beside
 /// the file's place (same directory, same extension, so a plot script still knows the format),
 /// then renames them all over their places at its end. A full disk, a failed plot or a stop

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A low-overhead clock for timing single servo ticks: the x86 time-stamp counter, read with
 /// fences so the timed instructions cannot start before the first read nor finish after the

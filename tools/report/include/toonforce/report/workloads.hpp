@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What the latency report and the benchmarks time and count: one servo tick of an effect, of
 /// the safety stage, of a paper scene (its effects plus the safety stage, ForceSafety), or of
@@ -116,7 +117,7 @@ Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, s
                                                       ScalarKind scalar, double rate_hz,
                                                       std::optional<SineMethod> sine);
 
-/// Issue 15 item 7: the search cases ("scene/NAME/SCALAR/search", "loop/NAME/SCALAR/search";
+/// The search cases ("scene/NAME/SCALAR/search", "loop/NAME/SCALAR/search";
 /// workloads.cpp, search_path): a pass is kSearchStrikes strikes of kSearchStrikeTicks ticks
 /// at 1 kHz, a fresh loop at the start of each.
 inline constexpr std::size_t kSearchStrikes = 8;

@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// A command's stop path outside its servo loop (issue 27): before the loop (the scene loading,
+/// A command's stop path outside its servo loop: before the loop (the scene loading,
 /// the device opening, the viewer starting, `--control-wait`) and after it (the viewer serving
 /// the recording), every stop signal (stop_signals(): SIGHUP, SIGINT, SIGTERM, ...) sets
 /// command_stop() instead of taking its default action. While the loop runs, the loop's own

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What `toonforce run` says and writes after its loop's process died (the guardian's epilogue,
 /// `toonforce run-epilogue`, which the guardian program execs once it has zeroed the force;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce run`: the servo loop on a device in real time (spec interfaces.md), as a library
 /// so tests drive it without a process. The command line's part only: which device and files,
@@ -31,7 +32,7 @@ struct SharedPage;
 }  // namespace guardian
 
 
-/// Live scenes (issue 19, `--control`): the mailbox the run's loop takes scene updates from,
+/// Live scenes (`--control`): the mailbox the run's loop takes scene updates from,
 /// for the run's scalar type (the others stay null). The application's side (the control
 /// protocol's SceneEditor) pushes into it; it outlives the run.
 struct LiveMailboxes {

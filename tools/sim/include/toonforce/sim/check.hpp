@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce check` as a library: everything `run` and `sim` check at load, without running,
 /// and the plausibility report, as data. The command prints it (tools/cli/check_command.cpp);

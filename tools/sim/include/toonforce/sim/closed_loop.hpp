@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The closed loop of `toonforce sim` and `toonforce figures`: the servo loop (control/
 /// servo_loop.hpp, every stage, as `toonforce run` has it) on the simulated device and hand, in

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Where an installed toonforce keeps its data (cmake/ToonforceInstall.cmake): scenes, hand
 /// scripts and motions under <prefix>/share/toonforce/scenes, the plotting script beside them.

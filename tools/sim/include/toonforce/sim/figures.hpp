@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce figures` (interfaces.md): the paper's figures regenerated on the host simulation
 /// from committed scenes and hand scripts, each as NAME.csv (the sim trace) and NAME.png:

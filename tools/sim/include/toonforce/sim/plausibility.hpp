@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// The plausibility report (issue 15 item 8): a scene's numbers against what the chosen device
+/// The plausibility report: a scene's numbers against what the chosen device
 /// can do, before anything runs. `toonforce check` prints it whole; `run` and `sim` print its
 /// warnings at the start, and refuse to start on one under `--strict`.
 ///

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Plots of sim traces: runs tools/plot_trace.py (matplotlib, from Debian's python3-matplotlib)
 /// through /usr/bin/python3 as a child process, without a shell. The script is found through

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce sim` (interfaces.md): a scene, a hand script and a simulated device in closed
 /// loop for a given simulated duration; writes the trace and optionally a plot.

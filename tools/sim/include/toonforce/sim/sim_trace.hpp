@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The `toonforce sim` trace (interfaces.md): the servo loop's telemetry columns, the same as
 /// `toonforce run` writes (telemetry_trace.hpp: the core ten, the safety layer's state, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// JSON string literals for what toonforce writes as JSON: `run --stats-json` and the live
 /// viewer's hello message. One escaper for both, so a scene name or a path reads back the same

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Somewhere telemetry frames go besides the trace (the live viewer, tools/viewer). A sink is
 /// fed by the thread that already consumes the servo loop's telemetry ring (`toonforce run`'s

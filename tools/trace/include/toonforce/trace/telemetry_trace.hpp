@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The servo loop's telemetry frame (control/telemetry.hpp) as trace rows, the same for
 /// `toonforce run` and `toonforce sim`: the ten core columns, then the safety layer's view of the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A trace: a CSV file whose first ten columns are fixed by the spec (interfaces.md, `toonforce
 /// sim` and `toonforce run`): t,x,y,z,vx,vy,vz,fx,fy,fz (time [s], HIP position [m] and velocity
@@ -67,7 +68,7 @@ class TraceWriter {
   /// size limit was reached (size_limit_reached() tells which).
   bool write(const TraceCore& core, std::span<const double> extras);
   /// At most `max_bytes` (header included; 0: no limit): a row that would go past it is not
-  /// written, nor any after it, so the file ends on a whole row (issue 16: a long hand-script
+  /// written, nor any after it, so the file ends on a whole row (a long hand-script
   /// hold filled a disk at 50 MB/s without a word).
   void limit_size(std::uint64_t max_bytes) noexcept { limit_bytes_ = max_bytes; }
   bool size_limit_reached() const noexcept { return limit_reached_; }

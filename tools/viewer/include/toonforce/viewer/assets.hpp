@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The page's files (tools/viewer/dist, the Vite build of tools/viewer/web), compiled into the
 /// binary by cmake/embed_assets.cmake: running needs no npm and no files beside the binary, and

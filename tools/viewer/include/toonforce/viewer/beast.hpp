@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Boost.Beast and Boost.Asio, included in one place so that every file that uses them (the
 /// server and its tests) sees the same configuration and the same warning exceptions.

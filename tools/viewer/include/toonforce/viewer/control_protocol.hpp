@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// The control protocol of live scenes (issue 19; docs/spec/control-protocol.md): JSON text
+/// The control protocol of live scenes (docs/spec/control-protocol.md): JSON text
 /// messages on a WebSocket at /control of the viewer's server, from a game engine, a browser
 /// page or a script, that change the scene of the running loop through its SceneEditor.
 ///

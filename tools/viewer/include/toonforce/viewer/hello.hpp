@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The first message a page gets (JSON): what it is looking at. The scene (scene_json.hpp: every
 /// effect of the file the run loaded, with its parameters), the frame columns (the effects'

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A scene as the viewer page gets it (JSON), written from the effects' schemas: every effect
 /// of the file in order with its key, number, line and parameters as the file gives them

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Reading a trace for `toonforce view`: the CSV that `toonforce run --trace` (telemetry
 /// columns) or `toonforce sim --trace` (sim columns) wrote. The ten core columns

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// What the viewer page gets for one servo tick: a fixed row of doubles (kViewColumns, in this
 /// order), so a batch of frames travels as one Float64Array and the page finds each value by

@@ -1,5 +1,6 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// The live viewer's server (issue 9): serves the page (its own files only, embedded in the
+/// The live viewer's server: serves the page (its own files only, embedded in the
 /// binary) and streams telemetry to it over a WebSocket, from a thread of its own that never
 /// runs at real-time priority. Boost.Beast over Boost.Asio (docs/VIEWER.md says why).
 ///
@@ -22,7 +23,7 @@
 /// queued; older ones are dropped and counted (the page sees the gap in the sequence numbers
 /// and the count in the status messages). Nothing the page does can make publish() wait.
 ///
-/// Bounded as a server (issue 16): at most `max_pages` pages and `max_connections` other
+/// Bounded as a server: at most `max_pages` pages and `max_connections` other
 /// connections at once (a slot is taken when the upgrade is read, so a burst cannot overshoot);
 /// a page holds one history chunk at a time (kHistoryChunkFrames, made when the one before has
 /// been written), never a copy of the whole history; when the last page closes the allocator
@@ -71,7 +72,7 @@ struct ViewerOptions {
   bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
   /// The option that gave `address`, for messages (`toonforce view` calls it --address).
   std::string address_option = "--view-address";
-  /// Live scenes (issue 19): when set, /control takes the control protocol's messages
+  /// Live scenes: when set, /control takes the control protocol's messages
   /// (control_protocol.hpp) and drives this; it must outlive the server. Null: no /control.
   SceneControl* control = nullptr;
   ControlOptions control_options;

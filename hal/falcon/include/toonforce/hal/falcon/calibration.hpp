@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Falcon's calibration file: the motor words per newton-metre of joint torque measured on
 /// one device, which the driver uses instead of libnifalcon's uncalibrated 10000 (FALCON.md §5

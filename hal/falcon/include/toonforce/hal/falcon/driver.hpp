@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// FalconDriver: the Falcon's DeviceDriver over any FalconTransport. open_falcon() builds one
 /// over libusb; tests build one over the in-process emulator. Protocol per tick (FALCON.md §3):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Novint Falcon backend's public entry points: open_falcon() is the one factory the rest
 /// of toonforce uses (`toonforce run --device falcon` wires to it); detect_falcons() feeds

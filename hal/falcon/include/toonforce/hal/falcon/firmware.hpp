@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Falcon firmware: checking a file the user supplies and loading it into the DSP's RAM.
 /// toonforce never ships firmware (Novint's licence forbids redistribution, FALCON.md §2.3):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Falcon frame <-> scene frame. Falcon (FALCON.md §5 "Frame"): x to the user's right, y up,
 /// z toward the user (out of the device), origin inside the device body. Scene (effects.md

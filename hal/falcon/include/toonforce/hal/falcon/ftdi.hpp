@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// FTDI set-up of the Falcon's USB-serial bridge through vendor requests (libftdi's request
 /// numbers, the values libnifalcon's libusb path uses; FALCON.md §1 and §2.1). Two modes:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Falcon delta kinematics (R. E. Stamper's model with libnifalcon's constants, FALCON.md §5):
 /// closed-form inverse kinematics, the exact Jacobian of that IK (by implicit differentiation,
@@ -55,7 +56,7 @@ bool inverse_kinematics(const FalconGeometry& g, const Vec3<double>& p_m, Angles
 
 /// d(theta1)/d(p) at p, whose IK is `theta1_rad`, by implicit differentiation of the IK's
 /// constraint (A - a cos t1)^2 + (w - a sin t1)^2 = K^2. This equals libnifalcon's rows with the
-/// third entry sin(theta2) sin(theta3)/den (libnifalcon issue #66, FALCON.md §5); its
+/// third entry sin(theta2) sin(theta3)/den (libnifalcon/libnifalcon#66, FALCON.md §5); its
 /// sin^2(theta2)/den is off by ~25% on z (tests/falcon/kinematics_test.cpp compares both with
 /// finite differences).
 bool angle_jacobian(const FalconGeometry& g, const Vec3<double>& p_m, const Angles& theta1_rad,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Novint Falcon's runtime protocol (Novint SDK / nVent firmware) and the FTDI framing
 /// around it, as pure functions: the 16-byte command and status codec, the stripping of the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Falcon's USB link as a small interface: FTDI vendor requests, bulk OUT to 0x02, bulk IN
 /// from 0x81 (FALCON.md §1). Everything above it (FTDI set-up, firmware loading, the codec,

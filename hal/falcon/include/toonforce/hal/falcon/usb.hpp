@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Falcon's USB link alone, over libusb-1.0: found and claimed as open_falcon() does, but
 /// without FTDI set-up or firmware checks. For tools and tests that drive the transport

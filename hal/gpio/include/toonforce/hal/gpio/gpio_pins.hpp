@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// GPIO pins for the servo loop's `Pins` bundle (control/pins.hpp), over libgpiod 1.6 lines
 /// that a `GpioSession` requested at start-up. Tick-path calls (toggle, read, show) are

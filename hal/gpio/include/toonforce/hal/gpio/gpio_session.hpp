@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Opening the GPIO lines of a run, once, before the servo loop starts: parse the command-line
 /// strings, find each line (by chip and offset, or by name on every chip), and request it from

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// How a person names a GPIO line on the command line, parsed into a value (start-up code; no
 /// libgpiod here). Grammar (docs/GPIO.md):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// One output line held on its own, outside any GPIO session: `toonforce run`'s guardian holds
 /// the amplifier-enable line with it (--amp-enable-pin; tools/run/guardian.hpp), active only

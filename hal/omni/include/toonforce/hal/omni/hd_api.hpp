@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Our own declarations of the part of the OpenHaptics HD C API this backend calls, written
 /// from the documented ABI (docs/OMNI.md §2.1-2.3: plain cdecl, HHD/HDenum/HDerror

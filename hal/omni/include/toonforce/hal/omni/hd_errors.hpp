@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// HD error codes (OMNI.md §2.3) mapped onto our fault model (docs/OMNI.md, HD errors):
 ///  - force errors (HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, ..._IMPULSE, ..._VELOCITY,

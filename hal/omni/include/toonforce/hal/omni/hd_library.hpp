@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Loads the OpenHaptics HD library at run time with dlopen and resolves the functions of
 /// hd_api.hpp with dlsym (as CHAI3D and pyOpenHaptics do, OMNI.md §2.1): nothing of OpenHaptics

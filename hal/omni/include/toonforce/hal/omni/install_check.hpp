@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Checks of an OpenHaptics install that the library loader alone cannot explain, for
 /// `toonforce devices` and `toonforce doctor`, each with a fix that works on Debian/Ubuntu:

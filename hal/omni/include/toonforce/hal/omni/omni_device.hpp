@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Phantom Omni / 3D Systems Touch through OpenHaptics' HD library, loaded at run time
 /// (docs/OMNI.md). The device is clocked by the vendor: OpenHaptics' scheduler owns

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The OpenHaptics device frame and the scene frame (spec effects.md §0).
 ///

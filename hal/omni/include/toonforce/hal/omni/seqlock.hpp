@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// A single-writer, many-reader snapshot without locks (a sequence lock): the servo thread
 /// publishes a trivially copyable value every tick and never waits; readers on other threads

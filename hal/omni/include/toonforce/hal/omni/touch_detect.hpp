@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Detection and diagnostics for `toonforce devices` (spec interfaces.md): which 3D Systems
 /// Touch devices are plugged in, whether this user may open the node the vendor driver uses,

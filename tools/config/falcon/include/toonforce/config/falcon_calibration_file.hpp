@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// The Falcon's calibration file (the format: hal/falcon calibration.hpp), read and written here
 /// with the other file formats, through toonforce::config's TableReader, so its errors name the

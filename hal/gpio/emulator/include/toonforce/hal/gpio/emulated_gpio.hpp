@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Emulated GPIO chips for tests and benchmarks on hosts without GPIO: `/dev/gpiochip0..N-1`
 /// speaking the GPIO character-device uAPI v1 that libgpiod 1.6 uses, served by umockdev

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// An in-process FalconTransport over a FalconEmulator: the protocol, firmware loader and
 /// driver logic run against the emulated device in microseconds, with no USB stack between.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// An emulated Novint Falcon behind its FTDI bridge, built from the public facts of
 /// FALCON.md §8 "What a faithful emulator must reproduce": FTDI request state (divisor,

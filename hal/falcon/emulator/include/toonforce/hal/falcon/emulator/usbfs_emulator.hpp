@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// Emulated Falcons at the usbfs boundary, for the real libusb backend: a umockdev testbed
 /// (docs/FALCON.md §9) holds one sysfs device and /dev/bus/usb node per
