@@ -10,7 +10,7 @@
 // - bounced: the wall's impact transient ran and the character moved backwards (-x) during it,
 //   with a recoil force out of the wall;
 // - fell: the cliff's state became "fallen" with the character over the gap, below the ground.
-// And the run counted the page's changes as applied. A screenshot is kept for the README.
+// And the run counted the page's changes as applied. A screenshot is kept for docs/USAGE.md.
 //
 //   node tests/viewer/story_browser.test.mjs --binary build/release/bin/toonforce [--out DIR]
 import { test, after, before } from 'node:test';
