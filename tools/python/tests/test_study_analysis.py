@@ -244,7 +244,7 @@ def test_the_report_flags_an_undetermined_threshold_and_leaves_it_out_of_the_mea
     assert table["thresholds"][2]["flags"] and "threshold above the tested levels" in rows[2]["flags"]
     assert rows[2]["in_group_mean"] == "False" and rows[0]["in_group_mean"] == "True"
     section = text.split("## Participant 3")[1].split("##")[0]
-    assert "Threshold not determined" in section and "**Warning**" in section
+    assert "Threshold not given as a number: it lies above the tested levels" in section and "**Warning**" in section
     assert f"{float(rows[2]['threshold']):.4g}" not in section  # no value printed for it
     good = [float(r["threshold"]) for r in rows if r["in_group_mean"] == "True"]
     assert len(good) == 2 and table["across_participants"][0]["left_out"] == 1

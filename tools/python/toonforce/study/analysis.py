@@ -181,10 +181,11 @@ def _threshold_lines(r: Dict[str, Any], bootstrap_samples: int) -> List[str]:
     out = []
     if a.flags:
         lo, hi = a.levels
-        where = (f"below the tested levels (< {lo:g})" if threshold < lo else
-                 f"above the tested levels (> {hi:g})" if threshold > hi else f"within the tested levels [{lo:g}, {hi:g}]")
-        out += [f"Threshold not determined by these data: {where}, no value is given; the fit is flagged and "
-                f"left out of the means across participants unless --include-flagged.", "",
+        where = (f"it lies below the tested levels (< {lo:g}), where these data cannot place it" if threshold < lo
+                 else f"it lies above the tested levels (> {hi:g}), where these data cannot place it" if threshold > hi
+                 else f"it lies within the tested levels [{lo:g}, {hi:g}], but the fit is not fully determined")
+        out += [f"Threshold not given as a number: {where}. The fit is flagged and left out of the means across "
+                f"participants unless --include-flagged (results.csv has its values, for diagnosis).", "",
                 "> **Warning**: " + "; ".join(a.flags) + ".", ""]
         out.append(f"For diagnosis only (not estimates), the fit's parameters: {f.form}, alpha {f.alpha:.2g}, "
                    f"beta {f.beta:.2g}, lapse {f.lapse:.2g}.")
