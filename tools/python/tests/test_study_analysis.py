@@ -254,3 +254,4 @@ def test_the_report_flags_an_undetermined_threshold_and_leaves_it_out_of_the_mea
     included = json.load(open(os.path.join(os.path.dirname(analyze(folders, str(tmp_path / "all"), 40, True)),
                                             "results.json")))
     assert included["across_participants"][0]["participants"] == 3
+    assert included["across_participants"][0]["flagged"] == 1 and included["across_participants"][0]["left_out"] == 0

@@ -122,14 +122,16 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200, 
         lines += ["## Thresholds across participants", "",
                   "Flagged thresholds (above) are " + ("included, as asked (--include-flagged)." if include_flagged
                                                        else "left out (--include-flagged counts them)."),
-                  "", "| block | participants | mean | sd | flagged, left out |", "|---|---:|---:|---:|---:|"]
+                  "", "| block | participants in the mean | mean | sd | flagged |", "|---|---:|---:|---:|---:|"]
     for block, block_rows in per_block.items():
         v = np.array([row["threshold"] for row in block_rows if row["in_group_mean"]], dtype=float)
         left_out = sum(1 for row in block_rows if not row["in_group_mean"])
         mean = float(v.mean()) if v.size else float("nan")
         sd = float(v.std(ddof=1)) if v.size > 1 else float("nan")
-        lines.append(f"| {block} | {v.size} | {mean:.4g} | {sd:.3g} | {left_out} |")
-        group.append({"block": block, "participants": int(v.size), "mean": mean, "sd": sd, "left_out": left_out})
+        flagged = sum(1 for row in block_rows if row["flags"])
+        lines.append(f"| {block} | {v.size} | {mean:.4g} | {sd:.3g} | {flagged} |")
+        group.append({"block": block, "participants": int(v.size), "mean": mean, "sd": sd, "flagged": flagged,
+                      "left_out": left_out})
     if per_block:
         lines.append("")
     tests: List[Dict[str, Any]] = []
