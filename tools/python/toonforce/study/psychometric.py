@@ -121,7 +121,6 @@ def _f_and_grads(form, u0, u1, x):
     with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):
         b = np.exp(u1)
         if form == "weibull":
-            a = np.exp(u0)
             logr = np.log(np.maximum(x, 1e-300)) - u0  # ln(x / alpha)
             w = np.exp(np.minimum(b * logr, 700.0))  # (x / alpha)^beta
             e = np.exp(-w)
@@ -192,7 +191,7 @@ def _at_bound_nll(params, index, end, bounds, profile, form, x, k, n, guess) -> 
 def fit(levels: Sequence[float], correct: Sequence[int], trials: Sequence[int], form: str = "weibull",
         guess: float = 0.5, max_lapse: float = 0.06, start: Optional[Fit] = None, profile: bool = True) -> Fit:
     """The maximum-likelihood fit of answers counted per level: a grid over the bounds, then
-    L-BFGS-B from the best separated grid points (and from `start` too, if given). `profile`:
+    L-BFGS-B from the grid's best local minima (and from `start` too, if given). `profile`:
     check alpha and beta against their bounds by profile likelihood (else alpha only, held)."""
     if form not in FORMS:
         raise ValueError(f"form must be 'weibull' or 'logistic' (got {form!r})")
@@ -216,10 +215,10 @@ def fit(levels: Sequence[float], correct: Sequence[int], trials: Sequence[int], 
     u0, u1, lapse = (float(v) for v in best.x)
     at_bound = []
     for index, name in ((0, "alpha"), (1, "beta")):
-        # On a bound, or where the likelihood reaches up to one what it is at the fit (a step in
-        # the data: beta would grow without end; answers all correct: alpha would shrink
-        # without end): the profile likelihood with the parameter at the bound (the others
-        # refitted); the bootstrap's refits only look at alpha with the others held.
+        # On a bound, or as likely at the bound (within FLAT) as at the fit, the other parameters
+        # refitted (profile likelihood): a step in the data, beta would grow without end; all
+        # answers correct, alpha would shrink without end. The bootstrap's refits look at alpha
+        # alone, the others held (cheaper; enough to see an interval's end on a bound).
         for side, end in (("lower", bounds[index][0]), ("upper", bounds[index][1])):
             if abs(best.x[index] - end) <= 1e-3 * (bounds[index][1] - bounds[index][0]) or \
                     (profile or index == 0) and _at_bound_nll(best.x, index, end, bounds, profile, form, x, k, n,
