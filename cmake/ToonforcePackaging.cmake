@@ -96,6 +96,8 @@ if(TOONFORCE_PYTHON)
   math(EXPR _toonforce_python_next_minor "${Python_VERSION_MINOR} + 1")
   set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS
       "python3 (>= ${Python_VERSION_MAJOR}.${Python_VERSION_MINOR}), python3 (<< ${Python_VERSION_MAJOR}.${_toonforce_python_next_minor}), python3-numpy")
+  # toonforce.study (docs/STUDIES.md): its fits and tests need scipy, its report's plots matplotlib.
+  set(CPACK_DEBIAN_PYTHON_PACKAGE_RECOMMENDS "python3-scipy, python3-matplotlib")
   string(CONCAT CPACK_COMPONENT_PYTHON_DESCRIPTION
       "toonforce from Python: import toonforce\n"
       "The toonforce controller's scene loader and checks, closed-loop simulation, replay and the\n"

@@ -3,7 +3,7 @@
 
     python3 -m toonforce.study run EXPERIMENT --participant N --out FOLDER --simulated-threshold T
     python3 -m toonforce.study resume FOLDER
-    python3 -m toonforce.study analyze FOLDER... --out REPORT_DIR
+    python3 -m toonforce.study analyze FOLDER... --out REPORT_DIR [--include-flagged]
 
 A session is a person's at a device (--device falcon|omni|sim: the participant answers on the
 page the command prints) or a simulated participant's (--simulated-threshold: a model observer
@@ -130,6 +130,8 @@ def main(argv=None) -> int:
     report = sub.add_parser("analyze", help="a Markdown report with plots of sessions")
     report.add_argument("folders", nargs="+")
     report.add_argument("--out", required=True)
+    report.add_argument("--include-flagged", action="store_true",
+                        help="count flagged thresholds (not determined by their data) in the means across participants")
     args = parser.parse_args(argv)
     try:
         if args.command == "run":
@@ -153,7 +155,7 @@ def main(argv=None) -> int:
                 print(f"toonforce study: {args.folder} is done already", file=sys.stderr)
                 return 0
             return _go(session, args)
-        print(analyze(args.folders, args.out))
+        print(analyze(args.folders, args.out, include_flagged=args.include_flagged))
         return 0
     except (ValueError, FileExistsError, FileNotFoundError) as e:
         print(f"toonforce study: {e}", file=sys.stderr)
