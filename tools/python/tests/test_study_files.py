@@ -1,0 +1,296 @@
+# SPDX-License-Identifier: Apache-2.0
+"""toonforce study: the device silent outside the intervals (measured in the session's run
+trace on the simulated device), experiment files checked whole before any session folder is
+written (every mistake named by file, line and key), and the session folder that is enough for
+the analysis while `resume` refuses changed scenes and hand scripts."""
+
+import csv
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+
+from toonforce.study import experiment as experiments
+from toonforce.study.__main__ import main as study_main
+from toonforce.study.analysis import analyze
+from toonforce.study.session import Session
+from toonforce.study.simulated import SimulatedParticipant
+
+SOURCE_DIR = os.environ.get("TOONFORCE_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
+SCENES = os.path.join(SOURCE_DIR, "scenes")
+# The live-scene update fade (docs/spec/live-scenes.md section 5): a scene change's force
+# difference ramps out over 0.25 s.
+UPDATE_FADE_S = 0.25
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "toonforce.study", *args], capture_output=True, text=True,
+                          env=os.environ.copy(), timeout=600)
+
+
+# ---- experiment files: every mistake before any folder ----------------------------------
+
+BASE = f"""name = "checked"
+order = "fixed"
+seed = 4
+script = "{SCENES}/hands/stroke.toml"
+
+[[condition]]
+name = "floor"
+scene = "{SCENES}/studies/floor.toml"
+
+[[condition]]
+name = "ice"
+scene = "{SCENES}/slippery.toml"
+vary = "surface1.slippery.mu"
+
+[[condition]]
+name = "friction"
+scene = "{SCENES}/realistic_friction.toml"
+
+[[block]]
+name = "staircase"
+procedure = "staircase"
+reference = "floor"
+test = "ice"
+rule = "1-up-2-down"
+start = 4.0
+step = 0.25
+min = 0.05
+max = 10.0
+reversals = 6
+discard = 2
+
+[[block]]
+name = "constant"
+procedure = "constant-stimuli"
+reference = "floor"
+test = "ice"
+levels = [0.5, 1.0, 2.0]
+repetitions = 1
+
+[[block]]
+name = "ratings"
+procedure = "rating"
+conditions = ["friction", "ice"]
+repetitions = 1
+items = [{{ name = "slippery", scale = "likert", points = 5, anchors = ["no", "very"] }}]
+
+[[block]]
+name = "stop"
+procedure = "task"
+task = "hold-still"
+conditions = ["friction"]
+repetitions = 1
+after = 1.0
+until = 1.35
+"""
+
+BAD_SCENE = """[[surface]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+stiffness = -5.0
+"""
+
+CLIFF_SCENE = f"""[device]
+max_force = 8.0
+max_force_rate = 2000.0
+velocity_cutoff = 50.0
+soft_start = 0.1
+
+[[cliff]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+axis = [1.0, 0.0, 0.0]
+gap_min = 0.0
+gap_max = 0.02
+stiffness = 1500.0
+speed_threshold = 0.08
+"""
+
+OTHER_DEVICE = open(os.path.join(SCENES, "studies", "floor.toml")).read().replace("max_force = 8.0", "max_force = 6.0")
+
+BAD_HAND = """name = "no segments"
+[hand]
+start = [0.0, 0.0, 0.01]
+"""
+
+
+def sub(text, old, new, count=1):
+    assert old in text, old
+    return text.replace(old, new, count)
+
+
+# (what, how the base file is changed, the line's text the error must name, key, words in the
+# message). The line is found by its text in the changed file.
+MISTAKES = [
+    ("a step that is not a number", lambda t: sub(t, "step = 0.25", "step = nan"), "step = nan", "block[1].step",
+     "a finite number"),
+    ("an infinite maximum", lambda t: sub(t, "max = 10.0", "max = inf"), "max = inf", "block[1].max",
+     "a finite number"),
+    ("a negative step", lambda t: sub(t, "step = 0.25", "step = -0.25"), "step = -0.25", "block[1].step",
+     "must be > 0"),
+    ("a 2-up-1-down rule in 2IFC", lambda t: sub(t, 'rule = "1-up-2-down"', 'rule = "2-up-1-down"'),
+     'rule = "2-up-1-down"', "block[1].rule", "below the 50 % of guessing"),
+    ("a start outside [min, max]", lambda t: sub(t, "start = 4.0", "start = 12.0"), "start = 12.0", "block[1].start",
+     "within [min, max]"),
+    ("min above max", lambda t: sub(t, "min = 0.05", "min = 20.0"), "max = 10.0", "block[1].max", "above min"),
+    ("discard not below reversals", lambda t: sub(t, "discard = 2", "discard = 6"), "discard = 6", "block[1].discard",
+     "below reversals"),
+    ("a fractional reversal count", lambda t: sub(t, "reversals = 6", "reversals = 6.5"), "reversals = 6.5",
+     "block[1].reversals", "an integer >= 1"),
+    ("a level that is not a number", lambda t: sub(t, "levels = [0.5, 1.0, 2.0]", "levels = [0.5, nan, 2.0]"),
+     "levels = [0.5, nan, 2.0]", "block[2].levels", "finite number > 0"),
+    ("zero repetitions", lambda t: sub(t, "repetitions = 1", "repetitions = 0", 2).replace(
+        "repetitions = 0", "repetitions = 1", 1), "repetitions = 0", "block[3].repetitions", "an integer >= 1"),
+    ("a level the scene refuses (mu = 0 at the staircase's min)", lambda t: sub(t, "min = 0.05", "min = 0.0"),
+     "min = 0.0", "block[1].min", "surface[1].slippery.mu: must be > 0"),
+    ("a vary key the scene does not have", lambda t: sub(t, 'vary = "surface1.slippery.mu"',
+                                                          'vary = "surface1.slippery.muu"'),
+     "min = 0.05", "block[1].min", "unknown key 'muu'"),
+    ("a vary effect the scene does not have", lambda t: sub(t, 'vary = "surface1.slippery.mu"',
+                                                             'vary = "surface2.slippery.mu"'),
+     'vary = "surface2.slippery.mu"', "condition[2].vary", "no effect surface2"),
+    ("an override the scene refuses", lambda t: sub(t, 'scene = "' + SCENES + '/realistic_friction.toml"',
+                                                    'scene = "' + SCENES + '/realistic_friction.toml"\n'
+                                                    'overrides = { "surface1.stiffness" = -1.0 }'),
+     'overrides = { "surface1.stiffness" = -1.0 }', "condition[3].overrides", "stiffness: must be > 0"),
+    ("a scene that does not load", lambda t: sub(t, SCENES + "/realistic_friction.toml", "BAD_SCENE"),
+     'scene = "BAD_SCENE"', "condition[3].scene", "stiffness: must be > 0"),
+    ("conditions with different effect lists in a block",
+     lambda t: sub(t, SCENES + "/realistic_friction.toml", "CLIFF_SCENE"), 'conditions = ["friction", "ice"]',
+     "block[3].conditions", "a run on a device keeps its first scene's list of effects"),
+    ("conditions with different [device] tables", lambda t: sub(t, SCENES + "/realistic_friction.toml",
+                                                                "OTHER_DEVICE"),
+     'conditions = ["friction", "ice"]', "block[3].conditions", "another [device] table"),
+    ("a hand script that does not load", lambda t: sub(t, SCENES + "/hands/stroke.toml", "BAD_HAND"),
+     'script = "BAD_HAND"', "script", "the hand script does not load"),
+    ("a task's number that is not a number", lambda t: sub(t, "after = 1.0", "after = nan"), "after = nan",
+     "block[4].after", "a finite number >= 0"),
+    ("a task window that ends before it starts", lambda t: sub(t, "until = 1.35", "until = 0.5"), "until = 0.5",
+     "block[4].until", "must be after `after`"),
+    ("a weighted staircase's target at chance", lambda t: sub(t, 'procedure = "staircase"\nreference = "floor"\n'
+                                                              'test = "ice"\nrule = "1-up-2-down"',
+                                                              'procedure = "weighted-staircase"\nreference = "floor"\n'
+                                                              'test = "ice"\ntarget = 0.5'),
+     "target = 0.5", "block[1].target", "above 0.5"),
+    ("a test condition that is the reference", lambda t: sub(t, 'reference = "floor"\ntest = "ice"\nlevels',
+                                                             'reference = "ice"\ntest = "ice"\nlevels'),
+     'test = "ice"\nlevels', "block[2].test", "must differ from the reference"),
+    ("two rating items of one name", lambda t: sub(t, 'anchors = ["no", "very"] }]', 'anchors = ["no", "very"] }, '
+                                                   '{ name = "slippery", scale = "likert", points = 5, '
+                                                   'anchors = ["a", "b"] }]'),
+     "items = [", "block[3].items[2]", "a second item named 'slippery'"),
+    ("a seed that is a boolean", lambda t: sub(t, "seed = 4", "seed = true"), "seed = true", "seed",
+     "a non-negative integer"),
+    ("a vary key that is not an effect's key", lambda t: sub(t, 'vary = "surface1.slippery.mu"', 'vary = "mu"'),
+     'vary = "mu"', "condition[2].vary", "an effect's key"),
+]
+
+
+def write_mistake(tmp_path, change):
+    (tmp_path / "bad_scene.toml").write_text(BAD_SCENE)
+    (tmp_path / "cliff.toml").write_text(CLIFF_SCENE)
+    (tmp_path / "other_device.toml").write_text(OTHER_DEVICE)
+    (tmp_path / "bad_hand.toml").write_text(BAD_HAND)
+    text = change(BASE)
+    for name, file in (("BAD_SCENE", "bad_scene.toml"), ("CLIFF_SCENE", "cliff.toml"),
+                       ("OTHER_DEVICE", "other_device.toml"), ("BAD_HAND", "bad_hand.toml")):
+        text = text.replace(f'"{name}"', f'"{file}"')
+    path = tmp_path / "study.toml"
+    path.write_text(text)
+    return path, text
+
+
+def test_the_base_experiment_passes(tmp_path):
+    path, _ = write_mistake(tmp_path, lambda t: t)
+    done = run_cli("check", str(path))
+    assert done.returncode == 0, done.stderr
+    assert "ok on the sim device" in done.stdout
+    assert experiments.file_sha256(os.path.join(SCENES, "slippery.toml")) in done.stdout
+
+
+@pytest.mark.parametrize("what,change,line_text,key,words", MISTAKES, ids=[m[0] for m in MISTAKES])
+def test_a_mistake_is_named_by_file_line_and_key_before_any_folder(tmp_path, capsys, what, change, line_text, key,
+                                                                   words):
+    path, text = write_mistake(tmp_path, change)
+    line_text = line_text.replace("BAD_SCENE", "bad_scene.toml").replace("BAD_HAND", "bad_hand.toml")
+    line = text[:text.index(line_text)].count("\n") + 1
+    expected = f"{path}:{line}: {key}: "
+    folder = tmp_path / "session"
+    for device in (["--simulated-threshold", "1.2"], ["--device", "sim", "--allow-non-rt"]):
+        try:
+            status = study_main(["run", str(path), "--participant", "1", "--out", str(folder), *device])
+        except Exception as e:  # noqa: BLE001 - a mistake found late: the test fails below
+            status = repr(e)
+        said = capsys.readouterr().err
+        assert not folder.exists(), f"{what}: a folder was written ({status}: {said})"
+        assert status == 2 and expected in said and words in said, (what, status, said)
+    assert study_main(["check", str(path)]) == 2, what
+    said = capsys.readouterr().err
+    assert expected in said and words in said, (what, expected, words, said)
+
+
+def test_a_session_folder_keeps_the_experiment_and_the_hashes_and_is_analysed_alone(tmp_path):
+    source = tmp_path / "files"
+    source.mkdir()
+    scene = source / "floor.toml"
+    scene.write_text(open(os.path.join(SCENES, "studies", "floor.toml")).read())
+    text = BASE.replace(f"{SCENES}/studies/floor.toml", str(scene))
+    path = source / "study.toml"
+    path.write_text(text)
+    session = Session.start(str(path), str(tmp_path / "s"), participant=1, seed=1)
+    exp = session.experiment
+    session.run(SimulatedParticipant.with_threshold(exp, exp.blocks[1], 1.2, seed=1))
+    assert session.done
+    meta = json.load(open(tmp_path / "s" / "session.json"))
+    assert meta["experiment_text"] == text
+    files = meta["files"]
+    assert files[str(scene)] == experiments.file_sha256(str(scene))
+    assert set(files) == {str(scene), os.path.join(SCENES, "slippery.toml"),
+                          os.path.join(SCENES, "realistic_friction.toml"), os.path.join(SCENES, "hands", "stroke.toml")}
+    # The experiment file and its scene moved away (edited, then deleted): the folder alone is
+    # enough to read the session as it was.
+    path.write_text(text.replace("repetitions = 1", "repetitions = 2"))
+    os.rename(path, tmp_path / "elsewhere.toml")
+    os.rename(scene, tmp_path / "floor_elsewhere.toml")
+    opened = Session(session.folder)
+    assert opened.experiment.text == text and [b.name for b in opened.experiment.blocks] == [
+        "staircase", "constant", "ratings", "stop"]
+    assert opened.experiment.blocks[1].options["repetitions"] == 1
+    report = open(analyze([session.folder], str(tmp_path / "report"))).read()
+    assert "constant" in report and "ratings" in report
+    with pytest.raises(ValueError, match="not there any more"):
+        Session(session.folder, resume=True)
+
+
+def test_resume_refuses_a_changed_scene_or_hand_script_naming_it_and_both_hashes(tmp_path):
+    scene = tmp_path / "slippery.toml"
+    scene.write_text(open(os.path.join(SCENES, "slippery.toml")).read())
+    hand = tmp_path / "stroke.toml"
+    hand.write_text(open(os.path.join(SCENES, "hands", "stroke.toml")).read())
+    path = tmp_path / "study.toml"
+    path.write_text(BASE.replace(f"{SCENES}/slippery.toml", str(scene)).replace(
+        f"{SCENES}/hands/stroke.toml", str(hand)))
+    session = Session.start(str(path), str(tmp_path / "s"), participant=1, seed=1)
+    Session(session.folder, resume=True)  # unchanged: it opens
+    for file, old, new in ((scene, "stiffness = 1500.0", "stiffness = 1400.0"),
+                           (hand, "stiffness = 100.0", "stiffness = 90.0")):
+        original = file.read_text()
+        recorded = experiments.file_sha256(str(file))
+        file.write_text(original.replace(old, new))
+        now = experiments.file_sha256(str(file))
+        with pytest.raises(ValueError) as e:
+            Session(session.folder, resume=True)
+        assert str(file) in str(e.value) and recorded in str(e.value) and now in str(e.value), str(e.value)
+        resumed = run_cli("resume", session.folder)
+        assert resumed.returncode == 2 and f"{file} changed since the session started" in resumed.stderr
+        file.write_text(original)
+    Session(session.folder, resume=True)
