@@ -294,3 +294,155 @@ def test_resume_refuses_a_changed_scene_or_hand_script_naming_it_and_both_hashes
         assert resumed.returncode == 2 and f"{file} changed since the session started" in resumed.stderr
         file.write_text(original)
     Session(session.folder, resume=True)
+
+
+# ---- the device silent between intervals ------------------------------------------------
+
+SILENCE_EXPERIMENT = f"""
+name = "silence"
+order = "fixed"
+seed = 3
+script = "{SCENES}/hands/stroke.toml"
+
+[[condition]]
+name = "floor"
+scene = "floor.toml"
+
+[[condition]]
+name = "ice"
+scene = "slippery.toml"
+vary = "surface1.slippery.mu"
+
+[[block]]
+name = "levels"
+procedure = "constant-stimuli"
+reference = "floor"
+test = "ice"
+levels = [2.0, 4.0, 8.0]
+repetitions = 1
+"""
+
+
+def pressing_hand():
+    """A hand that lowers onto the floor and strokes back and forth along x at 0.1 m/s pressing
+    with 1 N, for longer than the session: a surface left on pushes it all the time."""
+    segments = ['[[segment]]\ntype = "move"\nto = [-0.03, 0.0, 0.0]\nduration = 0.2\n',
+                '[[segment]]\ntype = "hold"\nduration = 0.2\nforce = 1.0\n']
+    for k in range(40):
+        x = 0.03 if k % 2 == 0 else -0.03
+        segments.append(f'[[segment]]\ntype = "stroke"\nto = [{x}, 0.0, 0.0]\nspeed = 0.1\nforce = 1.0\n')
+    return ('name = "pressing strokes"\n[hand]\nstart = [-0.03, 0.0, 0.003]\nstiffness = 100.0\n\n'
+            + "\n".join(segments))
+
+
+def get(url):
+    with urllib.request.urlopen(url, timeout=5) as r:
+        return json.loads(r.read())
+
+
+def post(url, body):
+    request = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST")
+    with urllib.request.urlopen(request, timeout=5) as r:
+        return r.read()
+
+
+def play_slowly(process, url, think_s):
+    """Answers each question `think_s` after it appears (the participant thinks: the window the
+    force must be silent in), always "the second"."""
+    seen = None
+    while process.poll() is None:
+        try:
+            state = get(url + "state")
+        except OSError:
+            time.sleep(0.02)
+            continue
+        if state["phase"] == "choice" and state["token"] != seen:
+            seen = state["token"]
+            time.sleep(think_s)
+            post(url + "answer", {"token": state["token"], "value": 2})
+        time.sleep(0.01)
+
+
+def read_trace(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    columns = {k: np.array([float(r[k]) if r[k] != "" else np.nan for r in rows]) for k in ("t", "fx", "fy", "fz", "latched")}
+    columns["force"] = np.sqrt(columns["fx"] ** 2 + columns["fy"] ** 2 + columns["fz"] ** 2)
+    return columns
+
+
+@pytest.mark.skipif(os.environ.get("TOONFORCE_VIEWER", "1") in ("0", "OFF"),
+                    reason="needs `toonforce run --control` (a build with the viewer)")
+def test_the_device_is_silent_between_intervals_during_the_blank_and_the_question(tmp_path):
+    experiment = tmp_path / "silence.toml"
+    experiment.write_text(SILENCE_EXPERIMENT)
+    # The example's scenes, with a watchdog that tolerates a busy test machine's stalls (the run
+    # is not real-time here): a latched missed-tick fault would silence the device for good.
+    for name, source in (("floor.toml", "studies/floor.toml"), ("slippery.toml", "slippery.toml")):
+        text = open(os.path.join(SCENES, source)).read()
+        (tmp_path / name).write_text(text.replace("[device]\n", "[device]\nwatchdog_periods = 5000\n"))
+    hand = tmp_path / "hand.toml"
+    hand.write_text(pressing_hand())
+    folder = tmp_path / "session"
+    process = subprocess.Popen([sys.executable, "-m", "toonforce.study", "run", str(experiment), "--participant", "1",
+                                "--out", str(folder), "--device", "sim", "--hand", str(hand), "--allow-non-rt",
+                                "--interval", "0.6"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               env=os.environ.copy())
+    url, seen = None, []
+    while url is None:
+        line = process.stderr.readline()
+        assert line, "".join(seen)
+        seen.append(line)
+        m = re.search(r"page: (http://\S+/)", line)
+        url = m.group(1) if m else None
+    think_s = 0.6
+    play_slowly(process, url, think_s)
+    _, errors = process.communicate(timeout=120)
+    assert process.returncode == 0, errors
+    trials = [json.loads(line) for line in open(folder / "trials.jsonl")]
+    assert len(trials) == 3
+    trace = read_trace(folder / "run-1.csv")
+    rate_hz = 1.0 / float(np.median(np.diff(trace["t"])))
+    force = trace["force"]
+    assert np.all(np.array([float(r) for r in trace["latched"]]) == 0), "a latched fault: the device went silent"
+    for t in trials:
+        first, end = t["trace"]["frames"]
+        # The question: from when it appeared (response_time_s before the answer) to the answer.
+        # The telemetry's frame count lags the loop a little, so the window is, if anything,
+        # early: into the blank before it, where the force has ramped out already.
+        asked = end - int(t["response_time_s"] * rate_hz)
+        assert end - asked > 0.8 * think_s * rate_hz
+        question = force[asked:end]
+        assert question.max() < 1e-6, f"trial {t['trial']}: up to {question.max():.3f} N while the question is asked"
+    # Every blank, across trials too: from one interval's end (once the fade and the telemetry's
+    # lag are over) to the next interval's start, zero force.
+    intervals = [i for t in trials for i in t["trace"]["intervals"]]
+    assert len(intervals) == 6
+    settle = int((UPDATE_FADE_S + 0.1) * rate_hz)
+    # The scene acts in every interval: the pressing hand feels the floor's push (about its 1 N
+    # press), so the silence around them is the scene switched off, not a hand in the air.
+    for on, off in intervals:
+        assert force[on + settle:off].min() > 0.5, (on, off, force[on + settle:off].min())
+    for (on, off), (next_on, _) in zip(intervals, intervals[1:]):
+        assert next_on - off > settle + 0.1 * rate_hz, "a blank shorter than the fade"
+        silent = force[off + settle:next_on]
+        assert silent.max() < 1e-6, f"frames {off + settle}..{next_on}: up to {silent.max():.3f} N between intervals"
+    last_off = intervals[-1][1]
+    assert force[last_off + settle:].max() < 1e-6  # after the last interval: the answer, the end
+
+
+def test_the_silent_scene_keeps_the_effects_and_moves_them_out_of_reach():
+    from toonforce import _toonforce
+    from toonforce.study.person import silent_scene
+    import tomllib
+
+    cliff = tomllib.loads(CLIFF_SCENE)
+    cliff["cliff"][0]["fall_force"] = 2.0
+    quiet = silent_scene(cliff)
+    assert quiet["cliff"][0]["point"] == [0.0, 0.0, -1.0] and quiet["cliff"][0]["fall_force"] == 0.0
+    assert quiet["device"] == cliff["device"]
+    info = _toonforce.scene_info("quiet", _toonforce.toml_from_dict(quiet), "double", False)
+    assert info["values"] == _toonforce.scene_info("cliff", _toonforce.toml_from_dict(cliff), "double", False)["values"]
+    slanted = {"surface": [{"point": [0.01, 0.0, 0.0], "normal": [0.0, 3.0, 4.0], "stiffness": 100.0}]}
+    moved = silent_scene(slanted)["surface"][0]["point"]
+    assert np.allclose(moved, [0.01, -0.6, -0.8]) and math.isclose(np.linalg.norm(np.subtract(moved, [0.01, 0, 0])), 1.0)
