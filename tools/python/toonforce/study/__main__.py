@@ -178,7 +178,8 @@ def main(argv=None) -> int:
 
             # Everything is checked before the session's folder is written: the file, its scenes
             # and hand scripts on the session's device, the hand given.
-            exp = experiments.load(args.experiment, device="sim" if args.simulated_threshold is not None else args.device)
+            device = "sim" if args.simulated_threshold is not None else args.device
+            exp = experiments.load(args.experiment, device=device)
             _check_hand(args)
             _check_numbers(args)
             first = next((i for i, b in enumerate(exp.blocks) if b.procedure in experiments.LEVEL_PROCEDURES), None)

@@ -149,7 +149,8 @@ def _integer(value: Any) -> bool:
 
 
 def _effect_path(path: Any) -> bool:
-    return isinstance(path, str) and re.fullmatch(r"(surface|cliff)[1-9][0-9]*(\.[A-Za-z_][A-Za-z0-9_]*)+", path) is not None
+    pattern = r"(surface|cliff)[1-9][0-9]*(\.[A-Za-z_][A-Za-z0-9_]*)+"
+    return isinstance(path, str) and re.fullmatch(pattern, path) is not None
 
 
 def load(path: str, text: Optional[str] = None, *, files: bool = True, device: str = "sim") -> Experiment:
