@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """`python3 -m toonforce.study`: run, resume and analyze study sessions (docs/STUDIES.md).
 
+    python3 -m toonforce.study check EXPERIMENT [--device sim|falcon|omni]
     python3 -m toonforce.study run EXPERIMENT --participant N --out FOLDER --simulated-threshold T
     python3 -m toonforce.study resume FOLDER
     python3 -m toonforce.study analyze FOLDER... --out REPORT_DIR [--include-flagged]
@@ -107,9 +108,37 @@ def _go(session: Session, args) -> int:
     return 0
 
 
+def _check_hand(args) -> None:
+    if getattr(args, "hand", None):
+        from toonforce import _toonforce
+
+        try:
+            _toonforce.script_info(os.path.abspath(args.hand), None)
+        except _toonforce.SceneError as e:
+            raise ValueError(f"--hand: {e.message.strip()}") from None
+
+
+def _check_numbers(args) -> None:
+    import math
+
+    if not (math.isfinite(args.interval) and args.interval > 0):
+        raise ValueError(f"--interval: a length in seconds > 0 (got {args.interval})")
+    threshold = getattr(args, "simulated_threshold", None)
+    if threshold is not None and not (math.isfinite(threshold) and threshold > 0):
+        raise ValueError(f"--simulated-threshold: a level > 0 (got {threshold})")
+    lapse = getattr(args, "simulated_lapse", 0.0)
+    if not 0.0 <= lapse < 1.0:
+        raise ValueError(f"--simulated-lapse: a rate in [0, 1) (got {lapse})")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="toonforce study")
     sub = parser.add_subparsers(dest="command", required=True)
+    check = sub.add_parser("check", help="check an experiment file, its scenes and hand scripts (writes nothing)")
+    check.add_argument("experiment")
+    check.add_argument("--device", choices=("sim", "falcon", "omni"), default="sim",
+                       help="the device the sessions will use (its limits)")
+    check.add_argument("--hand", help="a hand script the simulated device will be given (--hand of run)")
     run = sub.add_parser("run", help="start a session")
     run.add_argument("experiment")
     run.add_argument("--participant", type=int, required=True)
@@ -134,12 +163,27 @@ def main(argv=None) -> int:
                         help="count flagged thresholds (not determined by their data) in the means across participants")
     args = parser.parse_args(argv)
     try:
+        if args.command == "check":
+            from . import experiment as experiments
+
+            exp = experiments.load(args.experiment, device=args.device)
+            _check_hand(args)
+            print(f"{exp.path}: ok on the {args.device} device: {len(exp.conditions)} conditions, {len(exp.blocks)} "
+                  f"blocks, {len(exp.files)} scenes and hand scripts loaded")
+            for path, sha in exp.files.items():
+                print(f"  {sha}  {path}")
+            return 0
         if args.command == "run":
             import toonforce
 
             from . import experiment as experiments
 
-            exp = experiments.load(args.experiment)
+            # Everything is checked before the session's folder is written: the file, its scenes
+            # and hand scripts on the session's device, the hand given.
+            device = "sim" if args.simulated_threshold is not None else args.device
+            exp = experiments.load(args.experiment, device=device)
+            _check_hand(args)
+            _check_numbers(args)
             first = next((i for i, b in enumerate(exp.blocks) if b.procedure in experiments.LEVEL_PROCEDURES), None)
             if first is None and args.simulated_threshold is not None:
                 raise ValueError("--simulated-threshold needs a block with a level (a staircase or constant stimuli)")
@@ -150,7 +194,9 @@ def main(argv=None) -> int:
                                     "sim" if observer else args.device, observer, toonforce.__version__)
             return _go(session, args)
         if args.command == "resume":
-            session = Session(args.folder)
+            _check_hand(args)
+            _check_numbers(args)
+            session = Session(args.folder, resume=True)
             if session.done:
                 print(f"toonforce study: {args.folder} is done already", file=sys.stderr)
                 return 0

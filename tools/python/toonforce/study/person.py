@@ -6,9 +6,16 @@ trial's prompt and answer by key or click, a break between blocks, and an abort 
 
 The abort key (Escape, or the page's button) ends the trial at once: the run is stopped through
 the command line's stop path (its last tick commands zero force), the trial in progress is not
-recorded, and the session can be resumed. The run is started with the first condition's scene;
-a scene loaded for an interval must keep its list of effects (toonforce run's rule: its trace's
-columns), which the conditions of one study do.
+recorded, and the session can be resumed.
+
+The device is silent outside the intervals: before the first, between the two of a trial,
+during the blank, the question, a break and until the next trial. `toonforce run` keeps its
+scene's list of effects (its trace's columns), so there is no empty scene to load; the silent
+scene is the first condition's with every effect moved out of reach (one metre behind its own
+plane, a cliff's fall force 0): no contact, no force. Each scene change, the silent one
+included, is faded by the loop over its update fade (docs/spec/live-scenes.md section 5, 0.25 s):
+the force ramps to zero after an interval and in from zero at the next. The experiment file's
+check makes every condition a session presents share the first one's list of effects.
 """
 
 from __future__ import annotations
@@ -22,6 +29,25 @@ from typing import Any, Dict, Optional
 
 from . import experiment as experiments
 from .session import scene_with
+
+
+def silent_scene(scene: Dict[str, Any], distance_m: float = 1.0) -> Dict[str, Any]:
+    """The scene with every effect out of reach: each surface's and cliff's plane moved
+    `distance_m` behind itself along its normal (far outside any device's workspace, so the
+    handle never touches it), a cliff's fall force 0 (it pulls over its gap wherever the plane
+    is). Its list of effects and [device] table are the scene's, as a running `toonforce run`
+    requires of a scene it loads."""
+    import copy
+
+    out = copy.deepcopy(scene)
+    for kind in ("surface", "cliff"):
+        for effect in out.get(kind, []):
+            point, normal = effect.get("point", [0.0, 0.0, 0.0]), effect.get("normal", [0.0, 0.0, 1.0])
+            length = sum(n * n for n in normal) ** 0.5 or 1.0
+            effect["point"] = [p - distance_m * n / length for p, n in zip(point, normal)]
+            if kind == "cliff":
+                effect["fall_force"] = 0.0
+    return out
 
 
 class Aborted(Exception):
@@ -165,10 +191,12 @@ class PersonAtDevice:
         self.blank_s = blank_s
         self._toml = lambda scene: _toonforce.toml_from_dict(scene)
         self.page = _Page(port)
-        first = next(iter(exp.conditions.values()))
-        self.run = Run(self._toml(scene_with(first, None)) + "\n", device=device, **run_options)
+        first = exp.conditions[exp.used_conditions()[0]]
+        self._silent = self._toml(silent_scene(scene_with(first, None))) + "\n"
+        self.run = Run(self._silent, device=device, **run_options)
         self._trace = os.path.basename(run_options["trace"]) if run_options.get("trace") else None
         self._last_block: Optional[int] = None
+        self._intervals: list = []  # the trial's intervals: [frame its scene was sent, frame the silence was]
 
     @property
     def url(self) -> str:
@@ -183,16 +211,27 @@ class PersonAtDevice:
 
     # ---- presenting ---------------------------------------------------------------------
 
-    def _present(self, condition: str, level: Optional[float], number: int, of: int, instructions: str) -> None:
-        c = self.experiment.conditions[condition]
+    def _load(self, text: str, name: str) -> int:
+        """Loads a scene and waits until the loop has applied it; the frames received before it
+        was sent (the loop applies it at a later tick)."""
+        before = self.run.frames_received
         try:
-            self.run.wait_applied(self.run.load(self._toml(scene_with(c, level if c.vary else None)), condition))
+            self.run.wait_applied(self.run.load(text, name))
         except Exception:
             if self.page.aborted.is_set():
                 raise Aborted()
             raise
+        return before
+
+    def _present(self, condition: str, level: Optional[float], number: int, of: int, instructions: str) -> None:
+        """One interval: the condition's scene while the page says so, then the silent scene
+        (the force ramps out) through the blank and whatever follows until the next interval."""
+        c = self.experiment.conditions[condition]
+        on = self._load(self._toml(scene_with(c, level if c.vary else None)), condition)
         self.page.show(phase="interval", number=number, of=of, instructions=instructions)
         self.page.wait(self.interval_s)
+        off = self._load(self._silent, "silent")
+        self._intervals.append([on, off])
         self.page.show(phase="blank")
         self.page.wait(self.blank_s)
 
@@ -207,10 +246,12 @@ class PersonAtDevice:
         sequence numbers: one per tick the loop ran, so the trace's data rows), or stops the run
         with zero force if the participant aborts."""
         first = self.run.frames_received
+        self._intervals = []
         try:
             result = present()
             if self._trace:
-                result["trace"] = {"file": self._trace, "frames": [first, self.run.frames_received]}
+                result["trace"] = {"file": self._trace, "frames": [first, self.run.frames_received],
+                                   "intervals": self._intervals}
             return result
         except Aborted:
             self.run.stop()  # zero force now; the session ends without this trial
@@ -266,10 +307,10 @@ class PersonAtDevice:
     def perform(self, block, index, trial, condition) -> Dict[str, Any]:
         def present():
             self._block_start(block, index)
-            start = self.run.frames_received
             self._present(condition, None, 1, 1, block.options.get("instructions", ""))
+            on, off = self._intervals[-1]  # the interval's frames: the task's window
             frames = self.run.telemetry()
-            taken = {k: v[-(self.run.frames_received - start):] for k, v in frames.items()}
+            taken = {k: v[-(self.run.frames_received - on):][:off - on] for k, v in frames.items()}
             if "t" in taken and len(taken["t"]):
                 taken["t"] = taken["t"] - taken["t"][0]
             return {"metrics": experiments.task_metrics(block.options["task"], taken, block.options)}

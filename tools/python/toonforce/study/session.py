@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 """A study session: one folder, nothing lost.
 
-    FOLDER/session.json   the experiment file's text and SHA-256, the participant, the seed,
-                          the software's version, the device, the block order, the start time
+    FOLDER/session.json   the experiment file's text and SHA-256, the SHA-256 of every scene
+                          and hand script it names, the participant, the seed, the software's
+                          version, the device, the block order, the start time
     FOLDER/trials.jsonl   one line per trial, appended, flushed and fsync'ed before the next
                           trial starts
     FOLDER/done.json      written once the last block ends
@@ -80,29 +81,56 @@ def scene_with(condition: experiments.Condition, level: Optional[float]) -> Dict
 
 
 class Session:
-    def __init__(self, folder: str):
+    """A session's folder. Opened as it is (`resume=False`), the experiment is the copy of its text
+    kept in session.json, its paths taken as they were: the analysis needs nothing outside the
+    folder. Opened to resume, the experiment file, every scene and every hand script must be
+    where they were and as they were (the same SHA-256), or it refuses, naming what changed."""
+
+    def __init__(self, folder: str, resume: bool = False):
         self.folder = os.path.abspath(folder)
         with open(os.path.join(self.folder, "session.json"), encoding="utf-8") as f:
             self.meta: Dict[str, Any] = json.load(f)
-        self.experiment = experiments.load(self.meta["experiment_file"])
-        if self.experiment.sha256 != self.meta["experiment_sha256"]:
-            raise ValueError(f"{self.meta['experiment_file']} changed since the session started "
-                             f"(SHA-256 {self.experiment.sha256[:12]}..., recorded "
-                             f"{self.meta['experiment_sha256'][:12]}...): restore it to resume")
+        if resume:
+            self.experiment = self._unchanged()
+        else:
+            self.experiment = experiments.load(self.meta["experiment_file"], self.meta["experiment_text"], files=False)
         self.trials: List[Dict[str, Any]] = self._read_trials()
+
+    def _unchanged(self) -> experiments.Experiment:
+        """The experiment from its file, with its scenes and hand scripts, as the session began."""
+        path = self.meta["experiment_file"]
+        if not os.path.isfile(path):
+            raise ValueError(f"{path}: the session's experiment file is not there any more (moved or deleted): "
+                             "restore it to resume (the analysis needs only the session's folder)")
+        now = experiments.file_sha256(path)
+        if now != self.meta["experiment_sha256"]:
+            raise ValueError(f"{path} changed since the session started (SHA-256 {now[:12]}..., recorded "
+                             f"{self.meta['experiment_sha256'][:12]}...): restore it to resume")
+        for file, recorded in self.meta.get("files", {}).items():
+            if not os.path.isfile(file):
+                raise ValueError(f"{file}: a scene or hand script of the session is not there any more (SHA-256 "
+                                 f"recorded {recorded}): restore it to resume")
+            now = experiments.file_sha256(file)
+            if now != recorded:
+                raise ValueError(f"{file} changed since the session started (SHA-256 recorded {recorded}, now {now}): "
+                                 "a resumed session would present other stimuli; restore it to resume")
+        return experiments.load(path, device=self.meta.get("device", "sim"))
 
     # ---- starting and opening ----------------------------------------------------------
 
     @staticmethod
     def start(experiment_file: str, folder: str, participant: int, seed: Optional[int] = None,
               device: str = "sim", observer: Optional[Dict[str, Any]] = None, version: str = "") -> "Session":
-        exp = experiments.load(experiment_file)
+        """Checks the experiment file with every scene and hand script on `device` first: a
+        mistake writes no folder."""
         if os.path.exists(os.path.join(folder, "session.json")):
             raise FileExistsError(f"{folder} holds a session already: `resume` it, or choose another folder")
+        exp = experiments.load(experiment_file, device=device)
         os.makedirs(folder, exist_ok=True)
         seed = seed if seed is not None else (exp.seed if exp.seed is not None else secrets.randbits(31))
         meta = {
             "experiment_file": exp.path, "experiment_sha256": exp.sha256, "experiment_text": exp.text,
+            "files": exp.files,  # every scene and hand script: its SHA-256, compared on resume
             "experiment": exp.name, "participant": participant, "seed": seed, "device": device,
             "observer": observer, "version": version, "started_utc": _now(),
             "block_order": exp.block_order(participant, seed),
