@@ -19,7 +19,7 @@ from scipy.stats import binomtest, rankdata
 from scipy.stats import wilcoxon as scipy_wilcoxon
 
 from toonforce.study import psychometric, stats
-from toonforce.study.analysis import _paired_comparison, analyze
+from toonforce.study.analysis import _paired_comparison, _row, _threshold_lines, across_participants, analyze, fitted
 
 SOURCE_DIR = os.environ.get("TOONFORCE_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 STUDY = os.path.join(SOURCE_DIR, "scenes", "studies", "cartoon_ice.toml")
@@ -136,9 +136,38 @@ def test_bootstrap_intervals_cover_the_truth_in_most_simulated_sessions():
         k = rng.binomial(TRIALS, truth.p(LEVELS))
         a = psychometric.assess(LEVELS, k, TRIALS, samples=100, seed=seed)
         covered += a.interval[0] <= 1.2 <= a.interval[1]
-        flagged += any(f.startswith(("threshold", "alpha", "interval")) for f in a.flags)
+        flagged += a.flagged
     assert covered >= 35, f"the 95 % interval covered the truth in {covered} of {sessions}"
     assert flagged <= 2, f"{flagged} of {sessions} well-posed sessions had their threshold flagged"
+
+
+def test_a_slope_at_its_bound_is_a_note_and_its_threshold_counts_in_the_mean():
+    # Three participants' blocks: expected answers of the Weibull observer, answers that jump
+    # between 0.75 and 1.0 (steeper than the levels resolve: beta at its bound, the threshold
+    # between them), and answers at chance (no threshold).
+    truth = psychometric.Fit("weibull", 1.2 / np.log(2) ** (1 / 2.5), 2.5, 0.02, 0.5, 0.0)
+    answers = {"good": np.rint(truth.p(LEVELS) * TRIALS).astype(int), "step": [10, 10, 10, 20, 20, 20, 20],
+               "flat": [10] * 7}
+    results = {name: {"block": "b", "procedure": "constant-stimuli", "trials": 140,
+                      **fitted(LEVELS, k, TRIALS, "weibull", 60, 2)} for name, k in answers.items()}
+    step, flat = results["step"]["assessment"], results["flat"]["assessment"]
+    assert any(f.startswith("beta at its upper bound (the slope is not determined: steeper") for f in step.flags)
+    assert not step.threshold_flags and step.notes == step.flags and not step.flagged
+    assert 0.75 <= step.fit.threshold <= 1.0
+    assert any(f.startswith("threshold above the tested levels") for f in flat.threshold_flags) and flat.flagged
+    rows = [_row(i + 1, results[name]) for i, name in enumerate(("good", "step", "flat"))]
+    assert [r["in_group_mean"] for r in rows] == [True, True, False]
+    assert rows[1]["flags"] == step.flags and rows[1]["threshold_flags"] == []
+    group = across_participants({"b": rows})[0]
+    assert group["participants"] == 2 and group["left_out"] == 1 and group["flagged"] == 1 and group["noted"] == 1
+    assert group["mean"] == pytest.approx((results["good"]["threshold"] + step.fit.threshold) / 2)
+    text = "\n".join(_threshold_lines(results["step"], 60))
+    assert f"Threshold {step.fit.threshold:.4g}, bootstrap 95 % interval" in text
+    assert "> **Note**: beta at its upper bound" in text and "Warning" not in text
+    text = "\n".join(_threshold_lines(results["flat"], 60))
+    assert "Threshold not given as a number" in text and "**Warning**" in text
+    # --include-flagged: the flat one counts too.
+    assert all(_row(1, r, include_flagged=True)["in_group_mean"] for r in results.values())
 
 
 def brute_force_exact(d, zero_method):

@@ -2,9 +2,10 @@
 """`toonforce study analyze SESSIONS...`: a Markdown report with plots, and its table as CSV and
 JSON beside it. Per session and block: a staircase's track and threshold (mean of its last
 reversals), a constant-stimuli block's psychometric fit (maximum likelihood from many starts,
-with lapse) with its threshold, bootstrap 95 % interval, slope, lapse and goodness of fit, or
+with lapse) with its threshold, bootstrap 95 % interval, slope, lapse and goodness of fit, and
 the flags saying what the data did not determine; then per block, the thresholds across
-participants (flagged ones left out unless asked); ratings and paired comparisons tested per
+participants (those whose threshold is flagged left out unless asked; a slope or lapse at a
+bound is a note and leaves the threshold in); ratings and paired comparisons tested per
 participant and across participants (stats.py), never over pooled answers."""
 
 from __future__ import annotations
@@ -49,15 +50,21 @@ def block_result(session: Session, position: int, index: int, procedure, bootstr
     if block.procedure == "constant-stimuli":
         levels, correct, trials = procedure.counts()
         if len(levels) >= 3:
-            a = psychometric.assess(levels, correct, trials, block.options.get("form", "weibull"),
-                                    samples=bootstrap_samples, seed=session.meta["seed"] + index)
-            result.update(threshold=a.fit.threshold, interval=a.interval, fit=a.fit, assessment=a,
-                          flags=list(a.flags), counts=(levels, correct, trials))
+            result.update(fitted(levels, correct, trials, block.options.get("form", "weibull"), bootstrap_samples,
+                                 session.meta["seed"] + index))
     else:
         result.update(threshold=procedure.threshold(), reversal_levels=list(procedure.reversal_levels),
                       interval=psychometric.staircase_interval(procedure.reversal_levels[procedure.discard:]),
-                      flags=[])
+                      flags=[], threshold_flags=[])
     return result
+
+
+def fitted(levels, correct, trials, form: str, bootstrap_samples: int, seed: int) -> Dict[str, Any]:
+    """A constant-stimuli block's result: its assessed fit (psychometric.assess), with every flag
+    and those that undermine the threshold."""
+    a = psychometric.assess(levels, correct, trials, form, samples=bootstrap_samples, seed=seed)
+    return {"threshold": a.fit.threshold, "interval": a.interval, "fit": a.fit, "assessment": a,
+            "flags": list(a.flags), "threshold_flags": list(a.threshold_flags), "counts": (levels, correct, trials)}
 
 
 def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200, include_flagged: bool = False) -> str:
@@ -88,7 +95,8 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200, 
                 levels, correct, trials = r["counts"]
                 ax.plot(levels, np.array(correct) / np.array(trials), "o", label="proportion correct")
                 xs = np.linspace(min(levels) * 0.8, max(levels) * 1.1, 200)
-                ax.plot(xs, r["fit"].p(xs), label=f"{r['fit'].form} fit" + (" (flagged)" if r["flags"] else ""))
+                flagged = " (flagged)" if r["threshold_flags"] else ""
+                ax.plot(xs, r["fit"].p(xs), label=f"{r['fit'].form} fit{flagged}")
                 if min(levels) * 0.8 <= r["threshold"] <= max(levels) * 1.1:
                     ax.axvline(r["threshold"], ls="--", color="gray")
                 ax.set_xlabel("level")
@@ -111,28 +119,22 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200, 
             lines.append(f"## Participant {s.meta['participant']}, {r['block']} ({r['procedure']}, {r['trials']} trials)")
             lines.append("")
             lines += _threshold_lines(r, bootstrap_samples)
-            row = _row(s.meta["participant"], r)
-            row["in_group_mean"] = r.get("threshold") is not None and (include_flagged or not r["flags"])
+            row = _row(s.meta["participant"], r, include_flagged)
             rows.append(row)
             if r.get("threshold") is not None:
                 per_block.setdefault(r["block"], []).append(row)
             lines += ["", f"![{name}]({name}.png)", ""]
-    group = []
+    group = across_participants(per_block)
     if per_block:
         lines += ["## Thresholds across participants", "",
-                  "Flagged thresholds (above) are " + ("included, as asked (--include-flagged)." if include_flagged
-                                                       else "left out (--include-flagged counts them)."),
-                  "", "| block | participants in the mean | mean | sd | flagged |", "|---|---:|---:|---:|---:|"]
-    for block, block_rows in per_block.items():
-        v = np.array([row["threshold"] for row in block_rows if row["in_group_mean"]], dtype=float)
-        left_out = sum(1 for row in block_rows if not row["in_group_mean"])
-        mean = float(v.mean()) if v.size else float("nan")
-        sd = float(v.std(ddof=1)) if v.size > 1 else float("nan")
-        flagged = sum(1 for row in block_rows if row["flags"])
-        lines.append(f"| {block} | {v.size} | {mean:.4g} | {sd:.3g} | {flagged} |")
-        group.append({"block": block, "participants": int(v.size), "mean": mean, "sd": sd, "flagged": flagged,
-                      "left_out": left_out})
-    if per_block:
+                  "Flagged thresholds (above: not determined by their data) are " +
+                  ("included, as asked (--include-flagged)." if include_flagged
+                   else "left out (--include-flagged counts them).") +
+                  " A note (the slope or the lapse rate at a bound) does not leave a threshold out.",
+                  "", "| block | participants in the mean | mean | sd | flagged | with a note |",
+                  "|---|---:|---:|---:|---:|---:|"]
+        lines += [f"| {g['block']} | {g['participants']} | {g['mean']:.4g} | {g['sd']:.3g} | {g['flagged']} | "
+                  f"{g['noted']} |" for g in group]
         lines.append("")
     tests: List[Dict[str, Any]] = []
     lines += _ratings_and_comparisons(collected, tests)
@@ -145,18 +147,36 @@ def analyze(folders: Sequence[str], out_dir: str, bootstrap_samples: int = 200, 
 
 COLUMNS = ["participant", "block", "procedure", "trials", "threshold", "ci_low", "ci_high", "form", "alpha", "beta",
            "lapse", "slope", "log_likelihood", "deviance", "deviance_p", "lowest_level", "highest_level", "flags",
-           "in_group_mean"]
+           "threshold_flags", "in_group_mean"]
 
 
-def _row(participant, r: Dict[str, Any]) -> Dict[str, Any]:
+def _row(participant, r: Dict[str, Any], include_flagged: bool = False) -> Dict[str, Any]:
+    """A row of results.csv. It counts in the block's mean across participants when it has a
+    threshold and no threshold flag (or `include_flagged`): notes alone do not leave it out."""
     row: Dict[str, Any] = {c: None for c in COLUMNS}
     row.update(participant=participant, block=r["block"], procedure=r["procedure"], trials=r["trials"],
-               threshold=r.get("threshold"), flags=list(r.get("flags", [])))
+               threshold=r.get("threshold"), flags=list(r.get("flags", [])),
+               threshold_flags=list(r.get("threshold_flags", [])))
     if r.get("interval"):
         row["ci_low"], row["ci_high"] = r["interval"]
     if "assessment" in r:
         row.update({k: v for k, v in r["assessment"].as_dict().items() if k in COLUMNS})
+    row["in_group_mean"] = row["threshold"] is not None and (include_flagged or not row["threshold_flags"])
     return row
+
+
+def across_participants(per_block: Dict[str, List[Dict[str, Any]]]) -> List[Dict[str, Any]]:
+    """Per block, the mean and sd of the thresholds of the rows in the mean; how many rows have a
+    threshold flag (`flagged`), how many only notes (`noted`), how many are left out."""
+    group = []
+    for block, block_rows in per_block.items():
+        v = np.array([row["threshold"] for row in block_rows if row["in_group_mean"]], dtype=float)
+        group.append({"block": block, "participants": int(v.size), "mean": float(v.mean()) if v.size else float("nan"),
+                      "sd": float(v.std(ddof=1)) if v.size > 1 else float("nan"),
+                      "flagged": sum(1 for row in block_rows if row["threshold_flags"]),
+                      "noted": sum(1 for row in block_rows if row["flags"] and not row["threshold_flags"]),
+                      "left_out": sum(1 for row in block_rows if not row["in_group_mean"])})
+    return group
 
 
 def _write_tables(out_dir: str, rows: List[Dict[str, Any]], group, tests) -> None:
@@ -164,7 +184,8 @@ def _write_tables(out_dir: str, rows: List[Dict[str, Any]], group, tests) -> Non
         writer = csv.DictWriter(f, fieldnames=COLUMNS)
         writer.writeheader()
         for row in rows:
-            writer.writerow({**row, "flags": "; ".join(row["flags"])})
+            writer.writerow({**row, "flags": "; ".join(row["flags"]),
+                             "threshold_flags": "; ".join(row["threshold_flags"])})
     with open(os.path.join(out_dir, "results.json"), "w", encoding="utf-8") as f:
         json.dump({"thresholds": rows, "across_participants": group, "tests": tests}, f, indent=1,
                   default=lambda v: v.item() if hasattr(v, "item") else str(v))
@@ -181,11 +202,11 @@ def _threshold_lines(r: Dict[str, Any], bootstrap_samples: int) -> List[str]:
     a = r["assessment"]
     f = a.fit
     out = []
-    if a.flags:
+    if a.threshold_flags:
         lo, hi = a.levels
         where = (f"it lies below the tested levels (< {lo:g}), where these data cannot place it" if threshold < lo
                  else f"it lies above the tested levels (> {hi:g}), where these data cannot place it" if threshold > hi
-                 else f"it lies within the tested levels [{lo:g}, {hi:g}], but the fit is not fully determined")
+                 else f"it lies within the tested levels [{lo:g}, {hi:g}], but the data do not bound it")
         out += [f"Threshold not given as a number: {where}. The fit is flagged and left out of the means across "
                 f"participants unless --include-flagged (results.csv has its values, for diagnosis).", "",
                 "> **Warning**: " + "; ".join(a.flags) + ".", ""]
@@ -196,6 +217,10 @@ def _threshold_lines(r: Dict[str, Any], bootstrap_samples: int) -> List[str]:
                    f"(parametric, {bootstrap_samples} refits, each from the multi-start fit)")
         out += ["", f"Fit: {f.form}, alpha {f.alpha:.4g}, beta {f.beta:.4g}, lapse {f.lapse:.3g}; slope at the "
                     f"threshold dP/dx {f.slope:.3g}"]
+        if a.notes:
+            out += ["", "> **Note**: " + "; ".join(a.notes) + ". The threshold lies within the tested levels and "
+                    "its interval is bounded by the data: it counts in the means across participants; the slope "
+                    "and lapse rate are not estimates."]
     fits = "the function does not describe these answers" if a.deviance_p < 0.05 else "no evidence of misfit"
     out += ["", f"Goodness of fit: deviance {a.deviance:.3g}, bootstrap p = {a.deviance_p:.3g} "
                 f"(the refits' deviances at least as large; {fits} at 0.05)"]

@@ -13,11 +13,14 @@ The likelihood of a few hundred answers has flat parts and, for non-monotonic da
 maxima: a fit starts from a grid over (alpha, beta, lapse) covering the bounds and refines the
 best separated grid points locally (L-BFGS-B), so it finds the global maximum within the bounds.
 The bounds are wide (a threshold up to 100 times outside the tested levels); a fit that ends on
-one, or whose threshold lies outside the tested levels, is flagged: the data did not determine
-it. The confidence interval is a parametric bootstrap's percentile interval (Wichmann and Hill
-2001b): new answers drawn from the fitted function at the same levels and trial counts, each
-refitted by the same multi-start procedure. Goodness of fit is the deviance compared with the
-deviances of those refits (Wichmann and Hill 2001a).
+one, or whose threshold lies outside the tested levels, is flagged. Flags that say the data did
+not determine the threshold (outside the levels, alpha at a bound, an interval the data cannot
+support) exclude it from means across participants; a slope or lapse at a bound is a note: a
+step between two levels is steeper than their spacing can resolve, yet it places the threshold
+between them. The confidence interval is a parametric bootstrap's percentile interval
+(Wichmann and Hill 2001b): new answers drawn from the fitted function at the same levels and
+trial counts, each refitted by the same multi-start procedure. Goodness of fit is the deviance
+compared with the deviances of those refits (Wichmann and Hill 2001a).
 
 Wichmann, F. A. and Hill, N. J. (2001a). The psychometric function: I. Fitting, sampling, and
 goodness of fit. Perception & Psychophysics 63(8), 1293-1313.
@@ -278,18 +281,26 @@ class Assessment:
     interval: Tuple[float, float]
     deviance: float
     deviance_p: float  # the fraction of bootstrap deviances at least as large
-    flags: List[str]
+    flags: List[str]  # everything the data did not determine, each with why
+    threshold_flags: List[str] = field(default_factory=list)  # those of `flags` that undermine the threshold
 
     @property
     def flagged(self) -> bool:
-        return bool(self.flags)
+        """The threshold is not determined by the data: left out of means across participants."""
+        return bool(self.threshold_flags)
+
+    @property
+    def notes(self) -> List[str]:
+        """Flags that leave the threshold determined: the slope or the lapse rate at a bound."""
+        return [f for f in self.flags if f not in self.threshold_flags]
 
     def as_dict(self) -> Dict[str, object]:
         f = self.fit
         return {"form": f.form, "threshold": f.threshold, "ci_low": self.interval[0], "ci_high": self.interval[1],
                 "alpha": f.alpha, "beta": f.beta, "lapse": f.lapse, "slope": f.slope,
                 "log_likelihood": f.log_likelihood, "deviance": self.deviance, "deviance_p": self.deviance_p,
-                "lowest_level": self.levels[0], "highest_level": self.levels[1], "flags": list(self.flags)}
+                "lowest_level": self.levels[0], "highest_level": self.levels[1], "flags": list(self.flags),
+                "threshold_flags": list(self.threshold_flags)}
 
 
 def assess(levels: Sequence[float], correct: Sequence[int], trials: Sequence[int], form: str = "weibull",
@@ -297,29 +308,42 @@ def assess(levels: Sequence[float], correct: Sequence[int], trials: Sequence[int
            confidence: float = 0.95) -> Assessment:
     """Fit, bootstrap, and flag: a threshold outside the tested levels, a parameter at a bound
     (alpha, beta; lapse at its upper one), an interval of zero width or whose end is a bound
-    (more than its tail's share of refits ended with alpha on a bound)."""
+    (more than its tail's share of refits ended with alpha on a bound). All but beta and lapse
+    are threshold flags: the data do not place the threshold. Beta at a bound (answers that jump
+    between two levels, or barely rise) and the lapse at its upper bound bias the slope, yet the
+    threshold inside the levels with an interval the data bound is still an estimate: they are
+    notes."""
     x = np.asarray(levels, dtype=float)
     fitted = fit(x, correct, trials, form, guess, max_lapse)
     boot = bootstrap_refits(fitted, x, trials, samples, seed, confidence, max_lapse)
     lo, hi = boot.interval
     flags: List[str] = []
+    threshold_flags: List[str] = []
+
+    def flag(text: str, undermines_threshold: bool) -> None:
+        flags.append(text)
+        if undermines_threshold:
+            threshold_flags.append(text)
+
     t = fitted.threshold
     if not float(x.min()) <= t <= float(x.max()):
         side = "below" if t < float(x.min()) else "above"
-        flags.append(f"threshold {side} the tested levels [{float(x.min()):g}, {float(x.max()):g}]")
+        flag(f"threshold {side} the tested levels [{float(x.min()):g}, {float(x.max()):g}]", True)
     for b in fitted.at_bound:
         name, side = b.rstrip(")").split(" (")
+        steep = (side == "upper") == (form == "weibull")  # the Weibull's beta is a shape, the logistic's a scale
         why = {"alpha": "the threshold parameter: the data do not bound it",
-               "beta": "the slope is not determined",
+               "beta": "the slope is not determined: " + ("steeper than the levels' spacing resolves" if steep
+                                                          else "shallower than the levels' range resolves"),
                "lapse": "lapses absorb a misfit"}[name]
-        flags.append(f"{name} at its {side} bound ({why})")
+        flag(f"{name} at its {side} bound ({why})", name == "alpha")
     if hi - lo <= 1e-6 * max(abs(t), float(x.max())):
-        flags.append("interval of zero width")
+        flag("interval of zero width", True)
     elif boot.alpha_at_bound.mean() > (1 - confidence) / 2:
-        flags.append(f"interval reaches a bound ({boot.alpha_at_bound.mean():.0%} of refits at one)")
+        flag(f"interval reaches a bound ({boot.alpha_at_bound.mean():.0%} of refits at one)", True)
     d = deviance(fitted, x, correct, trials)
     return Assessment(fitted, (float(x.min()), float(x.max())), (lo, hi), d, float(np.mean(boot.deviances >= d)),
-                      flags)
+                      flags, threshold_flags)
 
 
 def staircase_interval(reversal_levels: Sequence[float], confidence: float = 0.95) -> Optional[Tuple[float, float]]:
