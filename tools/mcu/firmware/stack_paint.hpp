@@ -55,7 +55,7 @@ inline constexpr std::uint32_t kPaintGroup = 8;
 /// frame whose stack pointer is `sp` went. `bytes` when it may have gone deeper. Whole groups
 /// still painted are passed with one test each (their words' differences from the paint
 /// OR-ed), then the group that holds the deepest written word word by word.
-inline std::uint32_t used_in_window(std::uint32_t sp, std::uint32_t bytes) noexcept {
+[[gnu::noinline]] inline std::uint32_t used_in_window(std::uint32_t sp, std::uint32_t bytes) noexcept {
   const auto* p = reinterpret_cast<const volatile std::uint32_t*>(sp - bytes);
   const auto* const end = reinterpret_cast<const volatile std::uint32_t*>(sp);
   while (end - p >= static_cast<std::ptrdiff_t>(kPaintGroup) &&
