@@ -3,9 +3,9 @@
 // browser (Debian's Chromium, headless, through playwright-core): `python3 -m toonforce.study run
 // --device sim` with a scripted hand (docs/STUDIES.md, "A person at a device"). The test reads the
 // page as a participant does and answers with keys and clicks, never with the page's requests:
-// - nothing plays before Start: the page asks for it, and no trial begins before the click (each
-//   trial's started_utc in trials.jsonl) while the run's trace shows no force before the first
-//   interval;
+// - nothing plays before Start: the page asks for it, no trial begins before the click (each
+//   trial's started_utc in trials.jsonl), and the run's trace shows no force before the first
+//   interval, though the scripted hand pressed through the floor's plane all along;
 // - the experiment file's words: the Start page's instructions, each block's question, answer
 //   buttons and interval instructions; rating items with their names and both anchors;
 // - two-interval answers by the keys 1 and 2 (recorded as pressed), ratings by clicks (Done
@@ -70,6 +70,16 @@ items = [
   { name = "playful", scale = "semantic-differential", points = 7, anchors = ["serious", "playful"] },
 ]
 `;
+
+// The simulated device's hand (`--hand`): a script plays once from the run's start, before Start
+// and through the whole session, so this one presses 1 N downwards and strokes for two minutes
+// (longer than the session): with nothing in reach it sinks below the floor's plane (z = 0), and
+// whatever scene is loaded pushes back. (scenes/hands/stroke.toml lifts off after 1.4 s.)
+const PRESSING_HAND = ['name = "pressing strokes"\n[hand]\nstart = [-0.03, 0.0, 0.003]\nstiffness = 100.0\n',
+  '[[segment]]\ntype = "hold"\nduration = 0.2\nforce = 1.0\n',
+  ...Array.from({ length: 200 }, (_, k) =>
+    `[[segment]]\ntype = "stroke"\nto = [${k % 2 === 0 ? 0.03 : -0.03}, 0.0, 0.0]\nspeed = 0.1\nforce = 1.0\n`),
+].join('\n');
 
 let browser;
 
@@ -142,9 +152,11 @@ test('a person plays a session through the page: start, keys, clicks, pause, bre
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'toonforce-study-page-'));
   const experiment = path.join(dir, 'study.toml');
   fs.writeFileSync(experiment, EXPERIMENT);
+  const hand = path.join(dir, 'pressing.toml');
+  fs.writeFileSync(hand, PRESSING_HAND);
   const folder = path.join(dir, 'session');
   const run = startStudy(['run', experiment, '--participant', '1', '--out', folder, '--device', 'sim',
-    '--hand', path.join(SCENES, 'hands', 'stroke.toml'), '--allow-non-rt', '--interval', '1']);
+    '--hand', hand, '--allow-non-rt', '--interval', '1']);
   try {
     const { page, errors } = await openPage(browser.context, await run.url);
 
@@ -234,13 +246,15 @@ test('a person plays a session through the page: start, keys, clicks, pause, bre
 
     // The device silent until the first interval, and at the end (the abort's last tick).
     const trace = readTrace(path.join(folder, 'run-1.csv'));
-    const [fx, fy, fz] = ['fx', 'fy', 'fz'].map((c) => trace.col(c));
+    const [fx, fy, fz, z] = ['fx', 'fy', 'fz', 'z'].map((c) => trace.col(c));
     const force = fx.map((x, i) => Math.hypot(x, fy[i], fz[i]));
     const largest = (xs) => xs.reduce((a, b) => Math.max(a, b), 0);
     const firstOn = kept[0].trace.intervals[0][0];
     assert.ok(firstOn > 0 && firstOn < force.length, `the first interval's frame (${firstOn}) is in the trace`);
     assert.equal(largest(force.slice(0, firstOn)), 0, 'no force before the first interval');
-    assert.ok(largest(force) > 0.05, 'the intervals did push (the scripted hand felt the scenes)');
+    // Not for want of a hand: it pressed through where the floor is, the device silent.
+    assert.ok(Math.min(...z.slice(0, firstOn)) < -0.002, 'before it the hand pressed through the floor\'s plane');
+    assert.ok(largest(force.slice(firstOn)) > 0.5, 'the intervals pushed back on the pressing hand');
     assert.equal(force[force.length - 1], 0, 'the abort ends the run on a zero-force tick');
   } finally {
     if (run.child.exitCode === null && run.child.signalCode === null) {

@@ -1,8 +1,11 @@
 # SPDX-License-Identifier: Apache-2.0
 """A person on a device: each interval is the condition's scene loaded into a running
 `toonforce run --control` (toonforce.live) on the Falcon, the Omni or the simulated device, and
-the participant answers on a page served here, http://127.0.0.1:PORT/ (the instructions, each
-trial's prompt and answer by key or click, a break between blocks, and an abort key).
+the participant answers on a page served here, http://127.0.0.1:PORT/: the experiment's
+instructions and a Start button (no trial begins before it, the device silent), each trial's
+prompt in the experiment file's words and its answer by key or click, rating items by name
+between their anchors, a Pause key (after the trial under way), a break between blocks, and an
+abort key.
 
 The abort key (Escape, or the page's button) ends the trial at once: the run is stopped through
 the command line's stop path (its last tick commands zero force), the trial in progress is not
