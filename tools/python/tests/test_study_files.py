@@ -193,6 +193,24 @@ MISTAKES = [
      "a non-negative integer"),
     ("a vary key that is not an effect's key", lambda t: sub(t, 'vary = "surface1.slippery.mu"', 'vary = "mu"'),
      'vary = "mu"', "condition[2].vary", "an effect's key"),
+    # What the participant's page says (docs/STUDIES.md, "A person at a device").
+    ("one answer label for two intervals", lambda t: sub(t, "discard = 2", 'discard = 2\nanswers = ["this one"]'),
+     'answers = ["this one"]', "block[1].answers", "two different texts"),
+    ("two answer labels alike", lambda t: sub(t, "levels = [0.5, 1.0, 2.0]",
+                                              'levels = [0.5, 1.0, 2.0]\nanswers = ["one", "one"]'),
+     'answers = ["one", "one"]', "block[2].answers", "two different texts"),
+    ("an empty question", lambda t: sub(t, 'conditions = ["friction", "ice"]\n',
+                                        'conditions = ["friction", "ice"]\nquestion = " "\n'),
+     'question = " "', "block[3].question", "text shown to the participant"),
+    ("instructions that are not text", lambda t: sub(t, 'task = "hold-still"', 'task = "hold-still"\ninstructions = 3'),
+     "instructions = 3", "block[4].instructions", "text shown to the participant"),
+    ("a question on a task", lambda t: sub(t, 'task = "hold-still"', 'task = "hold-still"\nquestion = "Well?"'),
+     'question = "Well?"', "block[4].question", "a task asks nothing"),
+    ("answer labels on a rating", lambda t: sub(t, 'conditions = ["friction", "ice"]\n',
+                                                'conditions = ["friction", "ice"]\nanswers = ["a", "b"]\n'),
+     'answers = ["a", "b"]', "block[3].answers", "its items' points"),
+    ("start instructions that are not text", lambda t: sub(t, "seed = 4", "seed = 4\ninstructions = false"),
+     "instructions = false", "instructions", "before the participant presses Start"),
 ]
 
 
@@ -237,6 +255,37 @@ def test_a_mistake_is_named_by_file_line_and_key_before_any_folder(tmp_path, cap
     assert study_main(["check", str(path)]) == 2, what
     said = capsys.readouterr().err
     assert expected in said and words in said, (what, expected, words, said)
+
+
+def test_every_block_says_what_its_file_says_or_the_default():
+    """The page's words (person.py asks them of experiment.page_text): the file's on every kind
+    of block that has them, the defaults elsewhere."""
+    words = {"instructions": "Feel it.", "question": "Which one?", "answers": ["this", "that"]}
+    said = "".join(f"{k} = {json.dumps(v)}\n" for k, v in words.items())
+    text = BASE.replace("discard = 2\n", "discard = 2\n" + said)  # the staircase
+    text = text.replace("levels = [0.5, 1.0, 2.0]\n", "levels = [0.5, 1.0, 2.0]\n" + said)  # constant stimuli
+    text = text.replace('conditions = ["friction", "ice"]\n', 'conditions = ["friction", "ice"]\n'
+                        'instructions = "Explore."\nquestion = "How?"\n')  # the rating
+    text = text.replace('task = "hold-still"', 'task = "hold-still"\ninstructions = "Stop there."')
+    text += ('\n[[block]]\nprocedure = "paired-comparison"\npairs = [["friction", "ice"]]\nrepetitions = 1\n'
+             'question = "Which was more slippery?"\n')
+    text = 'instructions = "Welcome."\n' + text
+    exp = experiments.load(os.path.join(SCENES, "studies", "here.toml"), text, files=False)
+    assert exp.instructions == "Welcome."
+    staircase, constant, rating, task, paired = exp.blocks
+    for block in (staircase, constant):
+        assert {k: experiments.page_text(block, k) for k in words} == words
+    assert (experiments.page_text(rating, "instructions"), experiments.page_text(rating, "question")) == (
+        "Explore.", "How?")
+    assert experiments.page_text(task, "instructions") == "Stop there."
+    assert experiments.page_text(paired, "question") == "Which was more slippery?"
+    assert experiments.page_text(paired, "answers") == ["the first", "the second"]
+    assert experiments.page_text(paired, "instructions") == "Stroke across the surface."
+    plain = experiments.load(os.path.join(SCENES, "studies", "here.toml"), BASE, files=False)
+    assert plain.instructions == experiments.START_TEXT
+    assert experiments.page_text(plain.blocks[0], "question") == "Which interval pushed your hand along?"
+    assert experiments.page_text(plain.blocks[2], "question") == "How was it?"
+    assert experiments.page_text(plain.blocks[3], "instructions") == ""
 
 
 def test_a_session_folder_keeps_the_experiment_and_the_hashes_and_is_analysed_alone(tmp_path):
@@ -354,7 +403,9 @@ def play_slowly(process, url, think_s):
     while process.poll() is None:
         try:
             state = get(url + "state")
-            if state["phase"] == "choice" and state["token"] != seen:
+            if state["phase"] == "start":  # the session waits for the participant's Start
+                post(url + "answer", {"token": state["token"], "value": "start"})
+            elif state["phase"] == "choice" and state["token"] != seen:
                 seen = state["token"]
                 time.sleep(think_s)
                 post(url + "answer", {"token": state["token"], "value": 2})

@@ -89,7 +89,9 @@ def play(process, url, trials_file, stop_at=None):
         except OSError:
             time.sleep(0.02)
             continue
-        if state["phase"] == "choice":
+        if state["phase"] == "start":
+            post(url + "answer", {"token": state["token"], "value": "start"})
+        elif state["phase"] == "choice":
             post(url + "answer", {"token": state["token"], "value": 2})
         elif state["phase"] == "rating":
             post(url + "answer", {"token": state["token"], "value": {i["name"]: i["points"] for i in state["items"]}})
@@ -111,8 +113,8 @@ def test_a_person_answers_on_the_page_aborts_with_zero_force_and_resumes(tmp_pat
     common = ["--hand", os.path.join(SCENES, "hands", "stroke.toml"), "--allow-non-rt", "--interval", "0.3"]
     process, url, seen = start(["run", str(experiment), "--participant", "1", "--out", str(folder), "--device", "sim",
                                 *common], "")
-    assert get(url + "state")["phase"] in ("message", "interval", "blank", "choice")
-    assert b"Stop (Esc)" in urllib.request.urlopen(url, timeout=5).read()  # the page, with its abort key
+    assert get(url + "state")["phase"] == "start"  # nothing plays before the participant's Start
+    assert b'id="abort"' in urllib.request.urlopen(url, timeout=5).read()  # the page, with its abort key
     play(process, url, str(folder / "trials.jsonl"), stop_at=2)
     _, errors = process.communicate(timeout=60)
     assert process.returncode == 1 and "aborted by the participant (zero force)" in errors, errors

@@ -87,8 +87,14 @@ class _Progress:
 def _go(session: Session, args) -> int:
     participant = _participant(session, args)
     progress = _Progress(session)
+
+    def before_trial() -> None:  # the experimenter's pause, said on the participant's page too
+        if progress.paused.is_set() and hasattr(participant, "page"):
+            participant.page.show(phase="message", text="A pause: the experimenter will go on")
+        progress.before_trial()
+
     try:
-        session.run(participant, progress=progress, before_trial=progress.before_trial)
+        session.run(participant, progress=progress, before_trial=before_trial)
     except KeyboardInterrupt:
         print(f"toonforce study: stopped; {len(session.trials)} trials kept in {session.folder} "
               f"(`toonforce study resume {session.folder}` goes on)", file=sys.stderr)

@@ -26,6 +26,29 @@ RULES = {"1-up-2-down": (1, 2), "1-up-3-down": (1, 3)}
 BELOW_CHANCE_RULES = {"2-up-1-down": (2, 1)}
 DEVICES = ("sim", "falcon", "omni")
 STAIRCASE_KEYS = ("start", "step", "min", "max", "reversals", "discard", "max_trials")
+# What the participant's page says, by procedure (person.py): the text during each interval,
+# the question after the intervals, and the two answer buttons of two-interval questions.
+PAGE_KEYS = {
+    **{p: ("instructions", "question", "answers") for p in LEVEL_PROCEDURES},
+    "paired-comparison": ("instructions", "question", "answers"),
+    "rating": ("instructions", "question"),
+    "task": ("instructions",),
+}
+# The page's words where the file gives none (a level procedure's question fits the example
+# study, cartoon ice: docs/STUDIES.md).
+_TWO = {"instructions": "Stroke across the surface.", "question": "Which interval pushed your hand along?",
+        "answers": ("the first", "the second")}
+PAGE_DEFAULTS = {**{p: _TWO for p in LEVEL_PROCEDURES}, "paired-comparison": _TWO,
+                 "rating": {"instructions": "Explore the surface.", "question": "How was it?"},
+                 "task": {"instructions": ""}}
+START_TEXT = "When you are ready, press Start."
+
+
+def page_text(block: "Block", key: str) -> Any:
+    """What the page says for the block (`instructions`, `question`, `answers`): the file's
+    words, or the default."""
+    value = block.options.get(key, PAGE_DEFAULTS[block.procedure][key])
+    return list(value) if isinstance(value, (list, tuple)) else value
 
 
 class ExperimentError(ValueError):
@@ -78,6 +101,7 @@ class Experiment:
     # Every scene and hand script it uses (absolute path: SHA-256 of its bytes); empty when
     # loaded without its files (a session's copy, for the analysis).
     files: Dict[str, str] = field(default_factory=dict)
+    instructions: str = START_TEXT  # the participant's page before Start
 
     @property
     def sha256(self) -> str:
@@ -175,7 +199,7 @@ def load(path: str, text: Optional[str] = None, *, files: bool = True, device: s
     def fail(key, message, table="", index=0):
         raise ExperimentError(path, _line_of(text, key.split(".")[-1].split("[")[0], table, index), key, message)
 
-    known_top = {"name", "seed", "order", "script", "quantity", "condition", "block"}
+    known_top = {"name", "seed", "order", "script", "quantity", "instructions", "condition", "block"}
     for key in data:
         if key not in known_top:
             fail(key, f"unknown key (known: {', '.join(sorted(known_top))})")
@@ -193,6 +217,9 @@ def load(path: str, text: Optional[str] = None, *, files: bool = True, device: s
     script = os.path.normpath(os.path.join(here, script))
     if files and not os.path.isfile(script):
         fail("script", f"no such file: {script}")
+    instructions = data.get("instructions", START_TEXT)
+    if not isinstance(instructions, str) or not instructions.strip():
+        fail("instructions", f"text: what the page says before the participant presses Start (got {instructions!r})")
     quantity = data.get("quantity", "mean_along_motion_force")
     if quantity not in QUANTITIES:
         fail("quantity", f"one of {', '.join(QUANTITIES)}")
@@ -248,16 +275,31 @@ def load(path: str, text: Optional[str] = None, *, files: bool = True, device: s
             "weighted-staircase": {"target", *STAIRCASE_KEYS},
             "constant-stimuli": {"levels", "repetitions", "form"},
             "rating": {"conditions", "items", "repetitions"},
-            "paired-comparison": {"pairs", "question", "repetitions"},
-            "task": {"conditions", "repetitions", "task", "script", "instructions", "after", "hold", "speed_tolerance",
+            "paired-comparison": {"pairs", "repetitions"},
+            "task": {"conditions", "repetitions", "task", "script", "after", "hold", "speed_tolerance",
                      "fall_depth", "target", "direction", "until"},
-        }[procedure]
+        }[procedure] | set(PAGE_KEYS[procedure])
+        if procedure == "task" and "question" in options:
+            fail(f"{k}.question", "a task asks nothing after its interval: what the participant reads is its "
+                 "`instructions`", *where)
+        if procedure == "rating" and "answers" in options:
+            fail(f"{k}.answers", "a rating's answers are its items' points: each item's `anchors` name the ends",
+                 *where)
         for key in list(b) if procedure not in LEVEL_PROCEDURES else []:
             if key in ("reference", "test"):
                 fail(f"{k}.{key}", f"not a key of {procedure} (its conditions are in its own keys)", *where)
         for key in options:
             if key not in allowed:
                 fail(f"{k}.{key}", f"not a key of {procedure} (known: {', '.join(sorted(allowed))})", *where)
+        for key in ("instructions", "question"):
+            if key in options and (not isinstance(options[key], str) or not options[key].strip()):
+                fail(f"{k}.{key}", f"text shown to the participant (got {options[key]!r})", *where)
+        if "answers" in options:
+            answers = options["answers"]
+            if (not isinstance(answers, list) or len(answers) != 2
+                    or any(not isinstance(a, str) or not a.strip() for a in answers) or answers[0] == answers[1]):
+                fail(f"{k}.answers", f"two different texts, the buttons for the first and the second interval "
+                     f"(got {answers!r})", *where)
         if procedure in LEVEL_PROCEDURES:
             for role in ("reference", "test"):
                 if not isinstance(b.get(role), str) or b.get(role) not in conditions:
@@ -340,8 +382,6 @@ def load(path: str, text: Optional[str] = None, *, files: bool = True, device: s
                 options["script"] = os.path.normpath(os.path.join(here, options["script"]))
                 if files and not os.path.isfile(options["script"]):
                     fail(f"{k}.script", f"no such file: {options['script']}", *where)
-            if "instructions" in options and not isinstance(options["instructions"], str):
-                fail(f"{k}.instructions", "text shown to the participant", *where)
             for key in ("after", "until", "hold", "speed_tolerance", "fall_depth"):
                 if key in options and (not _number(options[key]) or options[key] < 0):
                     fail(f"{k}.{key}", f"a finite number >= 0 (got {options[key]!r})", *where)
@@ -359,12 +399,13 @@ def load(path: str, text: Optional[str] = None, *, files: bool = True, device: s
                     not isinstance(p, list) or len(p) != 2 or p[0] == p[1] or any(c not in conditions for c in p)
                     for p in pairs):
                 fail(f"{k}.pairs", f"pairs of two different conditions ({', '.join(conditions)})", *where)
-            if not isinstance(options.get("question"), str) or not options["question"]:
-                fail(f"{k}.question", "the question asked after each pair", *where)
+            if "question" not in options:
+                fail(f"{k}.question", "required: the question asked after each pair", *where)
         blocks.append(Block(name, procedure, b.get("reference", ""), b.get("test", ""), options))
     if not blocks:
         fail("block", "at least one [[block]]")
-    exp = Experiment(path, text, data["name"], seed, order, script, quantity, conditions, blocks)
+    exp = Experiment(path, text, data["name"], seed, order, script, quantity, conditions, blocks,
+                     instructions=instructions)
     if files:
         if device not in DEVICES:
             raise ValueError(f"device '{device}': one of {', '.join(DEVICES)}")

@@ -1,8 +1,11 @@
 # SPDX-License-Identifier: Apache-2.0
 """A person on a device: each interval is the condition's scene loaded into a running
 `toonforce run --control` (toonforce.live) on the Falcon, the Omni or the simulated device, and
-the participant answers on a page served here, http://127.0.0.1:PORT/ (the instructions, each
-trial's prompt and answer by key or click, a break between blocks, and an abort key).
+the participant answers on a page served here, http://127.0.0.1:PORT/: the experiment's
+instructions and a Start button (no trial begins before it, the device silent), each trial's
+prompt in the experiment file's words and its answer by key or click, rating items by name
+between their anchors, a Pause key (after the trial under way), a break between blocks, and an
+abort key.
 
 The abort key (Escape, or the page's button) ends the trial at once: the run is stopped through
 the command line's stop path (its last tick commands zero force), the trial in progress is not
@@ -54,55 +57,133 @@ class Aborted(Exception):
     """The participant pressed the abort key: the run was stopped with zero force."""
 
 
-PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>toonforce study</title>
+PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>toonforce study</title><link rel="icon" href="data:,">
 <style>body{font:22px system-ui;margin:3em;max-width:40em}button{font:inherit;margin:.3em}
-#abort{position:fixed;right:1em;bottom:1em;background:#c33;color:#fff}.k{opacity:.6;font-size:70%}</style></head>
-<body><div id="main">connecting...</div><button id="abort" onclick="post('/abort',{})">Stop (Esc)</button>
+fieldset{border:0;margin:1em 0;padding:0}legend{font-weight:600;padding:0}.scale{display:flex;align-items:center;gap:.5em;flex-wrap:wrap}
+.scale label{display:inline-flex;flex-direction:column;align-items:center}.anchor{font-style:italic}
+#controls{position:fixed;right:1em;bottom:1em}#abort{background:#c33;color:#fff}.k{opacity:.6;font-size:70%}
+.note{color:#a40}</style></head>
+<body><div id="main">Please wait</div>
+<div id="controls"><button id="pause" hidden>Pause <span class=k>[P]</span></button>
+<button id="abort">Stop <span class=k>[Esc]</span></button></div>
 <script>
-let state = {};
-async function post(path, body) { await fetch(path, {method: 'POST', body: JSON.stringify(body)}); }
-function answer(v) { post('/answer', {token: state.token, value: v}); }
+// The page shows the state the session serves (/state, polled) and posts the participant's
+// answers with the prompt's token, so that an answer never reaches another prompt. Every text
+// the experiment file gives is set as text, never as markup.
+let state = {phase: 'message', text: 'Please wait'};
+let answered = null;   // the token of the prompt answered: the page waits for the next
+let stopped = false;
+const main = document.getElementById('main');
+function el(tag, props, ...children) {
+  const e = document.createElement(tag);
+  Object.assign(e, props || {});
+  e.append(...children);
+  return e;
+}
+async function post(path, body) {
+  try { await fetch(path, {method: 'POST', body: JSON.stringify(body)}); } catch (e) { /* the session ended */ }
+}
+function answer(value) {
+  if (answered === state.token) return;
+  answered = state.token;
+  post('/answer', {token: state.token, value});
+  render();
+}
+function abort() {
+  if (stopped) return;
+  stopped = true;
+  post('/abort', {});
+  render();
+}
+function pause() {
+  if (!stopped && !state.pausing) post('/pause', {});
+}
+function keyButton(text, key, onclick, id) {
+  return el('button', {id: id || '', onclick}, text + ' ', el('span', {className: 'k', textContent: `[${key}]`}));
+}
+function rating(s) {
+  const out = [el('p', {className: 'question', textContent: s.question})];
+  for (const it of s.items) {
+    const scale = el('div', {className: 'scale'}, el('span', {className: 'anchor', textContent: it.anchors[0]}));
+    for (let i = 1; i <= it.points; ++i)
+      scale.append(el('label', {}, el('input', {type: 'radio', name: it.name, value: String(i)}), String(i)));
+    scale.append(el('span', {className: 'anchor', textContent: it.anchors[1]}));
+    out.push(el('fieldset', {className: 'item'}, el('legend', {textContent: it.name}), scale));
+  }
+  const note = el('p', {className: 'note', id: 'note'});
+  out.push(el('button', {id: 'done', textContent: 'Done', onclick: () => {
+    const v = {};
+    for (const it of s.items) {
+      const c = document.querySelector(`input[name="${CSS.escape(it.name)}"]:checked`);
+      if (!c) { note.textContent = `Please rate "${it.name}".`; return; }
+      v[it.name] = Number(c.value);
+    }
+    answer(v);
+  }}), note);
+  return out;
+}
 function render() {
-  const m = document.getElementById('main'); const s = state;
-  if (s.phase === 'interval') m.innerHTML = `<h1>Interval ${s.number} of ${s.of}</h1><p>${s.instructions || ''}</p>`;
-  else if (s.phase === 'blank') m.innerHTML = '<h1>...</h1>';
-  else if (s.phase === 'choice') m.innerHTML = `<p>${s.question}</p>` + s.options.map((o, i) =>
-      `<button onclick="answer(${i + 1})">${o} <span class=k>[${i + 1}]</span></button>`).join('');
-  else if (s.phase === 'rating') m.innerHTML = `<p>${s.question}</p>` + s.items.map(it =>
-      `<p>${it.anchors[0]} ` + Array.from({length: it.points}, (_, i) =>
-        `<label><input type=radio name="${it.name}" value=${i + 1}>${i + 1}</label>`).join(' ') +
-      ` ${it.anchors[1]}</p>`).join('') + '<button onclick="rate()">Done</button>';
-  else if (s.phase === 'break') m.innerHTML = `<h1>A break</h1><p>${s.text}</p><button onclick="answer('continue')">Continue [space]</button>`;
-  else if (s.phase === 'message') m.innerHTML = `<h1>${s.text}</h1>`;
+  const s = state;
+  document.getElementById('pause').hidden = stopped || !s.started || s.phase === 'paused' || s.phase === 'message';
+  document.getElementById('pause').firstChild.textContent = s.pausing ? 'Pausing after this trial ' : 'Pause ';
+  let view;
+  if (stopped) view = [el('h1', {textContent: 'Stopped'}), el('p', {textContent: 'The session has been stopped.'})];
+  else if (answered === s.token) view = [el('p', {textContent: 'Please wait'})];
+  else if (s.phase === 'start') view = [el('h1', {textContent: s.title}), el('p', {id: 'instructions', textContent: s.text}),
+                                        keyButton('Start', 'space', () => answer('start'), 'start')];
+  else if (s.phase === 'interval') view = [el('h1', {textContent: `Interval ${s.number} of ${s.of}`}),
+                                           el('p', {textContent: s.instructions})];
+  else if (s.phase === 'blank') view = [el('h1', {textContent: '...'})];
+  else if (s.phase === 'choice') view = [el('p', {className: 'question', textContent: s.question}),
+      ...s.answers.map((a, i) => keyButton(a, i + 1, () => answer(i + 1), `answer${i + 1}`))];
+  else if (s.phase === 'rating') view = rating(s);
+  else if (s.phase === 'break' || s.phase === 'paused')
+    view = [el('h1', {textContent: s.phase === 'break' ? 'A break' : 'Paused'}), el('p', {textContent: s.text}),
+            keyButton('Continue', 'space', () => answer('continue'), 'continue')];
+  else view = [el('h1', {textContent: s.text || ''})];
+  main.replaceChildren(...view);
+  main.dataset.phase = stopped ? 'stopped' : (answered === s.token ? 'wait' : s.phase);
 }
-function rate() {
-  const v = {}; for (const it of state.items) { const c = document.querySelector(`input[name="${it.name}"]:checked`);
-    if (!c) return; v[it.name] = Number(c.value); }
-  answer(v);
-}
-document.addEventListener('keydown', e => {
-  if (e.key === 'Escape') post('/abort', {});
-  else if (state.phase === 'choice' && /^[1-9]$/.test(e.key) && Number(e.key) <= state.options.length) answer(Number(e.key));
-  else if (state.phase === 'break' && e.key === ' ') answer('continue');
+document.getElementById('abort').onclick = abort;
+document.getElementById('pause').onclick = pause;
+document.addEventListener('keydown', (e) => {
+  const s = state;
+  let handled = true;
+  if (e.key === 'Escape') abort();
+  else if (stopped || answered === s.token) handled = false;
+  else if (s.phase === 'choice' && /^[1-9]$/.test(e.key) && Number(e.key) <= s.answers.length) answer(Number(e.key));
+  else if (e.key === ' ' && s.phase === 'start') answer('start');
+  else if (e.key === ' ' && (s.phase === 'break' || s.phase === 'paused')) answer('continue');
+  else if ((e.key === 'p' || e.key === 'P') && s.started && s.phase !== 'paused') pause();
+  else handled = false;
+  if (handled) {  // space on a focused button would click it too, when the key comes up
+    e.preventDefault();
+    document.activeElement?.blur?.();
+  }
 });
 async function poll() {
-  try { const r = await fetch('/state'); const s = await r.json(); if (JSON.stringify(s) !== JSON.stringify(state)) { state = s; render(); } }
-  catch (e) {}
-  setTimeout(poll, 100);
+  try {
+    const s = await (await fetch('/state')).json();
+    if (JSON.stringify(s) !== JSON.stringify(state)) { state = s; render(); }
+  } catch (e) { /* the session ended */ }
+  if (!stopped) setTimeout(poll, 100);
 }
+render();
 poll();
 </script></body></html>"""
 
 
 class _Page:
-    """The participant's page: a state the page polls, answers it posts."""
+    """The participant's page: a state the page polls, answers it posts, the pause and abort keys."""
 
     def __init__(self, port: int):
         self._lock = threading.Lock()
         self._state: Dict[str, Any] = {"phase": "message", "text": "Please wait"}
         self._answer: Optional[Any] = None
         self._token = 0
+        self.started = False  # the participant pressed Start
         self.aborted = threading.Event()
+        self.pause_requested = threading.Event()
         page = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -122,7 +203,8 @@ class _Page:
                     self._send(200, PAGE.encode(), "text/html; charset=utf-8")
                 elif self.path == "/state":
                     with page._lock:
-                        body = json.dumps(page._state).encode()
+                        body = json.dumps({**page._state, "started": page.started,
+                                           "pausing": page.pause_requested.is_set()}).encode()
                     self._send(200, body, "application/json")
                 else:
                     self._send(404, b"not found", "text/plain")
@@ -135,6 +217,10 @@ class _Page:
                     return self._send(400, b"not JSON", "text/plain")
                 if self.path == "/abort":
                     page.aborted.set()
+                    return self._send(200, b"{}", "application/json")
+                if self.path == "/pause":
+                    if page.started:
+                        page.pause_requested.set()
                     return self._send(200, b"{}", "application/json")
                 if self.path == "/answer":
                     with page._lock:
@@ -155,6 +241,7 @@ class _Page:
             self._state = {**state, "token": self._token}
 
     def wait_answer(self, valid) -> Any:
+        """The answer to the prompt shown; the page then says to wait until the next."""
         while True:
             if self.aborted.is_set():
                 raise Aborted()
@@ -164,6 +251,7 @@ class _Page:
                     self._answer = None  # not an answer to this prompt: wait for one
                     answer = None
             if answer is not None:
+                self.show(phase="message", text="Please wait")
                 return answer
             time.sleep(0.01)
 
@@ -197,6 +285,8 @@ class PersonAtDevice:
         self._trace = os.path.basename(run_options["trace"]) if run_options.get("trace") else None
         self._last_block: Optional[int] = None
         self._intervals: list = []  # the trial's intervals: [frame its scene was sent, frame the silence was]
+        # The device is up and silent: the page asks the participant to start (prepare waits).
+        self.page.show(phase="start", title=exp.name, text=exp.instructions)
 
     @property
     def url(self) -> str:
@@ -205,7 +295,8 @@ class PersonAtDevice:
     def close(self) -> None:
         """Ends the run (zero force through its stop path) and the page."""
         self.run.stop()
-        self.page.show(phase="message", text="Thank you: the session has ended")
+        self.page.show(phase="message", text="The session was stopped" if self.page.aborted.is_set()
+                       else "Thank you: the session has ended")
         time.sleep(0.2)
         self.page.close()
 
@@ -235,9 +326,20 @@ class PersonAtDevice:
         self.page.show(phase="blank")
         self.page.wait(self.blank_s)
 
-    def _block_start(self, block: experiments.Block, index: int) -> None:
+    def prepare(self, block: experiments.Block, index: int) -> None:
+        """Before each trial, the device silent: the first waits for the participant's Start, any
+        for the end of a pause the participant asked for (the Pause key during the trial before),
+        the first of a block for the end of the break before it. A trial's record and its part of
+        the trace begin after this."""
+        if not self.page.started:
+            self.page.wait_answer(lambda a: a == "start")  # the page has shown Start since the run is up
+            self.page.started = True
+        if self.page.pause_requested.is_set():
+            self.page.show(phase="paused", text="Press Continue when you are ready.")
+            self.page.wait_answer(lambda a: a == "continue")
+            self.page.pause_requested.clear()
         if self._last_block is not None and self._last_block != index:
-            self.page.show(phase="break", text=f"Next: {block.name}. Press continue when you are ready.")
+            self.page.show(phase="break", text=f"Next: {block.name}. Press Continue when you are ready.")
             self.page.wait_answer(lambda a: a == "continue")
         self._last_block = index
 
@@ -259,32 +361,31 @@ class PersonAtDevice:
 
     # ---- the procedures' trials ----------------------------------------------------------
 
+    def _ask(self, block) -> Dict[str, Any]:
+        """The block's two-interval question; the answer (1 or 2) and the time to it."""
+        started = time.monotonic()
+        self.page.show(phase="choice", question=experiments.page_text(block, "question"),
+                       answers=experiments.page_text(block, "answers"))
+        chose = self.page.wait_answer(lambda a: a in (1, 2))
+        return {"answer": chose, "response_time_s": time.monotonic() - started}
+
     def two_interval(self, block, index, trial, level, test_first) -> Dict[str, Any]:
         def present():
-            self._block_start(block, index)
             order = [block.test, block.reference] if test_first else [block.reference, block.test]
             for k, condition in enumerate(order):
                 self._present(condition, level if condition == block.test else None, k + 1, 2,
-                              "Stroke across the surface.")
-            started = time.monotonic()
-            self.page.show(phase="choice", question=block.options.get("question", "Which interval pushed your "
-                                                                                   "hand along?"),
-                           options=["the first", "the second"])
-            chose = self.page.wait_answer(lambda a: a in (1, 2))
-            correct = chose == (1 if test_first else 2)
-            return {"correct": correct, "answer": chose, "response_time_s": time.monotonic() - started}
+                              experiments.page_text(block, "instructions"))
+            asked = self._ask(block)
+            return {"correct": asked["answer"] == (1 if test_first else 2), **asked}
 
         return self._guard(present)
 
     def compare(self, block, index, trial, first, second) -> Dict[str, Any]:
         def present():
-            self._block_start(block, index)
             for k, condition in enumerate((first, second)):
-                self._present(condition, None, k + 1, 2, "Stroke across the surface.")
-            started = time.monotonic()
-            self.page.show(phase="choice", question=block.options["question"], options=["the first", "the second"])
-            chose = self.page.wait_answer(lambda a: a in (1, 2))
-            return {"chose": chose, "response_time_s": time.monotonic() - started}
+                self._present(condition, None, k + 1, 2, experiments.page_text(block, "instructions"))
+            asked = self._ask(block)
+            return {"chose": asked["answer"], "response_time_s": asked["response_time_s"]}
 
         return self._guard(present)
 
@@ -296,9 +397,8 @@ class PersonAtDevice:
                                                for i in items)
 
         def present():
-            self._block_start(block, index)
-            self._present(condition, None, 1, 1, "Explore the surface.")
-            self.page.show(phase="rating", question="How was it?", items=items)
+            self._present(condition, None, 1, 1, experiments.page_text(block, "instructions"))
+            self.page.show(phase="rating", question=experiments.page_text(block, "question"), items=items)
             ratings = self.page.wait_answer(valid)
             return {"ratings": {i["name"]: int(ratings[i["name"]]) for i in items}}
 
@@ -306,8 +406,7 @@ class PersonAtDevice:
 
     def perform(self, block, index, trial, condition) -> Dict[str, Any]:
         def present():
-            self._block_start(block, index)
-            self._present(condition, None, 1, 1, block.options.get("instructions", ""))
+            self._present(condition, None, 1, 1, experiments.page_text(block, "instructions"))
             on, off = self._intervals[-1]  # the interval's frames: the task's window
             frames = self.run.telemetry()
             taken = {k: v[-(self.run.frames_received - on):][:off - on] for k, v in frames.items()}

@@ -180,7 +180,8 @@ class Session:
         """Runs the trials left with `participant` (two_interval, rate, compare, perform: a
         SimulatedParticipant or a PersonAtDevice), each trial on disk before the next starts.
         `stop_after`: end after that many new trials; `before_trial`: called before each (the
-        experimenter's pause waits there)."""
+        experimenter's pause waits there), then the participant's `prepare(block, index)` if it
+        has one. Each record has the trial's start (`started_utc`, after those) and its end (`utc`)."""
         seed = self.meta["seed"]
         done_now = 0
         path = os.path.join(self.folder, "trials.jsonl")
@@ -191,9 +192,11 @@ class Session:
                 if stop_after is not None and done_now >= stop_after:
                     return
                 before_trial()
+                if hasattr(participant, "prepare"):  # a person: Start, a pause, the break before a block
+                    participant.prepare(block, index)
                 trial = len(procedure.answers)
                 record: Dict[str, Any] = {"block": index, "position": position, "trial": trial,
-                                          "procedure": block.procedure}
+                                          "procedure": block.procedure, "started_utc": _now()}
                 if isinstance(procedure, FixedTrials):
                     spec = procedure.next_trial()
                     if block.procedure == "rating":
