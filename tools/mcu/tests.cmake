@@ -50,9 +50,9 @@ endforeach()
 # the loop with every stage at 1 kHz (`every`) and the effects plus the safety stage
 # (`effects`). The goal, a whole Q16.16 loop tick under 2,000 instructions (2 % of a
 # 1 kHz period at 100 MHz), is held as the mean over each motion. Every single tick is held to
-# 3,200 (3.2 %): the few that pass 2,000 are the cartoon wall's impact trigger and one tick of
-# the cliff on crossing_slow, where the safety stage scales the force (64-bit roots and
-# divisions, in software on an M3; docs/performance/mcu.md).
+# 3,200 (3.2 %), the figure from when 64-bit roots and divisions in software took a few ticks
+# past 2,000; the static bound (wcet below, docs/performance/wcet.md) now holds every tick of
+# every scene's every-stage loop to 2,000 and 2,500 cycles, so this is the coarser net.
 # The effects plus safety: 2,200 a tick, mean 1,200.
 foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   foreach(what loop every effects)
