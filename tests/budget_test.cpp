@@ -106,7 +106,7 @@ TEST(InstructionBudget, TheWholeLoopTickOfEveryPaperSceneAveragesAtMost600Instru
 
 // Q16.16 (it had no budget). On x86 under callgrind, as the double budgets;
 // the Cortex-M3's own counts are tools/mcu's. The budgets are the measured figures plus about
-// 15 % (docs/PERFORMANCE.md, "What is worst by construction"): room for the compiler's drift,
+// 15 % (docs/performance/tick.md, "What is worst by construction"): room for the compiler's drift,
 // not for a regression of that size. Measured when they were set (2026-11-23, g++ 12 -O3):
 // effects plus safety, most expensive tick of the pass 594-1,230 (the cartoon wall's trigger,
 // scene file); whole loop with every stage, mean 962-1,362 (the cliff, scene file).
@@ -161,7 +161,7 @@ TEST(InstructionBudget, Q16EveryTickOfEveryPaperSceneAndTheWholeLoopStayWithinTh
 // and 2,964 in Q16.16 (the slippery surface; its scenario's most expensive tick is 1,817). The
 // budgets are the 400-instruction bar for double effects plus safety, and the others those maxima plus
 // about 15 %: room for the compiler's drift, not for a regression of that size. They are
-// maxima found by a seeded search, not bounds (docs/PERFORMANCE.md says so).
+// maxima found by a seeded search, not bounds (docs/performance/tick.md says so).
 constexpr double kSearchDoubleLoopBudget = 1000.0;
 constexpr double kSearchQ16SceneBudget = 1850.0;
 constexpr double kSearchQ16LoopBudget = 3400.0;

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// `toonforce report all` rewrites only its own part of docs/PERFORMANCE.md: the sections other
+// `toonforce report all` rewrites only its own part of each docs/performance/ page: the sections other
 // commands measured (the servo loop beside cyclictest, the host simulation's speed) must stay
 // byte for byte.
 #include <gtest/gtest.h>

@@ -6,14 +6,14 @@
 #   cmake -DBINARY=toonforce -DROOT=source -DOUT=dir -P report_quick.cmake
 file(REMOVE_RECURSE ${OUT})
 file(MAKE_DIRECTORY ${OUT})
-# The generated part of PERFORMANCE.md goes between the markers of an existing file.
-file(COPY ${ROOT}/docs/PERFORMANCE.md DESTINATION ${OUT})
+# The generated parts of the performance pages go between the markers of existing files.
+file(COPY ${ROOT}/docs/performance/tick.md ${ROOT}/docs/performance/precision.md DESTINATION ${OUT}/performance)
 execute_process(COMMAND ${BINARY} report all --quick --no-callgrind --no-plot --out ${OUT} --root ${ROOT}
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "report all --quick failed (${rc}):\n${out}\n${err}")
 endif()
-foreach(pair "PERFORMANCE.md|## Effect computations" "PERFORMANCE.md|## Error against run time"
+foreach(pair "performance/tick.md|## Effect computations" "performance/precision.md|## Error against run time"
              "STABILITY.md|## How a point is classified" "STABILITY.md|### Stiffness and servo period")
   string(REPLACE "|" ";" parts "${pair}")
   list(GET parts 0 doc)
@@ -24,4 +24,4 @@ foreach(pair "PERFORMANCE.md|## Effect computations" "PERFORMANCE.md|## Error ag
     message(FATAL_ERROR "${doc} has no '${heading}' after report all --quick:\n${out}\n${err}")
   endif()
 endforeach()
-message(STATUS "report all --quick wrote ${OUT}/PERFORMANCE.md and ${OUT}/STABILITY.md")
+message(STATUS "report all --quick wrote ${OUT}/performance/ and ${OUT}/STABILITY.md")

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // The real-time runner and `toonforce run`, asserting counts and file contents, never times
-// (this VM has multi-millisecond hypervisor stalls: docs/PERFORMANCE.md, measured with cyclictest).
+// (this VM has multi-millisecond hypervisor stalls: docs/performance/latency.md, measured with cyclictest).
 // In process: every deadline is either ticked or counted as missed; a stalled tick trips the
 // heartbeat watchdog; a sim run writes one trace row per tick plus the final zero-force row.
 // The binary as a child process under signals and faults: fault_injection_test.cpp.

@@ -179,7 +179,7 @@ TEST(Scenario, CartoonWallEvaluatesItsTransientAtEveryTickOfItsDurationInContact
   // At a fixed rate the transient's sine is taken only at t = k T, k < d / T (effects.md §4):
   // 150 arguments at 1 kHz for the bundled d = 0.15 s. A pass that has all of them in contact
   // counts every argument class of the sine, so its most expensive tick is the worst over the
-  // sine's arguments by enumeration (docs/PERFORMANCE.md, "What is worst by construction").
+  // sine's arguments by enumeration (docs/performance/tick.md, "What is worst by construction").
   const auto desc = load_scene_file(paper_scene_path(TOONFORCE_SOURCE_DIR, "cartoon_wall"));
   ASSERT_TRUE(desc) << desc.error();
   const double duration_s = desc->of<RuntimeSurface>().at(0).impact.law.duration_s;

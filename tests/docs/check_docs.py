@@ -17,6 +17,14 @@
                   literal parts, or a fuzzer declared with toonforce_add_fuzzer(name ...).
   Every row names at least one test; its `code` column's identifiers after a path
   (`control/include/toonforce/control/engage.hpp` `Engage::gain`) must occur in that file.
+- Every relative link of README.md and of every Markdown file under docs/ resolves to a file or
+  folder of the repository and, with an #anchor into a Markdown file, to one of its headings
+  (GitHub's anchors: lower case, spaces as '-', punctuation other than '-' and '_' dropped).
+- Every generated block's begin marker (`<!-- NAME: ... -->`, NAME one whose `<!-- NAME: end -->`
+  some document holds, or one of GENERATED) has its end marker after it in the same file, once:
+  a generator that finds half a block writes around it or refuses.
+- docs/PERFORMANCE.md is the short page of current figures: fewer than PERFORMANCE_LINES lines
+  (the methods and the full tables are its detail pages under docs/performance/).
 
     check_docs.py --source-dir DIR
 
@@ -29,6 +37,12 @@ import sys
 
 DOCS = ["README.md", "docs/ARCHITECTURE.md", "docs/SAFETY.md", "docs/USAGE.md", "docs/NUMBERS.md"]
 SAFETY = "docs/SAFETY.md"
+PERFORMANCE = "docs/PERFORMANCE.md"
+PERFORMANCE_LINES = 300
+# The generated blocks' names (the programs that write them: tools/report/src/documents.cpp,
+# mcu.cpp, tools/mcu/wcet/bounds_table.py, stages_table.py).
+GENERATED = {"toonforce report", "toonforce report precision", "toonforce report mcu", "wcet bounds", "wcet stages"}
+MARKER = re.compile(r"<!-- ([a-z][a-z0-9 ]*): (.*?) -->")
 # What a repository path in a code span starts with. Fixed, not listed from the disk: a build
 # folder inside the source tree (build/release/bin/toonforce) is not part of the repository.
 TOP_DIRS = {".ci", "cmake", "control", "docs", "effects", "examples", "hal", "host_sim", "scenes", "tests", "tools"}
@@ -105,9 +119,9 @@ def path_words(span):
             yield word
 
 
-def check_paths(source, doc, lines, problems):
+def check_links(source, doc, lines, problems):
     doc_dir = os.path.dirname(os.path.join(source, doc))
-    text = "\n".join(lines)  # a code span may go on over a line break
+    text = "\n".join(lines)
     line_of = lambda offset: f"{doc}:{text.count(chr(10), 0, offset) + 1}"
     for m in LINK.finditer(text):
         target = m.group(1)
@@ -120,12 +134,49 @@ def check_paths(source, doc, lines, problems):
         elif anchor and path.endswith(".md") and anchor not in anchors(path):
             problems.append(f"{line_of(m.start())}: the link {target}: {os.path.relpath(path, source)} "
                             f"has no heading #{anchor}")
+
+
+def check_paths(source, doc, lines, problems):
+    text = "\n".join(lines)  # a code span may go on over a line break
+    line_of = lambda offset: f"{doc}:{text.count(chr(10), 0, offset) + 1}"
     # Link texts out (their targets are checked above), same length so that offsets stay.
     rest = LINK.sub(lambda m: " " * len(m.group(0)), text)
     for m in SPAN.finditer(rest):
         for word in path_words(m.group(2)):
             if not os.path.exists(os.path.join(source, word)):
                 problems.append(f"{line_of(m.start())}: `{word}` is not a path of the repository")
+
+
+def markdown_docs(source):
+    """README.md and every Markdown file under docs/, repository-relative, sorted."""
+    docs = ["README.md"] if os.path.isfile(os.path.join(source, "README.md")) else []
+    docs += sorted(os.path.relpath(p, source) for p in walk(os.path.join(source, "docs"), (".md",)))
+    return docs
+
+
+def check_markers(docs, texts, problems):
+    names = set(GENERATED)
+    for text in texts.values():
+        names.update(m.group(1) for m in MARKER.finditer(text) if m.group(2) == "end")
+    for doc in docs:
+        text = texts[doc]
+        open_at = {}
+        for m in MARKER.finditer(text):
+            name, what = m.group(1), m.group(2)
+            if name not in names:
+                continue
+            line = f"{doc}:{text.count(chr(10), 0, m.start()) + 1}"
+            if what != "end":
+                if name in open_at:
+                    problems.append(f"{line}: a second begin marker of '{name}' before the end of the one at "
+                                    f"{open_at[name]}")
+                open_at[name] = line
+            elif name in open_at:
+                del open_at[name]
+            else:
+                problems.append(f"{line}: the end marker of '{name}' has no begin marker before it")
+        for name, line in open_at.items():
+            problems.append(f"{line}: the begin marker of '{name}' has no end marker after it in {doc}")
 
 
 def gtest_names(source):
@@ -215,11 +266,27 @@ def main():
         check_paths(source, doc, lines, problems)
         if doc == SAFETY:
             check_safety(source, lines, problems)
+    every = markdown_docs(source)
+    texts = {}
+    for doc in every:
+        with open(os.path.join(source, doc), encoding="utf-8") as f:
+            texts[doc] = f.read()
+        check_links(source, doc, prose(texts[doc]), problems)
+    check_markers(every, texts, problems)
+    if PERFORMANCE in texts:
+        lines = texts[PERFORMANCE].count("\n") + (0 if texts[PERFORMANCE].endswith("\n") else 1)
+        if lines >= PERFORMANCE_LINES:
+            problems.append(f"{PERFORMANCE}: {lines} lines, not fewer than {PERFORMANCE_LINES}: it is the short page of "
+                            "current figures; methods and full tables go to its pages under docs/performance/")
+    else:
+        problems.append(f"{PERFORMANCE}: missing")
+    problems = list(dict.fromkeys(problems))  # a DOCS file's links are checked twice
     for p in problems:
         print(f"check_docs: {p}", file=sys.stderr)
     if problems:
         return 1
-    print(f"check_docs: {len(DOCS)} documents' paths and links, and every test {SAFETY} names, exist")
+    print(f"check_docs: {len(DOCS)} documents' paths, every test {SAFETY} names, and {len(every)} documents' "
+          f"links and generated blocks are sound; {PERFORMANCE} is short")
     return 0
 
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // How long a live scene's change takes to reach the servo loop
-// (docs/PERFORMANCE.md "Live scene updates"). A benchmark, never a test: it prints timings.
+// (docs/performance/live.md). A benchmark, never a test: it prints timings.
 //
 // The loop runs on the real-time runner (the one behind `toonforce run`) at --rate Hz with a
 // live stage, on a device that holds the HIP 1 mm inside a floor. An application thread calls

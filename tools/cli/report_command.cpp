@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself.
-// Each prints Markdown; `all` regenerates docs/PERFORMANCE.md and docs/STABILITY.md and their
-// plots (tools/report/include/toonforce/report/documents.hpp), and the microcontroller block when
-// the Cortex-M3 images are built (mcu.hpp).
+// Each prints Markdown; `all` regenerates the generated blocks of docs/performance/ and
+// docs/STABILITY.md and their plots (tools/report/include/toonforce/report/documents.hpp), and
+// the microcontroller block when the Cortex-M3 images are built (mcu.hpp).
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -76,7 +76,7 @@ void add_latency(CLI::App& report) {
   cmd->add_option("--valgrind", options->valgrind, "The valgrind to run (default: valgrind from PATH)");
   cmd->add_option("--tick-count", options->tick_count, "toonforce_tick_count (default: beside this executable)");
   auto docs = std::make_shared<std::string>();
-  cmd->add_option("--docs", *docs, "Regenerate the latency block of DIR/PERFORMANCE.md instead of printing it");
+  cmd->add_option("--docs", *docs, "Regenerate the latency block of DIR/performance/tick.md instead of printing it");
   cmd->callback([options, no_callgrind, docs, cmd] {
     options->callgrind = !*no_callgrind;
     const bool root_given = !options->root.empty();
@@ -128,7 +128,7 @@ void add_precision(CLI::App& report) {
   cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
   cmd->add_option("--docs", *docs,
                   "Also write the CSVs and plots into DIR/report/ and regenerate the precision block of "
-                  "DIR/PERFORMANCE.md");
+                  "DIR/performance/precision.md");
   auto no_plot = std::make_shared<bool>(false);
   cmd->add_flag("--no-plot", *no_plot, "With --docs: no plots");
   auto mcu_images = std::make_shared<std::string>();
@@ -198,7 +198,7 @@ void add_stability(CLI::App& report) {
                   "Longest run [s] of a linear-map point whose eigenvalue predicts growth, 1..3600 (default 300)")
       ->check(number_in(1, 3600));
   cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
-  cmd->add_option("--out", *out, "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not PERFORMANCE.md)");
+  cmd->add_option("--out", *out, "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not the performance pages)");
   cmd->add_flag("--no-plot", *no_plot, "With --out: the CSVs and STABILITY.md without plots");
   cmd->callback([options, out, no_plot] {
     if (!out->empty()) {
@@ -225,7 +225,7 @@ void add_stability(CLI::App& report) {
 }
 
 /// The microcontroller figures: the Cortex-M3 images (and the M4F ones beside them)
-/// under QEMU, their tables; --docs regenerates their block of PERFORMANCE.md.
+/// under QEMU, their tables; --docs regenerates their block of performance/mcu.md.
 void add_mcu(CLI::App& report) {
   auto options = std::make_shared<report::McuOptions>();
   auto docs = std::make_shared<std::string>();
@@ -240,7 +240,7 @@ void add_mcu(CLI::App& report) {
   cmd->add_option("--m4f-images", options->m4f_images,
                   "The Cortex-M4F images (default: cortex-m4f beside the M3 ones; if absent, the section says so)");
   cmd->add_option("--gen", options->gen, "toonforce_mcu_gen (default: in the M3 images' parent directory)");
-  cmd->add_option("--docs", *docs, "Regenerate the microcontroller block of DIR/PERFORMANCE.md instead of printing it");
+  cmd->add_option("--docs", *docs, "Regenerate the microcontroller block of DIR/performance/mcu.md instead of printing it");
   cmd->callback([options, docs] {
     // The command as asked for, written into the section.
     std::string line = "toonforce report mcu";
@@ -270,7 +270,7 @@ void add_all(CLI::App& report) {
   auto no_callgrind = std::make_shared<bool>(false);
   auto no_plot = std::make_shared<bool>(false);
   CLI::App* cmd = report.add_subcommand(
-      "all", "Run every report; regenerate OUT/PERFORMANCE.md (its generated part), OUT/STABILITY.md, OUT/report/");
+      "all", "Run every report; regenerate the blocks of OUT/performance/, OUT/STABILITY.md, OUT/report/");
   cmd->add_option("--out", options->out_dir, "Directory of the documents (default docs)");
   cmd->add_option("--root", options->root, "Source tree holding scenes/");
   cmd->add_option("--ticks", options->latency.ticks, "Timed ticks per latency row, 1..1e10 (default 10^7)")
@@ -304,7 +304,7 @@ void add_all(CLI::App& report) {
     mcu.root = options->root;
     mcu.command = "toonforce report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
     if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
-      std::printf("not regenerated: the microcontroller block of %s/PERFORMANCE.md: %s\n", options->out_dir.c_str(),
+      std::printf("not regenerated: the microcontroller block of %s/performance/mcu.md: %s\n", options->out_dir.c_str(),
                   why.c_str());
     } else {
       const auto figures = report::run_mcu(mcu, progress);

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # A test of `toonforce report mcu --docs`: it regenerates the microcontroller block of a copy of
-# docs/PERFORMANCE.md from the built images, and the block must hold what is true of any run,
+# docs/performance/mcu.md from the built images, and the block must hold what is true of any run,
 # whatever the numbers: a row per paper scene in each table, sizes that add up, the wall's image
 # smaller than the cartoon wall's (which has the impact transient too), smaller than the image
 # with all five scenes, instruction counts that are positive integers with mean <= max (and, on
@@ -18,9 +18,9 @@ set(begin_marker "<!-- toonforce report mcu: begin -->")
 set(end_marker "<!-- toonforce report mcu: end -->")
 
 file(REMOVE_RECURSE "${OUT}")
-file(MAKE_DIRECTORY "${OUT}/docs")
-file(COPY "${DOCS}/PERFORMANCE.md" DESTINATION "${OUT}/docs")
-file(READ "${DOCS}/PERFORMANCE.md" before)
+file(MAKE_DIRECTORY "${OUT}/docs/performance")
+file(COPY "${DOCS}/performance/mcu.md" DESTINATION "${OUT}/docs/performance")
+file(READ "${DOCS}/performance/mcu.md" before)
 
 execute_process(
   COMMAND "${TOONFORCE}" report mcu --images "${IMAGES}" --m4f-images "${M4F_IMAGES}" --gen "${GEN}"
@@ -29,7 +29,7 @@ execute_process(
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "toonforce report mcu failed (${rc}):\n${out}${err}")
 endif()
-file(READ "${OUT}/docs/PERFORMANCE.md" after)
+file(READ "${OUT}/docs/performance/mcu.md" after)
 
 # The markers: once each, begin before end, in the document before and after.
 foreach(which before after)
@@ -37,12 +37,12 @@ foreach(which before after)
     string(FIND "${${which}}" "${${marker}}" first)
     string(FIND "${${which}}" "${${marker}}" last REVERSE)
     if(first EQUAL -1 OR NOT first EQUAL last)
-      message(FATAL_ERROR "PERFORMANCE.md (${which} the report) must hold '${${marker}}' exactly once")
+      message(FATAL_ERROR "performance/mcu.md (${which} the report) must hold '${${marker}}' exactly once")
     endif()
     set(${which}_${marker} ${first})
   endforeach()
   if(NOT ${which}_begin_marker LESS ${which}_end_marker)
-    message(FATAL_ERROR "PERFORMANCE.md (${which} the report): the end marker comes before the begin marker")
+    message(FATAL_ERROR "performance/mcu.md (${which} the report): the end marker comes before the begin marker")
   endif()
 endforeach()
 
@@ -55,10 +55,10 @@ math(EXPR after_tail_at "${after_end_marker} + ${end_length}")
 string(SUBSTRING "${before}" ${before_tail_at} -1 before_tail)
 string(SUBSTRING "${after}" ${after_tail_at} -1 after_tail)
 if(NOT before_head STREQUAL after_head)
-  message(FATAL_ERROR "the report changed PERFORMANCE.md before its block")
+  message(FATAL_ERROR "the report changed performance/mcu.md before its block")
 endif()
 if(NOT before_tail STREQUAL after_tail)
-  message(FATAL_ERROR "the report changed PERFORMANCE.md after its block")
+  message(FATAL_ERROR "the report changed performance/mcu.md after its block")
 endif()
 
 string(LENGTH "${begin_marker}" begin_length)
@@ -235,6 +235,6 @@ endforeach()
 
 if(failures)
   list(JOIN failures "\n  " text)
-  message(FATAL_ERROR "the microcontroller block of ${OUT}/docs/PERFORMANCE.md:\n  ${text}\n\n${block}")
+  message(FATAL_ERROR "the microcontroller block of ${OUT}/docs/performance/mcu.md:\n  ${text}\n\n${block}")
 endif()
 message(STATUS "report mcu: four tables, every scene in each, sizes and counts consistent; prose outside the block unchanged")

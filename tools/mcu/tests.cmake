@@ -50,9 +50,9 @@ endforeach()
 # the loop with every stage at 1 kHz (`every`) and the effects plus the safety stage
 # (`effects`). The goal, a whole Q16.16 loop tick under 2,000 instructions (2 % of a
 # 1 kHz period at 100 MHz), is held as the mean over each motion. Every single tick is held to
-# 3,200 (3.2 %): the few that pass 2,000 are the cartoon wall's impact trigger and one tick of
-# the cliff on crossing_slow, where the safety stage scales the force (64-bit roots and
-# divisions, in software on an M3; docs/PERFORMANCE.md, "Microcontroller").
+# 3,200 (3.2 %), the figure from when 64-bit roots and divisions in software took a few ticks
+# past 2,000; the static bound (wcet below, docs/performance/wcet.md) now holds every tick of
+# every scene's every-stage loop to 2,000 and 2,500 cycles, so this is the coarser net.
 # The effects plus safety: 2,200 a tick, mean 1,200.
 foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   foreach(what loop every effects)
@@ -163,7 +163,7 @@ add_test(NAME mcu_m3_product_bound COMMAND /usr/bin/python3 ${_wcet}/check_produ
   ${_mcu_m3_dir}/product_cartoon_wall.elf ${_mcu_bin}/runs/cortex-m3/product_cartoon_wall/target.txt
   --objects ${_mcu_m3_dir}/CMakeFiles/product_cartoon_wall.dir --budget-cycles 2500)
 set_tests_properties(mcu_m3_product_bound PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_run_product_cartoon_wall)
-# docs/PERFORMANCE.md's bounds table is the one the scene images give (bounds_table.py --write
+# docs/performance/wcet.md's bounds table is the one the scene images give (bounds_table.py --write
 # puts it there): no figure of it drifts from the code.
 set(_bound_jsons)
 set(_bound_fixtures)
@@ -172,7 +172,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   list(APPEND _bound_fixtures mcu_m3_wcet_${scene})
 endforeach()
 add_test(NAME mcu_m3_wcet_bounds_table COMMAND /usr/bin/python3 ${_wcet}/bounds_table.py
-  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_bound_jsons})
+  --doc ${PROJECT_SOURCE_DIR}/docs/performance/wcet.md --check ${_bound_jsons})
 set_tests_properties(mcu_m3_wcet_bounds_table PROPERTIES LABELS mcu FIXTURES_REQUIRED "${_bound_fixtures}")
 # And its breakdown of the every-stage bound by stage and by kind is the one the images give
 # (stages_table.py --write): the prose's "where the bound goes" cannot drift either.
@@ -181,7 +181,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   list(APPEND _stage_elfs ${_mcu_m3_dir}/${scene}.elf)
 endforeach()
 add_test(NAME mcu_m3_wcet_stages_table COMMAND /usr/bin/python3 ${_wcet}/stages_table.py
-  --doc ${PROJECT_SOURCE_DIR}/docs/PERFORMANCE.md --check ${_stage_elfs})
+  --doc ${PROJECT_SOURCE_DIR}/docs/performance/wcet.md --check ${_stage_elfs})
 set_tests_properties(mcu_m3_wcet_stages_table PROPERTIES LABELS mcu FIXTURES_REQUIRED mcu_m3_images)
 file(MAKE_DIRECTORY ${_mcu_bin}/wcet)
 # A second, independent worst case (wcet/longest_path.py: LLVM's llvm-objdump as the decoder, its
@@ -283,7 +283,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   endforeach()
 endforeach()
 
-# `toonforce report mcu --docs` (docs/PERFORMANCE.md's Microcontroller block) on a copy of the
+# `toonforce report mcu --docs` (docs/performance/mcu.md's generated block) on a copy of the
 # docs, from images that passed their runs: every scene in every table, sizes and counts that
 # must hold whatever the numbers, and the prose outside the block unchanged.
 set(_mcu_report_fixtures mcu_m4f_images)

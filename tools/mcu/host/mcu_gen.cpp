@@ -23,7 +23,7 @@
 //     bit for bit (force, fault and limit bits). Exit 0 when every pair matches.
 //
 //   toonforce_mcu_gen figures --size IMAGE=SIZE_A.txt ... --run SCENE=TARGET.txt ...
-//     The Markdown tables of docs/PERFORMANCE.md's Microcontroller section: each image's
+//     The Markdown tables of docs/performance/mcu.md's generated block: each image's
 //     sizes (from `arm-none-eabi-size -A`) and each scene's instructions per tick, stack and
 //     state (from an image's output).
 #include <algorithm>

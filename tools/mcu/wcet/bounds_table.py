@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: Apache-2.0
-"""The bounds table of docs/PERFORMANCE.md, from check_bound.py's JSON of each scene
+"""The bounds table of docs/performance/wcet.md, from check_bound.py's JSON of each scene
 image: per scene and loop variant the static bound in instructions and cycles, the dearest tick
 measured under QEMU over the bundled motions and with the searched inputs, that tick as a share
 of the bound (the witness), how much of the longest path no tick ran, and the highest servo
@@ -10,7 +10,7 @@ The table sits between the two marker lines below in the document. --check (CTes
 mcu_m3_wcet_bounds_table) fails when the document's table is not the one the images give, so
 the figures cannot drift from the code; --write puts it there.
 
-    bounds_table.py --doc docs/PERFORMANCE.md (--check | --write) SCENE.json...
+    bounds_table.py --doc docs/performance/wcet.md (--check | --write) SCENE.json...
 """
 import json
 import os

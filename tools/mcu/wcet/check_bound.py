@@ -19,7 +19,7 @@ can be measured (exit 2).
 A ratchet besides: with --ceilings FILE, a bound above the one FILE records for that image,
 scene and variant fails too (a change made a tick dearer in the worst case; if that is meant,
 --update-ceilings rewrites the image's rows with its bounds, to commit with the change). The
-budgets (docs/PERFORMANCE.md) are reported against; --gate-budget GATE fails on one (tests.cmake gates the
+budgets (docs/performance/wcet.md) are reported against; --gate-budget GATE fails on one (tests.cmake gates the
 effects plus safety's 1,500 instructions, which every scene meets, the every-stage loop's 2,000
 instructions in the images of the scenes that meet them (every-instructions), and its 2,000
 instructions and 2,500 cycles in those of the scenes that meet both (every); the others stay
@@ -288,7 +288,7 @@ def measured(counts: str) -> tuple[dict, dict]:
     return worst, bundled
 
 
-BUDGETS = {"every": (2000, 2500), "effects": (1500, None)}  # instructions, cycles (docs/PERFORMANCE.md)
+BUDGETS = {"every": (2000, 2500), "effects": (1500, None)}  # instructions, cycles (docs/performance/wcet.md)
 # What --gate-budget can gate: a variant's whole budget, or the every-stage loop's instructions
 # alone (met by more scenes than its cycles are): gate -> (variant, instructions, cycles or None).
 GATES = {"every": ("every", 2000, 2500), "every-instructions": ("every", 2000, None), "effects": ("effects", 1500, None)}

@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Where the every-stage bound goes: the instructions of each scene image's longest
 path (wcet.py's bound of the every-stage tick, `full_tick`) by the stage of the servo loop they
-belong to, and by the kind of work, as two tables of docs/PERFORMANCE.md.
+belong to, and by the kind of work, as two tables of docs/performance/wcet.md.
 
 An instruction belongs to the outermost stage function (STAGES) in its chain of inlined
 functions (addr2line -i), the chain of the call site included when it is in a function the tick
@@ -15,7 +15,7 @@ The tables sit between marker lines in the document. --check (CTest mcu_m3_wcet_
 fails when they are not the ones the images give, so the prose's breakdown cannot drift from the
 code; --write puts them there.
 
-    stages_table.py --doc docs/PERFORMANCE.md (--check | --write) SCENE.elf...
+    stages_table.py --doc docs/performance/wcet.md (--check | --write) SCENE.elf...
 """
 from __future__ import annotations
 

@@ -56,7 +56,7 @@ Result<bool> plot(StagedOutputs& outputs, const std::string& kind, const fs::pat
   return true;
 }
 
-/// A new PERFORMANCE.md's start, before the generated blocks.
+/// A new performance page's start, before its generated block.
 constexpr const char* kPerformanceHead =
     "# Performance\n\nMeasured figures, with the exact commands that produced them. Timings are benchmarks, never "
     "pass/fail tests.\n";
@@ -223,8 +223,8 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "| 9. long-run energy of an isolated passive scene | "
         "`ExtremeCases.AnIsolatedPassiveSceneNeverGainsEnergy` |\n\n"
         "The closed-loop drift of every paper scene and scalar type (the passivity observer against the plant's true "
-        "port work, float and Q16.16 against double, over simulated hours) is in docs/PERFORMANCE.md (precision "
-        "report).\n";
+        "port work, float and Q16.16 against double, over simulated hours) is in docs/performance/precision.md "
+        "(precision report).\n";
   return md;
 }
 
@@ -323,7 +323,9 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
   auto precision = run_precision(precision_options, progress);
   if (!precision) return Error{precision.error()};
 
-  const fs::path performance = out / "PERFORMANCE.md";
+  const fs::path performance = out / kLatencyDocument;
+  fs::create_directories(performance.parent_path(), ec);
+  if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();
@@ -347,7 +349,10 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
 
 Result<std::vector<std::string>> write_latency_documents(const LatencyReport& latency, const std::string& out_dir,
                                                          const std::string& command_line) {
-  const fs::path performance = fs::path(out_dir) / "PERFORMANCE.md";
+  const fs::path performance = fs::path(out_dir) / kLatencyDocument;
+  std::error_code ec;
+  fs::create_directories(performance.parent_path(), ec);
+  if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();
@@ -389,11 +394,14 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
       if (auto p = plot(outputs, "closed-loop", staged[3], figures / "closed_loop.png"); !p) return Error{p.error()};
     }
   }
-  const fs::path performance = out / "PERFORMANCE.md";
+  const fs::path performance = out / kPrecisionDocument;
+  fs::create_directories(performance.parent_path(), ec);
+  if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();
-  const std::string section = precision_section(precision, command_line, "report");
+  // The plots are in <out>/report/, one level up from the page.
+  const std::string section = precision_section(precision, command_line, "../report");
   if (text.find(kPrecisionBeginMarker) == std::string::npos) {
     // First time: the block goes right after the main generated block (or at the end).
     const auto e = text.find(kEndMarker);
@@ -416,7 +424,9 @@ Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return Error{fmt::format("cannot create {}: {}", out.string(), ec.message())};
-  const fs::path performance = out / "PERFORMANCE.md";
+  const fs::path performance = out / kMcuDocument;
+  fs::create_directories(performance.parent_path(), ec);
+  if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
   std::string text = existing.value();

@@ -125,7 +125,7 @@ extern template RuntimeScene<double> make_runtime_scene<double>(const SceneDescr
 extern template RuntimeScene<float> make_runtime_scene<float>(const SceneDescription&);
 extern template RuntimeScene<Q16_16> make_runtime_scene<Q16_16>(const SceneDescription&);
 
-/// Q16.16 guards (spec effects.md §7; docs/PERFORMANCE.md "Fixed point (Q16.16)"). A Q16.16
+/// Q16.16 guards (spec effects.md §7; docs/performance/fixed-point.md). A Q16.16
 /// value saturates at (2^31 - 1) / 2^16 = 32767.99998; every sum, product and quotient of the
 /// loop saturates there and the loop faults (Fault::kFixedSaturation). The guards refuse, before
 /// anything runs, rates and scenes whose quantities reach that in normal use: the HIP inside the

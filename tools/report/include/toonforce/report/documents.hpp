@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 /// `toonforce report all`: runs the latency, precision and stability reports and regenerates
-/// docs/PERFORMANCE.md (its generated part only: everything outside the markers
+/// their blocks of the detail pages under docs/performance/ (kLatencyDocument,
+/// kPrecisionDocument; only between their markers, e.g.
 ///   <!-- toonforce report: begin --> ... <!-- toonforce report: end -->
-/// is kept byte for byte, so sections other commands measured stay as they were) and
+/// everything else is kept byte for byte, so sections other commands measured stay as they were) and
 /// docs/STABILITY.md (entirely), with their CSVs and plots in <out>/report/. The CLI's `report
 /// all` also regenerates the microcontroller block (write_mcu_documents) when the Cortex-M3
 /// images are built (tools/cli/report_command.cpp).
@@ -18,9 +19,16 @@
 
 namespace toonforce::report {
 
+/// The pages the generated blocks live in, relative to the documents directory (`--docs`,
+/// `--out`): docs/PERFORMANCE.md itself is the short page of current figures, written by hand,
+/// that links them. Their plots stay in <documents>/report/, one level up from these pages.
+inline constexpr std::string_view kLatencyDocument = "performance/tick.md";
+inline constexpr std::string_view kPrecisionDocument = "performance/precision.md";
+inline constexpr std::string_view kMcuDocument = "performance/mcu.md";
+
 inline constexpr std::string_view kBeginMarker = "<!-- toonforce report: begin -->";
 inline constexpr std::string_view kEndMarker = "<!-- toonforce report: end -->";
-/// The precision report's own block in PERFORMANCE.md, so `toonforce report precision --docs`
+/// The precision report's own block (kPrecisionDocument), so `toonforce report precision --docs`
 /// regenerates it alone (the latency block is a benchmark of its own).
 inline constexpr std::string_view kPrecisionBeginMarker = "<!-- toonforce report precision: begin -->";
 inline constexpr std::string_view kPrecisionEndMarker = "<!-- toonforce report precision: end -->";
@@ -39,7 +47,7 @@ struct DocumentsOptions {
 Result<std::vector<std::string>> write_documents(const DocumentsOptions& options, const Progress& progress = {});
 
 /// The stability report alone (`toonforce report stability --out DIR`): OUT/STABILITY.md and
-/// its CSVs and plots in OUT/report/, leaving PERFORMANCE.md alone. Returns the files written.
+/// its CSVs and plots in OUT/report/, leaving the performance pages alone. Returns the files written.
 Result<std::vector<std::string>> write_stability_documents(const DocumentsOptions& options,
                                                            const Progress& progress = {});
 /// `existing` with the text between the markers replaced by `generated` (markers kept); if it
@@ -48,15 +56,15 @@ std::string merge_generated(const std::string& existing, const std::string& gene
                             std::string_view begin_marker = kBeginMarker, std::string_view end_marker = kEndMarker);
 
 /// Writes the precision report's CSVs and plots into <out_dir>/report/ and its block of
-/// <out_dir>/PERFORMANCE.md (after the main generated block if it has none yet). Returns the
-/// files written.
+/// <out_dir>/performance/precision.md (after the main generated block if it has none yet and the
+/// page holds that one). Returns the files written.
 Result<std::vector<std::string>> write_precision_documents(const PrecisionReport& precision, const std::string& out_dir,
                                                            const std::string& command_line, bool plot);
 
-/// Regenerates the microcontroller block of <out_dir>/PERFORMANCE.md (kMcuBeginMarker ...
+/// Regenerates the microcontroller block of <out_dir>/performance/mcu.md (kMcuBeginMarker ...
 /// kMcuEndMarker; everything outside it kept byte for byte). With no block yet, it goes at the
 /// end under a "## Microcontroller" heading. Returns the files written.
-/// Regenerates only the latency block of OUT/PERFORMANCE.md (`toonforce report latency --docs`):
+/// Regenerates only the latency block of OUT/performance/tick.md (`toonforce report latency --docs`):
 /// the timing tables want a quiet machine, the other reports do not.
 Result<std::vector<std::string>> write_latency_documents(const LatencyReport& latency, const std::string& out_dir,
                                                          const std::string& command_line);

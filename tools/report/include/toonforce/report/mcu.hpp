@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report mcu`: the microcontroller figures of docs/PERFORMANCE.md
+/// `toonforce report mcu`: the microcontroller figures of docs/performance/mcu.md
 /// (tools/mcu/README.md). For a directory of built Cortex-M3 images (and the Cortex-M4F ones
 /// beside it, when built) it runs what the tables need, as tools/mcu/figures used to:
 /// `arm-none-eabi-size -A` on each size image, each scene image under `qemu-system-arm` in
@@ -17,8 +17,8 @@
 
 namespace toonforce::report {
 
-/// The block of PERFORMANCE.md `toonforce report mcu --docs` regenerates; the Microcontroller
-/// section's prose stays outside it.
+/// The block of docs/performance/mcu.md `toonforce report mcu --docs` regenerates; the page's
+/// prose stays outside it.
 inline constexpr std::string_view kMcuBeginMarker = "<!-- toonforce report mcu: begin -->";
 inline constexpr std::string_view kMcuEndMarker = "<!-- toonforce report mcu: end -->";
 
