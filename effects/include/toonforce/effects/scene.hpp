@@ -41,6 +41,8 @@ struct EffectInfo {
 };
 
 /// What the servo loop needs of a scene, compile-time or run-time.
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class T>
 concept SceneType = requires(const T& scene, typename T::State& s, const typename T::State& cs,
                              const TickInput<typename T::Scalar>& in, ActiveForce<typename T::Scalar>* active,
@@ -57,6 +59,7 @@ concept SceneType = requires(const T& scene, typename T::State& s, const typenam
   { scene.effect_count() } noexcept -> std::same_as<std::size_t>;
   { scene.effect_info(i) } noexcept -> std::same_as<EffectInfo>;
 };
+// clang-format on
 
 template <Effect First, Effect... Rest>
 class Scene {

@@ -69,9 +69,12 @@ struct TickInput {
                           : static_cast<double>(now.stamp_ns - earlier.stamp_ns) / static_cast<double>(kNsPerS);
   }
   /// A fixed-point S: nanoseconds from `earlier` to this tick, in integers.
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   constexpr std::int64_t ns_since(Instant earlier) const noexcept
     requires kIsFixed<S>
   {
+    // clang-format on
     return period_ns > 0 ? (now.tick - earlier.tick) * period_ns : now.stamp_ns - earlier.stamp_ns;
   }
 };
