@@ -193,9 +193,9 @@ class RuntimeSceneOf {
 
   /// Index of the kind whose key is `key`, or kKinds.
   static constexpr std::size_t kind_index(std::string_view key) noexcept {
-    constexpr std::array<std::string_view, kKinds> keys{Kinds<S>::kKey...};
+    constexpr std::array<std::string_view, kKinds> kKeys{Kinds<S>::kKey...};
     for (std::size_t i = 0; i < kKinds; ++i) {
-      if (keys[i] == key) return i;
+      if (kKeys[i] == key) return i;
     }
     return kKinds;
   }

@@ -129,7 +129,8 @@ struct AxisPlane {
     component(n) = S::from_raw(static_cast<Raw>(kSign * S::kOneRaw));
     return n;
   }
-  static constexpr Vec3<S> normal = normal_of();
+  // Named as Plane's field, which the code generic over both reads as `plane.normal`.
+  static constexpr Vec3<S> normal = normal_of();  // NOLINT(readability-identifier-naming)
 
   // n.(x - p) is kSign (x_a - p_a) 2^F before Plane's rounding, which leaves kSign (x_a - p_a)
   // exactly: from_wide of it saturates as from_product did. n.v likewise.
