@@ -5,6 +5,8 @@
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/effects/instantiations.hpp"
 
+// S is a template argument: parentheses would not compile.
+// NOLINTBEGIN(bugprone-macro-parentheses)
 #define TOONFORCE_DEFINE_CONTROL(S)                                                                    \
   template class ::toonforce::VelocityEstimator<S>;                                                    \
   template class ::toonforce::ForceSafety<S>;                                                          \
@@ -15,4 +17,5 @@
   template class ::toonforce::ServoLoop<::toonforce::DriverRef, ::toonforce::RuntimeScene<S>>;         \
   template class ::toonforce::ServoLoop<::toonforce::DriverRef, ::toonforce::RuntimeScene<S>, ::toonforce::NullPins, \
                                         ::toonforce::kSpecStages>;
+// NOLINTEND(bugprone-macro-parentheses)
 TOONFORCE_FOR_EACH_SCALAR(TOONFORCE_DEFINE_CONTROL)

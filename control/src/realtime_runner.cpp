@@ -57,7 +57,7 @@ constexpr bool kSanitized =
 
 /// Touches a stack region so its pages are mapped (and locked) before the first tick.
 void prefault_stack() noexcept {
-  constexpr std::size_t kBytes = 256 * 1024;
+  constexpr std::size_t kBytes = std::size_t{256} * 1024;
   unsigned char buffer[kBytes];
   for (std::size_t i = 0; i < kBytes; i += 4096) static_cast<volatile unsigned char*>(buffer)[i] = 0;
   asm volatile("" : : "r"(buffer) : "memory");  // keep the writes

@@ -75,6 +75,7 @@ std::vector<std::string> chip_paths() {
   }
   std::sort(found.begin(), found.end());
   std::vector<std::string> paths;
+  paths.reserve(found.size());
   for (auto& [number, path] : found) paths.push_back(std::move(path));
   return paths;
 }
@@ -270,6 +271,7 @@ std::optional<std::string> resolve_by_name(Wanted& w, ChipCache& cache, NameInde
   }
   if (places.size() > 1) {
     std::vector<std::string> where;
+    where.reserve(places.size());
     for (const auto& p : places) where.push_back(fmt::format("{}:{}", chip_name(p.path), p.offset));
     return fmt::format("the name '{}' belongs to several lines ({}); name the line as CHIP:OFFSET",
                        w.spec.name, join(where, ", "));

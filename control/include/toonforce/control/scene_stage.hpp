@@ -85,10 +85,13 @@ class SceneStage {
   /// update's scene in place whole, carries the effects' states over, fires its events. `in` is
   /// this tick's input if the HIP's position is known (else null: no force flows, nothing to
   /// keep continuous); the force difference fades over `fade_ticks` ticks (0: none).
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   template <class Update>  // SceneUpdate<SceneT>; a template so that a scene that cannot be live never names it
   void apply(const Update& update, const TickInput<S>* in, Instant now, std::int64_t fade_ticks) noexcept
     requires kLive
   {
+    // clang-format on
     // What the old scene (with the fade still running) gives here, its states untouched.
     const bool measure = in != nullptr && started_ && fade_ticks > 0;
     Vec3<S> before{};
@@ -111,11 +114,13 @@ class SceneStage {
     }
   }
   /// Live stage: the force difference still fading [N].
+  // clang-format off
   const Vec3<S>& fade_offset() const noexcept
     requires kLive
   {
     return fade_.offset_n;
   }
+  // clang-format on
 
   /// This tick's active parts (valid after a tick that counted).
   const ActiveForce<S>* active() const noexcept { return active_.data(); }

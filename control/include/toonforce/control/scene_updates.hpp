@@ -38,6 +38,8 @@ namespace toonforce {
 
 /// A scene a live loop can take updates of: a run-time scene (RuntimeSceneOf), whose effects
 /// carry their states over and take events, and which can rebuild itself from an untrusted copy.
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class T>
 concept LiveSceneType = SceneType<T> && requires(const T& scene, T& rebuilt, const typename T::State& from,
                                                  typename T::State& s, const std::int16_t* continues) {
@@ -48,6 +50,7 @@ concept LiveSceneType = SceneType<T> && requires(const T& scene, T& rebuilt, con
   { scene.continues_ok(scene, continues) } noexcept -> std::same_as<bool>;
   { scene.takes_event(std::size_t{}, std::size_t{}, 0.0) } noexcept -> std::same_as<bool>;
 };
+// clang-format on
 
 /// One event for one effect of the update's scene.
 struct SceneEvent {

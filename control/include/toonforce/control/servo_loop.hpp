@@ -127,6 +127,8 @@ class ServoLoop {
   /// A live loop takes its scene updates from `mailbox` (the application's side pushes them;
   /// config/scene_editor.hpp) from the next tick on, from the mailbox's first update: no other
   /// loop has taken any of it. Before the loop runs, or from its thread.
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   template <class M>
   void listen(M& mailbox) noexcept
     requires(kStages.live && std::same_as<M, Mailbox>)
@@ -134,6 +136,7 @@ class ServoLoop {
     mailbox_ = &mailbox;
     intake_.restart();
   }
+  // clang-format on
   /// Live loop: updates applied since the start.
   std::uint64_t updates_applied() const noexcept { return updates_applied_; }
   /// Live loop: updates refused since the start (torn, or failing the checks of

@@ -170,6 +170,8 @@ class ThermalModel {
           ++h.right;
         }
         const double q = m * 0x1p32;  // in [2^31, 2^32) but for an F_c no Q16.16 value has
+        // q > 0: adding 1/2 and truncating rounds to nearest (the check warns for negatives).
+        // NOLINTNEXTLINE(bugprone-incorrect-roundings)
         h.mantissa = q >= 0xFFFF'FFFFp0 ? 0xFFFF'FFFFU : static_cast<std::uint32_t>(q + 0.5);
         h.half = h.right > 0 ? std::uint64_t{1} << (h.right - 1) : 0U;
         // squares m < 2^(63 - left) keeps the product, rounded and shifted up, within the Wide's

@@ -35,6 +35,8 @@
 
 namespace toonforce {
 
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class E>
 concept Effect =
     requires {
@@ -51,10 +53,13 @@ concept Effect =
               ActiveForce<typename E::Scalar>* active) {
        { E::force(p, s, in, active) } noexcept -> std::same_as<Vec3<typename E::Scalar>>;
      });
+// clang-format on
 
 /// An effect a scene file can describe: it has a schema.
+// clang-format off
 template <class E>
 concept FileEffect = Effect<E> && requires { E::schema(); };
+// clang-format on
 
 namespace effect {
 

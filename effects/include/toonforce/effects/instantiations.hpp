@@ -12,6 +12,8 @@
   MACRO(float)                           \
   MACRO(::toonforce::Q16_16)
 
+// PREFIX is `extern` or nothing and S a template argument: parentheses would not compile.
+// NOLINTBEGIN(bugprone-macro-parentheses)
 #define TOONFORCE_EFFECT_TEMPLATES(PREFIX, S)                 \
   PREFIX template struct ::toonforce::PenaltyWall<S>;         \
   PREFIX template struct ::toonforce::PenaltyWall<S, false>;  \
@@ -22,6 +24,7 @@
   PREFIX template struct ::toonforce::MaybeImpact<S>;         \
   PREFIX template struct ::toonforce::CartoonCliff<S>;        \
   PREFIX template class ::toonforce::RuntimeSceneOf<S, ::toonforce::RuntimeSurface, ::toonforce::CartoonCliff>;
+// NOLINTEND(bugprone-macro-parentheses)
 
 #define TOONFORCE_EXTERN_EFFECTS(S) TOONFORCE_EFFECT_TEMPLATES(extern, S)
 TOONFORCE_FOR_EACH_SCALAR(TOONFORCE_EXTERN_EFFECTS)

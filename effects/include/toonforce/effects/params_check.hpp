@@ -139,7 +139,10 @@ namespace effect {
 template <Effect E>
 bool params_ok(const typename E::Params& p) noexcept {
   constexpr bool kSchema = requires { E::schema(); };
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   constexpr bool kValid = requires { { E::valid(p) } noexcept -> std::convertible_to<bool>; };
+  // clang-format on
   static_assert(kSchema || kValid,
                 "an effect a live scene takes needs a schema() or a static bool valid(const Params&) noexcept");
   if constexpr (kSchema) {
@@ -148,7 +151,9 @@ bool params_ok(const typename E::Params& p) noexcept {
   if constexpr (kValid) {
     if (!E::valid(p)) return false;
   }
+  // clang-format off
   if constexpr (requires(schema::Problems& problems) { E::check(p, problems, ScalarKind::kDouble); }) {
+    // clang-format on
     schema::check_detail::Count problems;
     E::check(p, problems, scalar_kind_of<typename E::Scalar>());  // its flags and choices are checked above
     if (problems.count != 0) return false;

@@ -41,6 +41,8 @@ struct EffectInfo {
 };
 
 /// What the servo loop needs of a scene, compile-time or run-time.
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class T>
 concept SceneType = requires(const T& scene, typename T::State& s, const typename T::State& cs,
                              const TickInput<typename T::Scalar>& in, ActiveForce<typename T::Scalar>* active,
@@ -57,6 +59,7 @@ concept SceneType = requires(const T& scene, typename T::State& s, const typenam
   { scene.effect_count() } noexcept -> std::same_as<std::size_t>;
   { scene.effect_info(i) } noexcept -> std::same_as<EffectInfo>;
 };
+// clang-format on
 
 template <Effect First, Effect... Rest>
 class Scene {
@@ -190,9 +193,9 @@ class RuntimeSceneOf {
 
   /// Index of the kind whose key is `key`, or kKinds.
   static constexpr std::size_t kind_index(std::string_view key) noexcept {
-    constexpr std::array<std::string_view, kKinds> keys{Kinds<S>::kKey...};
+    constexpr std::array<std::string_view, kKinds> kKeys{Kinds<S>::kKey...};
     for (std::size_t i = 0; i < kKinds; ++i) {
-      if (keys[i] == key) return i;
+      if (kKeys[i] == key) return i;
     }
     return kKinds;
   }

@@ -69,9 +69,12 @@ struct TickInput {
                           : static_cast<double>(now.stamp_ns - earlier.stamp_ns) / static_cast<double>(kNsPerS);
   }
   /// A fixed-point S: nanoseconds from `earlier` to this tick, in integers.
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   constexpr std::int64_t ns_since(Instant earlier) const noexcept
     requires kIsFixed<S>
   {
+    // clang-format on
     return period_ns > 0 ? (now.tick - earlier.tick) * period_ns : now.stamp_ns - earlier.stamp_ns;
   }
 };
@@ -126,7 +129,8 @@ struct AxisPlane {
     component(n) = S::from_raw(static_cast<Raw>(kSign * S::kOneRaw));
     return n;
   }
-  static constexpr Vec3<S> normal = normal_of();
+  // Named as Plane's field, which the code generic over both reads as `plane.normal`.
+  static constexpr Vec3<S> normal = normal_of();  // NOLINT(readability-identifier-naming)
 
   // n.(x - p) is kSign (x_a - p_a) 2^F before Plane's rounding, which leaves kSign (x_a - p_a)
   // exactly: from_wide of it saturates as from_product did. n.v likewise.

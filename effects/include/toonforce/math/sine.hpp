@@ -107,15 +107,15 @@ template <Scalar S>
 constexpr S fixed_polynomial(S q) noexcept {
   using W = typename S::Wide;
   constexpr int kBits = 30;
-  constexpr auto coefficient = [](double c) { return static_cast<W>(c * static_cast<double>(W{1} << kBits)); };
-  constexpr W c1 = coefficient(kSinPoly1), c3 = coefficient(kSinPoly3);
-  constexpr W c5 = coefficient(kSinPoly5), c7 = coefficient(kSinPoly7);
+  constexpr auto kCoefficient = [](double c) { return static_cast<W>(c * static_cast<double>(W{1} << kBits)); };
+  constexpr W kC1 = kCoefficient(kSinPoly1), kC3 = kCoefficient(kSinPoly3);
+  constexpr W kC5 = kCoefficient(kSinPoly5), kC7 = kCoefficient(kSinPoly7);
   // q <= 1/4, so q30 < 2^28 and q2 < 2^26; |acc| < 2^37: every product fits in 63 bits.
   const W q30 = W{q.raw()} << (kBits - S::kFracBits);
   const W q2 = (q30 * q30) >> kBits;
-  W acc = c5 + ((c7 * q2) >> kBits);
-  acc = c3 + ((acc * q2) >> kBits);
-  acc = c1 + ((acc * q2) >> kBits);
+  W acc = kC5 + ((kC7 * q2) >> kBits);
+  acc = kC3 + ((acc * q2) >> kBits);
+  acc = kC1 + ((acc * q2) >> kBits);
   return S::from_wide(S::round_shift(acc * q30, 2 * kBits - S::kFracBits));  // Q60 -> Q16
 }
 
@@ -127,20 +127,20 @@ constexpr S fixed_polynomial(S q) noexcept {
 /// with it, each of the 16,385 quarter-wave arguments gives the 64-bit evaluation's result
 /// (math_test compares all of them), so no Q16.16 force changed.
 constexpr std::int32_t fixed_polynomial_q16(std::int32_t q_raw) noexcept {
-  constexpr auto coefficient = [](double c, int bits) {
+  constexpr auto kCoefficient = [](double c, int bits) {
     const double scaled = c * static_cast<double>(std::int64_t{1} << bits);
     return static_cast<std::int32_t>(scaled < 0.0 ? scaled - 0.5 : scaled + 0.5);
   };
-  constexpr std::int32_t c7 = coefficient(kSinPoly7, 21), c5 = coefficient(kSinPoly5, 23);
-  constexpr std::int32_t c3 = coefficient(kSinPoly3, 25), c1 = coefficient(kSinPoly1, 27) + 2;
-  constexpr auto high = [](std::int32_t a, std::int32_t b) {  // floor(a b / 2^32): SMULL's high word
+  constexpr std::int32_t kC7 = kCoefficient(kSinPoly7, 21), kC5 = kCoefficient(kSinPoly5, 23);
+  constexpr std::int32_t kC3 = kCoefficient(kSinPoly3, 25), kC1 = kCoefficient(kSinPoly1, 27) + 2;
+  constexpr auto kHigh = [](std::int32_t a, std::int32_t b) {  // floor(a b / 2^32): SMULL's high word
     return static_cast<std::int32_t>((std::int64_t{a} * b) >> 32);
   };
   const std::uint32_t q33 = static_cast<std::uint32_t>(q_raw) << 17;                // <= 2^31
   const auto q2 = static_cast<std::int32_t>((std::uint64_t{q33} * q33) >> 32);     // <= 2^30
-  std::int32_t acc = c5 + high(c7, q2);
-  acc = c3 + high(acc, q2);
-  acc = c1 + high(acc, q2);
+  std::int32_t acc = kC5 + kHigh(kC7, q2);
+  acc = kC3 + kHigh(acc, q2);
+  acc = kC1 + kHigh(acc, q2);
   const auto sine = static_cast<std::uint32_t>((std::uint64_t{static_cast<std::uint32_t>(acc)} * q33) >> 32);
   return static_cast<std::int32_t>((sine + (1U << 11)) >> 12);  // >= 0: half up is half away from zero
 }
@@ -159,11 +159,11 @@ constexpr S quarter_wave(S turns, bool& negative) noexcept {
     return S::from_raw(raw);
   } else {
     S frac = turns - std::floor(turns);
-    constexpr S half = scalar_cast<S>(0.5);
-    constexpr S quarter = scalar_cast<S>(0.25);
-    negative = frac >= half;
-    if (negative) frac = frac - half;
-    if (frac > quarter) frac = half - frac;
+    constexpr S kHalf = scalar_cast<S>(0.5);
+    constexpr S kQuarter = scalar_cast<S>(0.25);
+    negative = frac >= kHalf;
+    if (negative) frac = frac - kHalf;
+    if (frac > kQuarter) frac = kHalf - frac;
     return frac;
   }
 }
@@ -218,12 +218,12 @@ constexpr S sin_turns(S turns, SineMethod method) noexcept {
       value = detail::fixed_polynomial(q);
     }
   } else {
-    constexpr S c1 = scalar_cast<S>(detail::kSinPoly1);
-    constexpr S c3 = scalar_cast<S>(detail::kSinPoly3);
-    constexpr S c5 = scalar_cast<S>(detail::kSinPoly5);
-    constexpr S c7 = scalar_cast<S>(detail::kSinPoly7);
+    constexpr S kC1 = scalar_cast<S>(detail::kSinPoly1);
+    constexpr S kC3 = scalar_cast<S>(detail::kSinPoly3);
+    constexpr S kC5 = scalar_cast<S>(detail::kSinPoly5);
+    constexpr S kC7 = scalar_cast<S>(detail::kSinPoly7);
     const S q2 = q * q;
-    value = q * (c1 + q2 * (c3 + q2 * (c5 + q2 * c7)));
+    value = q * (kC1 + q2 * (kC3 + q2 * (kC5 + q2 * kC7)));
   }
   if constexpr (kIsFixed<S>) {
     return negative ? S::from_raw(-value.raw()) : value;  // |value| <= 1: no saturation test

@@ -63,16 +63,21 @@ class Wide {
   /// images check theirs against the compiler's on the target, tools/mcu/firmware/main.cpp).
   /// (The casts are no-ops where these exist; they keep the bodies well-formed for a compiler
   /// that checks them in an explicit instantiation of a floating-point Wide, clang does.)
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
   static constexpr Wide from_raw(std::int64_t counts) noexcept
     requires(kIsFixed<S>)
   {
     return make(static_cast<Rep>(counts));
   }
+  // clang-format on
+  // clang-format off
   constexpr std::int64_t raw() const noexcept
     requires(kIsFixed<S>)
   {
     return static_cast<std::int64_t>(rep_);
   }
+  // clang-format on
   /// a.b, exact in the fixed build (each raw product is in units of 2^-32 already).
   static constexpr Wide dot(const Vec3<S>& a, const Vec3<S>& b) noexcept {
     Wide w;
@@ -159,6 +164,7 @@ class Wide {
   constexpr Wide& operator+=(Wide o) noexcept { return *this = *this + o; }
   constexpr Wide& operator-=(Wide o) noexcept { return *this = *this - o; }
   friend constexpr Wide operator*(Wide a, Decay<S> r) noexcept { return r.apply(a); }
+  // NOLINTNEXTLINE(modernize-use-nullptr): a false positive, as for Fixed's <=> (fixed.hpp)
   friend constexpr auto operator<=>(const Wide&, const Wide&) noexcept = default;
   friend constexpr bool operator==(const Wide&, const Wide&) noexcept = default;
 

@@ -22,7 +22,7 @@ std::uint16_t word_at(const std::vector<std::uint8_t>& image, std::size_t word) 
 FalconEmulator::FalconEmulator(EmulatorOptions options)
     : options_(std::move(options)), grip_m_(options_.grip_start_m), target_m_(options_.grip_start_m) {
   // Sized up front so a test's servo loop over the in-process transport allocates nothing.
-  to_host_.reserve(64 * 1024);
+  to_host_.reserve(std::size_t{64} * 1024);
   held_.reserve(1024);
   command_log_.reserve(20000);
   reset_dsp();

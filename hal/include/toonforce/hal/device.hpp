@@ -69,8 +69,11 @@ template <class D>
 struct DeviceScalarOf {
   using type = double;
 };
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class D>
   requires requires { typename D::Scalar; }
+// clang-format on
 struct DeviceScalarOf<D> {
   using type = typename D::Scalar;
 };
@@ -132,12 +135,15 @@ struct ExternalZero {
   std::uint8_t frame[64] = {};
 };
 
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class D>
 concept ServoDevice = requires(D& device, BasicDeviceReading<device_scalar_t<D>>& reading,
                                const Vec3<device_scalar_t<D>>& force_n) {
   { device.read(reading) } noexcept -> std::same_as<DeviceStatus>;
   { device.write(force_n) } noexcept -> std::same_as<DeviceStatus>;
 };
+// clang-format on
 
 /// The run-time seam: one backend behind a virtual interface.
 class DeviceDriver {

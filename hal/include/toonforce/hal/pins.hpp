@@ -21,6 +21,8 @@ enum class PinLevel : std::uint8_t {
 /// What the status lights show.
 enum class LightState : std::uint8_t { kIdle, kHoming, kArmed, kFault };
 
+// clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+// clang-format off
 template <class P>
 concept TickPin = requires(P& p) {
   { p.toggle() } noexcept;
@@ -33,6 +35,7 @@ template <class L>
 concept StatusLights = requires(L& l, LightState s) {
   { l.show(s) } noexcept;
 };
+// clang-format on
 
 struct NullTickPin {
   constexpr void toggle() noexcept {}

@@ -51,7 +51,7 @@ struct BootTable {
 };
 inline constexpr std::uint16_t kBootTableKey = 0x08AA;
 inline constexpr std::uint32_t kFalconEntryPoint = 0x003F8002;  ///< all four known images
-inline constexpr std::size_t kMaxFirmwareBytes = 64 * 1024;      ///< the known ones are < 9 KiB
+inline constexpr std::size_t kMaxFirmwareBytes = std::size_t{64} * 1024; ///< the known ones are < 9 KiB
 
 /// Checks the boot-table structure; the error says which byte offset is wrong and why.
 Result<BootTable> parse_boot_table(std::span<const std::uint8_t> image);

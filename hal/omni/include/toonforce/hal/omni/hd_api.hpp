@@ -11,9 +11,12 @@
 // The same refusal as cmake/ToonforceOmniArchitecture.cmake, for a build that bypasses it: on
 // 32-bit x86 the vendor declares the API __stdcall, and these cdecl declarations would corrupt
 // the stack on every call.
+// (clang-format would split the message line with a backslash.)
+// clang-format off
 #if defined(__i386__)
 #error "toonforce's Omni backend cannot be built for 32-bit x86: OpenHaptics' HD API is __stdcall there; build for x86-64"
 #endif
+// clang-format on
 
 namespace toonforce::hd {
 
