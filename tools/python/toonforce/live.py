@@ -16,6 +16,11 @@ values). Leaving the `with` block in any way, an exception or Ctrl-C (KeyboardIn
 included, stops the run with SIGTERM: the same stop path as the command line's, which ends on a
 zero-force tick. If the Python process itself dies, the run gets SIGTERM from the kernel
 (PR_SET_PDEATHSIG) and stops the same way.
+
+Made, it waits for the loop's first frame: a run whose program could not start (a device that
+cannot be opened) raises `RunError` with the program's own message. Its verbs are those of
+`toonforce.Run` (the run in process): set, add, remove, fire, load, applied, wait_applied,
+telemetry, running, stop, wait.
 """
 
 from __future__ import annotations
@@ -32,26 +37,22 @@ import subprocess
 import tempfile
 import threading
 import time
-from typing import Dict, List, Optional, Sequence, Union
+import tomllib
+import warnings
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 import websockets
 
+from . import RunError
 from .control import Client, parse_announcement
 
 __all__ = ["Run", "RunError", "find_binary"]
 
 _VIEWER = re.compile(r"viewer: (http://[^/\s]+)/")
+_OURS = re.compile(r"^(viewer|control): ")  # the announcements; the rest is the program's own
 _PR_SET_PDEATHSIG = 1
 _BATCH_HEADER = 4  # kind (1 live, 2 history), stride, first sequence number, count
-
-
-class RunError(Exception):
-    """The run could not start, or ended with a failure; `output` is what it printed."""
-
-    def __init__(self, message: str, output: str = ""):
-        super().__init__(message + (f"\n{output}" if output else ""))
-        self.output = output
 
 
 def find_binary() -> str:
@@ -164,15 +165,23 @@ class Run:
     script: a hand script for the simulated device (`--script`).
     duration_s: the run ends by itself after this (None: when stopped).
     realtime: False adds --allow-non-rt --no-mlock (a laptop, a test); True wants SCHED_FIFO.
-    trace: a path for the run's trace CSV (`--trace`).
+    trace_path: a path for the run's trace CSV (`--trace`); `trace`, its old name, is deprecated.
     history_s: seconds of telemetry kept for telemetry() (at the run's rate).
     args: further `toonforce run` options, as a list of strings.
+    start_timeout_s: how long to wait for the run's first frame; change_timeout_s: how long a
+    change waits for room in the loop's mailbox (toonforce.control).
     """
 
     def __init__(self, scene: Union[str, os.PathLike], device: str = "sim", *, script: Optional[str] = None,
-                 duration_s: Optional[float] = None, realtime: bool = True, trace: Optional[str] = None,
+                 duration_s: Optional[float] = None, realtime: bool = True, trace_path: Optional[str] = None,
                  history_s: float = 60.0, args: Sequence[str] = (), binary: Optional[str] = None,
-                 start_timeout_s: float = 30.0):
+                 start_timeout_s: float = 30.0, change_timeout_s: float = 5.0, trace: Optional[str] = None):
+        if trace is not None:
+            if trace_path is not None:
+                raise TypeError("trace_path and its deprecated name trace both given")
+            warnings.warn("toonforce.live.Run(trace=...) is deprecated: use trace_path= (as toonforce.Run)",
+                          DeprecationWarning, stacklevel=2)
+            trace_path = trace
         self.binary = binary or find_binary()
         self.device = device
         self._tmp = tempfile.TemporaryDirectory(prefix="toonforce-live-")
@@ -191,8 +200,8 @@ class Run:
             command += ["--duration", repr(float(duration_s))]
         if not realtime:
             command += ["--allow-non-rt", "--no-mlock"]
-        if trace is not None:
-            command += ["--trace", str(trace)]
+        if trace_path is not None:
+            command += ["--trace", str(trace_path)]
         command += [str(a) for a in args]
         self.command = command
         self._output: List[str] = []
@@ -213,7 +222,9 @@ class Run:
             host = viewer[len("http://"):]
             self._telemetry = _Telemetry(f"ws://{host}/ws", viewer, history_s)
             self._telemetry.wait_hello(start_timeout_s)
-            self.control = Client(control_url, self.token)  # its hello starts the loop (--control-wait)
+            # Its hello starts the loop (--control-wait), which then opens the device.
+            self.control = Client(control_url, self.token, change_timeout_s=change_timeout_s)
+            self._started(start_timeout_s)
         except BaseException:
             self.stop()
             raise
@@ -235,8 +246,27 @@ class Run:
             except ValueError:
                 pass
         if viewer is None or control is None:
-            raise RunError(f"`{' '.join(self.command)}` did not start", "".join(self._output))
+            output = "".join(self._output)
+            raise RunError(f"`{' '.join(self.command)}` did not start" + (f"\n{output}" if output else ""), output,
+                           self._process.poll())
         return viewer, control
+
+    def _started(self, timeout_s: float) -> None:
+        # The first frame, or the program's end: one that cannot open its device says why on
+        # standard error (which device, what to check) and exits.
+        deadline = time.monotonic() + timeout_s
+        while self._telemetry.frames_received == 0:
+            if self._process.poll() is not None:
+                self._reader.join(5)  # all it printed
+                if self._process.returncode == 0:
+                    return  # it ended at once, as asked
+                said = "".join(line for line in self._output if not _OURS.match(line)).strip()
+                raise RunError(f"toonforce run --device {self.device} failed (exit status {self._process.returncode})"
+                               + (f": {said}" if said else ""), self.output, self._process.returncode)
+            if time.monotonic() >= deadline:
+                raise RunError(f"toonforce run --device {self.device}: no frame from the loop within {timeout_s:g} s",
+                               self.output)
+            time.sleep(0.005)
 
     def _drain(self) -> None:
         for line in self._process.stderr:
@@ -244,17 +274,47 @@ class Run:
 
     # ---- while it runs ------------------------------------------------------------------
 
-    def set(self, effect: str, keys: Optional[dict] = None, **named) -> int:
-        """Changes an effect's keys (toonforce.control.Client.set); the change's sequence."""
+    def set(self, effect: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
+        """Changes an effect's keys (toonforce.control.Client.set), given as a dict, as keywords
+        or as TOML text; the change's sequence. A burst waits for room in the loop's mailbox."""
+        if isinstance(keys, str):
+            if named:
+                raise TypeError("keys as TOML text, or as a dict and/or keywords, not both")
+            keys = tomllib.loads(keys)
         return self.control.set(effect, keys, **named)
+
+    def add(self, kind: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
+        """Adds an effect of `kind` (`toonforce run` refuses it: its trace's columns)."""
+        if isinstance(keys, str):
+            if named:
+                raise TypeError("keys as TOML text, or as a dict and/or keywords, not both")
+            keys = tomllib.loads(keys)
+        return self.control.add(kind, keys, **named)
+
+    def remove(self, effect: str) -> int:
+        """Removes an effect (`toonforce run` refuses it too)."""
+        return self.control.remove(effect)
 
     def fire(self, effect: str, event: str, value: float = 0.0) -> int:
         """A one-shot event ("impact" with its speed in m/s, "look_down"); its sequence."""
         return self.control.fire(effect, event, value)
 
-    def load(self, toml: str, name: Optional[str] = None) -> int:
-        """Another scene with the same list of effects (a scene file's text); its sequence."""
-        return self.control.load(toml, name)
+    def load(self, scene: Any, name: Optional[str] = None) -> int:
+        """Another scene with the same list of effects: a scene file's text (a str holding a
+        newline), a path, a toonforce.Scene or a dict; its sequence."""
+        if isinstance(scene, str) and "\n" in scene:
+            return self.control.load(scene, name)
+        from . import Scene, _source
+        path, text = _source(scene, Scene)
+        if text is None:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        return self.control.load(text, name or path)
+
+    @property
+    def applied(self) -> int:
+        """The sequence of the last change the loop applied (0: none yet)."""
+        return self.control.applied()
 
     def wait_applied(self, sequence: int, timeout_s: float = 5.0) -> int:
         """Waits until the loop has applied change `sequence`."""
