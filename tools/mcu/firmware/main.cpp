@@ -121,10 +121,10 @@ template <class F>
 }
 
 /// The stack below the caller painted before each counted tick [bytes]: more than a tick uses
-/// (the static per-tick bounds, stack_bound.py, are at most 544 bytes in every image; a tick
-/// that went deeper than the window is reported as an error, below). Painting and scanning it
-/// is most of what an image runs under QEMU besides the ticks, so it is that with a margin, no
-/// more: the images' runs grew by 40-60 % when a 1 KiB window came in.
+/// (the static per-tick bounds, stack_bound.py, were at most 532 bytes in any image when it
+/// was set; a tick that went deeper than the window is reported as an error, below). Painting
+/// and scanning it is most of what an image runs under QEMU besides the ticks, so it is that
+/// with a margin, no more: the images' runs grew by 40-60 % when a 1 KiB window came in.
 constexpr std::uint32_t kTickStackWindow = 768;
 static_assert(kTickStackWindow % (4 * kPaintGroup) == 0, "paint_window paints whole groups");
 

@@ -457,15 +457,6 @@ def test_the_device_is_silent_between_intervals_during_the_blank_and_the_questio
     rate_hz = 1.0 / float(np.median(np.diff(trace["t"])))
     force = trace["force"]
     assert np.all(np.array([float(r) for r in trace["latched"]]) == 0), "a latched fault: the device went silent"
-    for t in trials:
-        first, end = t["trace"]["frames"]
-        # The question: from when it appeared (response_time_s before the answer) to the answer.
-        # The telemetry's frame count lags the loop, so that window may begin a little early, in
-        # the blank (0.5 s, whose first 0.25 s are the fade): its first 0.1 s are left out.
-        asked = end - int((t["response_time_s"] - 0.1) * rate_hz)
-        assert end - asked > 0.8 * (think_s - 0.1) * rate_hz
-        question = force[asked:end]
-        assert question.max() < 1e-6, f"trial {t['trial']}: up to {question.max():.3f} N while the question is asked"
     # Every blank, across trials too. The silent scene's plane is out of reach, so the first
     # frame at or after `off` without contact is the tick that applied it (the recorded frame
     # counts lag the loop). From there the force fades (the difference it started with ramps
@@ -478,6 +469,7 @@ def test_the_device_is_silent_between_intervals_during_the_blank_and_the_questio
     # press), so the silence around them is the scene switched off, not a hand in the air.
     for on, off in intervals:
         assert np.median(force[on + fade + 100:off]) > 0.7, (on, off, np.median(force[on + fade + 100:off]))
+    silent_spans = []
     for (on, off), (next_on, _) in zip(intervals, intervals[1:] + [(len(force), None)]):
         switched = off + int(np.argmax(trace["surface1.contact"][off:] == 0))
         assert trace["surface1.contact"][switched] == 0 and switched - off < 0.2 * rate_hz, (off, switched)
@@ -485,6 +477,14 @@ def test_the_device_is_silent_between_intervals_during_the_blank_and_the_questio
         silent = force[switched + fade + 5:next_on]
         assert next_on - (switched + fade) > 0.1 * rate_hz, "a blank shorter than the fade"
         assert silent.max() < 1e-6, f"frames {switched + fade + 5}..{next_on}: up to {silent.max():.3f} N silent"
+        silent_spans.append((switched + fade + 5, next_on))
+    # The question lies in those silent spans: each trial is answered (its last frame) after its
+    # last interval's fade and before the next interval. Its start is not taken from the answer's
+    # response time: on a loaded machine the loop and its telemetry lag the wall clock, and
+    # frames counted back from the answer at the nominal rate reached into the interval.
+    for t in trials:
+        _, end = t["trace"]["frames"]
+        assert any(start <= end <= stop for start, stop in silent_spans), (t["trial"], end, silent_spans)
 
 
 def test_the_silent_scene_keeps_the_effects_and_moves_them_out_of_reach():
