@@ -281,6 +281,11 @@ def _keys_text(keys: Union[None, str, Mapping[str, Any]], named: Mapping[str, An
 _MAILBOX_FULL = re.compile(r"not applied: .*\btry again\s*$")
 
 
+# How long a stopped loop may take to end (its shut-down tick, the trace's last rows); far more
+# than it takes, so that only a loop that does not stop reaches it.
+_STOP_TIMEOUT_S = 30.0
+
+
 def _deprecated(old: str, new: str) -> None:
     _warnings.warn(f"{old} is deprecated: use {new}", DeprecationWarning, stacklevel=3)
 
@@ -343,7 +348,7 @@ class Run:
         except BaseException:
             self._run.stop(2)
             try:
-                self._wait(None)
+                self._wait(_STOP_TIMEOUT_S)
             except ValueError:
                 pass  # the failure is being raised already
             raise
@@ -446,10 +451,14 @@ class Run:
             part = {name: np.concatenate([p[name] for p in parts]) for name in part}
         return Trace(part, self.units, {}, [])
 
-    def stop(self, signal: int = 2) -> Dict[str, Any]:
-        """Stops the loop (zero force at its shut-down tick) and waits for it; the summary."""
+    def stop(self, signal: int = 2, timeout_s: float = _STOP_TIMEOUT_S) -> Dict[str, Any]:
+        """Stops the loop (zero force at its shut-down tick) and waits for it, at most
+        `timeout_s` (then RunError: a loop that does not stop); the summary."""
         self._run.stop(signal)
-        return self._wait(None)
+        summary = self._wait(timeout_s)
+        if summary is None:
+            raise RunError(f"the run's loop did not stop within {timeout_s:g} s of its stop")
+        return summary
 
     def wait(self, timeout_s: Optional[float] = None) -> Optional[Dict[str, Any]]:
         """Waits for the end (a duration_s run); the summary, or None after timeout_s [s]."""

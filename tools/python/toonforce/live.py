@@ -137,6 +137,11 @@ class _Telemetry:
             raise RunError(f"the viewer's telemetry: {self._error}")
 
     @property
+    def error(self) -> Optional[BaseException]:
+        """Why the telemetry connection failed (None: it has not)."""
+        return self._error
+
+    @property
     def frames_received(self) -> int:
         with self._lock:
             return self._next
@@ -215,62 +220,108 @@ class Run:
         self._telemetry: Optional[_Telemetry] = None
         self.control: Optional[Client] = None
         self.returncode: Optional[int] = None
+        # Its standard error read from the start on a thread of its own: every wait below ends
+        # at its deadline or as soon as the program has ended (its standard error closed),
+        # never in a read that waits for a line the program will not write.
+        self._said = threading.Condition()
+        self._closed = False  # its standard error has ended: the program has, or is ending
+        self._reader = threading.Thread(target=self._drain, name="toonforce.live output", daemon=True)
+        self._reader.start()
         try:
-            viewer, control_url = self._announcements(start_timeout_s)
-            self._reader = threading.Thread(target=self._drain, name="toonforce.live output", daemon=True)
-            self._reader.start()
+            deadline = time.monotonic() + start_timeout_s
+            viewer, control_url = self._announcements(deadline)
             host = viewer[len("http://"):]
             self._telemetry = _Telemetry(f"ws://{host}/ws", viewer, history_s)
-            self._telemetry.wait_hello(start_timeout_s)
-            # Its hello starts the loop (--control-wait), which then opens the device.
-            self.control = Client(control_url, self.token, change_timeout_s=change_timeout_s)
-            self._started(start_timeout_s)
+            try:
+                self._telemetry.wait_hello(max(0.0, deadline - time.monotonic()))
+                # Its hello starts the loop (--control-wait), which then opens the device.
+                self.control = Client(control_url, self.token, change_timeout_s=change_timeout_s,
+                                      open_timeout_s=max(0.1, deadline - time.monotonic()))
+            except Exception:
+                if self._ended():
+                    raise self._failure() from None  # the program's reason, not the connection's
+                raise
+            self._started(deadline, start_timeout_s)
         except BaseException:
             self.stop()
             raise
 
     # ---- start-up -----------------------------------------------------------------------
 
-    def _announcements(self, timeout_s: float):
+    def _announcements(self, deadline: float):
+        """The viewer's and the control channel's addresses, as the program announces them."""
         viewer = control = None
-        deadline = time.monotonic() + timeout_s
-        while (viewer is None or control is None) and time.monotonic() < deadline:
-            line = self._process.stderr.readline()
-            if not line:
-                break
-            self._output.append(line)
-            if (m := _VIEWER.search(line)) is not None:
-                viewer = m.group(1)
-            try:
-                control, _ = parse_announcement(line)  # the token is ours (--control-token)
-            except ValueError:
-                pass
+        seen = 0
+        with self._said:
+            while viewer is None or control is None:
+                for line in self._output[seen:]:
+                    if (m := _VIEWER.search(line)) is not None:
+                        viewer = m.group(1)
+                    try:
+                        control, _ = parse_announcement(line)  # the token is ours (--control-token)
+                    except ValueError:
+                        pass
+                seen = len(self._output)
+                if viewer is not None and control is not None:
+                    break
+                left = deadline - time.monotonic()
+                if self._closed or left <= 0:
+                    break
+                self._said.wait(left)
         if viewer is None or control is None:
-            output = "".join(self._output)
-            raise RunError(f"`{' '.join(self.command)}` did not start" + (f"\n{output}" if output else ""), output,
-                           self._process.poll())
+            if self._ended():
+                raise self._failure()
+            output = self.output
+            raise RunError(f"`{' '.join(self.command)}` did not announce its viewer and control channel"
+                           + (f"\n{output}" if output else ""), output, self._process.poll())
         return viewer, control
 
-    def _started(self, timeout_s: float) -> None:
+    def _ended(self, grace_s: float = 5.0) -> bool:
+        """Whether the program has ended: at once if it has; if its standard error has closed,
+        it is ending, and its exit status follows within `grace_s`."""
+        if self._process.poll() is not None:
+            return True
+        if not self._closed:
+            return False
+        try:
+            self._process.wait(grace_s)
+        except subprocess.TimeoutExpired:
+            return False
+        return True
+
+    def _failure(self) -> RunError:
+        """The program has ended before its first frame: its own words (a device that cannot be
+        opened: which one, and what to check) and its exit status."""
+        self._reader.join(5)  # all it printed: the pipe is closed once it has ended
+        said = "".join(line for line in self._output if not _OURS.match(line)).strip()
+        return RunError(f"toonforce run --device {self.device} failed (exit status {self._process.returncode})"
+                        + (f": {said}" if said else ""), self.output, self._process.returncode)
+
+    def _started(self, deadline: float, timeout_s: float) -> None:
         # The first frame, or the program's end: one that cannot open its device says why on
-        # standard error (which device, what to check) and exits.
-        deadline = time.monotonic() + timeout_s
+        # standard error and exits. Its end is seen at the next poll, as is a telemetry
+        # connection that failed.
         while self._telemetry.frames_received == 0:
-            if self._process.poll() is not None:
-                self._reader.join(5)  # all it printed
+            if self._ended():
                 if self._process.returncode == 0:
                     return  # it ended at once, as asked
-                said = "".join(line for line in self._output if not _OURS.match(line)).strip()
-                raise RunError(f"toonforce run --device {self.device} failed (exit status {self._process.returncode})"
-                               + (f": {said}" if said else ""), self.output, self._process.returncode)
-            if time.monotonic() >= deadline:
+                raise self._failure()
+            if self._telemetry.error is not None:
+                raise RunError(f"the viewer's telemetry: {self._telemetry.error}", self.output)
+            left = deadline - time.monotonic()
+            if left <= 0:
                 raise RunError(f"toonforce run --device {self.device}: no frame from the loop within {timeout_s:g} s",
                                self.output)
-            time.sleep(0.005)
+            time.sleep(min(left, 0.005))
 
     def _drain(self) -> None:
         for line in self._process.stderr:
-            self._output.append(line)
+            with self._said:
+                self._output.append(line)
+                self._said.notify_all()
+        with self._said:
+            self._closed = True
+            self._said.notify_all()
 
     # ---- while it runs ------------------------------------------------------------------
 
