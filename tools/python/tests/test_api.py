@@ -7,10 +7,13 @@ notebook shows its figures inline, in Jupyter as under nbconvert with no display
 
 TOONFORCE_BINARY and TOONFORCE_CLI are the program (CTest sets them)."""
 
+import contextlib
 import glob
 import json
 import os
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -59,6 +62,94 @@ def test_an_in_process_run_whose_device_cannot_be_opened_raises_with_the_program
     with pytest.raises(toonforce.RunError) as caught:
         toonforce.Run(WALL, device="falcon")
     assert falcon_refusal in str(caught.value)
+
+
+# ---- a start that has failed is not waited for ------------------------------------------------
+# A program (or loop) that has ended before its first frame is known to have failed at the next
+# poll: the start must raise then, with its message, not poll on until start_timeout_s. The
+# polls are counted, each after the run has ended: at most the one under way when it ended.
+
+
+class PollCounter:
+    """Stands for a module's `time`: its sleep counts the polls made once `ended()` is true."""
+
+    def __init__(self, ended):
+        self.ended = ended
+        self.after_end = 0
+        self.monotonic = time.monotonic
+
+    def sleep(self, seconds):
+        if self.ended():
+            self.after_end += 1
+        time.sleep(seconds)
+
+
+def test_a_live_run_that_fails_after_announcing_raises_at_once(tmp_path, monkeypatch):
+    # A trace in a folder that does not exist: the program announces, the loop starts and the
+    # program ends (exit status 2) saying so.
+    started = []
+
+    class Recorded(subprocess.Popen):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            started.append(self)
+
+    clock = PollCounter(lambda: bool(started) and started[0].poll() is not None)
+    monkeypatch.setattr(toonforce.live.subprocess, "Popen", Recorded)
+    monkeypatch.setattr(toonforce.live, "time", clock)
+    with pytest.raises(toonforce.RunError) as caught:
+        toonforce.live.Run(WALL, realtime=False, trace_path=str(tmp_path / "no-such-folder" / "trace.csv"))
+    assert "cannot open the trace for writing" in str(caught.value), str(caught.value)
+    assert caught.value.returncode == 2
+    assert clock.after_end <= 1, f"{clock.after_end} polls after the program had ended"
+
+
+def test_an_in_process_run_that_fails_at_start_raises_at_once(tmp_path, monkeypatch):
+    made = []
+    real = toonforce._toonforce.LiveRun
+
+    def recorded(*args):
+        made.append(real(*args))
+        return made[-1]
+
+    clock = PollCounter(lambda: bool(made) and not made[0].running())
+    monkeypatch.setattr(toonforce._toonforce, "LiveRun", recorded)
+    monkeypatch.setattr(toonforce, "time", clock)
+    with pytest.raises(toonforce.RunError, match="cannot open the trace for writing"):
+        toonforce.Run(WALL, trace_path=str(tmp_path / "no-such-folder" / "trace.csv"))
+    assert clock.after_end <= 1, f"{clock.after_end} polls after the loop had ended"
+
+
+class StillWaiting(Exception):
+    pass
+
+
+@contextlib.contextmanager
+def interrupted_after(seconds):
+    """Interrupts a wait (SIGALRM) still under way after `seconds`, far more than it needs."""
+    def interrupt(signum, frame):
+        raise StillWaiting(f"still waiting after {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_a_live_run_whose_program_rejects_its_scene_raises_its_message_at_once(tmp_path):
+    # The program reads the scene before it announces anything, and ends. The start must see
+    # that end, not wait for announcements until start_timeout_s (an hour here).
+    bad = tmp_path / "bad.toml"
+    bad.write_text(open(WALL).read().replace("stiffness = 1500.0", "stiffness = -1500.0"))
+    assert "-1500" in bad.read_text()
+    with pytest.raises(toonforce.RunError) as caught, interrupted_after(120):
+        toonforce.live.Run(str(bad), realtime=False, start_timeout_s=3600.0)
+    said = f"{bad}:22: surface[1].stiffness: must be > 0 (got -1500)"  # the loader's words, as check says
+    assert said in caught.value.output and said in str(caught.value)
+    assert caught.value.returncode not in (None, 0)
 
 
 # ---- a burst of changes ----------------------------------------------------------------------
