@@ -32,7 +32,7 @@ def last_row(trace):
 
 
 def test_the_wall_pushes_back_with_its_stiffness_before_and_after_a_live_change(tmp_path):
-    with Run(WALL, script=STRIKE, realtime=False, trace=str(tmp_path / "trace.csv")) as run:
+    with Run(WALL, script=STRIKE, realtime=False, trace_path=str(tmp_path / "trace.csv")) as run:
         while run.frames_received < 800:  # the strike lands at about 0.3 s and holds
             time.sleep(0.01)
         run.wait_applied(run.set("surface1", stiffness=750.0))
@@ -64,7 +64,7 @@ def test_the_wall_pushes_back_with_its_stiffness_before_and_after_a_live_change(
 def test_an_exception_in_the_script_ends_the_run_on_a_zero_force_tick(tmp_path):
     trace = tmp_path / "trace.csv"
     with pytest.raises(RuntimeError, match="the script failed"):
-        with Run(WALL, script=STRIKE, realtime=False, trace=str(trace)) as run:
+        with Run(WALL, script=STRIKE, realtime=False, trace_path=str(trace)) as run:
             while run.frames_received < 500:  # in contact, pushing
                 time.sleep(0.01)
             assert abs(run.telemetry(last=1)["fz"][0]) > 0.1
@@ -78,7 +78,7 @@ def test_an_exception_in_the_script_ends_the_run_on_a_zero_force_tick(tmp_path):
 SCRIPT = textwrap.dedent("""
     import sys, time
     from toonforce.live import Run
-    run = Run(sys.argv[1], script=sys.argv[2], realtime=False, trace=sys.argv[3])
+    run = Run(sys.argv[1], script=sys.argv[2], realtime=False, trace_path=sys.argv[3])
     with run:
         while run.frames_received < 500:
             time.sleep(0.01)

@@ -126,12 +126,13 @@ def test_scene_error_of_a_dict_names_its_key_and_line_in_its_toml():
     assert (error.file, error.key) == ("<dict>", "surface[1].stiffness")
     assert str(error) == f"<dict>:{error.line}: surface[1].stiffness: must be > 0 (got -1500)"
     assert text.splitlines()[error.line - 1].strip().startswith("stiffness = -1500")
-    # A misspelt key: the loader's own did-you-mean, and the missing key first (by line).
+    # A misspelt key: the loader's own did-you-mean, and the missing key first (by line); the
+    # key named is the misspelt one, the missing key's cause.
     del surface["stiffness"]
     surface["stiffnes"] = 1500.0
     with pytest.raises(toonforce.SceneError) as misspelt:
         toonforce.sim(scene, "no-such-hand-script.toml")  # the scene's errors come first
-    assert misspelt.value.key == "surface[1]"
+    assert misspelt.value.key == "surface[1].stiffnes"
     assert str(misspelt.value).splitlines()[1].endswith("surface[1]: unknown key 'stiffnes' (did you mean 'stiffness'?)")
     # check() reports it as `toonforce check` does, as data, without raising.
     report = toonforce.check(scene)
@@ -148,7 +149,7 @@ def test_scene_error_of_a_bad_hand_script_is_the_programs(cli, tmp_path, root):
         toonforce.sim(root / "scenes/wall.toml", path)
     assert str(caught.value) == program.stderr.rstrip("\n")
     assert (caught.value.file, caught.value.line) == (str(path), 4)
-    assert caught.value.key == "hand"
+    assert caught.value.key == "hand.flavour"
 
 
 # (arguments to `toonforce check`, as keywords to toonforce.check)

@@ -9,12 +9,16 @@ replay and figures, through the same code as the ``toonforce`` program.
 Scenes and hand scripts are a file path (str or os.PathLike), a ``Scene``/``HandScript`` (from a
 file, a TOML string or a dict), or a dict. A dict is written as TOML text and read by the same
 loader as a file, so it gets the same checks and messages. Errors in them raise ``SceneError``
-(a ValueError) with ``file``, ``line`` (0: the whole file) and ``key`` ("" when none), and as its
-text the message ``toonforce`` prints. SI units throughout: metres, seconds, newtons, hertz.
+(a ValueError) with ``file``, ``line`` (0: the whole file) and ``key`` (the offending key's path,
+"" when none), and as its text the message ``toonforce`` prints. SI units throughout: metres,
+seconds, newtons, hertz.
 """
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import time
 import warnings as _warnings
 from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
@@ -22,14 +26,80 @@ from . import _toonforce
 from ._toonforce import SceneError
 from ._trace import Trace
 
-__all__ = ["SceneError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim", "replay",
-           "figures", "run", "__version__"]
+__all__ = ["SceneError", "RunError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim",
+           "replay", "figures", "run", "__version__"]
 __version__: str = _toonforce.version
 
 
 class PlausibilityWarning(UserWarning):
     """What ``toonforce sim`` prints as ``toonforce: warning: ...`` (the scene outside the device's
     limits, a trace larger than its limit): the run goes on."""
+
+
+class RunError(Exception):
+    """A run (``toonforce.Run``, ``toonforce.live.Run``) could not start or failed: its text
+    holds the program's own message (a device that cannot be opened: which one, and what to
+    check). ``output``: what the program printed (``toonforce.live``), ``returncode`` its exit
+    status (None: in process, or still running)."""
+
+    def __init__(self, message: str, output: str = "", returncode: Optional[int] = None):
+        super().__init__(message)
+        self.output = output
+        self.returncode = returncode
+
+
+# ---- SceneError.key: the offending key ------------------------------------------------------
+# The extension sets `key` to the word before the first error's problem ("surface[1]" for
+# "FILE:4: surface[1]: unknown key 'stiffnes' ..."): the table, not the key. The loader writes
+# each error as "FILE:LINE: KEY: PROBLEM" (tools/config/src/toml_reader.cpp, ErrorList), LINE
+# and KEY each left out when there is none, and names an unknown or missing key in its problem;
+# so the key path is read from the message here, where every line of it is at hand.
+_PLACE = re.compile(r"(?:(\d+):)? ?(?:([A-Za-z0-9_.\[\]-]+): )?(.*)")
+_NAMED_KEY = re.compile(r"^(unknown|missing required) (?:key '([^']+)'|\w+ \[\[([^\]]+)\]\])"
+                        r"(?: \(did you mean '([^']+)'\?\))?")
+
+
+def _errors_of(message: str, file: str) -> List[Tuple[int, str, str, str]]:
+    """Each error of a loader message: (line, key path, kind of problem, the key meant)."""
+    errors = []
+    for text in message.splitlines():
+        if not text.startswith(file + ":"):
+            continue
+        line, table, problem = _PLACE.fullmatch(text[len(file) + 1:]).groups()
+        key, kind, meant = table or "", "", ""
+        named = _NAMED_KEY.match(problem)
+        if named is not None:
+            kind, name, meant = named.group(1), named.group(2) or named.group(3), named.group(4) or ""
+            key = f"{table}.{name}" if table else name
+        errors.append((int(line or 0), key, kind, meant))
+    return errors
+
+
+def _name_the_key(error: SceneError) -> None:
+    """Sets error.key (and .line) to the first error's offending key, except that a missing
+    key one of the same table's unknown keys was meant to be (the loader's "did you mean")
+    gives way to that unknown key: the misspelling is the mistake, the missing key its effect."""
+    errors = _errors_of(str(error), getattr(error, "file", ""))
+    if not errors:
+        return
+    line, key, kind, _ = errors[0]
+    if kind == "missing required":
+        table, _, name = key.rpartition(".")
+        for other_line, other_key, other_kind, meant in errors:
+            if other_kind == "unknown" and meant == name and other_key.rpartition(".")[0] == table:
+                line, key = other_line, other_key
+                break
+    error.key = key
+    error.line = line
+
+
+@contextlib.contextmanager
+def _scene_errors():
+    try:
+        yield
+    except SceneError as error:
+        _name_the_key(error)
+        raise
 
 
 class _Source:
@@ -63,7 +133,8 @@ class Scene(_Source):
 
     def __init__(self, source: str, text: Optional[str] = None) -> None:
         super().__init__(source, text)
-        info = _toonforce.scene_info(source, text, "double", True)
+        with _scene_errors():
+            info = _toonforce.scene_info(source, text, "double", True)
         self.name: str = info["name"]  #: the scene's `name`, or the file's stem
         self.values: List[str] = info["values"]  #: its effect values' trace columns
 
@@ -72,7 +143,8 @@ class HandScript(_Source):
 
     def __init__(self, source: str, text: Optional[str] = None) -> None:
         super().__init__(source, text)
-        info = _toonforce.script_info(source, text)
+        with _scene_errors():
+            info = _toonforce.script_info(source, text)
         self.name: str = info["name"]
         self.duration_s: float = info["duration_s"]  #: the script's length [s]
 
@@ -133,11 +205,12 @@ def sim(scene: SceneLike, script: ScriptLike, rate_hz: float = 1000.0, scalar: s
     """
     scene_path, scene_text = _source(scene, Scene)
     script_path, script_text = _source(script, HandScript)
-    columns, units, summary, warned = _toonforce.sim(
-        scene_path, scene_text, script_path, script_text, float(rate_hz), scalar,
-        None if duration_s is None else float(duration_s), device, integrator, int(substeps), int(seed),
-        None if sensor_noise_m is None else float(sensor_noise_m), sine, allow_empty, strict,
-        "" if trace_path is None else os.fspath(trace_path))
+    with _scene_errors():
+        columns, units, summary, warned = _toonforce.sim(
+            scene_path, scene_text, script_path, script_text, float(rate_hz), scalar,
+            None if duration_s is None else float(duration_s), device, integrator, int(substeps), int(seed),
+            None if sensor_noise_m is None else float(sensor_noise_m), sine, allow_empty, strict,
+            "" if trace_path is None else os.fspath(trace_path))
     _warn(warned)
     return Trace(columns, units, summary, warned)
 
@@ -172,8 +245,9 @@ def replay(scene: SceneLike, motion: Union[str, "os.PathLike[str]", Mapping[str,
         motion_path, motion_text = "<motion>", _motion_text(motion)
     else:
         motion_path, motion_text = os.fspath(motion), None
-    columns, units, summary = _toonforce.replay(scene_path, scene_text, motion_path, motion_text, scalar, sine,
-                                                allow_empty, "" if output_path is None else os.fspath(output_path))
+    with _scene_errors():
+        columns, units, summary = _toonforce.replay(scene_path, scene_text, motion_path, motion_text, scalar, sine,
+                                                    allow_empty, "" if output_path is None else os.fspath(output_path))
     warned = [summary["input_note"]] if summary["input_note"] else []
     _warn(warned)
     return Trace(columns, units, summary, warned)
@@ -187,8 +261,33 @@ def figures(out_dir: Union[str, "os.PathLike[str]"] = "docs/figures", root: Opti
     return _toonforce.figures(os.fspath(out_dir), "" if root is None else os.fspath(root), format, plot)
 
 
-def _keys_text(keys: Union[str, Mapping[str, Any]]) -> str:
-    return keys if isinstance(keys, str) else _toonforce.toml_from_dict(dict(keys))
+def _keys_text(keys: Union[None, str, Mapping[str, Any]], named: Mapping[str, Any]) -> str:
+    if isinstance(keys, str):
+        if named:
+            raise TypeError("keys as TOML text, or as a dict and/or keywords, not both")
+        return keys
+    merged = dict(keys or {})
+    overlap = set(merged) & set(named)
+    if overlap:
+        raise ValueError(f"key(s) given twice: {', '.join(sorted(overlap))}")
+    merged.update(named)
+    if not merged:
+        raise ValueError("no keys to set")
+    return _toonforce.toml_from_dict(merged)
+
+
+# The live-scene editor's refusal while the loop's mailbox is full (docs/spec/live-scenes.md
+# section 2): nothing changed, and the same change passes once the loop has taken one.
+_MAILBOX_FULL = re.compile(r"not applied: .*\btry again\s*$")
+
+
+# How long a stopped loop may take to end (its shut-down tick, the trace's last rows); far more
+# than it takes, so that only a loop that does not stop reaches it.
+_STOP_TIMEOUT_S = 30.0
+
+
+def _deprecated(old: str, new: str) -> None:
+    _warnings.warn(f"{old} is deprecated: use {new}", DeprecationWarning, stacklevel=3)
 
 
 class Run:
@@ -196,27 +295,36 @@ class Run:
     with live scene changes and telemetry read while it runs. Use as a context manager::
 
         with toonforce.run("scenes/wall.toml", "scenes/hands/strike.toml") as r:
-            r.set("surface1", {"stiffness": 800.0})   # or the TOML text "stiffness = 800"
+            r.set("surface1", stiffness=800.0)         # or {"stiffness": 800.0}, or "stiffness = 800"
             r.fire("surface1", "impact", 0.3)          # v_i [m/s]
             fz = r.telemetry()["fz"]                   # the frames since the last call
         print(r.summary["text"])
 
-    Leaving the block, by its end, an exception or Ctrl-C (KeyboardInterrupt), stops the loop
-    through the session's stop (as a signal stops the command): its shut-down tick commands
-    zero force. Changes are checked by the same reader as scene files and refused whole
-    (ValueError with its message); they reach the loop at the start of a tick. The run's scalar
-    is double (the live scene's); the list of effects must stay that of the starting scene.
+    The same verbs as ``toonforce.live.Run`` (the run in a process of its own): set, add,
+    remove, fire, load, applied, wait_applied, telemetry, running, stop, wait.
+
+    Made, it waits for the loop's first frame: a run that cannot start (a device that cannot be
+    opened) raises ``RunError`` with the program's message. Leaving the block, by its end, an
+    exception or Ctrl-C (KeyboardInterrupt), stops the loop through the session's stop (as a
+    signal stops the command): its shut-down tick commands zero force. Changes are checked by
+    the same reader as scene files and refused whole (ValueError with its message); they reach
+    the loop at the start of a tick, one a tick; a burst waits for room (at most
+    ``change_timeout_s``, then TimeoutError). The run's scalar is double (the live scene's); the
+    list of effects must stay that of the starting scene.
     """
 
     def __init__(self, scene: SceneLike, script: Optional[ScriptLike] = None, device: str = "sim",
-                 rate_hz: float = 1000.0, duration_s: float = 0.0, sim_device: str = "falcon", seed: int = 1,
-                 trace_path: Optional[str] = None, priority: int = 80, cpu: int = -1, lock_memory: bool = False,
-                 allow_empty: bool = False, strict: bool = False) -> None:
-        """device: "sim", "falcon" or "omni"; rate_hz: 500 to 10000 Hz; duration_s: 0 runs until
-        stopped; script: the simulated hand's script (device "sim"; default: it holds still);
-        sim_device: "falcon" or "omni" (the simulated device's model); trace_path: also the
-        trace CSV; priority: SCHED_FIFO priority 1-99, normal priority if refused; cpu: pin the
-        servo thread (-1: no); lock_memory: mlockall (off by default in a Python process)."""
+                 rate_hz: float = 1000.0, duration_s: Optional[float] = None, sim_device: str = "falcon",
+                 seed: int = 1, trace_path: Optional[str] = None, priority: int = 80, cpu: int = -1,
+                 lock_memory: bool = False, allow_empty: bool = False, strict: bool = False,
+                 start_timeout_s: float = 30.0, change_timeout_s: float = 5.0) -> None:
+        """device: "sim", "falcon" or "omni"; rate_hz: 500 to 10000 Hz; duration_s: None (or 0)
+        runs until stopped; script: the simulated hand's script (device "sim"; default: it holds
+        still); sim_device: "falcon" or "omni" (the simulated device's model); trace_path: also
+        the trace CSV; priority: SCHED_FIFO priority 1-99, normal priority if refused; cpu: pin
+        the servo thread (-1: no); lock_memory: mlockall (off by default in a Python process);
+        start_timeout_s: how long to wait for the first frame; change_timeout_s: how long a
+        change waits for room in the loop's mailbox."""
         scene_path, scene_text = _source(scene, Scene)
         if script is None:
             script_path = ""
@@ -226,39 +334,108 @@ class Run:
             script_path = script.source
         else:
             raise TypeError("a run's hand script is a file (as toonforce run --script takes it)")
-        self._run = _toonforce.LiveRun(scene_path, scene_text, script_path, device, float(rate_hz), float(duration_s),
-                                       sim_device, int(seed), "" if trace_path is None else os.fspath(trace_path),
-                                       int(priority), int(cpu), lock_memory, allow_empty, strict)
+        self.change_timeout_s = change_timeout_s
+        with _scene_errors():
+            self._run = _toonforce.LiveRun(scene_path, scene_text, script_path, device, float(rate_hz),
+                                           float(duration_s or 0.0), sim_device, int(seed),
+                                           "" if trace_path is None else os.fspath(trace_path), int(priority),
+                                           int(cpu), lock_memory, allow_empty, strict)
         self.units: Dict[str, str] = self._run.units()  #: the telemetry columns' SI units
         self.summary: Optional[Dict[str, Any]] = None  #: what the run did, once it ended
+        self._pending: List[Dict[str, Any]] = []  # frames read before telemetry() was asked
+        try:
+            self._started(device, start_timeout_s)
+        except BaseException:
+            self._run.stop(2)
+            try:
+                self._wait(_STOP_TIMEOUT_S)
+            except ValueError:
+                pass  # the failure is being raised already
+            raise
 
-    def set(self, effect: str, keys: Union[str, Mapping[str, Any]]) -> int:
-        """Replaces keys of `effect` ("surface1": the first [[surface]]); returns the change's sequence."""
-        return self._run.set(effect, _keys_text(keys))
+    def _started(self, device: str, timeout_s: float) -> None:
+        # The loop opens the device on its own thread: a device that cannot be opened ends the
+        # run with the program's message before any frame. So: the first frame, or the end.
+        deadline = time.monotonic() + timeout_s
+        while True:
+            part = self._run.telemetry()
+            if any(len(column) for column in part.values()):
+                self._pending.append(part)
+                return
+            if not self._run.running():
+                try:
+                    self._wait(None)
+                except ValueError as e:
+                    raise RunError(f"toonforce run --device {device}: {e}") from None
+                return  # it ended at once, as asked (a duration shorter than a frame)
+            if time.monotonic() >= deadline:
+                raise RunError(f"toonforce run --device {device}: no frame from the loop within {timeout_s:g} s")
+            time.sleep(0.002)
 
-    def add(self, kind: str, keys: Union[str, Mapping[str, Any]]) -> int:
+    def _change(self, what: str, send) -> int:
+        deadline = None
+        pause_s = 0.001  # a tick at 1 kHz: the loop takes one change a tick
+        while True:
+            try:
+                return send()
+            except ValueError as e:
+                if not _MAILBOX_FULL.search(str(e)):
+                    raise
+                if not self._run.running():
+                    raise RunError(f"{what}: the run has ended") from None
+                now = time.monotonic()
+                if deadline is None:
+                    deadline = now + self.change_timeout_s
+                elif now >= deadline:
+                    raise TimeoutError(f"{e}: still refused after {self.change_timeout_s:g} s") from None
+                time.sleep(pause_s)
+                pause_s = min(2.0 * pause_s, 0.02)
+
+    def set(self, effect: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
+        """Replaces keys of `effect` ("surface1": the first [[surface]]), given as a dict, as
+        keywords or as TOML text; returns the change's sequence."""
+        text = _keys_text(keys, named)
+        return self._change(f"set {effect}", lambda: self._run.set(effect, text))
+
+    def add(self, kind: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
         """Adds an effect of `kind` ("surface", "cliff") (refused while the run keeps its effect list)."""
-        return self._run.add(kind, _keys_text(keys))
+        text = _keys_text(keys, named)
+        return self._change(f"add {kind}", lambda: self._run.add(kind, text))
 
     def remove(self, effect: str) -> int:
-        return self._run.remove(effect)
+        """Removes an effect (refused while the run keeps its effect list)."""
+        return self._change(f"remove {effect}", lambda: self._run.remove(effect))
 
-    def fire(self, effect: str, event: str, value: float) -> int:
+    def fire(self, effect: str, event: str, value: float = 0.0) -> int:
         """A one-shot event, e.g. fire("surface1", "impact", 0.3): a transient as at 0.3 m/s."""
-        return self._run.fire(effect, event, float(value))
+        return self._change(f"fire {effect}", lambda: self._run.fire(effect, event, float(value)))
 
-    def load(self, scene: SceneLike) -> int:
-        """Switches to another scene, whole (its effects' list must match the starting scene's)."""
-        path, text = _source(scene, Scene)
-        if text is None:
-            with open(path, encoding="utf-8") as f:
-                text = f.read()
-        return self._run.load(text, path)
+    def load(self, scene: SceneLike, name: Optional[str] = None) -> int:
+        """Switches to another scene, whole (its effects' list must match the starting scene's):
+        a path, a Scene, a dict, or a scene file's text (a str holding a newline; `name` stands
+        for its file in messages)."""
+        if isinstance(scene, str) and "\n" in scene:
+            path, text = name or "<string>", scene
+        else:
+            path, text = _source(scene, Scene)
+            if text is None:
+                with open(path, encoding="utf-8") as f:
+                    text = f.read()
+        return self._change(f"load {path}", lambda: self._run.load(text, path))
 
     @property
     def applied(self) -> int:
         """The sequence of the last change the loop applied (0: none yet)."""
         return self._run.applied()
+
+    def wait_applied(self, sequence: int, timeout_s: float = 5.0) -> int:
+        """Waits until the loop has applied change `sequence`; `applied` then (TimeoutError after timeout_s)."""
+        deadline = time.monotonic() + timeout_s
+        while (applied := self._run.applied()) < sequence:
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f"change {sequence} not applied within {timeout_s:g} s (applied: {applied})")
+            time.sleep(0.002)
+        return applied
 
     @property
     def running(self) -> bool:
@@ -266,15 +443,33 @@ class Run:
 
     def telemetry(self) -> Trace:
         """The frames since the last call, as a Trace (columns as `toonforce run --trace`'s)."""
-        return Trace(self._run.telemetry(), self.units, {}, [])
+        part = self._run.telemetry()
+        if self._pending:
+            import numpy as np
 
-    def stop(self, signal: int = 2) -> Dict[str, Any]:
-        """Stops the loop (zero force at its shut-down tick) and waits for it; the summary."""
+            parts, self._pending = self._pending + [part], []
+            part = {name: np.concatenate([p[name] for p in parts]) for name in part}
+        return Trace(part, self.units, {}, [])
+
+    def stop(self, signal: int = 2, timeout_s: float = _STOP_TIMEOUT_S) -> Dict[str, Any]:
+        """Stops the loop (zero force at its shut-down tick) and waits for it, at most
+        `timeout_s` (then RunError: a loop that does not stop); the summary."""
         self._run.stop(signal)
-        return self.join()
+        summary = self._wait(timeout_s)
+        if summary is None:
+            raise RunError(f"the run's loop did not stop within {timeout_s:g} s of its stop")
+        return summary
+
+    def wait(self, timeout_s: Optional[float] = None) -> Optional[Dict[str, Any]]:
+        """Waits for the end (a duration_s run); the summary, or None after timeout_s [s]."""
+        return self._wait(timeout_s)
 
     def join(self, timeout_s: Optional[float] = None) -> Optional[Dict[str, Any]]:
-        """Waits for the end (a duration_s run); the summary, or None after timeout_s [s]."""
+        """Deprecated: `wait` (the verb of toonforce.live.Run)."""
+        _deprecated("toonforce.Run.join", "wait")
+        return self._wait(timeout_s)
+
+    def _wait(self, timeout_s: Optional[float]) -> Optional[Dict[str, Any]]:
         summary = self._run.join(-1.0 if timeout_s is None else float(timeout_s))
         if summary is not None:
             self.summary = summary

@@ -12,8 +12,8 @@ class SceneError(ValueError):
     """A scene or hand script that does not load. str(e) is the message ``toonforce`` prints."""
     message: str  #: the whole message (every error, one per line, sorted by line)
     file: str  #: the file, or the name standing for the text ("<dict>", "<string>")
-    line: int  #: line of the first error, from 1; 0 when it is about the whole file
-    key: str  #: key path of the first error ("surface[0].stiffness"), "" when none
+    line: int  #: line of the error `key` names (the first, or the misspelling behind it), from 1; 0: the whole file
+    key: str  #: the offending key's path ("surface[1].stiffness"), "" when none (toonforce refines it)
 
 def toml_from_dict(scene: Dict[str, Any]) -> str:
     """A dict as the TOML text the loaders read (floats in round-trip precision)."""

@@ -15,8 +15,11 @@ spec's rules on the client side, so a refusal is the run's verdict on the change
 of the client: every message gets an `id` and its reply is matched to it; a message over
 64 KiB or with a number JSON cannot carry (NaN, infinity) is refused before it is sent; and
 messages are paced to the server's rate limit (a bucket of 50, refilled at 200 a second), so
-a burst waits instead of being refused. Each refusal raises `ControlError` with the server's
-message; `RateLimited` if the server refused one for its rate anyway.
+a burst waits instead of being refused. A change refused because the loop has not yet taken
+the changes before it (its mailbox holds a few; it takes one a tick: "try again") is sent again
+until it passes, for at most `change_timeout_s` (then `TimeoutError`). Each other refusal raises
+`ControlError` with the server's message; `RateLimited` if the server refused one for its rate
+anyway.
 
 Only Debian's python3-websockets (10.4: asyncio API) is used.
 """
@@ -43,6 +46,9 @@ RATE_BUCKET = 50  # messages per connection at once ...
 RATE_PER_S = 200.0  # ... refilled at this rate
 
 _ANNOUNCEMENT = re.compile(r"control: (ws://\S+/control), token (\S+)")
+# The live-scene editor's refusal while the loop's mailbox is full (docs/spec/live-scenes.md
+# section 2): nothing changed, and the same change passes once the loop has taken one.
+MAILBOX_FULL = re.compile(r"not applied: .*\btry again\s*$")
 
 
 class ControlError(Exception):
@@ -122,8 +128,9 @@ class AsyncClient:
     the token defaults to the environment's TOONFORCE_CONTROL_TOKEN, as the run's does."""
 
     def __init__(self, url: str, token: Optional[str] = None, *, open_timeout_s: float = 10.0,
-                 reply_timeout_s: float = 10.0):
+                 reply_timeout_s: float = 10.0, change_timeout_s: float = 5.0):
         self.url = url
+        self.change_timeout_s = change_timeout_s
         self.token = token if token is not None else os.environ.get("TOONFORCE_CONTROL_TOKEN", "")
         self.open_timeout_s = open_timeout_s
         self.reply_timeout_s = reply_timeout_s
@@ -158,7 +165,26 @@ class AsyncClient:
 
     async def request(self, message: Dict[str, Any]) -> Dict[str, Any]:
         """Sends one message with a fresh id and returns its reply; a refusal raises
-        ControlError (RateLimited for the rate)."""
+        ControlError (RateLimited for the rate). A change refused for a full mailbox ("try
+        again") is sent again until it passes, for at most `change_timeout_s` (TimeoutError)."""
+        deadline = None
+        pause_s = 0.001  # a tick at 1 kHz: the loop takes one change a tick
+        while True:
+            try:
+                return await self._request_once(message)
+            except ControlError as e:
+                if isinstance(e, RateLimited) or not MAILBOX_FULL.search(e.message):
+                    raise
+                now = time.monotonic()
+                if deadline is None:
+                    deadline = now + self.change_timeout_s
+                elif now >= deadline:
+                    raise TimeoutError(f"{e.message.rstrip()}: still refused after {self.change_timeout_s:g} s "
+                                       "(is the run's loop running?)") from None
+                await asyncio.sleep(pause_s)
+                pause_s = min(2.0 * pause_s, 0.02)
+
+    async def _request_once(self, message: Dict[str, Any]) -> Dict[str, Any]:
         if self._ws is None:
             raise ProtocolError("not connected")
         ident = next(self._ids)

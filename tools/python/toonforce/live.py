@@ -16,6 +16,11 @@ values). Leaving the `with` block in any way, an exception or Ctrl-C (KeyboardIn
 included, stops the run with SIGTERM: the same stop path as the command line's, which ends on a
 zero-force tick. If the Python process itself dies, the run gets SIGTERM from the kernel
 (PR_SET_PDEATHSIG) and stops the same way.
+
+Made, it waits for the loop's first frame: a run whose program could not start (a device that
+cannot be opened) raises `RunError` with the program's own message. Its verbs are those of
+`toonforce.Run` (the run in process): set, add, remove, fire, load, applied, wait_applied,
+telemetry, running, stop, wait.
 """
 
 from __future__ import annotations
@@ -32,26 +37,22 @@ import subprocess
 import tempfile
 import threading
 import time
-from typing import Dict, List, Optional, Sequence, Union
+import tomllib
+import warnings
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 import websockets
 
+from . import RunError
 from .control import Client, parse_announcement
 
 __all__ = ["Run", "RunError", "find_binary"]
 
 _VIEWER = re.compile(r"viewer: (http://[^/\s]+)/")
+_OURS = re.compile(r"^(viewer|control): ")  # the announcements; the rest is the program's own
 _PR_SET_PDEATHSIG = 1
 _BATCH_HEADER = 4  # kind (1 live, 2 history), stride, first sequence number, count
-
-
-class RunError(Exception):
-    """The run could not start, or ended with a failure; `output` is what it printed."""
-
-    def __init__(self, message: str, output: str = ""):
-        super().__init__(message + (f"\n{output}" if output else ""))
-        self.output = output
 
 
 def find_binary() -> str:
@@ -136,6 +137,11 @@ class _Telemetry:
             raise RunError(f"the viewer's telemetry: {self._error}")
 
     @property
+    def error(self) -> Optional[BaseException]:
+        """Why the telemetry connection failed (None: it has not)."""
+        return self._error
+
+    @property
     def frames_received(self) -> int:
         with self._lock:
             return self._next
@@ -164,15 +170,23 @@ class Run:
     script: a hand script for the simulated device (`--script`).
     duration_s: the run ends by itself after this (None: when stopped).
     realtime: False adds --allow-non-rt --no-mlock (a laptop, a test); True wants SCHED_FIFO.
-    trace: a path for the run's trace CSV (`--trace`).
+    trace_path: a path for the run's trace CSV (`--trace`); `trace`, its old name, is deprecated.
     history_s: seconds of telemetry kept for telemetry() (at the run's rate).
     args: further `toonforce run` options, as a list of strings.
+    start_timeout_s: how long to wait for the run's first frame; change_timeout_s: how long a
+    change waits for room in the loop's mailbox (toonforce.control).
     """
 
     def __init__(self, scene: Union[str, os.PathLike], device: str = "sim", *, script: Optional[str] = None,
-                 duration_s: Optional[float] = None, realtime: bool = True, trace: Optional[str] = None,
+                 duration_s: Optional[float] = None, realtime: bool = True, trace_path: Optional[str] = None,
                  history_s: float = 60.0, args: Sequence[str] = (), binary: Optional[str] = None,
-                 start_timeout_s: float = 30.0):
+                 start_timeout_s: float = 30.0, change_timeout_s: float = 5.0, trace: Optional[str] = None):
+        if trace is not None:
+            if trace_path is not None:
+                raise TypeError("trace_path and its deprecated name trace both given")
+            warnings.warn("toonforce.live.Run(trace=...) is deprecated: use trace_path= (as toonforce.Run)",
+                          DeprecationWarning, stacklevel=2)
+            trace_path = trace
         self.binary = binary or find_binary()
         self.device = device
         self._tmp = tempfile.TemporaryDirectory(prefix="toonforce-live-")
@@ -191,8 +205,8 @@ class Run:
             command += ["--duration", repr(float(duration_s))]
         if not realtime:
             command += ["--allow-non-rt", "--no-mlock"]
-        if trace is not None:
-            command += ["--trace", str(trace)]
+        if trace_path is not None:
+            command += ["--trace", str(trace_path)]
         command += [str(a) for a in args]
         self.command = command
         self._output: List[str] = []
@@ -206,55 +220,152 @@ class Run:
         self._telemetry: Optional[_Telemetry] = None
         self.control: Optional[Client] = None
         self.returncode: Optional[int] = None
+        # Its standard error read from the start on a thread of its own: every wait below ends
+        # at its deadline or as soon as the program has ended (its standard error closed),
+        # never in a read that waits for a line the program will not write.
+        self._said = threading.Condition()
+        self._closed = False  # its standard error has ended: the program has, or is ending
+        self._reader = threading.Thread(target=self._drain, name="toonforce.live output", daemon=True)
+        self._reader.start()
         try:
-            viewer, control_url = self._announcements(start_timeout_s)
-            self._reader = threading.Thread(target=self._drain, name="toonforce.live output", daemon=True)
-            self._reader.start()
+            deadline = time.monotonic() + start_timeout_s
+            viewer, control_url = self._announcements(deadline)
             host = viewer[len("http://"):]
             self._telemetry = _Telemetry(f"ws://{host}/ws", viewer, history_s)
-            self._telemetry.wait_hello(start_timeout_s)
-            self.control = Client(control_url, self.token)  # its hello starts the loop (--control-wait)
+            try:
+                self._telemetry.wait_hello(max(0.0, deadline - time.monotonic()))
+                # Its hello starts the loop (--control-wait), which then opens the device.
+                self.control = Client(control_url, self.token, change_timeout_s=change_timeout_s,
+                                      open_timeout_s=max(0.1, deadline - time.monotonic()))
+            except Exception:
+                if self._ended():
+                    raise self._failure() from None  # the program's reason, not the connection's
+                raise
+            self._started(deadline, start_timeout_s)
         except BaseException:
             self.stop()
             raise
 
     # ---- start-up -----------------------------------------------------------------------
 
-    def _announcements(self, timeout_s: float):
+    def _announcements(self, deadline: float):
+        """The viewer's and the control channel's addresses, as the program announces them."""
         viewer = control = None
-        deadline = time.monotonic() + timeout_s
-        while (viewer is None or control is None) and time.monotonic() < deadline:
-            line = self._process.stderr.readline()
-            if not line:
-                break
-            self._output.append(line)
-            if (m := _VIEWER.search(line)) is not None:
-                viewer = m.group(1)
-            try:
-                control, _ = parse_announcement(line)  # the token is ours (--control-token)
-            except ValueError:
-                pass
+        seen = 0
+        with self._said:
+            while viewer is None or control is None:
+                for line in self._output[seen:]:
+                    if (m := _VIEWER.search(line)) is not None:
+                        viewer = m.group(1)
+                    try:
+                        control, _ = parse_announcement(line)  # the token is ours (--control-token)
+                    except ValueError:
+                        pass
+                seen = len(self._output)
+                if viewer is not None and control is not None:
+                    break
+                left = deadline - time.monotonic()
+                if self._closed or left <= 0:
+                    break
+                self._said.wait(left)
         if viewer is None or control is None:
-            raise RunError(f"`{' '.join(self.command)}` did not start", "".join(self._output))
+            if self._ended():
+                raise self._failure()
+            output = self.output
+            raise RunError(f"`{' '.join(self.command)}` did not announce its viewer and control channel"
+                           + (f"\n{output}" if output else ""), output, self._process.poll())
         return viewer, control
+
+    def _ended(self, grace_s: float = 5.0) -> bool:
+        """Whether the program has ended: at once if it has; if its standard error has closed,
+        it is ending, and its exit status follows within `grace_s`."""
+        if self._process.poll() is not None:
+            return True
+        if not self._closed:
+            return False
+        try:
+            self._process.wait(grace_s)
+        except subprocess.TimeoutExpired:
+            return False
+        return True
+
+    def _failure(self) -> RunError:
+        """The program has ended before its first frame: its own words (a device that cannot be
+        opened: which one, and what to check) and its exit status."""
+        self._reader.join(5)  # all it printed: the pipe is closed once it has ended
+        said = "".join(line for line in self._output if not _OURS.match(line)).strip()
+        return RunError(f"toonforce run --device {self.device} failed (exit status {self._process.returncode})"
+                        + (f": {said}" if said else ""), self.output, self._process.returncode)
+
+    def _started(self, deadline: float, timeout_s: float) -> None:
+        # The first frame, or the program's end: one that cannot open its device says why on
+        # standard error and exits. Its end is seen at the next poll, as is a telemetry
+        # connection that failed.
+        while self._telemetry.frames_received == 0:
+            if self._ended():
+                if self._process.returncode == 0:
+                    return  # it ended at once, as asked
+                raise self._failure()
+            if self._telemetry.error is not None:
+                raise RunError(f"the viewer's telemetry: {self._telemetry.error}", self.output)
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise RunError(f"toonforce run --device {self.device}: no frame from the loop within {timeout_s:g} s",
+                               self.output)
+            time.sleep(min(left, 0.005))
 
     def _drain(self) -> None:
         for line in self._process.stderr:
-            self._output.append(line)
+            with self._said:
+                self._output.append(line)
+                self._said.notify_all()
+        with self._said:
+            self._closed = True
+            self._said.notify_all()
 
     # ---- while it runs ------------------------------------------------------------------
 
-    def set(self, effect: str, keys: Optional[dict] = None, **named) -> int:
-        """Changes an effect's keys (toonforce.control.Client.set); the change's sequence."""
+    def set(self, effect: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
+        """Changes an effect's keys (toonforce.control.Client.set), given as a dict, as keywords
+        or as TOML text; the change's sequence. A burst waits for room in the loop's mailbox."""
+        if isinstance(keys, str):
+            if named:
+                raise TypeError("keys as TOML text, or as a dict and/or keywords, not both")
+            keys = tomllib.loads(keys)
         return self.control.set(effect, keys, **named)
+
+    def add(self, kind: str, keys: Union[None, str, Mapping[str, Any]] = None, **named: Any) -> int:
+        """Adds an effect of `kind` (`toonforce run` refuses it: its trace's columns)."""
+        if isinstance(keys, str):
+            if named:
+                raise TypeError("keys as TOML text, or as a dict and/or keywords, not both")
+            keys = tomllib.loads(keys)
+        return self.control.add(kind, keys, **named)
+
+    def remove(self, effect: str) -> int:
+        """Removes an effect (`toonforce run` refuses it too)."""
+        return self.control.remove(effect)
 
     def fire(self, effect: str, event: str, value: float = 0.0) -> int:
         """A one-shot event ("impact" with its speed in m/s, "look_down"); its sequence."""
         return self.control.fire(effect, event, value)
 
-    def load(self, toml: str, name: Optional[str] = None) -> int:
-        """Another scene with the same list of effects (a scene file's text); its sequence."""
-        return self.control.load(toml, name)
+    def load(self, scene: Any, name: Optional[str] = None) -> int:
+        """Another scene with the same list of effects: a scene file's text (a str holding a
+        newline), a path, a toonforce.Scene or a dict; its sequence."""
+        if isinstance(scene, str) and "\n" in scene:
+            return self.control.load(scene, name)
+        from . import Scene, _source
+        path, text = _source(scene, Scene)
+        if text is None:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        return self.control.load(text, name or path)
+
+    @property
+    def applied(self) -> int:
+        """The sequence of the last change the loop applied (0: none yet)."""
+        return self.control.applied()
 
     def wait_applied(self, sequence: int, timeout_s: float = 5.0) -> int:
         """Waits until the loop has applied change `sequence`."""

@@ -38,7 +38,7 @@ def _participant(session: Session, args):
     while os.path.exists(os.path.join(session.folder, f"run-{number}.csv")):
         number += 1
     options = {"realtime": not getattr(args, "allow_non_rt", False),
-               "trace": os.path.join(session.folder, f"run-{number}.csv")}
+               "trace_path": os.path.join(session.folder, f"run-{number}.csv")}
     if getattr(args, "hand", None):
         options["script"] = args.hand
     person = PersonAtDevice(session.experiment, session.meta["device"], port=getattr(args, "page_port", 0),

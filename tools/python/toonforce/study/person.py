@@ -267,7 +267,7 @@ class _Page:
 class PersonAtDevice:
     """The participant: a person at `device`, answering on the page (see the module's text).
     `interval_s`: each interval's length; `run_options`: toonforce.live.Run's keyword
-    arguments (realtime, script for the simulated device, trace, ...)."""
+    arguments (realtime, script for the simulated device, trace_path, ...)."""
 
     def __init__(self, exp: experiments.Experiment, device: str = "sim", port: int = 0, interval_s: float = 3.0,
                  blank_s: float = 0.5, **run_options):
@@ -282,7 +282,8 @@ class PersonAtDevice:
         first = exp.conditions[exp.used_conditions()[0]]
         self._silent = self._toml(silent_scene(scene_with(first, None))) + "\n"
         self.run = Run(self._silent, device=device, **run_options)
-        self._trace = os.path.basename(run_options["trace"]) if run_options.get("trace") else None
+        trace = run_options.get("trace_path") or run_options.get("trace")
+        self._trace = os.path.basename(trace) if trace else None
         self._last_block: Optional[int] = None
         self._intervals: list = []  # the trial's intervals: [frame its scene was sent, frame the silence was]
         # The device is up and silent: the page asks the participant to start (prepare waits).
