@@ -261,11 +261,11 @@ void check_fixed_point_device(TableReader& root, const SceneSettings& settings) 
 }  // namespace scene_reader
 
 Result<SceneDescription> load_scene_file(const std::string& path, ScalarKind scalar) {
-  return read_scene_file<RuntimeSurface, CartoonCliff>(path, scalar);
+  return read_scene_file<TOONFORCE_BUILTIN_EFFECTS>(path, scalar);
 }
 
 Result<SceneDescription> parse_scene(std::string_view text, std::string_view source_name, ScalarKind scalar) {
-  return read_scene<RuntimeSurface, CartoonCliff>(text, source_name, scalar);
+  return read_scene<TOONFORCE_BUILTIN_EFFECTS>(text, source_name, scalar);
 }
 
 ServoConfig servo_config(const SceneSettings& scene, double period_s) {
