@@ -71,9 +71,22 @@ install(TARGETS ${_toonforce_core_libraries} toonforce_warnings
   EXPORT toonforceTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT devel
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# Only the public headers: not a `detail/` directory, nor the headers no installed header
+# includes that serve this tree's own programs (the explicit instantiations its libraries
+# compile, `run`'s process split, the memory it shares with its server process, the watchers'
+# clock). tests/install/consumer_test.cmake checks that every installed header's includes are
+# installed too and that these are not.
+set(_toonforce_internal_headers
+  toonforce/effects/instantiations.hpp toonforce/control/process_split.hpp
+  toonforce/control/server_channel.hpp toonforce/control/running_clock.hpp)
+set(_toonforce_header_excludes PATTERN "detail" EXCLUDE)
+foreach(header IN LISTS _toonforce_internal_headers)
+  string(REPLACE "." "\\." header_regex "${header}")
+  list(APPEND _toonforce_header_excludes REGEX "/${header_regex}$" EXCLUDE)
+endforeach()
 foreach(dir IN LISTS _toonforce_core_headers)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-          COMPONENT devel FILES_MATCHING PATTERN "*.hpp")
+          COMPONENT devel FILES_MATCHING PATTERN "*.hpp" ${_toonforce_header_excludes})
 endforeach()
 install(EXPORT toonforceTargets NAMESPACE toonforce:: FILE toonforce-targets.cmake
         DESTINATION ${TOONFORCE_INSTALL_CMAKEDIR} COMPONENT devel)
@@ -113,7 +126,7 @@ foreach(entry IN LISTS _toonforce_backends)
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT ${name}_devel
     INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${headers}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-          COMPONENT ${name}_devel FILES_MATCHING PATTERN "*.hpp")
+          COMPONENT ${name}_devel FILES_MATCHING PATTERN "*.hpp" ${_toonforce_header_excludes})
   install(EXPORT toonforce_${name}_targets NAMESPACE toonforce:: FILE toonforce-${name}-targets.cmake
           DESTINATION ${TOONFORCE_INSTALL_CMAKEDIR} COMPONENT ${name}_devel)
   # The backend's part of the package config: its dependencies, then its targets.

@@ -84,6 +84,23 @@ foreach(file IN ITEMS
     pkgconfig/toonforce.pc pkgconfig/toonforce-falcon.pc pkgconfig/toonforce-gpio.pc)
   expect("${libdir}/${file} installed" EXISTS "${libdir}/${file}")
 endforeach()
+# Only the public headers: each installed header's own includes are installed too (a header a
+# public one includes is public), and the internal ones cmake/ToonforceInstall.cmake names are not.
+file(GLOB_RECURSE installed_headers "${prefix}/include/toonforce/*.hpp")
+list(LENGTH installed_headers n)
+expect("headers installed under ${prefix}/include/toonforce (found ${n})" n GREATER 40)
+foreach(header IN LISTS installed_headers)
+  file(STRINGS "${header}" includes REGEX "^#include \"toonforce/")
+  foreach(line IN LISTS includes)
+    string(REGEX REPLACE "^#include \"([^\"]+)\".*" "\\1" included "${line}")
+    expect("${header} includes ${included}, which is installed" EXISTS "${prefix}/include/${included}")
+  endforeach()
+  expect("no detail/ header installed (${header})" NOT header MATCHES "/detail/")
+endforeach()
+foreach(file IN ITEMS toonforce/effects/instantiations.hpp toonforce/control/process_split.hpp
+                      toonforce/control/server_channel.hpp toonforce/control/running_clock.hpp)
+  expect("the internal ${file} is not installed" NOT EXISTS "${prefix}/include/${file}")
+endforeach()
 # The package files must not lean on the trees this was built from (it was moved anyway).
 file(GLOB_RECURSE package_files "${libdir}/cmake/toonforce/*" "${libdir}/pkgconfig/*")
 foreach(file IN LISTS package_files)

@@ -101,7 +101,7 @@ struct SceneDocument::Impl {
   Result<SceneDescription> check(const toml::table& candidate, const std::string& name,
                                  std::optional<std::vector<SceneEntry>> order) const {
     ErrorList errors(name);
-    auto read = scene_reader::describe<RuntimeSurface, CartoonCliff>(candidate, errors, scalar, name);
+    auto read = scene_reader::describe<TOONFORCE_BUILTIN_EFFECTS>(candidate, errors, scalar, name);
     if (!read) return Error{read.error()};
     read->source = scene.source;
     read->name = scene.name;
@@ -138,7 +138,7 @@ Result<SceneDocument> SceneDocument::parse(std::string_view text, std::string so
   ErrorList errors(source);
   auto root = parse_toml_text(text, errors);
   if (!root) return Error{errors.text()};
-  auto scene = scene_reader::describe<RuntimeSurface, CartoonCliff>(*root, errors, scalar, source);
+  auto scene = scene_reader::describe<TOONFORCE_BUILTIN_EFFECTS>(*root, errors, scalar, source);
   if (!scene) return Error{scene.error()};
   auto impl = std::make_unique<Impl>();
   impl->doc = std::move(*root);
@@ -221,7 +221,7 @@ Result<SceneChange> SceneDocument::load(std::string_view text, std::string sourc
                              what)};
   }
   ErrorList check_errors(source);
-  auto scene = scene_reader::describe<RuntimeSurface, CartoonCliff>(*root, check_errors, impl_->scalar, source);
+  auto scene = scene_reader::describe<TOONFORCE_BUILTIN_EFFECTS>(*root, check_errors, impl_->scalar, source);
   if (!scene) return Error{scene.error()};
   SceneChange c;
   c.continues.assign(scene->order.size(), -1);  // another scene: every state starts fresh

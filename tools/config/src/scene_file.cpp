@@ -8,60 +8,16 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/config/device_keys.hpp"
 #include "toonforce/config/scene_reader.hpp"
 
 namespace toonforce {
 
 namespace {
 
-/// The servo loop's [device] keys (toonforce extensions; interfaces.md lists them with their
-/// defaults, effects.md §6 says what they do).
-void read_safety(TableReader& r, SafetyConfig& s) {
-  s.engage_force_n = r.number_or("engage_force", s.engage_force_n, Range::kPositive);
-  s.soft_start_s = r.number_or("soft_start", s.soft_start_s, Range::kNonNegative);
-  s.max_velocity_m_per_s = r.number_or("max_velocity", s.max_velocity_m_per_s, Range::kPositive);
-  const auto lo = r.optional_vec3("workspace_min", "[m]");
-  const auto hi = r.optional_vec3("workspace_max", "[m]");
-  if (lo.has_value() != hi.has_value()) {
-    r.error(lo ? "workspace_min" : "workspace_max", "needs workspace_min and workspace_max together");
-  } else if (lo && hi) {
-    if (!(lo->x < hi->x && lo->y < hi->y && lo->z < hi->z)) {
-      r.error("workspace_max", "must be greater than workspace_min on every axis");
-    } else {
-      s.has_workspace = true;
-      s.workspace_min_m = *lo;
-      s.workspace_max_m = *hi;
-    }
-  }
-  s.watchdog_periods = r.optional_integer("watchdog_periods", 1).value_or(s.watchdog_periods);
-  s.device_timeout_periods = r.optional_integer("device_timeout_periods", 1).value_or(s.device_timeout_periods);
-  s.thermal.continuous_force_n = r.number_or("continuous_force", 0.0, Range::kPositive);
-  s.thermal.time_constant_s = r.number_or("thermal_time_constant", s.thermal.time_constant_s, Range::kPositive);
-  if (const auto d = r.optional_number("thermal_derate_start", Range::kNonNegative)) {
-    if (*d >= 1.0) {
-      r.error("thermal_derate_start", fmt::format("must be below 1 (got {}): 1 is the rated temperature", *d));
-    } else {
-      s.thermal.derate_start = *d;
-    }
-  }
-  s.passivity.controller = r.optional_bool("passivity_controller").value_or(s.passivity.controller);
-  s.passivity.budget_j = r.number_or("passivity_budget", s.passivity.budget_j, Range::kPositive);
-  s.passivity.max_damping_n_s_per_m =
-      r.number_or("passivity_max_damping", s.passivity.max_damping_n_s_per_m, Range::kPositive);
-}
-
 void read_device(const toml::table& table, ErrorList& errors, ScalarKind scalar, SceneSettings& scene) {
   TableReader r(table, "device", errors, scalar);
-  if (const auto f = r.optional_number("max_force", Range::kPositive)) {
-    scene.limits.max_force_n = *f;
-    scene.limits.has_max_force = true;
-  }
-  if (const auto f = r.optional_number("max_force_rate", Range::kPositive)) {
-    scene.limits.max_force_rate_n_per_s = *f;
-    scene.limits.has_max_force_rate = true;
-  }
-  scene.velocity_cutoff_hz = r.number_or("velocity_cutoff", scene.velocity_cutoff_hz, Range::kPositive);
-  read_safety(r, scene.safety);
+  read_device_keys(r, scene);  // each key declared once, in device_keys.cpp
   if (scalar == ScalarKind::kQ16_16) {
     const double time_constant_s = 1.0 / (2.0 * 3.14159265358979323846 * scene.velocity_cutoff_hz);
     if (Q16_16::from_double(time_constant_s).raw() == 0) {
@@ -261,11 +217,11 @@ void check_fixed_point_device(TableReader& root, const SceneSettings& settings) 
 }  // namespace scene_reader
 
 Result<SceneDescription> load_scene_file(const std::string& path, ScalarKind scalar) {
-  return read_scene_file<RuntimeSurface, CartoonCliff>(path, scalar);
+  return read_scene_file<TOONFORCE_BUILTIN_EFFECTS>(path, scalar);
 }
 
 Result<SceneDescription> parse_scene(std::string_view text, std::string_view source_name, ScalarKind scalar) {
-  return read_scene<RuntimeSurface, CartoonCliff>(text, source_name, scalar);
+  return read_scene<TOONFORCE_BUILTIN_EFFECTS>(text, source_name, scalar);
 }
 
 ServoConfig servo_config(const SceneSettings& scene, double period_s) {

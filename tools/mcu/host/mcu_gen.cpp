@@ -160,6 +160,11 @@ std::string settings_of(const ServoConfig& config) {
 /// replay builds from the same file: same parameters, and each surface gets only the laws the
 /// file gives it (a wall without damping is a SpringWall; no tangential law, no impact: none),
 /// which is what makes a scene's image carry only its effects.
+// It writes each built-in kind (effects/builtin.hpp) as itself: a kind added there fails here
+// until it is written too.
+static_assert(SceneDescription::kKinds == 2 && std::is_same_v<SceneDescription::Kind<0>, RuntimeSurface<double>> &&
+                  std::is_same_v<SceneDescription::Kind<1>, CartoonCliff<double>>,
+              "a new built-in effect kind: write its compiled type in scene_struct");
 template <class S>
 std::string scene_struct(const std::string& name, const SceneDescription& d, const ServoConfig& config,
                          const ServoConfig& every_config) {

@@ -23,7 +23,7 @@
   PREFIX template struct ::toonforce::ImpactTransient<S>;     \
   PREFIX template struct ::toonforce::MaybeImpact<S>;         \
   PREFIX template struct ::toonforce::CartoonCliff<S>;        \
-  PREFIX template class ::toonforce::RuntimeSceneOf<S, ::toonforce::RuntimeSurface, ::toonforce::CartoonCliff>;
+  PREFIX template class ::toonforce::RuntimeSceneOf<S, TOONFORCE_BUILTIN_EFFECTS>;
 // NOLINTEND(bugprone-macro-parentheses)
 
 #define TOONFORCE_EXTERN_EFFECTS(S) TOONFORCE_EFFECT_TEMPLATES(extern, S)

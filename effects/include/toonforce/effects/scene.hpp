@@ -22,6 +22,7 @@
 #include <tuple>
 #include <utility>
 
+#include "toonforce/effects/builtin.hpp"
 #include "toonforce/effects/cliff.hpp"
 #include "toonforce/effects/effect.hpp"
 #include "toonforce/effects/params_check.hpp"
@@ -420,8 +421,9 @@ class RuntimeSceneOf {
   Needs needs_ = Needs::kNone;
 };
 
-/// The library's run-time scene: surfaces and cliffs, as scene files describe them.
+/// The library's run-time scene: the built-in kinds (builtin.hpp: surfaces and cliffs), as
+/// scene files describe them.
 template <Scalar S>
-using RuntimeScene = RuntimeSceneOf<S, RuntimeSurface, CartoonCliff>;
+using RuntimeScene = RuntimeSceneOf<S, TOONFORCE_BUILTIN_EFFECTS>;
 
 }  // namespace toonforce

@@ -71,9 +71,12 @@ def scene_with(condition: experiments.Condition, level: Optional[float]) -> Dict
         effect, *keys = path.split(".")
         kind = effect.rstrip("0123456789")
         number = int(effect[len(kind):] or 0)
-        if kind not in ("surface", "cliff") or number < 1 or number > len(scene.get(kind, [])):
+        # A scene file's arrays of tables are its effects, one per kind (the loader refuses any
+        # other), so no list of the kinds is kept here.
+        effects = scene.get(kind)
+        if not isinstance(effects, list) or number < 1 or number > len(effects):
             raise ValueError(f"{condition.name}: '{path}': no effect {effect} in {condition.scene}")
-        table = scene[kind][number - 1]
+        table = effects[number - 1]
         for key in keys[:-1]:
             table = table.setdefault(key, {})
         table[keys[-1]] = value

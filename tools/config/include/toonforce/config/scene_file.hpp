@@ -83,8 +83,8 @@ struct SceneFileOf : SceneSettings {
   }
 };
 
-/// The library's scene files: surfaces and cliffs.
-using SceneDescription = SceneFileOf<RuntimeSurface, CartoonCliff>;
+/// The library's scene files: the built-in kinds (effects/builtin.hpp: surfaces and cliffs).
+using SceneDescription = SceneFileOf<TOONFORCE_BUILTIN_EFFECTS>;
 
 /// Loads and checks a scene file of the library's kinds for the given scalar type (every value
 /// must fit it).
