@@ -786,8 +786,14 @@ bool has_viewer() {
   return status == 0 && text.find("--control-wait") != std::string::npos;
 }
 
-/// A firmware-style build has no `report` (tools/cli/CMakeLists.txt).
-bool has_report() { return run_binary({TOONFORCE_BINARY, "report", "--help"}).first == 0; }
+/// `report` is the lab program's (tools/lab), built beside toonforce unless the build has no
+/// lab (TOONFORCE_LAB=OFF) or is firmware-style (tools/lab/CMakeLists.txt).
+#ifdef TOONFORCE_LAB_BINARY
+const char* const kLabBinary = TOONFORCE_LAB_BINARY;
+#else
+const char* const kLabBinary = "";
+#endif
+bool has_report() { return *kLabBinary != '\0' && run_binary({kLabBinary, "report", "--help"}).first == 0; }
 
 /// Waits (no time asserted) until `path` holds `what`; false if the child ended first.
 /// Polls (at most 60 s) until `holds` is true of the text of the file at `path`; false if not
@@ -1068,13 +1074,28 @@ TEST(Cli, NumericOptionsOutsideTheirRangeAreRefusedAtOnceWithExit2) {
   };
   for (const auto& args : bad) {
     if (args[0] == "report" && !has_report()) continue;
-    std::vector<std::string> command{TOONFORCE_BINARY};
+    std::vector<std::string> command{args[0] == "report" ? kLabBinary : TOONFORCE_BINARY};
     command.insert(command.end(), args.begin(), args.end());
     const auto [status, text] = run_binary(command);
     const std::string& option = args[args.size() - 2];
     EXPECT_EQ(status, 2) << option << " " << args.back() << ": " << text;
     EXPECT_NE(text.find(option), std::string::npos) << text;
     EXPECT_LT(text.size(), 400U) << text;
+  }
+}
+
+// `report` is the lab's program, not the product's: toonforce says where it is, in one line,
+// and cannot start (exit status 2), whatever follows it (--help included).
+TEST(Cli, ReportIsTheLabProgramsOneLineAndExit2) {
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"report"}, {"report", "all", "--quick"}, {"report", "--help"}, {"report", "mcu", "--docs", "docs"}}) {
+    std::vector<std::string> command{TOONFORCE_BINARY};
+    command.insert(command.end(), args.begin(), args.end());
+    const auto [status, text] = run_binary(command);
+    EXPECT_EQ(status, 2) << text;
+    EXPECT_NE(text.find("toonforce-lab report"), std::string::npos) << text;
+    EXPECT_NE(text.find("bin/toonforce-lab"), std::string::npos) << text;
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
   }
 }
 
@@ -1871,7 +1892,7 @@ struct ReportStoppedInAPlot {
                            "open('" << ready.string() << "', 'w').close()\n"
                            "time.sleep(600)\n";
     setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
-    child = spawn({TOONFORCE_BINARY, "report", "stability", "--out", (dir / "docs").string(), "--resolution", "2",
+    child = spawn({kLabBinary, "report", "stability", "--out", (dir / "docs").string(), "--resolution", "2",
                    "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"},
                   output);
     unsetenv("TOONFORCE_PLOT_REPORT_SCRIPT");
@@ -1889,7 +1910,7 @@ TEST(ReportCommand, AStopSignalLeavesEveryFileAsItWasOrWholeAndSaysSo) {
     ASSERT_TRUE(appears(report.ready)) << slurp(report.output);
     kill(report.child.pid, signo);
     EXPECT_EQ(wait_exit(report.child), 1) << signal_name(signo) << ": " << slurp(report.output);
-    EXPECT_NE(slurp(report.output).find("toonforce report: stopped by " + signal_name(signo) + "; no file was left cut"),
+    EXPECT_NE(slurp(report.output).find("toonforce-lab report: stopped by " + signal_name(signo) + "; no file was left cut"),
               std::string::npos)
         << slurp(report.output);
     for (const auto* name : {"STABILITY.md", "report/stiffness_period.csv", "report/stiffness_period.png"}) {
@@ -1912,7 +1933,7 @@ TEST(ReportCommand, AFailedStepLeavesTheFolderAsItWasAndAFinishedOneReplacesItsF
     const auto plot = dir / "plot.py";
     std::ofstream(plot) << "import sys\n" << body;
     setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
-    auto result = run_binary({TOONFORCE_BINARY, "report", "stability", "--out", (dir / "docs").string(), "--resolution",
+    auto result = run_binary({kLabBinary, "report", "stability", "--out", (dir / "docs").string(), "--resolution",
                               "2", "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"});
     unsetenv("TOONFORCE_PLOT_REPORT_SCRIPT");
     return result;

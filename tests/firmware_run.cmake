@@ -54,7 +54,7 @@ execute_process(COMMAND "${BINARY}" --help RESULT_VARIABLE rc OUTPUT_VARIABLE ou
 if(NOT rc EQUAL 0 OR "${out}" MATCHES "\n +view ")
   message(FATAL_ERROR "a firmware build's subcommands must not include view (exit ${rc}): ${out}${err}")
 endif()
-# Nor `report` (it measures the host build's three scalars; CMakeLists.txt of tools/cli).
+# Nor `report`: no build has it in toonforce (it is the lab's toonforce-lab, tools/CMakeLists.txt).
 if("${out}" MATCHES "\n +report ")
   message(FATAL_ERROR "a firmware build's subcommands must not include report: ${out}")
 endif()

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # The short form of the reports CI runs:
-# `toonforce report all --quick` into a scratch directory, then each document must have its
+# `toonforce-lab report all --quick` into a scratch directory, then each document must have its
 # sections (a report that stopped half-way, or wrote nothing, fails). The numbers are not
 # judged here (timings never are in tests); the budget and scenario tests check what can be.
 #   cmake -DBINARY=toonforce -DROOT=source -DOUT=dir -P report_quick.cmake

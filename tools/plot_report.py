@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: Apache-2.0
-"""Plots for `toonforce report` (docs/performance/precision.md, docs/STABILITY.md).
+"""Plots for `toonforce-lab report` (docs/performance/precision.md, docs/STABILITY.md).
 
 Usage:
   plot_report.py work-precision PRECISION.csv OUT.png

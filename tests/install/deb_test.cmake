@@ -3,8 +3,9 @@
 # checks what dpkg would install from them: the program, scenes, udev rule, limits snippet
 # (a conffile) and unit template in `toonforce`, written for /usr and /etc; headers, libraries
 # and package files in `toonforce-dev`; each backend in its own -dev package depending on it;
-# the maintainer scripts valid shell; no file in two packages. Parameters (-D): BUILD_DIR
-# WORK_DIR CPACK DPKG_DEB VERSION.
+# the maintainer scripts valid shell; no file in two packages; no file of the lab in any
+# (tests/install/check_install_files.py --listing). Parameters (-D): BUILD_DIR WORK_DIR CPACK
+# DPKG_DEB VERSION PYTHON CHECK_FILES (that script).
 cmake_minimum_required(VERSION 3.25)
 
 function(expect condition_text)
@@ -126,5 +127,12 @@ expect_files(toonforce ./usr/share/doc/toonforce/LICENSE ./usr/share/doc/toonfor
 file(READ "${WORK_DIR}/root/usr/share/doc/toonforce/copyright" copyright)
 string(FIND "${copyright}" "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/" at)
 expect("the copyright file is machine-readable (DEP-5)" at EQUAL 0)
+
+# ---- nothing of the lab (docs/ARCHITECTURE.md "The lab") in any package ------------------------
+string(REPLACE ";" "\n" listing "${all_files}")
+file(WRITE "${WORK_DIR}/all-files.txt" "${listing}\n")
+execute_process(COMMAND "${PYTHON}" "${CHECK_FILES}" --listing "${WORK_DIR}/all-files.txt"
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+expect("no file of the lab in the packages:\n${out}${err}" rc EQUAL 0)
 
 message(STATUS "debian_package: all checks passed")

@@ -2,7 +2,7 @@
 // Google Benchmark over the latency report's cases (tools/report/include/toonforce/report/
 // workloads.hpp): every effect by branch, the safety stage, the five paper scenes as Scene<...>
 // and as RuntimeScene, and the servo loop, for double, float and Q16.16. Google Benchmark
-// reports the mean time per tick of a batch; `toonforce report latency` times every tick alone
+// reports the mean time per tick of a batch; `toonforce-lab report latency` times every tick alone
 // (median, p99.9, max) and counts instructions. A timed program, never a test.
 //
 //   build/release/bin/toonforce_effects_bench --benchmark_filter='scene/.*/double'

@@ -18,9 +18,6 @@ void add_sim(CLI::App& app);
 void add_figures(CLI::App& app);
 void add_devices(CLI::App& app);
 void add_falcon(CLI::App& app);
-#if TOONFORCE_REPORT
-void add_report(CLI::App& app);
-#endif
 void add_bringup(CLI::App& app);
 #if TOONFORCE_STUDY
 void add_study(CLI::App& app);

@@ -26,6 +26,14 @@ int main(int argc, char** argv) {
   // a death by its default action (command_stop.hpp). After the line above: a SIGXFSZ sent with
   // kill is a stop like the others (the handler itself ignores the kernel's file-size one).
   if (argc > 1 && std::string_view(argv[1]) == "run") toonforce::install_command_stop_signals();
+  // `report` measures the project, not a device: it is the lab's program (tools/lab), which a
+  // build tree has beside this one and no install ships. Said in one line, whatever follows it.
+  if (argc > 1 && std::string_view(argv[1]) == "report") {
+    std::fputs("toonforce: `report` is not part of toonforce: it is the lab's `toonforce-lab report ...`, "
+               "built beside toonforce in a build tree (bin/toonforce-lab) and never installed\n",
+               stderr);
+    return 2;
+  }
   CLI::App app{"toonforce: expressive, cartoon-inspired haptic rendering (Haptics Symposium 2010)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "toonforce " TOONFORCE_VERSION);
@@ -36,9 +44,6 @@ int main(int argc, char** argv) {
   toonforce::cli::add_figures(app);
   toonforce::cli::add_devices(app);
   toonforce::cli::add_falcon(app);
-#if TOONFORCE_REPORT
-  toonforce::cli::add_report(app);
-#endif
   toonforce::cli::add_bringup(app);
 #if TOONFORCE_STUDY
   toonforce::cli::add_study(app);

@@ -30,12 +30,15 @@ void add_study(CLI::App& app) {
     std::vector<std::string> argv{"/usr/bin/python3", "-m", "toonforce.study"};
     for (const auto& a : cmd->remaining()) argv.push_back(a);
     if (argv.size() == 3) argv.emplace_back("--help");
-#ifdef TOONFORCE_PYTHON_DIR
-    // The build tree's package, if this binary is still beside it.
+#ifdef TOONFORCE_PYTHON_FROM_BINDIR
+    // The build tree's package, if this binary is still beside it: found from where the binary
+    // is (bin/../python), so that no path of the build machine is compiled into the program.
     std::error_code ec;
-    if (std::filesystem::is_directory(TOONFORCE_PYTHON_DIR "/toonforce", ec)) {
+    const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    const std::filesystem::path package_dir = (exe.parent_path() / TOONFORCE_PYTHON_FROM_BINDIR).lexically_normal();
+    if (!ec && !exe.empty() && std::filesystem::is_directory(package_dir / "toonforce", ec)) {
       const char* old = std::getenv("PYTHONPATH");
-      const std::string path = std::string(TOONFORCE_PYTHON_DIR) + (old != nullptr && *old ? std::string(":") + old : "");
+      const std::string path = package_dir.string() + (old != nullptr && *old ? std::string(":") + old : "");
       setenv("PYTHONPATH", path.c_str(), 1);
     }
 #endif

@@ -1,21 +1,21 @@
 # SPDX-License-Identifier: Apache-2.0
-# A test of `toonforce report mcu --docs`: it regenerates the microcontroller block of a copy of
+# A test of `toonforce-lab report mcu --docs`: it regenerates the microcontroller block of a copy of
 # docs/performance/mcu.md from the built images, and the block must hold what is true of any run,
 # whatever the numbers: a row per paper scene in each table, sizes that add up, the wall's image
 # smaller than the cartoon wall's (which has the impact transient too), smaller than the image
 # with all five scenes, instruction counts that are positive integers with mean <= max (and, on
 # the Cortex-M3, the searched inputs' ticks and maxima beside them), and the
 # markers once each with the document's prose outside them unchanged byte for byte.
-# Variables: TOONFORCE GEN IMAGES M4F_IMAGES DOCS (the docs directory copied) OUT SCENES (comma-separated).
+# Variables: LAB (toonforce-lab) GEN IMAGES M4F_IMAGES DOCS (the docs directory copied) OUT SCENES (comma-separated).
 cmake_policy(VERSION 3.25)
-foreach(var TOONFORCE GEN IMAGES M4F_IMAGES DOCS OUT SCENES)
+foreach(var LAB GEN IMAGES M4F_IMAGES DOCS OUT SCENES)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "check_report.cmake: ${var} is not set")
   endif()
 endforeach()
 string(REPLACE "," ";" SCENES "${SCENES}")
-set(begin_marker "<!-- toonforce report mcu: begin -->")
-set(end_marker "<!-- toonforce report mcu: end -->")
+set(begin_marker "<!-- toonforce-lab report mcu: begin -->")
+set(end_marker "<!-- toonforce-lab report mcu: end -->")
 
 file(REMOVE_RECURSE "${OUT}")
 file(MAKE_DIRECTORY "${OUT}/docs/performance")
@@ -23,21 +23,36 @@ file(COPY "${DOCS}/performance/mcu.md" DESTINATION "${OUT}/docs/performance")
 file(READ "${DOCS}/performance/mcu.md" before)
 
 execute_process(
-  COMMAND "${TOONFORCE}" report mcu --images "${IMAGES}" --m4f-images "${M4F_IMAGES}" --gen "${GEN}"
+  COMMAND "${LAB}" report mcu --images "${IMAGES}" --m4f-images "${M4F_IMAGES}" --gen "${GEN}"
           --docs "${OUT}/docs"
   RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "toonforce report mcu failed (${rc}):\n${out}${err}")
+  message(FATAL_ERROR "toonforce-lab report mcu failed (${rc}):\n${out}${err}")
 endif()
 file(READ "${OUT}/docs/performance/mcu.md" after)
 
-# The markers: once each, begin before end, in the document before and after.
+# The markers: once each, begin before end, in the document before and after. Before, they may
+# still be spelt as before the report was the lab's program (without "-lab"): the report adopts
+# them (documents.hpp, adopt_earlier_markers), and only them.
+string(REPLACE "-lab " " " before_begin_spelling "${begin_marker}")
+string(REPLACE "-lab " " " before_end_spelling "${end_marker}")
+string(FIND "${before}" "${begin_marker}" present)
+if(present EQUAL -1)
+  set(before_begin_marker_text "${before_begin_spelling}")
+  set(before_end_marker_text "${before_end_spelling}")
+else()
+  set(before_begin_marker_text "${begin_marker}")
+  set(before_end_marker_text "${end_marker}")
+endif()
+set(after_begin_marker_text "${begin_marker}")
+set(after_end_marker_text "${end_marker}")
 foreach(which before after)
   foreach(marker begin_marker end_marker)
-    string(FIND "${${which}}" "${${marker}}" first)
-    string(FIND "${${which}}" "${${marker}}" last REVERSE)
+    set(text "${${which}_${marker}_text}")
+    string(FIND "${${which}}" "${text}" first)
+    string(FIND "${${which}}" "${text}" last REVERSE)
     if(first EQUAL -1 OR NOT first EQUAL last)
-      message(FATAL_ERROR "performance/mcu.md (${which} the report) must hold '${${marker}}' exactly once")
+      message(FATAL_ERROR "performance/mcu.md (${which} the report) must hold '${text}' exactly once")
     endif()
     set(${which}_${marker} ${first})
   endforeach()
@@ -49,8 +64,9 @@ endforeach()
 # The prose around the block, unchanged.
 string(SUBSTRING "${before}" 0 ${before_begin_marker} before_head)
 string(SUBSTRING "${after}" 0 ${after_begin_marker} after_head)
+string(LENGTH "${before_end_marker_text}" before_end_length)
 string(LENGTH "${end_marker}" end_length)
-math(EXPR before_tail_at "${before_end_marker} + ${end_length}")
+math(EXPR before_tail_at "${before_end_marker} + ${before_end_length}")
 math(EXPR after_tail_at "${after_end_marker} + ${end_length}")
 string(SUBSTRING "${before}" ${before_tail_at} -1 before_tail)
 string(SUBSTRING "${after}" ${after_tail_at} -1 after_tail)

@@ -8,7 +8,7 @@ set(TOONFORCE_MCU_MOTIONS strike stroke crossing_fast crossing_slow)
 # QEMU's -icount shift: each instruction advances the virtual clock 2^7 ns, 3.2 SysTick counts
 # at 25 MHz, enough for the image to recover exact instruction counts (firmware/main.cpp).
 set(TOONFORCE_MCU_ICOUNT_SHIFT 7)
-# Each scene's image also plays that scene's searched inputs (`toonforce report`'s search path),
+# Each scene's image also plays that scene's searched inputs (`toonforce-lab report`'s search path),
 # one motion per strike, written by `toonforce_mcu_gen strikes` into the build tree:
 # search_SCENE_0 .. search_SCENE_{N-1}, each also as search_SCENE_K_late (with late ticks: rows
 # left out). N is the report's kSearchStrikes (workloads.hpp); the generator refuses another.

@@ -283,7 +283,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
   endforeach()
 endforeach()
 
-# `toonforce report mcu --docs` (docs/performance/mcu.md's generated block) on a copy of the
+# `toonforce-lab report mcu --docs` (docs/performance/mcu.md's generated block) on a copy of the
 # docs, from images that passed their runs: every scene in every table, sizes and counts that
 # must hold whatever the numbers, and the prose outside the block unchanged.
 set(_mcu_report_fixtures mcu_m4f_images)
@@ -295,7 +295,7 @@ foreach(scene IN LISTS TOONFORCE_MCU_SCENES)
 endforeach()
 string(REPLACE ";" "," _mcu_scenes_arg "${TOONFORCE_MCU_SCENES}")
 add_test(NAME mcu_report COMMAND ${CMAKE_COMMAND}
-  -DTOONFORCE=$<TARGET_FILE:toonforce> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
+  -DLAB=$<TARGET_FILE:toonforce-lab> -DGEN=$<TARGET_FILE:toonforce_mcu_gen>
   -DIMAGES=${_mcu_m3_dir} -DM4F_IMAGES=${_mcu_m4f_dir} -DDOCS=${PROJECT_SOURCE_DIR}/docs
   -DOUT=${_mcu_bin}/report -DSCENES=${_mcu_scenes_arg} -P ${_mcu_src}/check_report.cmake)
 set_tests_properties(mcu_report PROPERTIES LABELS mcu TIMEOUT 300 FIXTURES_REQUIRED "${_mcu_report_fixtures}")

@@ -11,7 +11,7 @@
 //     Q16.16 integers or hexadecimal float literals, never as rounded decimals.
 //
 //   toonforce_mcu_gen strikes --out-dir DIR --count N --scene NAME...
-//     Writes the searched inputs of `toonforce report` (tools/report/src/workloads.cpp,
+//     Writes the searched inputs of `toonforce-lab report` (tools/report/src/workloads.cpp,
 //     search_path: a constructed strike, then seeded random ones, each for a fresh loop) of
 //     each paper scene NAME as motion files DIR/search_NAME_K.csv, one per strike, for the
 //     images to play and replay to compare: the searched inputs run on the target too. Besides,
@@ -677,7 +677,7 @@ int strikes(const std::string& out_dir, std::size_t count, const std::vector<std
       for (const bool late : {false, true}) {
         const std::string path = fmt::format("{}/search_{}_{}{}.csv", out_dir, scene, k, late ? "_late" : "");
         std::string text = fmt::format(
-            "# Strike {} of {} of the search path of scene {} (`toonforce report`'s searched inputs,\n"
+            "# Strike {} of {} of the search path of scene {} (`toonforce-lab report`'s searched inputs,\n"
             "# tools/report/src/workloads.cpp, search_path), at 1 kHz{}; written by toonforce_mcu_gen strikes.\n"
             "t,x,y,z\n",
             k, all.size(), scene,

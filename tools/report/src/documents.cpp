@@ -32,6 +32,26 @@ std::string merge_generated(const std::string& existing, const std::string& gene
   return existing.substr(0, b) + block + existing.substr(e + end.size());
 }
 
+std::string adopt_earlier_markers(std::string text, std::string_view begin_marker, std::string_view end_marker) {
+  // The earlier spelling: the marker without the program's "-lab".
+  const auto earlier = [](std::string_view marker) {
+    std::string m(marker);
+    if (const auto at = m.find("-lab "); at != std::string::npos) m.erase(at, 4);
+    return m;
+  };
+  const std::string old_begin = earlier(begin_marker);
+  const std::string old_end = earlier(end_marker);
+  if (old_begin == begin_marker || text.find(begin_marker) != std::string::npos) return text;
+  const auto b = text.find(old_begin);
+  if (b == std::string::npos) return text;
+  const auto e = text.find(old_end, b);
+  if (e == std::string::npos) return text;
+  // The end first, so that the begin's position still holds.
+  text.replace(e, old_end.size(), end_marker);
+  text.replace(b, old_begin.size(), begin_marker);
+  return text;
+}
+
 namespace {
 
 Result<std::string> read_file(const fs::path& path) {
@@ -234,7 +254,7 @@ std::string performance_section(const LatencyReport& latency, const std::string&
   md += "## Effect computations: time and instructions per tick\n\n";
   md += fmt::format(
       "Command (release build; the callgrind counts need valgrind):\n\n```sh\ncmake --workflow --preset release\n"
-      "build/release/bin/toonforce report latency{}\n```\n\n"
+      "build/release/bin/toonforce-lab report latency{}\n```\n\n"
       "Google Benchmark runs the same ticks in batches (`build/release/bin/toonforce_effects_bench`), and "
       "`ctest -R InstructionBudget` asserts the instruction target under callgrind.\n\n",
       latency.ticks == 10'000'000 ? "" : fmt::format(" --ticks {}", latency.ticks));
@@ -260,14 +280,14 @@ std::string precision_section(const PrecisionReport& precision, const std::strin
   md += "## Error against run time\n\n";
   // The command that made these figures (report precision --docs passes its own line), and
   // the default one.
-  const bool own = command.rfind("toonforce report precision", 0) == 0;
+  const bool own = command.rfind("toonforce-lab report precision", 0) == 0;
   md += fmt::format(
       "Command (release build; it regenerates this section, its CSVs and plots; `report all` runs it too):\n\n```sh\n"
       "build/release/bin/{}\n```\n\n"
       "Its CSVs: docs/report/precision.csv (every configuration), docs/report/convergence.csv (the reference ladder), "
       "docs/report/drift.csv (the drift runs), docs/report/closed_loop.csv (the closed loop).\n\n",
       own ? command
-          : fmt::format("toonforce report precision --docs docs{}",
+          : fmt::format("toonforce-lab report precision --docs docs{}",
                         precision.options.drift_hours == PrecisionOptions{}.drift_hours
                             ? ""
                             : fmt::format(" --drift-hours {:g}", precision.options.drift_hours)));
@@ -328,7 +348,7 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
   if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
-  std::string text = existing.value();
+  std::string text = adopt_earlier_markers(existing.value(), kBeginMarker, kEndMarker);
   if (text.empty()) text = kPerformanceHead;
   const std::string section = performance_section(latency.value(), options.command_line);
   {
@@ -355,7 +375,7 @@ Result<std::vector<std::string>> write_latency_documents(const LatencyReport& la
   if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
-  std::string text = existing.value();
+  std::string text = adopt_earlier_markers(existing.value(), kBeginMarker, kEndMarker);
   if (text.empty()) text = kPerformanceHead;
   StagedOutputs outputs;
   if (auto w = outputs.write(performance, merge_generated(text, performance_section(latency, command_line))); !w) {
@@ -399,7 +419,9 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
-  std::string text = existing.value();
+  // Its own markers, and the main block's, after whose end a first precision block goes.
+  std::string text = adopt_earlier_markers(
+      adopt_earlier_markers(existing.value(), kPrecisionBeginMarker, kPrecisionEndMarker), kBeginMarker, kEndMarker);
   // The plots are in <out>/report/, one level up from the page.
   const std::string section = precision_section(precision, command_line, "../report");
   if (text.find(kPrecisionBeginMarker) == std::string::npos) {
@@ -429,7 +451,7 @@ Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const
   if (ec) return Error{fmt::format("cannot create {}: {}", performance.parent_path().string(), ec.message())};
   auto existing = read_file(performance);
   if (!existing) return Error{existing.error()};
-  std::string text = existing.value();
+  std::string text = adopt_earlier_markers(existing.value(), kMcuBeginMarker, kMcuEndMarker);
   if (text.empty()) text = kPerformanceHead;  // report all into a new directory starts with this block
   const auto begins = text.find(kMcuBeginMarker);
   // Once each, begin before end: anything else is a hand edit to look at, not to guess about.

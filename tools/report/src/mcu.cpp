@@ -173,15 +173,17 @@ std::string build_command(const fs::path& dir, const std::string& root) {
   return {};
 }
 
-/// `toonforce` at the head of `command` replaced by this executable's path in the source tree
-/// (build/cortex-m3/bin/toonforce), when it is there.
+/// This executable's name (toonforce-lab) at the head of `command` replaced by its path in the
+/// source tree (build/cortex-m3/bin/toonforce-lab), when it is there.
 std::string with_executable(const std::string& command, const std::string& root) {
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (ec || command.rfind("toonforce ", 0) != 0) return command;
+  if (ec) return command;
+  const std::string name = self.filename().string();
+  if (command.rfind(name + " ", 0) != 0) return command;
   const std::string exe = shown(self, root);
   if (fs::path(exe).is_absolute()) return command;
-  return exe + command.substr(std::string_view("toonforce").size());
+  return exe + command.substr(name.size());
 }
 
 /// A value inside a QEMU option list: its commas doubled (a temporary directory may have one).

@@ -1276,7 +1276,7 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
         "**Scripted pass**, for comparison: the loop's tick with every stage timed alone on the scripted scenario "
         "(`loop/SCENE/SCALAR/runtime`, {} ticks, warm) times the rate: what this table's cost was before it was "
         "measured in the closed loop.\n\n"
-        "**Cost, Cortex-M3** (q16.16 rows): `toonforce report mcu`'s every-stage loop tick, the mean instructions "
+        "**Cost, Cortex-M3** (q16.16 rows): `toonforce-lab report mcu`'s every-stage loop tick, the mean instructions "
         "per tick over the scene's 1 kHz scripted motions under QEMU (exact), times the rate. *Computed, not "
         "measured here*: the column is one figure per scene times the rate, so it grows with the rate by "
         "construction and is no evidence of how the cost varies with it; it stands beside the measured x86 columns "

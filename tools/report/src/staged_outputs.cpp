@@ -30,7 +30,7 @@ constexpr int kSlots = 64;
 std::array<std::array<char, PATH_MAX>, kSlots> g_staged_paths{};
 std::array<std::atomic<bool>, kSlots> g_staged_in_use{};
 std::atomic<pid_t> g_waited_child{0};
-const char* g_command = "report";
+const char* g_command = "toonforce-lab report";
 const char* g_left = kReportLeaves;
 
 int take_slot(const fs::path& staged) noexcept {
@@ -73,7 +73,6 @@ void on_stop(int signo, siginfo_t* info, void*) {
     if (g_staged_in_use[static_cast<std::size_t>(i)].load()) ::unlink(g_staged_paths[static_cast<std::size_t>(i)].data());
   }
   const char* name = sigabbrev_np(signo);
-  say("toonforce ");
   say(g_command);
   say(": stopped by SIG");
   say(name != nullptr ? name : "?");

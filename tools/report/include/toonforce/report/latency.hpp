@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report latency`: the cost of one servo tick of each effect (by branch), of the
+/// `toonforce-lab report latency`: the cost of one servo tick of each effect (by branch), of the
 /// safety stage, of each paper scene (effects plus ForceSafety) as Scene<...> and as the
 /// RuntimeScene its file gives, of the spec's loop (the servo loop with the spec's stages) and of
 /// the whole servo loop tick (every safety stage on), for double, float and Q16.16:

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report mcu`: the microcontroller figures of docs/performance/mcu.md
+/// `toonforce-lab report mcu`: the microcontroller figures of docs/performance/mcu.md
 /// (tools/mcu/README.md). For a directory of built Cortex-M3 images (and the Cortex-M4F ones
 /// beside it, when built) it runs what the tables need, as tools/mcu/figures used to:
 /// `arm-none-eabi-size -A` on each size image, each scene image under `qemu-system-arm` in
@@ -17,17 +17,17 @@
 
 namespace toonforce::report {
 
-/// The block of docs/performance/mcu.md `toonforce report mcu --docs` regenerates; the page's
+/// The block of docs/performance/mcu.md `toonforce-lab report mcu --docs` regenerates; the page's
 /// prose stays outside it.
-inline constexpr std::string_view kMcuBeginMarker = "<!-- toonforce report mcu: begin -->";
-inline constexpr std::string_view kMcuEndMarker = "<!-- toonforce report mcu: end -->";
+inline constexpr std::string_view kMcuBeginMarker = "<!-- toonforce-lab report mcu: begin -->";
+inline constexpr std::string_view kMcuEndMarker = "<!-- toonforce-lab report mcu: end -->";
 
 struct McuOptions {
   std::string root;        ///< source tree: the default image directories are under it
   std::string images;      ///< the Cortex-M3 images; empty: default_mcu_images(root)
   std::string m4f_images;  ///< the Cortex-M4F images; empty: the sibling cortex-m4f (if absent, the section says so)
   std::string gen;         ///< toonforce_mcu_gen; empty: <images>/../toonforce_mcu_gen
-  std::string command;     ///< the `toonforce report mcu ...` line written into the section
+  std::string command;     ///< the `toonforce-lab report mcu ...` line written into the section
 };
 
 /// The paper scenes with an image each, and QEMU's -icount shift: tools/mcu/images.cmake's

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report precision`: force error against run time (spec effects.md §8; the
+/// `toonforce-lab report precision`: force error against run time (spec effects.md §8; the
 /// work-precision diagrams of DiffEqDevTools.jl's WorkPrecisionSet and of Hairer and Wanner,
 /// "Solving Ordinary Differential Equations"), for each paper scene, scalar type, servo
 /// rate and sine method.

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-/// `toonforce report stability`: sweeps of virtual stiffness K, virtual damping B, slippery
+/// `toonforce-lab report stability`: sweeps of virtual stiffness K, virtual damping B, slippery
 /// gain mu, servo period T, device damping b and impact speed on the host simulation (host_sim:
 /// the device's mass and physical damping, a hand or a press force, the servo loop with the
 /// spec's stages closing the loop every T), each point classified twice:

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The servo settings the figures run the whole loop with (header-only: `toonforce report`'s
+// The servo settings the figures run the whole loop with (header-only: `toonforce-lab report`'s
 // workloads and the microcontroller images' generator, tools/mcu/host/mcu_gen.cpp, take the
 // same numbers from here).
 #pragma once

@@ -7,7 +7,7 @@
 /// signal therefore leaves each file as it was or whole, and a step's files agree with each
 /// other; the hidden files are removed whatever happens.
 ///
-/// install_report_stop_handlers() gives `report` (and `check`) a stop path: on any stop signal
+/// install_report_stop_handlers() gives `report` (toonforce-lab) and `check` (toonforce) a stop path: on any stop signal
 /// (stop_signals()) the program the step waits for (plot, valgrind, QEMU) is killed, the hidden
 /// files are removed, the command says which signal stopped it and that no file was left cut,
 /// and exits 1. Everything the handler does is async-signal-safe (kill, waitpid, unlink, write).
@@ -48,8 +48,9 @@ class StagedOutputs {
   std::vector<Entry> entries_;
 };
 
-/// Installs the stop handlers described above. The message is "toonforce COMMAND: stopped by
-/// SIGNAL; LEFT"; both must outlive the process (literals).
+/// Installs the stop handlers described above. The message is "COMMAND: stopped by SIGNAL; LEFT",
+/// COMMAND the program and its subcommand ("toonforce check"); both must outlive the process
+/// (literals).
 void install_report_stop_handlers(const char* command, const char* left);
 inline constexpr const char* kReportLeaves =
     "no file was left cut (each is as it was, or whole from a step that had finished)";

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// toonforce report latency|precision|fixed-point|stability|mcu|all: the project measuring itself.
+// toonforce-lab report latency|precision|fixed-point|stability|mcu|all: the project measuring
+// itself (the lab's program, tools/lab; never installed).
 // Each prints Markdown; `all` regenerates the generated blocks of docs/performance/ and
 // docs/STABILITY.md and their plots (tools/report/include/toonforce/report/documents.hpp), and
 // the microcontroller block when the Cortex-M3 images are built (mcu.hpp).
@@ -11,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "lab_commands.hpp"
 #include "toonforce/report/staged_outputs.hpp"
 #include "toonforce/report/documents.hpp"
 #include "toonforce/report/latency.hpp"
@@ -52,7 +54,7 @@ std::string rates_ladder_error(const report::PrecisionOptions& o) {
 template <class T>
 bool report_error(const Result<T>& r) {
   if (r) return false;
-  std::fprintf(stderr, "toonforce report: %s\n", r.error().c_str());
+  std::fprintf(stderr, "toonforce-lab report: %s\n", r.error().c_str());
   set_exit_code(1);
   return true;
 }
@@ -89,7 +91,7 @@ void add_latency(CLI::App& report) {
       return;
     }
     // The line that made the block, for the block's header: the options given, no paths of this machine.
-    std::string line = "toonforce report latency --docs " + *docs;
+    std::string line = "toonforce-lab report latency --docs " + *docs;
     if (cmd->count("--ticks") > 0) line += fmt::format(" --ticks {}", options->ticks);
     if (cmd->count("--cold-ticks") > 0) line += fmt::format(" --cold-ticks {}", options->cold_ticks);
     if (cmd->count("--filter") > 0) line += fmt::format(" --filter {}", options->filter);
@@ -159,7 +161,7 @@ void add_precision(CLI::App& report) {
     if (report_error(result)) return;
     if (!docs->empty()) {
       // The command as asked for, written beside the figures.
-      std::string line = "toonforce report precision --docs " + *docs;
+      std::string line = "toonforce-lab report precision --docs " + *docs;
       if (options->drift_hours != report::PrecisionOptions{}.drift_hours) line += fmt::format(" --drift-hours {:g}", options->drift_hours);
       if (!options->filter.empty()) line += " --filter " + options->filter;
       if (cmd->count("--ticks") > 0) line += fmt::format(" --ticks {}", options->timing_ticks);
@@ -207,7 +209,7 @@ void add_stability(CLI::App& report) {
       documents.stability = *options;
       documents.plot = !*no_plot;
       documents.command_line = fmt::format(
-          "toonforce report stability --out {}{}{}{}", *out,
+          "toonforce-lab report stability --out {}{}{}{}", *out,
           options->resolution == 24 ? "" : fmt::format(" --resolution {}", options->resolution),
           options->duration_s == 4.0 ? "" : fmt::format(" --duration {:g}", options->duration_s),
           options->longest_run_s == 300.0 ? "" : fmt::format(" --longest-run {:g}", options->longest_run_s));
@@ -243,7 +245,7 @@ void add_mcu(CLI::App& report) {
   cmd->add_option("--docs", *docs, "Regenerate the microcontroller block of DIR/performance/mcu.md instead of printing it");
   cmd->callback([options, docs] {
     // The command as asked for, written into the section.
-    std::string line = "toonforce report mcu";
+    std::string line = "toonforce-lab report mcu";
     if (!docs->empty()) line += " --docs " + *docs;
     if (!options->root.empty()) line += " --root " + options->root;
     if (!options->images.empty()) line += " --images " + options->images;
@@ -297,12 +299,12 @@ void add_all(CLI::App& report) {
       options->precision.closed_loop_s = 1.0;
       options->stability.resolution = 8;
     }
-    options->command_line = fmt::format("toonforce report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
+    options->command_line = fmt::format("toonforce-lab report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
     // The microcontroller figures first (seconds; an image that fails stops here, before the
     // long reports): only with the Cortex-M3 images built, which needs the cross compiler.
     report::McuOptions mcu;
     mcu.root = options->root;
-    mcu.command = "toonforce report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
+    mcu.command = "toonforce-lab report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
     if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
       std::printf("not regenerated: the microcontroller block of %s/performance/mcu.md: %s\n", options->out_dir.c_str(),
                   why.c_str());
@@ -328,7 +330,8 @@ void add_report(CLI::App& app) {
   report->require_subcommand(1);
   // A stop signal ends a report without a cut file (report/staged_outputs.hpp); from the start,
   // since every step runs for seconds to minutes.
-  report->preparse_callback([](std::size_t) { report::install_report_stop_handlers("report", report::kReportLeaves); });
+  report->preparse_callback(
+      [](std::size_t) { report::install_report_stop_handlers("toonforce-lab report", report::kReportLeaves); });
   add_latency(*report);
   add_precision(*report);
   add_fixed_point(*report);
