@@ -98,7 +98,8 @@ std::optional<toonforce::host_sim::HandIntent> plan_hand() {
   script.segments = {near, hold, away, hold};
   toonforce::host_sim::PlanError error;
   auto intent = toonforce::host_sim::HandIntent::plan(script, error);
-  if (!intent) std::fprintf(stderr, "hand script: segment %zu: %s: %s\n", error.segment, error.key.c_str(), error.problem.c_str());
+  if (!intent)
+    std::fprintf(stderr, "hand script: segment %zu: %s: %s\n", error.segment, error.key.c_str(), error.problem.c_str());
   return intent;
 }
 
@@ -163,7 +164,8 @@ int main() {
   const double k_hand = hand->impedance().stiffness_n_per_m;
   const double coulomb_n = falcon.coulomb_n;
   const double step_m = falcon.encoder_step_m;
-  const Vec3<double> expect_detent = (kNearDetent * k_hand + kDetentCentre * kDetentStiffness) * (1.0 / (k_hand + kDetentStiffness));
+  const Vec3<double> expect_detent =
+      (kNearDetent * k_hand + kDetentCentre * kDetentStiffness) * (1.0 / (k_hand + kDetentStiffness));
   const double expect_floor_z = k_hand * kIntoFloor.z / (k_hand + kWallStiffness);
   const double detent_band = coulomb_n / (k_hand + kDetentStiffness) + step_m;
   const double floor_band = coulomb_n / (k_hand + kWallStiffness) + step_m;
@@ -172,7 +174,8 @@ int main() {
               "%s at %.0f Hz\n",
               kWallStiffness, kDetentStiffness, kDetentCentre.z * 1e3, k_hand, std::string(falcon.name).c_str(),
               1.0 / kPeriodS);
-  std::printf("held near the detent (the hand aims at x = %.0f mm, z = %.0f mm):\n", kNearDetent.x * 1e3, kNearDetent.z * 1e3);
+  std::printf("held near the detent (the hand aims at x = %.0f mm, z = %.0f mm):\n", kNearDetent.x * 1e3,
+              kNearDetent.z * 1e3);
   bool ok = report("x", at_detent.x, expect_detent.x, detent_band);
   ok = report("z", at_detent.z, expect_detent.z, detent_band) && ok;
   std::printf("pressed into the floor (the hand aims at z = %.0f mm):\n", kIntoFloor.z * 1e3);

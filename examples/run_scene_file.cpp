@@ -115,9 +115,8 @@ int main(int argc, char** argv) {
   const double duration_s = hand.value().intent.duration_s() + 0.2;
   const auto ticks = static_cast<std::int64_t>(std::llround(duration_s * kRateHz));
   Watch watch;
-  std::printf("scene '%s' (%zu surface(s), %zu cliff(s)), hand '%s', %.3f s on the %s\n",
-              scene.value().name.c_str(), scene.value().of<toonforce::RuntimeSurface>().size(),
-              scene.value().of<toonforce::CartoonCliff>().size(),
+  std::printf("scene '%s' (%zu surface(s), %zu cliff(s)), hand '%s', %.3f s on the %s\n", scene.value().name.c_str(),
+              scene.value().of<toonforce::RuntimeSurface>().size(), scene.value().of<toonforce::CartoonCliff>().size(),
               hand.value().script.name.c_str(), static_cast<double>(ticks) / kRateHz, device.info().name.c_str());
 
   if (!realtime) {

@@ -141,14 +141,14 @@ constexpr double kPeriodS = 1e-3;  // 1 kHz, the Falcon's rate
 
 /// What one run showed, from each tick's telemetry frame.
 struct Outcome {
-  std::int64_t captures = 0;        ///< ticks on which magnet1.captured went 0 -> 1
-  double captured_s = 0.0;          ///< time spent captured [s]
-  double peak_episode_j = 0.0;      ///< the largest active-part episode energy [J]
+  std::int64_t captures = 0;    ///< ticks on which magnet1.captured went 0 -> 1
+  double captured_s = 0.0;      ///< time spent captured [s]
+  double peak_episode_j = 0.0;  ///< the largest active-part episode energy [J]
   double peak_force_n = 0.0;
   double peak_tick_injection_j = 0.0;  ///< the most the slick part did in one tick, slick |v|^2 T [J]
-  std::int64_t damped_ticks = 0;    ///< ticks the passivity controller damped
+  std::int64_t damped_ticks = 0;       ///< ticks the passivity controller damped
   bool latched = false;
-  std::string trace_error;          ///< a trace that could not be written
+  std::string trace_error;  ///< a trace that could not be written
 };
 
 Outcome run(const SceneFile& file, const toonforce::HandScriptFile& hand, const toonforce::ServoConfig& config,
@@ -242,8 +242,10 @@ int main(int argc, char** argv) {
   }
   const Magnet<double>::Params& magnet = file.of<Magnet>().front();
   if (!(magnet.slick_n_s_per_m > 0.0) || !config.safety.passivity.controller) {
-    std::fprintf(stderr, "%s: this example shows the passivity budget on the magnet's slick part: give the first "
-                 "magnet a slick and leave passivity_controller on\n", files[0]);
+    std::fprintf(stderr,
+                 "%s: this example shows the passivity budget on the magnet's slick part: give the first "
+                 "magnet a slick and leave passivity_controller on\n",
+                 files[0]);
     return 2;
   }
 
@@ -279,7 +281,8 @@ int main(int argc, char** argv) {
               held.captured_s, held.peak_force_n);
   std::printf("slick episode energy, peak: %.4f J with the passivity controller (%lld ticks damped), %.4f J without\n",
               held.peak_episode_j, static_cast<long long>(held.damped_ticks), unbudgeted.peak_episode_j);
-  if (trace) std::printf("trace: %s (%zu rows; toonforce view %s)\n", trace_path.c_str(), trace->rows(), trace_path.c_str());
+  if (trace)
+    std::printf("trace: %s (%zu rows; toonforce view %s)\n", trace_path.c_str(), trace->rows(), trace_path.c_str());
 
   // The controller acts on the excess it has measured: the work of a tick is booked on the
   // next one and damped on the one after, so an episode may pass its budget by what the slick

@@ -98,7 +98,8 @@ TEST(InstructionBudget, TheWholeLoopTickOfEveryPaperSceneAveragesAtMost600Instru
       for (std::size_t k = 0; k < c.per_tick_counts.size(); ++k) {
         ASSERT_GT(static_cast<double>(c.per_tick_counts[k]) - harness, 200.0) << id << " tick " << k;
       }
-      EXPECT_LE(c.mean() - harness, kTargetLoopInstructionsPerTick) << id << " (most expensive tick of the pass " << static_cast<double>(c.max()) - harness << ")";
+      EXPECT_LE(c.mean() - harness, kTargetLoopInstructionsPerTick)
+          << id << " (most expensive tick of the pass " << static_cast<double>(c.max()) - harness << ")";
     }
   }
 #endif
@@ -226,19 +227,23 @@ TEST(SearchedInputs, DriveEveryStagesExpensiveBranchAndTheirCombinationOnTheCart
     std::size_t all = 0;
     std::map<std::uint8_t, std::size_t> each;
     for (const SearchTick& t : cartoon.value()) {
-      for (const Limit l : {Limit::kSoftStart, Limit::kPassivity, Limit::kThermal, Limit::kRateLimited, Limit::kClamped}) {
+      for (const Limit l :
+           {Limit::kSoftStart, Limit::kPassivity, Limit::kThermal, Limit::kRateLimited, Limit::kClamped}) {
         if ((t.limits & bit(l)) != 0) ++each[bit(l)];
       }
-      if ((t.limits & together) == together && (t.limits & (bit(Limit::kRateLimited) | bit(Limit::kClamped))) != 0) ++all;
+      if ((t.limits & together) == together && (t.limits & (bit(Limit::kRateLimited) | bit(Limit::kClamped))) != 0)
+        ++all;
     }
-    for (const Limit l : {Limit::kSoftStart, Limit::kPassivity, Limit::kThermal, Limit::kRateLimited, Limit::kClamped}) {
+    for (const Limit l :
+         {Limit::kSoftStart, Limit::kPassivity, Limit::kThermal, Limit::kRateLimited, Limit::kClamped}) {
       EXPECT_GT(each[bit(l)], 0U) << name << ": limit bit " << int{bit(l)} << " never set";
     }
     EXPECT_GT(all, 0U) << name << ": no tick with every stage acting at once";
 
     auto wall = search_loop_ticks(TOONFORCE_SOURCE_DIR, "wall", scalar);
     ASSERT_TRUE(wall) << wall.error();
-    for (const SearchTick& t : wall.value()) EXPECT_EQ(t.limits & bit(Limit::kPassivity), 0) << name << ": a passive wall damped";
+    for (const SearchTick& t : wall.value())
+      EXPECT_EQ(t.limits & bit(Limit::kPassivity), 0) << name << ": a passive wall damped";
   }
 }
 

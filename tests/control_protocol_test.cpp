@@ -56,7 +56,8 @@ ControlOptions options() {
 TEST(ControlProtocol, KeysBecomeTheTomlTheSceneReaderChecks) {
   Recorder r;
   ControlSession s(r, options());
-  ASSERT_NE(s.on_message(R"({"type":"hello","version":1,"token":"t0k3n"})", 0.0).text.find("welcome"), std::string::npos);
+  ASSERT_NE(s.on_message(R"({"type":"hello","version":1,"token":"t0k3n"})", 0.0).text.find("welcome"),
+            std::string::npos);
   const auto reply = s.on_message(
       R"({"type":"set","effect":"surface1","keys":{"stiffness":800,"rearm":1e-05,"point":[0,0.5,-2],"sine":"t\"x","impact":{"duration":0.1}}})",
       0.0);
@@ -138,15 +139,15 @@ TEST(ControlProtocol, NestingDeeperThanTheLimitIsRefusedBeforeItIsParsed) {
   const auto beyond = s.on_message(
       R"({"type":"set","effect":"e","keys":{"a":)" + nested(kControlMaxDepth - 1, "[", "1", "]") + "}}", 0.0);
   EXPECT_NE(beyond.text.find("at most 32 levels"), std::string::npos) << beyond.text.substr(0, 200);
-  const auto arrays = s.on_message(
-      R"({"type":"set","effect":"e","keys":{"a":)" + nested(20000, "[", "1", "]") + "}}", 0.0);
+  const auto arrays =
+      s.on_message(R"({"type":"set","effect":"e","keys":{"a":)" + nested(20000, "[", "1", "]") + "}}", 0.0);
   EXPECT_NE(arrays.text.find("at most 32 levels"), std::string::npos) << arrays.text.substr(0, 200);
-  const auto objects = s.on_message(
-      R"({"type":"set","effect":"e","keys":)" + nested(10800, R"({"k":)", "1", "}") + "}", 0.0);
+  const auto objects =
+      s.on_message(R"({"type":"set","effect":"e","keys":)" + nested(10800, R"({"k":)", "1", "}") + "}", 0.0);
   EXPECT_NE(objects.text.find("at most 32 levels"), std::string::npos) << objects.text.substr(0, 200);
   // Brackets inside strings (escaped quotes too) are text, not nesting.
-  const auto in_string = s.on_message(
-      R"({"type":"set","effect":"e","keys":{"name":"\"[[[[)" + std::string(100, '[') + R"("}})", 0.0);
+  const auto in_string =
+      s.on_message(R"({"type":"set","effect":"e","keys":{"name":"\"[[[[)" + std::string(100, '[') + R"("}})", 0.0);
   EXPECT_NE(in_string.text.find(R"("type":"ok")"), std::string::npos) << in_string.text.substr(0, 200);
   EXPECT_EQ(r.calls.size(), 2U);
   EXPECT_FALSE(s.on_message(R"({"type":"status"})", 0.0).close) << "the connection carries on";
@@ -155,10 +156,10 @@ TEST(ControlProtocol, NestingDeeperThanTheLimitIsRefusedBeforeItIsParsed) {
 // The spec closes the connection (1008) on any first message that is not a good
 // hello; not JSON, not an object or no type got an error and the connection stayed open.
 TEST(ControlProtocol, AnyRefusedFirstMessageClosesTheConnection) {
-  for (const std::string& first : {std::string("{not json"), std::string("[1,2]"), std::string("42"),
-                                   std::string(R"({"id":1})"), std::string(R"({"type":7})"),
-                                   std::string(R"({"type":"teleport"})"), std::string(R"({"type":"status","x":1})"),
-                                   std::string(R"({"type":"hello","version":1,"token":"t0k3n","id":[1]})")}) {
+  for (const std::string& first :
+       {std::string("{not json"), std::string("[1,2]"), std::string("42"), std::string(R"({"id":1})"),
+        std::string(R"({"type":7})"), std::string(R"({"type":"teleport"})"), std::string(R"({"type":"status","x":1})"),
+        std::string(R"({"type":"hello","version":1,"token":"t0k3n","id":[1]})")}) {
     Recorder r;
     ControlSession s(r, roomy());
     const auto reply = s.on_message(first, 0.0);
@@ -176,7 +177,8 @@ TEST(ControlProtocol, TheIdIsEchoedWhenPresentShortOrRefused) {
   o.burst_messages = 2.0;
   o.max_messages_per_s = 1.0;
   ControlSession s(r, o);
-  const auto welcome = nlohmann::json::parse(s.on_message(R"({"type":"hello","version":1,"token":"t0k3n","id":null})", 0.0).text);
+  const auto welcome =
+      nlohmann::json::parse(s.on_message(R"({"type":"hello","version":1,"token":"t0k3n","id":null})", 0.0).text);
   ASSERT_EQ(welcome["type"], "welcome");
   EXPECT_TRUE(welcome.contains("id") && welcome["id"].is_null()) << welcome.dump();
   const std::string id128(kControlMaxIdBytes, 'i');
@@ -209,15 +211,16 @@ TEST(ControlProtocol, DuplicateKeysAndNulBytesAreRefused) {
   }
   Recorder r;
   ControlSession s(r, roomy());
-  const auto nul = s.on_message(std::string(R"({"type":"hello","version":1,"token":"t0k3n"})") + std::string(1, '\0') + "x", 0.0);
+  const auto nul =
+      s.on_message(std::string(R"({"type":"hello","version":1,"token":"t0k3n"})") + std::string(1, '\0') + "x", 0.0);
   EXPECT_TRUE(nul.close);
   EXPECT_NE(nul.text.find("NUL"), std::string::npos) << nul.text;
   Recorder r2;
   ControlSession s2(r2, roomy());
   ASSERT_FALSE(s2.on_message(kHello, 0.0).close);
   // At any level; the same key in two different objects is fine.
-  const auto deep = s2.on_message(
-      R"({"type":"set","effect":"e","keys":{"impact":{"duration":0.1,"duration":0.2}}})", 0.0);
+  const auto deep =
+      s2.on_message(R"({"type":"set","effect":"e","keys":{"impact":{"duration":0.1,"duration":0.2}}})", 0.0);
   EXPECT_NE(deep.text.find("'duration' is given twice"), std::string::npos) << deep.text;
   const auto apart = s2.on_message(
       R"({"type":"set","effect":"e","keys":{"a":{"duration":0.1},"b":{"duration":0.2},"duration":1}})", 0.0);

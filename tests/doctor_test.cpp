@@ -24,8 +24,8 @@ namespace fs = std::filesystem;
 class FakeHost : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ = fs::temp_directory_path() /
-            fmt::format("toonforce_doctor_{}_{}", ::getpid(), ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    root_ = fs::temp_directory_path() / fmt::format("toonforce_doctor_{}_{}", ::getpid(),
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(root_);
     write("sys/kernel/realtime", "1\n");
     write("proc/sys/kernel/osrelease", "6.1.0-28-rt-amd64\n");
@@ -33,7 +33,8 @@ class FakeHost : public ::testing::Test {
     write("proc/sys/kernel/sched_rt_runtime_us", "-1\n");
     write("sys/devices/system/cpu/isolated", "3\n");
     write("sys/devices/system/clocksource/clocksource0/current_clocksource", "tsc\n");
-    for (int cpu = 0; cpu < 4; ++cpu) write(fmt::format("sys/devices/system/cpu/cpu{}/cpufreq/scaling_governor", cpu), "performance\n");
+    for (int cpu = 0; cpu < 4; ++cpu)
+      write(fmt::format("sys/devices/system/cpu/cpu{}/cpufreq/scaling_governor", cpu), "performance\n");
     node_gid_ = gid_of_new_files();
     status(1000, {node_gid_}, "0000000000000000");
     limits("95", "unlimited");
@@ -53,15 +54,17 @@ class FakeHost : public ::testing::Test {
   void status(std::uint32_t uid, std::vector<std::uint32_t> groups, const std::string& cap_eff) {
     std::string g;
     for (auto id : groups) g += fmt::format("{} ", id);
-    write("proc/self/status", fmt::format("Name:\ttoonforce\nUid:\t{0}\t{0}\t{0}\t{0}\nGid:\t{1}\t{1}\t{1}\t{1}\nGroups:\t{2}\n"
-                                          "CapEff:\t{3}\n",
-                                          uid, 5000, g, cap_eff));
+    write("proc/self/status",
+          fmt::format("Name:\ttoonforce\nUid:\t{0}\t{0}\t{0}\t{0}\nGid:\t{1}\t{1}\t{1}\t{1}\nGroups:\t{2}\n"
+                      "CapEff:\t{3}\n",
+                      uid, 5000, g, cap_eff));
   }
   void limits(const std::string& rtprio, const std::string& memlock) {
-    write("proc/self/limits", fmt::format("Limit                     Soft Limit           Hard Limit           Units     \n"
-                                          "Max locked memory         {0:<21}{0:<21}bytes     \n"
-                                          "Max realtime priority     {1:<21}{1:<21}\n",
-                                          memlock, rtprio));
+    write("proc/self/limits",
+          fmt::format("Limit                     Soft Limit           Hard Limit           Units     \n"
+                      "Max locked memory         {0:<21}{0:<21}bytes     \n"
+                      "Max realtime priority     {1:<21}{1:<21}\n",
+                      memlock, rtprio));
   }
   void falcon(const std::string& usb_dir, int bus, int dev, fs::perms mode) {
     write(fmt::format("sys/bus/usb/devices/{}/idVendor", usb_dir), "0403\n");
@@ -218,8 +221,8 @@ TEST_F(FakeHost, AFalconThisUserCannotOpenFailsWithTheUdevFix) {
 TEST_F(FakeHost, GpioChipsAreCheckedOneByOne) {
   write("dev/gpiochip0", "");
   write("dev/gpiochip1", "");
-  fs::permissions(root_ / "dev/gpiochip0", fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read |
-                                                fs::perms::group_write);
+  fs::permissions(root_ / "dev/gpiochip0",
+                  fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write);
   fs::permissions(root_ / "dev/gpiochip1", fs::perms::owner_read | fs::perms::owner_write);
   const auto f = run();
   EXPECT_EQ(find(f, "GPIO", 0).verdict, Verdict::kOk);

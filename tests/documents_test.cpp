@@ -48,7 +48,8 @@ TEST(Documents, MarkersSpeltBeforeTheLabProgramAreAdoptedNotDuplicated) {
   const std::string head = "# Performance\n\nintro\n\n";
   const std::string mcu_block = earlier(kMcuBeginMarker) + "\nmcu numbers\n" + earlier(kMcuEndMarker) + "\n\n";
   const std::string tail = "\n\n## Written by hand, after\n";
-  const std::string existing = head + mcu_block + earlier(kBeginMarker) + "\nold numbers\n" + earlier(kEndMarker) + tail;
+  const std::string existing =
+      head + mcu_block + earlier(kBeginMarker) + "\nold numbers\n" + earlier(kEndMarker) + tail;
   const std::string adopted = adopt_earlier_markers(existing, kBeginMarker, kEndMarker);
   EXPECT_EQ(adopted, head + mcu_block + kBegin + "\nold numbers\n" + kEnd + tail);
   EXPECT_EQ(merge_generated(adopted, "new numbers"), head + mcu_block + kBegin + "\nnew numbers\n" + kEnd + tail);

@@ -234,11 +234,11 @@ TEST(ImpactTransient, DoesNotTriggerOnTheFirstTick) {
 TEST(ImpactTransient, RetriggerNeedsTheRearmDistanceAndRestartsWithTheNewSpeed) {
   WallRun run;
   run.step(0.001, -0.2);
-  run.step(-0.0001, -0.2);  // trigger 1, v_i 0.2, t0 = tick 1
-  run.step(0.0005, 0.1);    // out by 0.5 mm < 1 mm: not re-armed
+  run.step(-0.0001, -0.2);           // trigger 1, v_i 0.2, t0 = tick 1
+  run.step(0.0005, 0.1);             // out by 0.5 mm < 1 mm: not re-armed
   auto f = run.step(-0.0001, -0.4);  // entry at t = 2 ms: no new trigger
   EXPECT_NEAR(f.z, 0.1 + transient(0.2, 0.002), 1e-9);
-  run.step(0.0011, 0.1);  // out by 1.1 mm: re-armed; transient 1 still running
+  run.step(0.0011, 0.1);        // out by 1.1 mm: re-armed; transient 1 still running
   f = run.step(-0.0001, -0.4);  // trigger 2 at tick 5 with v_i 0.4
   EXPECT_NEAR(f.z, 0.1 + transient(0.4, 0.0), 1e-9);
   f = run.step(-0.0001, 0.0);
@@ -292,15 +292,13 @@ struct CliffRun {
   CartoonCliff<double>::Params p = cliff();
   CartoonCliff<double>::State s{};
   std::int64_t tick = 0;
-  Vec3<double> step(Vec3<double> x, Vec3<double> v) {
-    return CartoonCliff<double>::force(p, s, at(x, v, tick++));
-  }
+  Vec3<double> step(Vec3<double> x, Vec3<double> v) { return CartoonCliff<double>::force(p, s, at(x, v, tick++)); }
 };
 
 TEST(CartoonCliff, FiltersLateralSpeedEveryTickWherever) {
   CliffRun run;
   const double a = kDt / (0.02 + kDt);
-  run.step({-0.05, 0, 0.03}, {0.1, 0.0, 0.7});  // in the air, far from the strip
+  run.step({-0.05, 0, 0.03}, {0.1, 0.0, 0.7});                // in the air, far from the strip
   EXPECT_NEAR(run.s.filtered_speed_m_per_s, a * 0.1, 1e-15);  // only the lateral part counts
   run.step({-0.05, 0, 0.03}, {0.0, 0.1, 0.0});
   EXPECT_NEAR(run.s.filtered_speed_m_per_s, a * 0.1 + a * (0.1 - a * 0.1), 1e-15);
@@ -309,7 +307,7 @@ TEST(CartoonCliff, FiltersLateralSpeedEveryTickWherever) {
 TEST(CartoonCliff, BridgesTheGapWhenCrossedFast) {
   CliffRun run;
   for (int k = 0; k < 300; ++k) run.step({-0.05, 0, -0.001}, {0.2, 0, 0});  // s_f -> 0.2
-  const auto f = run.step({0.01, 0, -0.001}, {0.2, 0, 0});  // over the gap, 1 mm down
+  const auto f = run.step({0.01, 0, -0.001}, {0.2, 0, 0});                  // over the gap, 1 mm down
   EXPECT_FALSE(run.s.fallen);
   EXPECT_NEAR(f.z, 1.0, 1e-12);  // the ground holds: a penalty wall over the gap
 }
@@ -389,9 +387,9 @@ TEST(CartoonCliff, ZeroTauFollowsTheSpeedAtOnce) {
 
 // Raw values at the edges of the range, around zero and at random.
 std::vector<std::int32_t> edge_and_random_raws(std::mt19937_64& random, int count) {
-  std::vector<std::int32_t> raws{0,         1,          -1,         65536,      -65536,     32768,
-                                 -32768,    2147483647, -2147483647 - 1, 2147483646, -2147483647, 1073741824,
-                                 -1073741824};
+  std::vector<std::int32_t> raws{0,           1,          -1,         65536,           -65536,
+                                 32768,       -32768,     2147483647, -2147483647 - 1, 2147483646,
+                                 -2147483647, 1073741824, -1073741824};
   for (int i = 0; i < count; ++i) raws.push_back(static_cast<std::int32_t>(random() >> (random() % 33)));
   return raws;
 }
@@ -448,7 +446,8 @@ TEST(AxisPlane, IsPlaneBitForBitWithThatNormalSaturationsIncluded) {
 // A surface on it gives the scene's forces and active parts bit for bit, the impact's state
 // included, over strikes of a floor.
 template <class Tangential, class Impact>
-void expect_axis_surface_is_surface(const typename Tangential::Params& tangential, const typename Impact::Params& impact) {
+void expect_axis_surface_is_surface(const typename Tangential::Params& tangential,
+                                    const typename Impact::Params& impact) {
   using Q = Q16_16;
   using General = Surface<SpringWall<Q>, Tangential, Impact>;
   using Axis = Surface<SpringWall<Q>, Tangential, Impact, AxisPlane<Q, 2, 1>>;

@@ -204,8 +204,8 @@ TEST_P(StopSignal, LeavesTheForceZeroAndATraceValidToItsLastRow) {
 
 /// Every catchable signal whose default action ends a process (SIGHUP is what a
 /// dropped SSH session sends; SIGXFSZ what a file-size limit sends).
-const auto kTerminatingSignals =
-    ::testing::Values(SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ);
+const auto kTerminatingSignals = ::testing::Values(SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGUSR1, SIGUSR2, SIGALRM,
+                                                   SIGVTALRM, SIGPROF, SIGXCPU, SIGXFSZ);
 const auto kSignalTestName = [](const auto& p) { return signal_name(p.param); };
 INSTANTIATE_TEST_SUITE_P(RunCommand, StopSignal, kTerminatingSignals, kSignalTestName);
 
@@ -308,9 +308,9 @@ std::pair<int, std::string> run_binary(const std::vector<std::string>& args) {
 }
 
 TEST(ReplayCommand, AnOutputThatCannotBeWrittenIsReportedWithTheSummaryNotAnAbort) {
-  const auto [status, text] = run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                                          "--input", TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", "--output",
-                                          "/dev/full"});
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--input",
+                  TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", "--output", "/dev/full"});
   EXPECT_EQ(status, 1) << text;  // was 134: an uncaught std::system_error
   EXPECT_NE(text.find("/dev/full: writing failed: No space left on device"), std::string::npos) << text;
   EXPECT_NE(text.find("peak"), std::string::npos) << "the summary: " << text;
@@ -320,8 +320,9 @@ TEST(ReplayCommand, AnOutputThatIsAnInputIsRefusedBeforeItIsTouched) {
   const auto motion = temp_path("motion.csv");
   std::filesystem::copy_file(TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", motion);
   const std::string before = slurp(motion);
-  const auto [status, text] = run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                                          "--input", motion.string(), "--output", motion.string()});
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "replay", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--input",
+                  motion.string(), "--output", motion.string()});
   EXPECT_EQ(status, 1) << text;
   EXPECT_NE(text.find("is the motion"), std::string::npos) << text;
   EXPECT_EQ(slurp(motion), before);
@@ -370,9 +371,9 @@ std::pair<int, std::string> run_with_a_reader_that_leaves(const std::vector<std:
 }
 
 TEST(SimCommand, AReaderThatLeavesIsAWriteErrorSaidAtOnceAndTheSummaryStillComes) {
-  const auto [status, text] = run_with_a_reader_that_leaves({TOONFORCE_BINARY, "sim", "--scene",
-                                                             TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
-                                                             TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", "-"});
+  const auto [status, text] =
+      run_with_a_reader_that_leaves({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                                     "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", "-"});
   EXPECT_EQ(status, 1) << text;  // not 141 (SIGPIPE)
   EXPECT_NE(text.find("Broken pipe; nothing more is written, the simulation goes on"), std::string::npos) << text;
   EXPECT_NE(text.find("ran     "), std::string::npos) << "the summary: " << text;
@@ -382,9 +383,9 @@ TEST(SimCommand, AReaderThatLeavesIsAWriteErrorSaidAtOnceAndTheSummaryStillComes
 TEST(SimCommand, DurationsUnderOneTickOrOverTheMaximumAreRefused) {
   for (const char* duration : {"0.0004", "1e16"}) {
     const auto trace = temp_path("trace.csv");
-    const auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                                            "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace",
-                                            trace.string(), "--duration", duration});
+    const auto [status, text] = run_binary(
+        {TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
+         TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--duration", duration});
     EXPECT_EQ(status, 1) << duration << ": " << text;
     EXPECT_NE(text.find("--duration"), std::string::npos) << text;
     std::filesystem::remove(trace);
@@ -413,8 +414,9 @@ TEST(RunCommand, DurationsUnderOneTickOrOverTheMaximumCannotStart) {
                     "--allow-non-rt", "--no-mlock", "--duration", duration});
     EXPECT_EQ(status, 2) << duration << ": " << text;  // 0.0004 ran forever, 1e16 "0 ticks" and exit 0
     // 1e16 s of ticks does not fit an integer: it was called "less than one tick".
-    EXPECT_NE(text.find(duration[1] == 'e' ? "--duration 1e+16: over the maximum" : "--duration 0.0004: less than one tick"),
-              std::string::npos)
+    EXPECT_NE(
+        text.find(duration[1] == 'e' ? "--duration 1e+16: over the maximum" : "--duration 0.0004: less than one tick"),
+        std::string::npos)
         << text;
   }
 }
@@ -434,13 +436,14 @@ TEST(RunCommand, AStatisticsFileThatCannotBeCreatedStopsTheStartNotTheEnd) {
 TEST(RunCommand, AReaderThatLeavesIsAWriteErrorSaidAtOnceAndTheRunEndsWithItsSummary) {
   const auto stats = temp_path("stats.json");
   const auto [status, text] = run_with_a_reader_that_leaves(
-      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--allow-non-rt",
-       "--no-mlock", "--duration", "0.5", "--trace", "-", "--stats-json", stats.string()});
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+       "--allow-non-rt", "--no-mlock", "--duration", "0.5", "--trace", "-", "--stats-json", stats.string()});
   EXPECT_EQ(status, 1) << text;  // not 141 (SIGPIPE)
   // Said when the writer first fails (mid-run, or at its last flush for a short run like this).
   EXPECT_NE(text.find("INCOMPLETE"), std::string::npos) << text;
   EXPECT_NE(text.find("Broken pipe"), std::string::npos) << text;
-  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos) << "the run went on to its end: " << slurp(stats);
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos)
+      << "the run went on to its end: " << slurp(stats);
   std::filesystem::remove(stats);
 }
 
@@ -456,9 +459,9 @@ TEST(RunCommand, ATraceThatIsTheSceneIsRefused) {
   const auto scene = temp_path("w.toml");
   std::filesystem::copy_file(TOONFORCE_SOURCE_DIR "/scenes/wall.toml", scene);
   const std::string before = slurp(scene);
-  const auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(),
-                                          "--allow-non-rt", "--no-mlock", "--duration", "0.2", "--trace",
-                                          scene.string()});
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(), "--allow-non-rt", "--no-mlock",
+                  "--duration", "0.2", "--trace", scene.string()});
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("is the scene"), std::string::npos) << text;
   EXPECT_EQ(slurp(scene), before);
@@ -468,10 +471,10 @@ TEST(RunCommand, ATraceThatIsTheSceneIsRefused) {
 TEST(Cli, ABadCommandLineIsCannotStartExitStatus2) {
   const std::string scene = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
   for (const auto& args : std::vector<std::vector<std::string>>{
-           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene, "--rate", "0"},  // was 105
+           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene, "--rate", "0"},     // was 105
            {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene, "--no-such-flag"},  // was 109
-           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene"},  // was 114
-           {TOONFORCE_BINARY, "run", "--device", "sim"},  // was 106
+           {TOONFORCE_BINARY, "run", "--device", "sim", "--scene"},                           // was 114
+           {TOONFORCE_BINARY, "run", "--device", "sim"},                                      // was 106
            {TOONFORCE_BINARY, "sim", "--scene", scene, "--trace"}}) {
     const auto [status, text] = run_binary(args);
     EXPECT_EQ(status, 2) << args.back() << ": " << text;
@@ -527,8 +530,8 @@ TEST(CheckCommand, ErrorsAndAnEmptySceneAreReportedWithoutRunningAndExit1) {
 
 TEST(RunCommand, TheBinaryReportsAMissingDeviceAndExitsWithoutRunning) {
   const auto output = temp_path("output.txt");
-  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "falcon", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml"},
-                      output);
+  Child child = spawn(
+      {TOONFORCE_BINARY, "run", "--device", "falcon", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml"}, output);
   ASSERT_TRUE(started(child));
   EXPECT_EQ(wait_exit(child), 2);
   EXPECT_NE(slurp(output).find("no Novint Falcon found on USB"), std::string::npos) << slurp(output);
@@ -546,7 +549,6 @@ TEST(RunCommand, TheBinaryRejectsARateOutsideItsRange) {
   std::filesystem::remove(output);
 }
 
-
 /// The rows of a CSV file, split at new lines; `whole` is false if it does not end with one.
 std::vector<std::string> csv_rows(const std::filesystem::path& path, bool& whole) {
   const std::string text = slurp(path);
@@ -562,17 +564,17 @@ std::size_t commas(const std::string& row) { return static_cast<std::size_t>(std
 TEST(Cli, ARangeErrorIsOneShortLineNotTheLargestDoubleInFull) {
   const std::string scene = TOONFORCE_SOURCE_DIR "/scenes/wall.toml";
   const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
-  auto [status, text] = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
-                                    "--duration", "1e400"});
+  auto [status, text] = run_binary(
+      {TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-", "--duration", "1e400"});
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("--duration: 1e400 is not a finite number"), std::string::npos) << text;
   EXPECT_LT(text.size(), 200U) << text;  // CLI11 printed the largest double in 309 digits
-  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
-                                       "--rate", "1e300"});
+  std::tie(status, text) =
+      run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-", "--rate", "1e300"});
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("--rate: 1e300 is outside 10 .. 100000"), std::string::npos) << text;
-  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-",
-                                       "--duration", "inf"});
+  std::tie(status, text) =
+      run_binary({TOONFORCE_BINARY, "sim", "--scene", scene, "--script", script, "--trace", "-", "--duration", "inf"});
   EXPECT_EQ(status, 2) << "an infinite duration is not a positive number: " << text;
 }
 
@@ -582,11 +584,12 @@ TEST(EmptyScene, IsRefusedByRunSimAndReplayUnlessAllowed) {
   std::ofstream(empty) << "# a scene whose effects were all commented out\nname = \"nothing\"\n";
   const std::string script = TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml";
   const std::vector<std::vector<std::string>> commands{
-      {TOONFORCE_BINARY, "sim", "--scene", empty.string(), "--script", script, "--trace", trace.string(), "--duration", "0.05"},
-      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", empty.string(), "--allow-non-rt", "--no-mlock", "--duration",
+      {TOONFORCE_BINARY, "sim", "--scene", empty.string(), "--script", script, "--trace", trace.string(), "--duration",
        "0.05"},
-      {TOONFORCE_BINARY, "replay", "--scene", empty.string(), "--input", TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv",
-       "--output", trace.string()}};
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", empty.string(), "--allow-non-rt", "--no-mlock",
+       "--duration", "0.05"},
+      {TOONFORCE_BINARY, "replay", "--scene", empty.string(), "--input",
+       TOONFORCE_SOURCE_DIR "/scenes/motions/strike.csv", "--output", trace.string()}};
   for (std::vector<std::string> args : commands) {
     auto [status, text] = run_binary(args);
     EXPECT_NE(status, 0) << args[1] << ": " << text;  // ran with zero force and no word
@@ -657,7 +660,6 @@ TEST(RunSummary, NamesTheHeartbeatWatchdogApartFromTheLoopsOwnMissedTickFault) {
   EXPECT_NE(text.find("latched at the end: missed ticks (the loop's own watchdog)"), std::string::npos) << text;
 }
 
-
 TEST(Plausibility, AWarningIsSaidBeforeTheRunAndStrictRefusesToStart) {
   // 10 000 N/m at 1 kHz: over the bound even when held (5400 N/m on the simulated Falcon).
   const auto scene = temp_path("stiff.toml");
@@ -671,12 +673,12 @@ TEST(Plausibility, AWarningIsSaidBeforeTheRunAndStrictRefusesToStart) {
       << text;
   std::tie(status, text) = run_binary({TOONFORCE_BINARY, "check", scene.string(), "--strict"});
   EXPECT_EQ(status, 1) << text;
-  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script, "--trace",
-                                       trace.string(), "--duration", "0.05"});
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script,
+                                       "--trace", trace.string(), "--duration", "0.05"});
   EXPECT_EQ(status, 0) << text;
   EXPECT_NE(text.find("warning: " + scene.string() + ":1: surface[1]"), std::string::npos) << text;
-  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script, "--trace",
-                                       trace.string(), "--duration", "0.05", "--strict"});
+  std::tie(status, text) = run_binary({TOONFORCE_BINARY, "sim", "--scene", scene.string(), "--script", script,
+                                       "--trace", trace.string(), "--duration", "0.05", "--strict"});
   EXPECT_NE(status, 0) << text;
   EXPECT_NE(text.find("--strict: the simulation does not start"), std::string::npos) << text;
   std::tie(status, text) = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(),
@@ -702,7 +704,8 @@ bool any_fixed_saturation(const std::filesystem::path& trace) {
   EXPECT_LT(column, names.size()) << lines[0];
   for (std::size_t i = 1; i < lines.size(); ++i) {
     const auto row = fields(lines[i]);
-    if (column < row.size() && (static_cast<std::uint32_t>(row[column]) & static_cast<std::uint32_t>(Fault::kFixedSaturation)) != 0) {
+    if (column < row.size() &&
+        (static_cast<std::uint32_t>(row[column]) & static_cast<std::uint32_t>(Fault::kFixedSaturation)) != 0) {
       return true;
     }
   }
@@ -713,8 +716,8 @@ TEST(SimCommand, Q16RefusesARateWhoseOneOverDtDoesNotFitAndRunsJustBelowItWithou
   const auto trace = temp_path("q16-rate.csv");
   const auto sim = [&](const std::string& rate, const std::string& scalar) {
     return run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml", "--script",
-                       TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--duration",
-                       "0.3", "--quiet", "--rate", rate, "--scalar", scalar});
+                       TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--duration", "0.3",
+                       "--quiet", "--rate", rate, "--scalar", scalar});
   };
   auto [status, text] = sim("32768", "q16.16");
   EXPECT_EQ(status, 2) << text;
@@ -756,8 +759,9 @@ TEST(RunCommand, Q16RefusesARateTheCliffsFilterCannotHoldBeforeTheDeviceOpens) {
   const auto scene = temp_path("q16-cliff.toml");
   std::ofstream(scene) << "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = -0.01\n"
                           "gap_max = 0.01\nstiffness = 1500\nspeed_threshold = 0.08\ntau = 5\n";
-  auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(), "--rate",
-                                    "6554", "--scalar", "q16.16", "--duration", "0.05", "--allow-non-rt", "--no-mlock"});
+  auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", scene.string(), "--rate", "6554", "--scalar",
+                  "q16.16", "--duration", "0.05", "--allow-non-rt", "--no-mlock"});
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("cliff[1]"), std::string::npos) << text;
   EXPECT_NE(text.find("up to 6553.2 Hz"), std::string::npos) << text;
@@ -828,16 +832,17 @@ class ControlWaitStopSignal : public ::testing::TestWithParam<int> {};
 TEST_P(ControlWaitStopSignal, GivesUpLikeCtrlCWithExitStatus2) {
   if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
   const auto output = temp_path("output.txt");
-  Child child = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                       "--view", "0", "--control", "--control-token", "t", "--control-wait", "--allow-non-rt",
-                       "--no-mlock"},
-                      output);
+  Child child =
+      spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--view",
+             "0", "--control", "--control-token", "t", "--control-wait", "--allow-non-rt", "--no-mlock"},
+            output);
   ASSERT_TRUE(started(child));
   ASSERT_TRUE(wait_for_text(child, output, "waiting for a control client's hello")) << slurp(output);
   ASSERT_EQ(kill(child.pid, GetParam()), 0);
   EXPECT_EQ(wait_exit(child), 2) << slurp(output);
-  EXPECT_NE(slurp(output).find("no control client came (stopped by " + signal_name(GetParam()) + "); the loop did not start"),
-            std::string::npos)
+  EXPECT_NE(
+      slurp(output).find("no control client came (stopped by " + signal_name(GetParam()) + "); the loop did not start"),
+      std::string::npos)
       << slurp(output);
   std::filesystem::remove(output);
 }
@@ -886,12 +891,14 @@ TEST(RunCommand, AFileSizeLimitStopsTheTraceWholeAndTheRunEndsWithItsSummary) {
   // 12 blocks (6 KiB in dash's 512-byte blocks, about 60 rows): 200 needed some 1,050 of the
   // 1,500 ticks, and a loaded host off a real-time kernel can miss a third of its deadlines.
   const auto [status, text] = run_binary(under_file_size_limit(
-      12, {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration",
-            "1.5", "--trace", trace.string(), "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"}));
+      12,
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration",
+       "1.5", "--trace", trace.string(), "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"}));
   EXPECT_EQ(status, 1) << text;
   EXPECT_NE(text.find("File too large"), std::string::npos) << text;
   EXPECT_NE(text.find("INCOMPLETE"), std::string::npos) << "the summary: " << text;
-  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos) << "the run went on to its end: " << slurp(stats);
+  EXPECT_NE(slurp(stats).find("\"stop_signal\": 0"), std::string::npos)
+      << "the run went on to its end: " << slurp(stats);
   expect_whole_rows(trace);
   for (const auto& p : {trace, stats}) std::filesystem::remove(p);
 }
@@ -933,23 +940,24 @@ TEST(Cli, AStandardErrorThatCannotBeWrittenIsExitStatus1NotAnAbort) {
   if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
   const auto output = temp_path("output.txt");
   const auto trace = temp_path("trace.csv");
-  EXPECT_EQ(run_with_stderr_closed({TOONFORCE_BINARY, "run", "--device", "sim", "--scene",
-                                    TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration", "0.1", "--view", "0",
-                                    "--trace", trace.string(), "--allow-non-rt", "--no-mlock"},
-                                   output),
+  EXPECT_EQ(run_with_stderr_closed(
+                {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                 "--duration", "0.1", "--view", "0", "--trace", trace.string(), "--allow-non-rt", "--no-mlock"},
+                output),
             1)
       << slurp(output);
-  EXPECT_EQ(run_with_stderr_closed({TOONFORCE_BINARY, "run", "--device", "sim", "--scene",
-                                    TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration", "0.1", "--view", "0",
-                                    "--control", "--allow-non-rt", "--no-mlock"},
-                                   output),
+  EXPECT_EQ(run_with_stderr_closed(
+                {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+                 "--duration", "0.1", "--view", "0", "--control", "--allow-non-rt", "--no-mlock"},
+                output),
             1)
       << slurp(output);
   const auto [sim_status, sim_text] =
       run_binary({TOONFORCE_BINARY, "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--script",
                   TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--trace", trace.string(), "--quiet"});
   ASSERT_EQ(sim_status, 0) << sim_text;
-  EXPECT_EQ(run_with_stderr_closed({TOONFORCE_BINARY, "view", "--port", "0", trace.string()}, output), 1) << slurp(output);
+  EXPECT_EQ(run_with_stderr_closed({TOONFORCE_BINARY, "view", "--port", "0", trace.string()}, output), 1)
+      << slurp(output);
   for (const auto& p : {output, trace}) std::filesystem::remove(p);
 }
 
@@ -991,7 +999,8 @@ INSTANTIATE_TEST_SUITE_P(ReplayCommand, ReplayStopSignal, kTerminatingSignals, k
 // `falcon envelope`: a grid that cannot be written aborted (134); an output that is the input
 // emptied the calibration before reading it.
 TEST(FalconCommand, AGridThatCannotBeWrittenIsReportedAndExits1) {
-  const auto [status, text] = run_binary({TOONFORCE_BINARY, "falcon", "envelope", "--csv", "/dev/full", "--step", "20"});
+  const auto [status, text] =
+      run_binary({TOONFORCE_BINARY, "falcon", "envelope", "--csv", "/dev/full", "--step", "20"});
   EXPECT_EQ(status, 1) << text;
   EXPECT_NE(text.find("/dev/full: writing the grid failed: No space left on device"), std::string::npos) << text;
 }
@@ -1019,14 +1028,14 @@ TEST(BringupCommand, AReportThatWouldOverwriteAnInputOrIsADirectoryIsRefusedBefo
   std::ofstream(json) << "calibration\n";
   std::ofstream(md) << "firmware\n";
   {
-    const auto [status, text] = run_binary({TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report",
-                                            base.string(), "--calibration", json});
+    const auto [status, text] = run_binary(
+        {TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report", base.string(), "--calibration", json});
     EXPECT_EQ(status, 2) << text;
     EXPECT_NE(text.find("would overwrite the input " + json), std::string::npos) << text;
   }
   {
-    const auto [status, text] = run_binary({TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report",
-                                            base.string(), "--firmware", md});
+    const auto [status, text] = run_binary(
+        {TOONFORCE_BINARY, "bringup", "falcon", "--non-interactive", "--report", base.string(), "--firmware", md});
     EXPECT_EQ(status, 2) << text;
     EXPECT_NE(text.find("would overwrite the input " + md), std::string::npos) << text;
   }
@@ -1131,7 +1140,8 @@ TEST(ViewCommand, AByteOrderMarkBeforeTheHeaderIsReadPast) {
 // `check` refused a hand script longer than a day that `run --script` took: one shared rule.
 TEST(RunCommand, AHandScriptLongerThanADayIsRefusedAsCheckRefusesIt) {
   const auto script = temp_path("long.toml");
-  std::ofstream(script) << "name = \"long\"\n[hand]\nstart = [0.0, 0.0, 0.03]\n[[segment]]\ntype = \"hold\"\nduration = 1e6\n";
+  std::ofstream(script)
+      << "name = \"long\"\n[hand]\nstart = [0.0, 0.0, 0.03]\n[[segment]]\ntype = \"hold\"\nduration = 1e6\n";
   const std::string expected = "lasts 1e+06 s, over the maximum of 86400 s";
   const auto [check_status, check_text] =
       run_binary({TOONFORCE_BINARY, "check", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", script.string()});
@@ -1154,10 +1164,10 @@ TEST(RunCommand, TooLittleAddressSpaceIsCannotStartNotAnAbort) {
 #else
   bool refused = false;
   for (int mib = 16; mib <= 160; mib += 8) {
-    const auto [status, text] = run_binary(
-        {"/bin/sh", "-c", fmt::format("ulimit -v {} && exec \"$0\" \"$@\"", mib * 1024), TOONFORCE_BINARY, "run",
-         "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration", "0.05",
-         "--allow-non-rt", "--no-mlock", "--quiet"});
+    const auto [status, text] =
+        run_binary({"/bin/sh", "-c", fmt::format("ulimit -v {} && exec \"$0\" \"$@\"", mib * 1024), TOONFORCE_BINARY,
+                    "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration", "0.05",
+                    "--allow-non-rt", "--no-mlock", "--quiet"});
     EXPECT_TRUE(status == 0 || status == 2 || status == 127) << mib << " MiB: " << status << ": " << text;
     if (status == 2) {
       EXPECT_NE(text.find("ulimit -v"), std::string::npos) << mib << " MiB: " << text;
@@ -1168,9 +1178,7 @@ TEST(RunCommand, TooLittleAddressSpaceIsCannotStartNotAnAbort) {
 #endif
 }
 
-
 // ---- the guardian: the loop's process killed, stalled, or left alone ---------------
-
 
 /// The loop's process of a `run` started by this test: the guardian's only child.
 pid_t loop_process_of(pid_t guardian) {
@@ -1205,9 +1213,14 @@ bool wait_for_force(Child& c, const std::filesystem::path& trace, double force_n
 }
 
 std::vector<std::string> strike_run(const std::filesystem::path& trace, const std::filesystem::path& stats) {
-  return {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
-          "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "60", "--trace", trace.string(),
-          "--stats-json", stats.string(), "--allow-non-rt", "--no-mlock"};
+  return {TOONFORCE_BINARY, "run",
+          "--device",       "sim",
+          "--scene",        TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+          "--script",       TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml",
+          "--duration",     "60",
+          "--trace",        trace.string(),
+          "--stats-json",   stats.string(),
+          "--allow-non-rt", "--no-mlock"};
 }
 
 /// Every row whole and in time order; the last row's force.
@@ -1238,13 +1251,15 @@ TEST(Guardian, KillingTheLoopsProcessMidStrikeEndsTheTraceOnAZeroForceRowAndExit
   ASSERT_EQ(kill(loop, SIGKILL), 0);
   EXPECT_EQ(wait_exit(run), 3) << slurp(output);
   const std::string said = slurp(output);
-  EXPECT_NE(said.find(fmt::format("the loop's process (pid {}) ended during the loop", loop)), std::string::npos) << said;
+  EXPECT_NE(said.find(fmt::format("the loop's process (pid {}) ended during the loop", loop)), std::string::npos)
+      << said;
   EXPECT_NE(said.find("killed by SIGKILL"), std::string::npos) << said;
   EXPECT_NE(said.find("ends with the zero-force row"), std::string::npos) << said;
   expect_whole_rows_ending_at_zero_force(trace);
   const auto lines = lines_of(trace);
   const auto before = fields(lines[lines.size() - 2]);
-  EXPECT_GT(std::hypot(before[7], before[8], before[9]), 0.0) << "killed while the wall pushed: " << lines[lines.size() - 2];
+  EXPECT_GT(std::hypot(before[7], before[8], before[9]), 0.0)
+      << "killed while the wall pushed: " << lines[lines.size() - 2];
   const std::string json = slurp(stats);
   EXPECT_NE(json.find("\"loop_process_died\": true"), std::string::npos) << json;
   EXPECT_NE(json.find("\"cause\": \"killed by SIGKILL\""), std::string::npos) << json;
@@ -1296,8 +1311,8 @@ TEST(Guardian, WhenTheGuardianDiesTheLoopStopsWithZeroForceAndSaysSo) {
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // its last writes
   const std::string said = slurp(output);
-  EXPECT_NE(said.find(fmt::format("the guardian process (pid {}) ended during the run: the loop stopped with zero force",
-                                  guardian)),
+  EXPECT_NE(said.find(fmt::format(
+                "the guardian process (pid {}) ended during the run: the loop stopped with zero force", guardian)),
             std::string::npos)
       << said;
   expect_whole_rows_ending_at_zero_force(trace);
@@ -1323,7 +1338,6 @@ TEST(Guardian, AStopSignalToTheWholeProcessGroupStopsTheLoopOnceWithItsSummary) 
   for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
 }
 
-
 TEST(Guardian, TheSameSignalRepeatedAtOnceByOneSenderIsOneStop) {
   // What a parent that dies with PR_SET_PDEATHSIG set sends: one SIGTERM per thread as its
   // threads exit (toonforce.live's runs from a Python script killed outright). The run must stop
@@ -1344,7 +1358,6 @@ TEST(Guardian, TheSameSignalRepeatedAtOnceByOneSenderIsOneStop) {
   EXPECT_NE(slurp(stats).find("\"stop_signal\": " + std::to_string(SIGTERM)), std::string::npos) << slurp(stats);
   for (const auto& p : {trace, stats, output}) std::filesystem::remove(p);
 }
-
 
 // ---- the safety boundary: what a stop, a slow reader or a forged page cannot do -------------
 
@@ -1402,10 +1415,11 @@ TEST(Guardian, ASlowTraceReaderDelaysTheEndOfAFinishedLoopButNeverMakesItAKill) 
   // summary, however long the reader takes; never "stalled".
   const auto errors = temp_path("guardian_slow_reader.txt");
   int fd = -1;
-  Child run = spawn_piped({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
-                           "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "0.5", "--trace",
-                           "-", "--stall-limit", "100", "--allow-non-rt", "--no-mlock"},
-                          errors, fd);
+  Child run = spawn_piped(
+      {TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+       "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "0.5", "--trace", "-",
+       "--stall-limit", "100", "--allow-non-rt", "--no-mlock"},
+      errors, fd);
   ASSERT_TRUE(started(run));
   // Nothing read until well after the loop's end (0.5 s) and past the stall limit: the pipe
   // (64 KiB) fills in the first tenth of a second.
@@ -1487,10 +1501,11 @@ TEST(Guardian, ADeathAfterTheLoopEndedStillLeavesTheZeroForceRowAndExit3) {
   if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
   const auto trace = temp_path("guardian_after.csv");
   const auto output = temp_path("guardian_after.txt");
-  Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
-                     "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "0.3", "--view", "0",
-                     "--trace", trace.string(), "--allow-non-rt", "--no-mlock"},
-                    output);
+  Child run =
+      spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+             "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "0.3", "--view", "0",
+             "--trace", trace.string(), "--allow-non-rt", "--no-mlock"},
+            output);
   ASSERT_TRUE(started(run));
   // After its loop, the loop's process serves the recording until a stop: killed then.
   ASSERT_TRUE(wait_for_text(run, output, "faults   ")) << slurp(output);
@@ -1525,9 +1540,10 @@ TEST(RunCommand, TheTraceAndTheStatisticsAsOneFileAreRefusedBeforeEitherIsTouche
   const auto output = temp_path("same_output.txt");
   { std::ofstream(file) << "kept\n"; }
   for (const std::string& other : {file.string(), (file.parent_path() / "." / file.filename()).string()}) {
-    Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                       "--duration", "0.1", "--trace", file.string(), "--stats-json", other, "--allow-non-rt", "--no-mlock"},
-                      output);
+    Child run =
+        spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
+               "--duration", "0.1", "--trace", file.string(), "--stats-json", other, "--allow-non-rt", "--no-mlock"},
+              output);
     EXPECT_EQ(wait_exit(run), 2) << slurp(output);
     EXPECT_NE(slurp(output).find("are the same file"), std::string::npos) << slurp(output);
     EXPECT_EQ(slurp(file), "kept\n");
@@ -1611,10 +1627,27 @@ TEST_P(ServerProcessFault, TheLoopRunsToItsEndWithEveryTick) {
   const auto trace = temp_path("server_fault.csv");
   const auto stats = temp_path("server_fault.json");
   const auto output = temp_path("server_fault.txt");
-  Child run = spawn({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
-                     "--script", TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml", "--duration", "1.5", "--view", "0",
-                     "--control", "--control-token", "t", "--trace", trace.string(), "--stats-json", stats.string(),
-                     "--allow-non-rt", "--no-mlock"},
+  Child run = spawn({TOONFORCE_BINARY,
+                     "run",
+                     "--device",
+                     "sim",
+                     "--scene",
+                     TOONFORCE_SOURCE_DIR "/scenes/cartoon_wall.toml",
+                     "--script",
+                     TOONFORCE_SOURCE_DIR "/scenes/hands/strike.toml",
+                     "--duration",
+                     "1.5",
+                     "--view",
+                     "0",
+                     "--control",
+                     "--control-token",
+                     "t",
+                     "--trace",
+                     trace.string(),
+                     "--stats-json",
+                     stats.string(),
+                     "--allow-non-rt",
+                     "--no-mlock"},
                     output);
   ASSERT_TRUE(started(run));
   ASSERT_TRUE(wait_for_text(run, output, "control: ws://")) << slurp(output);
@@ -1695,7 +1728,6 @@ TEST(RunCommand, TheServerProcessHasNoRealTimePriorityNoLockedMemoryAndNoCapabil
   std::filesystem::remove(output);
 }
 
-
 /// The status line of the answer to `GET path` at 127.0.0.1:port (empty: no answer).
 std::string http_get_status_line(int port, const std::string& path) {
   const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
@@ -1748,7 +1780,8 @@ TEST(RunCommand, TheServerProcessHoldsOnlyItsChannelsAndItsSocket) {
   const pid_t loop = loop_process_of(run.pid);
   const pid_t server = server_process_of(run.pid);
   ASSERT_GT(server, 0) << "no server process under the loop process";
-  ASSERT_TRUE(wait_for_file(run, trace, [](const std::string& text) { return std::count(text.begin(), text.end(), '\n') >= 100; }))
+  ASSERT_TRUE(wait_for_file(run, trace,
+                            [](const std::string& text) { return std::count(text.begin(), text.end(), '\n') >= 100; }))
       << "the loop runs (its trace open): " << slurp(output);
   // It serves, all of this in force: the page's first request answered.
   const std::string said = slurp(output);
@@ -1774,7 +1807,8 @@ TEST(RunCommand, TheServerProcessHoldsOnlyItsChannelsAndItsSocket) {
     const std::string target = std::filesystem::read_symlink(entry.path(), ec).string();
     ++descriptors;
     if (fd <= 2 || ec) continue;
-    EXPECT_TRUE(target.starts_with("socket:") || target.starts_with("anon_inode:")) << "descriptor " << fd << ": " << target;
+    EXPECT_TRUE(target.starts_with("socket:") || target.starts_with("anon_inode:"))
+        << "descriptor " << fd << ": " << target;
   }
   EXPECT_GT(descriptors, 3U) << "its listening socket at least";
   bool loop_holds_it = false;
@@ -1814,16 +1848,16 @@ TEST(RunCommand, TheServerProcessHoldsOnlyItsChannelsAndItsSocket) {
 
   ASSERT_EQ(kill(run.pid, SIGTERM), 0);
   EXPECT_EQ(wait_exit(run), 0) << slurp(output);
-  EXPECT_EQ(slurp(output).find("the server process (pid"), std::string::npos) << "it served to the end: " << slurp(output);
+  EXPECT_EQ(slurp(output).find("the server process (pid"), std::string::npos)
+      << "it served to the end: " << slurp(output);
   for (const auto& p : {trace, output, inherited}) std::filesystem::remove(p);
 }
 
 TEST(RunCommand, ServerUserThatDoesNotExistIsAnError) {
   if (!has_viewer()) GTEST_SKIP() << "built without the viewer";
-  const auto [status, text] =
-      run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene", TOONFORCE_SOURCE_DIR "/scenes/wall.toml",
-                  "--duration", "0.05", "--view", "0", "--server-user", "no-such-user-toonforce", "--allow-non-rt",
-                  "--no-mlock"});
+  const auto [status, text] = run_binary({TOONFORCE_BINARY, "run", "--device", "sim", "--scene",
+                                          TOONFORCE_SOURCE_DIR "/scenes/wall.toml", "--duration", "0.05", "--view", "0",
+                                          "--server-user", "no-such-user-toonforce", "--allow-non-rt", "--no-mlock"});
   EXPECT_EQ(status, 2) << text;
   EXPECT_NE(text.find("--server-user no-such-user-toonforce: no such user"), std::string::npos) << text;
 }
@@ -1889,7 +1923,9 @@ struct ReportStoppedInAPlot {
     const auto plot = dir / "plot.py";
     std::ofstream(plot) << "import sys, time\n"
                            "open(sys.argv[3], 'w').write('half a pic')\n"
-                           "open('" << ready.string() << "', 'w').close()\n"
+                           "open('"
+                        << ready.string()
+                        << "', 'w').close()\n"
                            "time.sleep(600)\n";
     setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
     child = spawn({kLabBinary, "report", "stability", "--out", (dir / "docs").string(), "--resolution", "2",
@@ -1910,8 +1946,9 @@ TEST(ReportCommand, AStopSignalLeavesEveryFileAsItWasOrWholeAndSaysSo) {
     ASSERT_TRUE(appears(report.ready)) << slurp(report.output);
     kill(report.child.pid, signo);
     EXPECT_EQ(wait_exit(report.child), 1) << signal_name(signo) << ": " << slurp(report.output);
-    EXPECT_NE(slurp(report.output).find("toonforce-lab report: stopped by " + signal_name(signo) + "; no file was left cut"),
-              std::string::npos)
+    EXPECT_NE(
+        slurp(report.output).find("toonforce-lab report: stopped by " + signal_name(signo) + "; no file was left cut"),
+        std::string::npos)
         << slurp(report.output);
     for (const auto* name : {"STABILITY.md", "report/stiffness_period.csv", "report/stiffness_period.png"}) {
       EXPECT_EQ(slurp(report.dir / "docs" / name), "before\n") << name << " under " << signal_name(signo);
@@ -1933,8 +1970,8 @@ TEST(ReportCommand, AFailedStepLeavesTheFolderAsItWasAndAFinishedOneReplacesItsF
     const auto plot = dir / "plot.py";
     std::ofstream(plot) << "import sys\n" << body;
     setenv("TOONFORCE_PLOT_REPORT_SCRIPT", plot.c_str(), 1);
-    auto result = run_binary({kLabBinary, "report", "stability", "--out", (dir / "docs").string(), "--resolution",
-                              "2", "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"});
+    auto result = run_binary({kLabBinary, "report", "stability", "--out", (dir / "docs").string(), "--resolution", "2",
+                              "--duration", "0.01", "--longest-run", "1", "--filter", "stiffness_period"});
     unsetenv("TOONFORCE_PLOT_REPORT_SCRIPT");
     return result;
   };

@@ -112,15 +112,15 @@ TEST(GpioCli, FillsOptionsFromTheCommandLine) {
   CLI::App app;
   GpioOptions options;
   cli::add_gpio_options(app, options);
-  const char* argv[] = {"run",         "--tick-pin",  "gpiochip0:17", "--estop-pin",
-                        "ESTOP:active-low", "--enable-pin", "gpiochip0:5", "--led-pin",
-                        "armed=gpiochip0:6,fault=gpiochip0:7", "--led-pin", "homing=LED_H"};
+  const char* argv[] = {"run",         "--tick-pin",       "gpiochip0:17",
+                        "--estop-pin", "ESTOP:active-low", "--enable-pin",
+                        "gpiochip0:5", "--led-pin",        "armed=gpiochip0:6,fault=gpiochip0:7",
+                        "--led-pin",   "homing=LED_H"};
   app.parse(static_cast<int>(std::size(argv)), const_cast<char**>(argv));  // NOLINT
   EXPECT_EQ(options.tick_pin, "gpiochip0:17");
   EXPECT_EQ(options.estop_pin, "ESTOP:active-low");
   EXPECT_EQ(options.enable_pin, "gpiochip0:5");
-  EXPECT_EQ(options.led_pins,
-            (std::vector<std::string>{"armed=gpiochip0:6", "fault=gpiochip0:7", "homing=LED_H"}));
+  EXPECT_EQ(options.led_pins, (std::vector<std::string>{"armed=gpiochip0:6", "fault=gpiochip0:7", "homing=LED_H"}));
   EXPECT_FALSE(options.empty());
 }
 
@@ -166,7 +166,8 @@ class GpioEmulation : public ::testing::Test {
       if (std::getenv("TOONFORCE_REQUIRE_UMOCKDEV") != nullptr) {
         FAIL() << "CTest runs this binary under umockdev-wrapper, but the preload is not active";
       }
-      GTEST_SKIP() << "needs umockdev: run as `umockdev-wrapper " << "toonforce_gpio_tests`";
+      GTEST_SKIP() << "needs umockdev: run as `umockdev-wrapper "
+                   << "toonforce_gpio_tests`";
     }
     emu_ = std::make_unique<EmulatedGpio>(kChips);
   }
@@ -280,8 +281,8 @@ template <class PinsT>
 class PinnedLoop {
  public:
   explicit PinnedLoop(PinsT pins)
-      : loop_(HeldDevice{&position_m_, &written_n_}, WallScene{Wall::Params{Plane<double>{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}}},
-              pins_config(), pins) {}
+      : loop_(HeldDevice{&position_m_, &written_n_},
+              WallScene{Wall::Params{Plane<double>{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}}}, pins_config(), pins) {}
 
   /// One tick with the handle at `position_m`; the force commanded.
   Vec3<double> tick(const Vec3<double>& position_m) noexcept {
@@ -418,7 +419,7 @@ TEST_F(GpioEmulation, ReadErrorIsTheSafeState) {
   emu().fail_values(0, 4, EIO);
   EXPECT_EQ(loop.pins().estop.read(), PinLevel::kError);
   EXPECT_EQ(loop.tick(kInWall).z, 0.0) << "an unreadable e-stop is an engaged e-stop";
-  EXPECT_EQ(loop.pins().estop.read_errors(), 2u);  // likewise
+  EXPECT_EQ(loop.pins().estop.read_errors(), 2u);   // likewise
   EXPECT_EQ(loop.pins().enable.read_errors(), 2u);  // the read above and the tick's
 }
 
@@ -485,8 +486,7 @@ TEST_F(GpioEmulation, AbsentPinsBehaveLikeTheNullPinsAndTouchNoDevice) {
   EXPECT_EQ(pins.enable.read(), PinLevel::kActive);
   pins.lights.show(LightState::kFault);
   EXPECT_EQ(emu().ioctl_count(), before);
-  EXPECT_FALSE(pins.tick.present() || pins.estop.present() || pins.enable.present() ||
-               pins.lights.present());
+  EXPECT_FALSE(pins.tick.present() || pins.estop.present() || pins.enable.present() || pins.lights.present());
 
   GpioOptions o;
   o.estop_pin = "ESTOP";  // only the e-stop: the rest stays absent
@@ -646,8 +646,8 @@ TEST_F(GpioEmulation, UnreadableInputStopsTheStart) {
 
 TEST_F(GpioEmulation, FailedStartReleasesTheLinesItHadRequested) {
   GpioOptions o;
-  o.tick_pin = "gpiochip1:0";     // fine
-  o.estop_pin = "gpiochip0:17";   // out of range
+  o.tick_pin = "gpiochip1:0";    // fine
+  o.estop_pin = "gpiochip0:17";  // out of range
   EXPECT_FALSE(gpio::open_gpio(o));
   // umockdev notices the closed line-handle fd on its worker thread: wait for it (bounded).
   for (int i = 0; i < 500 && emu().line(1, 0).requested; ++i) {
@@ -665,7 +665,6 @@ TEST_F(GpioEmulation, ListsTheChips) {
   EXPECT_TRUE(chips[1].problem.empty());
 }
 
-
 // ---- the amplifier-enable line, held by `toonforce run`'s guardian -----------------
 
 TEST_F(GpioEmulation, TheGuardianHoldsTheAmplifierEnableActiveWhileTheLoopTicksAndDropsItWhenItsProcessIsKilled) {
@@ -681,12 +680,13 @@ TEST_F(GpioEmulation, TheGuardianHoldsTheAmplifierEnableActiveWhileTheLoopTicksA
     bool set(bool active) noexcept override { return line.set(active); }
     std::string describe() const override { return "the amplifier-enable line " + line.describe(); }
   } enable(*line.value());
-  const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(
-      ExternalZero{}, &enable, [&] { return emu().line(0, 2).physical == 0; });
+  const toonforce::test::GuardedStandIn run =
+      toonforce::test::guard_a_stand_in(ExternalZero{}, &enable, [&] { return emu().line(0, 2).physical == 0; });
   EXPECT_TRUE(run.active_while_ticking) << "the line is active (low) while the loop ticks";
   EXPECT_TRUE(run.outcome.loop_died);
   EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
-  EXPECT_NE(run.outcome.zero_detail.find("the amplifier-enable line /dev/gpiochip0 line 2 was dropped"), std::string::npos)
+  EXPECT_NE(run.outcome.zero_detail.find("the amplifier-enable line /dev/gpiochip0 line 2 was dropped"),
+            std::string::npos)
       << run.outcome.zero_detail;
   EXPECT_GE(run.outcome.zero_ns, run.killed_ns);
   EXPECT_EQ(emu().line(0, 2).physical, 1) << "dropped: inactive (high) once the loop's process is gone";
@@ -717,12 +717,14 @@ TEST_F(GpioEmulation, TheGuardianRequestsTheEnableLineItselfAndDrivesItThroughIt
   EXPECT_GE(run.outcome.zero_ns, run.killed_ns);
   // For tools/bench/guardian-kill (a time, never asserted): the line as the guardian program
   // holds it.
-  std::printf("guardian kill to zero (gpio): %.3f ms\n", static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
+  std::printf("guardian kill to zero (gpio): %.3f ms\n",
+              static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
   EXPECT_EQ(emu().line(0, 2).physical, 1) << "dropped once the loop's process is gone";
 }
 
 TEST_F(GpioEmulation, TheGuardianRefusesAnEnableChipThatIsNotAGpioChip) {
-  for (const std::string& chip : {std::string("/etc/passwd"), std::string("/dev/gpiochip0/../null"), std::string("/dev/gpiochip9")}) {
+  for (const std::string& chip :
+       {std::string("/etc/passwd"), std::string("/dev/gpiochip0/../null"), std::string("/dev/gpiochip9")}) {
     guardian::GpioEnableLine line;
     EXPECT_NE(line.open(chip, 0, false), "") << chip;
     EXPECT_FALSE(line.set(true)) << chip;

@@ -21,9 +21,9 @@ namespace fs = std::filesystem;
 class HandScriptFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           fmt::format("toonforce_hand_{}_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name(),
-                       static_cast<long>(::getpid()));
+    dir_ = fs::temp_directory_path() / fmt::format("toonforce_hand_{}_{}",
+                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name(),
+                                                   static_cast<long>(::getpid()));
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -140,7 +140,7 @@ duration = 0.3
 force = 1.0
 )");
   EXPECT_NE(e.find(at(7, "segment[1].force") + "does not apply to a move segment (its keys: to, speed, duration, "
-                                                  "force_ramp, label)"),
+                                               "force_ramp, label)"),
             std::string::npos)
       << e;
   EXPECT_EQ(e.find("unknown key"), std::string::npos) << e;  // reported once, precisely

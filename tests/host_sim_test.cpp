@@ -28,8 +28,7 @@ DeviceParams bare_device(double mass_kg, double damping_n_s_per_m) {
   return d;
 }
 
-Plant make_plant(const DeviceParams& device, HandIntent intent, Integrator integrator, int substeps,
-                 double period_s) {
+Plant make_plant(const DeviceParams& device, HandIntent intent, Integrator integrator, int substeps, double period_s) {
   auto plant = Plant::create(device, std::move(intent), {integrator, substeps, period_s});
   if (!plant) ADD_FAILURE() << plant.error();
   return std::move(plant).value();
@@ -229,8 +228,8 @@ double worst_energy_gain(Integrator integrator, int substeps, double& bound_out)
 }
 
 TEST(Energy, NoIntegratorGainsMoreThanItsStatedBound) {
-  for (const Integrator i : {Integrator::kSemiImplicitEuler, Integrator::kVelocityVerlet, Integrator::kRk4,
-                             Integrator::kExact}) {
+  for (const Integrator i :
+       {Integrator::kSemiImplicitEuler, Integrator::kVelocityVerlet, Integrator::kRk4, Integrator::kExact}) {
     for (const int substeps : {1, 4}) {
       double bound = 0.0;
       const double gain = worst_energy_gain(i, substeps, bound);
@@ -335,8 +334,8 @@ TEST(SimDevice, ARestingHandleOnAFrictionlessDeviceStaysPut) {
 
 TEST(SimDevice, AForceAgainstTheHandSettlesWhereTheArmSpringBalancesIt) {
   // 1 N up against a 200 N/m hand: 5 mm, whatever the integrator.
-  for (const Integrator i : {Integrator::kSemiImplicitEuler, Integrator::kVelocityVerlet, Integrator::kRk4,
-                             Integrator::kExact}) {
+  for (const Integrator i :
+       {Integrator::kSemiImplicitEuler, Integrator::kVelocityVerlet, Integrator::kRk4, Integrator::kExact}) {
     auto device = SimDevice::create(bare_device(0.15, 0.1), HandIntent::holding({}), {i, 4, 1e-3});
     ASSERT_TRUE(device);
     for (int k = 0; k < 3000; ++k) static_cast<void>(device->write({0.0, 0.0, 1.0}));
@@ -370,7 +369,7 @@ TEST(HandIntent, AMoveIsMinimumJerkFromRestToRest) {
   const HandIntent intent = plan_or_fail(script);
   EXPECT_DOUBLE_EQ(intent.duration_s(), 0.4);
   EXPECT_EQ(intent.at(0.0).velocity_m_per_s, (Vec3<double>{}));
-  EXPECT_NEAR(intent.at(0.2).position_m.x, 0.02, 1e-15);  // half way at half time
+  EXPECT_NEAR(intent.at(0.2).position_m.x, 0.02, 1e-15);                      // half way at half time
   EXPECT_NEAR(intent.at(0.2).velocity_m_per_s.x, 1.875 * 0.04 / 0.4, 1e-12);  // peak 15/8 of mean
   EXPECT_NEAR(intent.at(0.4).position_m.x, 0.04, 1e-15);
   EXPECT_EQ(intent.at(0.4).velocity_m_per_s, (Vec3<double>{}));
@@ -389,7 +388,7 @@ TEST(HandIntent, AStrokeRampsCruisesAndStopsExactlyAtItsEnd) {
   EXPECT_NEAR(intent.at(0.1).position_m.x, 0.005, 1e-15);
   EXPECT_NEAR(intent.at(0.3).velocity_m_per_s.x, 0.1, 1e-15);
   EXPECT_NEAR(intent.at(0.6 - 1e-9).position_m.x, 0.05, 1e-9);
-  EXPECT_NEAR(intent.at(0.3).force_n.z, -1.5, 1e-15);  // presses along -normal
+  EXPECT_NEAR(intent.at(0.3).force_n.z, -1.5, 1e-15);     // presses along -normal
   EXPECT_NEAR(intent.at(0.025).force_n.z, -0.75, 1e-12);  // half way up its 0.05 s force ramp
 }
 

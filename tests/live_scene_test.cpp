@@ -55,8 +55,8 @@ struct LiveLoop {
     auto opened = SceneEditor<double>::open(text, "live.toml", *mailbox);
     if (!opened) throw std::runtime_error(opened.error());
     editor.emplace(std::move(opened.value()));
-    loop = std::make_unique<Loop>(HeldDevice{&position}, make_runtime_scene<double>(editor->scene()),
-                                  live_config(fade_s));
+    loop =
+        std::make_unique<Loop>(HeldDevice{&position}, make_runtime_scene<double>(editor->scene()), live_config(fade_s));
     loop->listen(*mailbox);
   }
   Vec3<double> step() {
@@ -140,7 +140,8 @@ TEST(LiveScene, ABadChangeIsRefusedWithTheSceneFilesMessageAndNothingReachesTheL
   const std::string said = file.error().substr(file.error().find("surface[1]"));
   EXPECT_NE(change.error().find(said.substr(0, said.find('\n'))), std::string::npos)
       << "file: " << file.error() << "change: " << change.error();
-  EXPECT_NE(change.error().find("set surface1:1:"), std::string::npos) << "the line in the change's text: " << change.error();
+  EXPECT_NE(change.error().find("set surface1:1:"), std::string::npos)
+      << "the line in the change's text: " << change.error();
   // Out of range, unknown kinds and effects, a bad event: refused, each saying why.
   EXPECT_FALSE(live.editor->set("surface1", "stiffness = -5"));
   EXPECT_FALSE(live.editor->set("surface2", "stiffness = 5"));
@@ -240,9 +241,8 @@ TEST(LiveScene, TheFastestImpactAcceptedOnQ16IsRenderedWithoutAFault) {
   auto editor = SceneEditor<Q16_16>::open(wall, "live.toml", *mailbox);
   ASSERT_TRUE(editor) << editor.error();
   Vec3<double> position{0.0, 0.0, 0.01};
-  ServoLoop<HeldDevice, QScene, NullPins, kLiveStages> loop(HeldDevice{&position},
-                                                           make_runtime_scene<Q16_16>(editor.value().scene()),
-                                                           live_config());
+  ServoLoop<HeldDevice, QScene, NullPins, kLiveStages> loop(
+      HeldDevice{&position}, make_runtime_scene<Q16_16>(editor.value().scene()), live_config());
   loop.listen(*mailbox);
   for (std::int64_t k = 0; k < 5; ++k) loop.tick(k);
   ASSERT_TRUE(editor.value().fire("surface1", "impact", 1.5));

@@ -326,7 +326,7 @@ TYPED_TEST(UntrustedUpdate, AnEventOutOfRangeIsRefused) {
   }
   forge(1, SceneEvent{300, 0, 0.3});  // an effect the scene does not have
   forge(1, SceneEvent{1, 0, 0.3});
-  forge(1, SceneEvent{0, 5, 0.3});    // a surface has one event
+  forge(1, SceneEvent{0, 5, 0.3});  // a surface has one event
   forge(1, SceneEvent{0, 0, std::numeric_limits<double>::quiet_NaN()});
   if constexpr (!std::is_same_v<S, double>) forge(1, SceneEvent{0, 0, 1e300});  // not a number S holds
 }

@@ -60,8 +60,8 @@ TEST(Fixed, RatiosOfIntegersRoundOnceAsTheExactQuotientWould) {
   // The fixed-point loop's time: seconds from nanoseconds, and 1/dt from nanoseconds, in
   // integers only (a Q16.16 image links no floating point). Checked against the exact quotient
   // rounded half away from zero, over periods a servo loop uses and beyond.
-  for (const std::int64_t ns : {1LL, 999LL, 15259LL, 125000LL, 333333LL, 1000000LL, 1000001LL, 2000000LL,
-                                100000000LL, 30000000000000LL}) {
+  for (const std::int64_t ns :
+       {1LL, 999LL, 15259LL, 125000LL, 333333LL, 1000000LL, 1000001LL, 2000000LL, 100000000LL, 30000000000000LL}) {
     const double seconds = static_cast<double>(ns) / 1e9;
     EXPECT_EQ(Q::from_ratio(ns, 1'000'000'000).raw(), Q::from_double(seconds).raw()) << ns;
     EXPECT_EQ(Q::from_ratio(-ns, 1'000'000'000).raw(), Q::from_double(-seconds).raw()) << ns;
@@ -143,8 +143,12 @@ TEST(Fixed, WideValuesRoundHalfAwayFromZeroAndSaturateIntoRange) {
     const Int128 q = (m + d / 2) / d;  // half away from zero, on the magnitude
     return static_cast<std::int64_t>(w < 0 ? -q : q);
   };
-  std::vector<std::int64_t> values = {0, 1, -1, std::numeric_limits<std::int64_t>::max(),
-                                      std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min() + 1};
+  std::vector<std::int64_t> values = {0,
+                                      1,
+                                      -1,
+                                      std::numeric_limits<std::int64_t>::max(),
+                                      std::numeric_limits<std::int64_t>::min(),
+                                      std::numeric_limits<std::int64_t>::min() + 1};
   for (int shift = 1; shift < 63; ++shift) {
     const std::int64_t half = std::int64_t{1} << (shift - 1);
     for (const std::int64_t k : {0LL, 1LL, 2LL, 3LL, 12345LL}) {
@@ -177,7 +181,8 @@ TEST(Fixed, WideValuesRoundHalfAwayFromZeroAndSaturateIntoRange) {
   }
   for (const std::int64_t w : {std::int64_t{INT32_MAX}, std::int64_t{INT32_MAX} + 1, std::int64_t{INT32_MIN},
                                std::int64_t{INT32_MIN} - 1, std::int64_t{1} << 32, -(std::int64_t{1} << 32)}) {
-    EXPECT_EQ(Q::from_wide(w), w > INT32_MAX ? Q::max() : (w < INT32_MIN ? Q::lowest() : Q::from_raw(static_cast<std::int32_t>(w))))
+    EXPECT_EQ(Q::from_wide(w),
+              w > INT32_MAX ? Q::max() : (w < INT32_MIN ? Q::lowest() : Q::from_raw(static_cast<std::int32_t>(w))))
         << w;
   }
   static_cast<void>(take_fixed_saturated());
@@ -219,13 +224,25 @@ TEST(Fixed, ProductsRoundTiesAwayFromZeroAndSaturateExactlyPastTheRange) {
   std::mt19937_64 rng(29);
   std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
   std::uniform_int_distribution<std::int32_t> odd_half(-(1 << 14), 1 << 14);
-  std::vector<std::pair<std::int32_t, std::int32_t>> cases = {
-      {1, 0x8000}, {-1, 0x8000}, {3, 0x8000}, {-3, 0x8000}, {1, 0x7FFF}, {-1, 0x7FFF}, {1, 0x8001}, {-1, 0x8001},
-      {INT32_MAX, 1 << 16}, {INT32_MIN, 1 << 16}, {INT32_MIN, -(1 << 16)}, {INT32_MAX, -(1 << 16)},
-      {INT32_MIN, INT32_MIN}, {INT32_MAX, INT32_MIN}, {INT32_MAX, (1 << 16) + 1}, {INT32_MIN, (1 << 16) + 1}};
+  std::vector<std::pair<std::int32_t, std::int32_t>> cases = {{1, 0x8000},
+                                                              {-1, 0x8000},
+                                                              {3, 0x8000},
+                                                              {-3, 0x8000},
+                                                              {1, 0x7FFF},
+                                                              {-1, 0x7FFF},
+                                                              {1, 0x8001},
+                                                              {-1, 0x8001},
+                                                              {INT32_MAX, 1 << 16},
+                                                              {INT32_MIN, 1 << 16},
+                                                              {INT32_MIN, -(1 << 16)},
+                                                              {INT32_MAX, -(1 << 16)},
+                                                              {INT32_MIN, INT32_MIN},
+                                                              {INT32_MAX, INT32_MIN},
+                                                              {INT32_MAX, (1 << 16) + 1},
+                                                              {INT32_MIN, (1 << 16) + 1}};
   for (int i = 0; i < 100000; ++i) {
-    cases.emplace_back(any(rng), any(rng));                        // mostly saturating
-    cases.emplace_back(any(rng) >> 16, any(rng) >> 15);            // near the range's edge
+    cases.emplace_back(any(rng), any(rng));                                       // mostly saturating
+    cases.emplace_back(any(rng) >> 16, any(rng) >> 15);                           // near the range's edge
     cases.emplace_back(2 * odd_half(rng) + 1, 0x8000 * (2 * odd_half(rng) + 1));  // exact ties
   }
   for (const auto& [a, b] : cases) {
@@ -241,8 +258,8 @@ TEST(Fixed, SumsDifferencesAndNegationsSaturateExactlyPastTheRange) {
   std::mt19937_64 rng(30);
   std::uniform_int_distribution<std::int32_t> any(INT32_MIN, INT32_MAX);
   std::vector<std::pair<std::int32_t, std::int32_t>> cases = {
-      {INT32_MAX, 1}, {INT32_MAX, 0}, {INT32_MIN, -1}, {INT32_MIN, 0}, {INT32_MIN, INT32_MIN},
-      {INT32_MAX, INT32_MAX}, {INT32_MAX, INT32_MIN}, {0, INT32_MIN}, {-1, INT32_MIN}, {0, 0}};
+      {INT32_MAX, 1},         {INT32_MAX, 0},         {INT32_MIN, -1}, {INT32_MIN, 0},  {INT32_MIN, INT32_MIN},
+      {INT32_MAX, INT32_MAX}, {INT32_MAX, INT32_MIN}, {0, INT32_MIN},  {-1, INT32_MIN}, {0, 0}};
   for (int i = 0; i < 100000; ++i) cases.emplace_back(any(rng), any(rng));
   const auto clamp = [](std::int64_t v, bool& saturates) {
     saturates = v > INT32_MAX || v < INT32_MIN;
@@ -283,8 +300,18 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   // norm() takes the root of a sum of three raw squares: any 64-bit value. Around the 32-bit
   // boundary (where the root changes method), at powers of four (where it starts), at the
   // rounding boundaries r^2 + r and r^2 + r + 1, at the top, and at random.
-  std::vector<std::uint64_t> values = {0, 1, 2, 3, 4, 5, 0xFFFF'FFFFULL, 0x1'0000'0000ULL, 0x1'0000'0001ULL,
-                                       0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFF'0000'0000ULL, 0xFFFF'FFFE'0000'0001ULL};
+  std::vector<std::uint64_t> values = {0,
+                                       1,
+                                       2,
+                                       3,
+                                       4,
+                                       5,
+                                       0xFFFF'FFFFULL,
+                                       0x1'0000'0000ULL,
+                                       0x1'0000'0001ULL,
+                                       0xFFFF'FFFF'FFFF'FFFFULL,
+                                       0xFFFF'FFFF'0000'0000ULL,
+                                       0xFFFF'FFFE'0000'0001ULL};
   for (int shift = 0; shift < 64; ++shift) {
     const std::uint64_t p = std::uint64_t{1} << shift;
     values.insert(values.end(), {p - 1, p, p + 1});
@@ -306,13 +333,16 @@ TEST(Fixed, IntegerRootRoundsToNearestOverTheWholeSixtyFourBitRange) {
   for (int i = 0; i < 200000; ++i) values.push_back(random() >> (random() % 64));
   for (const std::uint64_t v : values) {
     // Both methods (a 32-bit core's divided root, a 64-bit host's leading-bit one), and this target's.
-    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_divided(v))) << v << " gave " << detail::isqrt_round_divided(v);
-    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_leading(v))) << v << " gave " << detail::isqrt_round_leading(v);
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_divided(v)))
+        << v << " gave " << detail::isqrt_round_divided(v);
+    ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round_leading(v)))
+        << v << " gave " << detail::isqrt_round_leading(v);
     ASSERT_TRUE(rounds_to_nearest_root(v, detail::isqrt_round(v))) << v << " gave " << detail::isqrt_round(v);
   }
   static_assert(detail::isqrt_round(0) == 0 && detail::isqrt_round(2) == 1 && detail::isqrt_round(3) == 2);
   static_assert(detail::isqrt_round(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL);
-  static_assert(detail::isqrt_round_divided(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL && detail::isqrt_round_divided(3) == 2);
+  static_assert(detail::isqrt_round_divided(0xFFFF'FFFF'FFFF'FFFFULL) == 0x1'0000'0000ULL &&
+                detail::isqrt_round_divided(3) == 2);
 }
 
 /// The values the inverse root is checked at: powers of two and their neighbours, the ends,
@@ -346,8 +376,17 @@ TEST(FixedMath, FromNsInRangeIsFromRatioByOneBillion) {
   // The impact transient's time since its trigger: from_ratio(ns, 1e9)'s value, by the
   // prepared reciprocal, for every time in range (its precondition; from_ratio does not
   // saturate). At the ties (5e8 ns), up to the range's last value, and at random.
-  std::vector<std::uint64_t> values = {0, 1, 7'629, 7'630, 15'258, 499'999'999, 500'000'000, 500'000'001,
-                                       1'000'000'000, 32'767'999'992'370ULL, 32'767'999'992'371ULL};
+  std::vector<std::uint64_t> values = {0,
+                                       1,
+                                       7'629,
+                                       7'630,
+                                       15'258,
+                                       499'999'999,
+                                       500'000'000,
+                                       500'000'001,
+                                       1'000'000'000,
+                                       32'767'999'992'370ULL,
+                                       32'767'999'992'371ULL};
   const std::uint64_t last = ((std::uint64_t{1} << 31) * 1'000'000'000 - 500'000'000) >> 16;  // rounds to max()
   for (std::uint64_t d = 0; d <= 6; ++d) values.push_back(last - d);
   std::mt19937_64 random(34);
@@ -452,9 +491,22 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
       ASSERT_EQ(detail::div_u64_by(u, d), expected) << u << " / " << v;
     }
   };
-  std::vector<std::uint64_t> divisors = {1, 2, 3, 0x8000ULL, 0xFFFFULL, 0x10000ULL, 0x10001ULL, 0x7FFF'FFFFULL,
-                                         0x8000'0000ULL, 0x8000'0001ULL, 0xFFFF'FFFFULL, 0x1'0000'0000ULL,
-                                         0x1'0000'0001ULL, 0x1'FFFF'FFFFULL, 0xFFFF'FFFF'FFFF'FFFFULL, 1'000'000'000ULL};
+  std::vector<std::uint64_t> divisors = {1,
+                                         2,
+                                         3,
+                                         0x8000ULL,
+                                         0xFFFFULL,
+                                         0x10000ULL,
+                                         0x10001ULL,
+                                         0x7FFF'FFFFULL,
+                                         0x8000'0000ULL,
+                                         0x8000'0001ULL,
+                                         0xFFFF'FFFFULL,
+                                         0x1'0000'0000ULL,
+                                         0x1'0000'0001ULL,
+                                         0x1'FFFF'FFFFULL,
+                                         0xFFFF'FFFF'FFFF'FFFFULL,
+                                         1'000'000'000ULL};
   std::mt19937_64 random(29);
   for (int i = 0; i < 2000; ++i) divisors.push_back((random() >> (random() % 64)) | 1U);
   for (const std::uint64_t v : divisors) {
@@ -466,11 +518,14 @@ TEST(Fixed, DivisionWithoutTheLibraryIsTheExactQuotient) {
     }
     for (int i = 0; i < 100; ++i) check(random() >> (random() % 64), v);
   }
-  static_assert(detail::div_u64_digits(0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFFULL) == std::uint64_t{1} << 32);  // 2^32 + 1: capped
+  static_assert(detail::div_u64_digits(0xFFFF'FFFF'FFFF'FFFFULL, 0xFFFF'FFFFULL) == std::uint64_t{1}
+                                                                                        << 32);  // 2^32 + 1: capped
   static_assert(detail::div_u64_digits(0xFFFF'FFFE'FFFF'FFFFULL, 0xFFFF'FFFFULL) == 0xFFFF'FFFFULL);
   static_assert(detail::div_round(std::int64_t{5}, std::int64_t{2}) == 3 && detail::div_round_u32(7, 3U) == 2);
-  static_assert(detail::div_u64_by_digits(0xFFFF'FFFE'FFFF'FFFFULL, detail::divisor_of(0xFFFF'FFFFU)) == 0xFFFF'FFFFULL);
-  static_assert(detail::div_u64_by_digits(0xFFFF'FFFFULL << 32, detail::divisor_of(0xFFFF'FFFFU)) == std::uint64_t{1} << 32);
+  static_assert(detail::div_u64_by_digits(0xFFFF'FFFE'FFFF'FFFFULL, detail::divisor_of(0xFFFF'FFFFU)) ==
+                0xFFFF'FFFFULL);
+  static_assert(detail::div_u64_by_digits(0xFFFF'FFFFULL << 32, detail::divisor_of(0xFFFF'FFFFU)) == std::uint64_t{1}
+                                                                                                         << 32);
 }
 
 // The passivity controller's 1 / |v| (one 32-bit division for two quotients): the
@@ -519,7 +574,9 @@ TEST(Fixed, FractionOfTwoSumsIsWithinTwoOfTheExactQuotient) {
     check(d - 1, d);
     check(0, d);
   }
-  for (const std::uint64_t d : {std::uint64_t{1}, std::uint64_t{2}, std::uint64_t{3}, std::uint64_t{0xFFFF}, std::uint64_t{0x1'0000}, std::uint64_t{0xFFFF'FFFF}, std::uint64_t{1} << 63, std::uint64_t{UINT64_MAX}}) {
+  for (const std::uint64_t d :
+       {std::uint64_t{1}, std::uint64_t{2}, std::uint64_t{3}, std::uint64_t{0xFFFF}, std::uint64_t{0x1'0000},
+        std::uint64_t{0xFFFF'FFFF}, std::uint64_t{1} << 63, std::uint64_t{UINT64_MAX}}) {
     for (std::uint64_t n = 0; n <= 1000 && n <= d; ++n) check(n, d);
     check(d / 2, d);
     check(d / 3, d);
@@ -587,7 +644,8 @@ TEST(Vec3Fixed, ScaleToNormIsTheRoundedQuotientExceptWithinAHairOfATie) {
       const I128 rounded = (2 * magnitude_product + root) / (2 * root);
       const I128 exact = product < 0 ? -rounded : rounded;
       if (got.raw() == exact) continue;
-      ASSERT_EQ(std::abs(static_cast<long long>(got.raw() - exact)), 1) << c.raw() << " * " << numerator << " / " << magnitude.root;
+      ASSERT_EQ(std::abs(static_cast<long long>(got.raw() - exact)), 1)
+          << c.raw() << " * " << numerator << " / " << magnitude.root;
       const I128 twice_remainder = 2 * (magnitude_product % root);
       const I128 from_tie = twice_remainder > root ? twice_remainder - root : root - twice_remainder;
       ASSERT_LE(from_tie * (I128{1} << 32), 2 * root * (c.raw() < 0 ? -I128{c.raw()} : c.raw()))
@@ -616,7 +674,8 @@ TEST(Vec3Fixed, ScaledIfAboveIsNeverPastTheExactlyScaledVectorRoundedAndAtMostOn
     if (i == 0) v = {Q::lowest(), Q::lowest(), Q::lowest()};
     const std::uint64_t squares = detail::raw_squares(v);
     const long double norm_raw = std::sqrt(static_cast<long double>(squares));
-    const auto limit = Q::from_raw(static_cast<std::int32_t>(rng() % (std::min<std::uint64_t>(static_cast<std::uint64_t>(norm_raw), INT32_MAX) + 2)));
+    const auto limit = Q::from_raw(static_cast<std::int32_t>(
+        rng() % (std::min<std::uint64_t>(static_cast<std::uint64_t>(norm_raw), INT32_MAX) + 2)));
     static_cast<void>(take_fixed_saturated());
     const std::optional<Vec3<Q>> scaled = scaled_if_above(v, limit);
     ASSERT_FALSE(take_fixed_saturated());
@@ -631,7 +690,8 @@ TEST(Vec3Fixed, ScaledIfAboveIsNeverPastTheExactlyScaledVectorRoundedAndAtMostOn
       const long double g = std::fabs(static_cast<long double>(got.raw()));
       ASSERT_TRUE(got.raw() == 0 || (got.raw() < 0) == (c.raw() < 0)) << c.raw();
       ASSERT_LE(g, rounded) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
-      ASSERT_GE(g, exact * (1.0L - 0x1p-26L) - magnitude * 0x1p-32L - 0.5L) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
+      ASSERT_GE(g, exact * (1.0L - 0x1p-26L) - magnitude * 0x1p-32L - 0.5L)
+          << c.raw() << " * " << limit.raw() << " / " << norm_raw;
       if (exact < 0x1p25L) {
         ASSERT_GE(g, rounded - 1) << c.raw() << " * " << limit.raw() << " / " << norm_raw;
       }
@@ -706,7 +766,8 @@ TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {
   for (int i = 0; i < 100000; ++i) {
     const Vec3<double> d{gauss(rng), gauss(rng), gauss(rng)};
     const double length = std::sqrt(dot(d, d));
-    const Vec3<Q> n = i % 7 == 0 ? Vec3<Q>{Q{}, Q{}, Q::from_raw(i % 2 == 0 ? 65536 : -65536)} : vec_cast<Q>(d * (1.0 / length));
+    const Vec3<Q> n =
+        i % 7 == 0 ? Vec3<Q>{Q{}, Q{}, Q::from_raw(i % 2 == 0 ? 65536 : -65536)} : vec_cast<Q>(d * (1.0 / length));
     const int shift = static_cast<int>(rng() % 32);
     const Vec3<Q> v{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
     const Vec3<Q> p{Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift), Q::from_raw(any(rng) >> shift)};
@@ -723,7 +784,9 @@ TEST(Vec3Fixed, DotWithAUnitVectorIsTheDotProductWithoutItsOverflowTests) {
     const I128 magnitude = exact < 0 ? -exact : exact;
     const I128 rounded_magnitude = (magnitude + 0x8000) >> 16;
     const I128 rounded = exact < 0 ? -rounded_magnitude : rounded_magnitude;
-    const std::int32_t want = rounded > INT32_MAX ? INT32_MAX : rounded < INT32_MIN ? INT32_MIN : static_cast<std::int32_t>(rounded);
+    const std::int32_t want = rounded > INT32_MAX   ? INT32_MAX
+                              : rounded < INT32_MIN ? INT32_MIN
+                                                    : static_cast<std::int32_t>(rounded);
     ASSERT_EQ(dot_unit_difference(n, v, p).raw(), want) << i;
     ASSERT_EQ(take_fixed_saturated(), rounded > INT32_MAX || rounded < INT32_MIN) << i;
   }
@@ -764,7 +827,8 @@ TEST(WideFixed, TimesAFractionIsTheExactProductRoundedOnce) {
     for (const std::int32_t q : fractions) {
       const I128 exact = static_cast<I128>(d) * q;
       const I128 want = (exact + 0x8000) >> 16;  // floor(x + 1/2): half up
-      ASSERT_EQ(Wide<Q>::from_raw(d).times_fraction(Q::from_raw(q)).raw(), static_cast<std::int64_t>(want)) << d << " " << q;
+      ASSERT_EQ(Wide<Q>::from_raw(d).times_fraction(Q::from_raw(q)).raw(), static_cast<std::int64_t>(want))
+          << d << " " << q;
     }
   }
   EXPECT_FALSE(take_fixed_saturated());

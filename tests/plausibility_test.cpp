@@ -25,7 +25,8 @@ std::string wall(double stiffness_n_per_m, const std::string& extra = "") {
 }
 
 bool any_has(const std::vector<std::string>& lines, const std::string& text) {
-  return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  return std::any_of(lines.begin(), lines.end(),
+                     [&](const std::string& l) { return l.find(text) != std::string::npos; });
 }
 
 std::string all(const PlausibilityReport& r) {
@@ -38,8 +39,8 @@ std::string all(const PlausibilityReport& r) {
 TEST(Plausibility, TheHeldBoundIsColgateBrownWithTheDelayAndItMovesWithTheRate) {
   const host_sim::DeviceParams falcon = host_sim::falcon_params();
   // b + b_hand > (1 + 2 d) K T / 2: 2 (0.1 + 8) / (3 T).
-  const double held_1khz = stiffest_passive_wall_n_per_m(falcon.damping_n_s_per_m + kHeldHandDampingNsPerM, 1e-3,
-                                                         falcon.io_delay_ticks);
+  const double held_1khz =
+      stiffest_passive_wall_n_per_m(falcon.damping_n_s_per_m + kHeldHandDampingNsPerM, 1e-3, falcon.io_delay_ticks);
   EXPECT_NEAR(held_1khz, 2.0 * 8.1 / (3.0 * 1e-3), 1e-9);
   const SceneDescription stiff = scene_of(wall(1.2 * held_1khz));
   const PlausibilityReport at_1khz = check_plausibility(stiff, "p.toml", falcon, 1000.0);
@@ -55,8 +56,8 @@ TEST(Plausibility, TheHeldBoundIsColgateBrownWithTheDelayAndItMovesWithTheRate) 
   no_delay.io_delay_ticks = 0;
   EXPECT_TRUE(any_has(check_plausibility(scene_of(wall(150.0)), "p.toml", no_delay, 1000.0).notes,
                       "passive on the device alone (up to 200 N/m)"));
-  EXPECT_TRUE(any_has(check_plausibility(scene_of(wall(150.0)), "p.toml", falcon, 1000.0).notes,
-                      "passive only while held"));
+  EXPECT_TRUE(
+      any_has(check_plausibility(scene_of(wall(150.0)), "p.toml", falcon, 1000.0).notes, "passive only while held"));
 }
 
 TEST(Plausibility, VirtualDampingSpendsTheMargin) {
@@ -64,7 +65,8 @@ TEST(Plausibility, VirtualDampingSpendsTheMargin) {
   // 3000 N/m is within the held bound (5400) alone; with B = 4 N s/m it needs (3 K T / 2 + 4)
   // = 8.5 N s/m, more than 8.1.
   EXPECT_TRUE(check_plausibility(scene_of(wall(3000.0)), "p.toml", falcon, 1000.0).warnings.empty());
-  const PlausibilityReport damped = check_plausibility(scene_of(wall(3000.0, "damping = 4.0\n")), "p.toml", falcon, 1000.0);
+  const PlausibilityReport damped =
+      check_plausibility(scene_of(wall(3000.0, "damping = 4.0\n")), "p.toml", falcon, 1000.0);
   ASSERT_EQ(damped.warnings.size(), 1U) << all(damped);
   EXPECT_NE(damped.warnings[0].find("K = 3000 N/m, B = 4 N s/m is over the passive bound even when held"),
             std::string::npos)
@@ -84,21 +86,22 @@ TEST(Plausibility, WithoutThePassivityControllerWhatIsOnlyPassiveWhenHeldIsAWarn
                       "slippery mu = 0.5 N s/m is over the device's own damping b = 0.1 N s/m"));
   EXPECT_TRUE(any_has(check_plausibility(scene_of(off + slippery), "p.toml", falcon, 1000.0).warnings,
                       "nothing bounds the energy it gives"));
-  EXPECT_TRUE(any_has(check_plausibility(scene_of(off + wall(1000.0, "[surface.slippery]\nmu = 0.05\n")), "p.toml",
-                                         falcon, 1000.0)
-                          .notes,
-                      "slippery mu = 0.05 N s/m is within the device's own damping"));
+  EXPECT_TRUE(any_has(
+      check_plausibility(scene_of(off + wall(1000.0, "[surface.slippery]\nmu = 0.05\n")), "p.toml", falcon, 1000.0)
+          .notes,
+      "slippery mu = 0.05 N s/m is within the device's own damping"));
 }
 
 TEST(Plausibility, GeometryOutsideTheWorkspaceAndAnAliasedImpactAreWarnings) {
   const host_sim::DeviceParams falcon = host_sim::falcon_params();  // workspace +-5 cm
-  const auto far = check_plausibility(scene_of("[[surface]]\npoint = [0, 0, -0.2]\nnormal = [0, 0, 1]\nstiffness = 500\n"),
-                                      "p.toml", falcon, 1000.0);
+  const auto far = check_plausibility(
+      scene_of("[[surface]]\npoint = [0, 0, -0.2]\nnormal = [0, 0, 1]\nstiffness = 500\n"), "p.toml", falcon, 1000.0);
   EXPECT_TRUE(any_has(far.warnings, "lies 150 mm outside the device's workspace")) << all(far);
   const auto everywhere = check_plausibility(
       scene_of("[[surface]]\npoint = [0, 0, 0.2]\nnormal = [0, 0, 1]\nstiffness = 500\n"), "p.toml", falcon, 1000.0);
   EXPECT_TRUE(any_has(everywhere.warnings, "the whole workspace is inside it")) << all(everywhere);
-  const std::string impact = "[surface.impact]\nrecoil_gain = 100\noscillation_gain = 100\nduration = 0.1\nfrequency = ";
+  const std::string impact =
+      "[surface.impact]\nrecoil_gain = 100\noscillation_gain = 100\nduration = 0.1\nfrequency = ";
   EXPECT_TRUE(any_has(check_plausibility(scene_of(wall(500.0, impact + "600\n")), "p.toml", falcon, 1000.0).warnings,
                       "impact frequency 600 Hz is at or over half the servo rate (500 Hz)"));
   EXPECT_TRUE(check_plausibility(scene_of(wall(500.0, impact + "600\n")), "p.toml", falcon, 2000.0).warnings.empty());
@@ -111,7 +114,8 @@ TEST(Plausibility, GeometryOutsideTheWorkspaceAndAnAliasedImpactAreWarnings) {
 
 TEST(Plausibility, AForceLimitOverTheDevicesAndAWallStifferThanOneEncoderCountAreWarnings) {
   const host_sim::DeviceParams falcon = host_sim::falcon_params();  // 8 N, 20 um
-  const auto over = check_plausibility(scene_of("[device]\nmax_force = 12.0\n" + wall(500.0)), "p.toml", falcon, 1000.0);
+  const auto over =
+      check_plausibility(scene_of("[device]\nmax_force = 12.0\n" + wall(500.0)), "p.toml", falcon, 1000.0);
   EXPECT_TRUE(any_has(over.warnings, "max_force = 12 N is over the device's peak of 8 N")) << all(over);
   // 8 N within less than 20 um: K > 400 000 N/m (also far over the bound; both are said).
   const auto hard = check_plausibility(scene_of(wall(500000.0)), "p.toml", falcon, 1000.0);

@@ -88,8 +88,8 @@ TEST(Precision, TheWallsReferenceLadderConvergesAtSecondOrderAwayFromEvents) {
   // Or, if larger, the check rung's difference scaled as convergence of that order.
   const double richardson = last.away_rms_diff_n / (std::exp2(last.away_rms_order) - 1.0);
   const double f = PrecisionOptions{}.reference_check_factor;
-  const double checked = wall->check.away_rms_diff_n * std::pow(f, last.away_rms_order) /
-                         (std::pow(f, last.away_rms_order) - 1.0);
+  const double checked =
+      wall->check.away_rms_diff_n * std::pow(f, last.away_rms_order) / (std::pow(f, last.away_rms_order) - 1.0);
   EXPECT_NEAR(wall->reference_away_rms_error_n, std::max(richardson, checked), 1e-15);
   EXPECT_GT(wall->reference_away_rms_error_n, 0.0);
 }
@@ -202,8 +202,10 @@ TEST(Precision, TheClosedLoopsDoubleLadderConvergesAtFirstOrder) {
   double at_500 = 0.0, at_10k = 0.0;
   for (const auto& row : wall_report().closed_loop) {
     EXPECT_TRUE(row.refused.empty()) << row.scene << " " << row.rate_hz << ": " << row.refused;
-    if (row.scene == "wall" && row.scalar == ScalarKind::kDouble && row.rate_hz == 500.0) at_500 = row.force_rms_error_n;
-    if (row.scene == "wall" && row.scalar == ScalarKind::kDouble && row.rate_hz == 10000.0) at_10k = row.force_rms_error_n;
+    if (row.scene == "wall" && row.scalar == ScalarKind::kDouble && row.rate_hz == 500.0)
+      at_500 = row.force_rms_error_n;
+    if (row.scene == "wall" && row.scalar == ScalarKind::kDouble && row.rate_hz == 10000.0)
+      at_10k = row.force_rms_error_n;
   }
   EXPECT_GT(at_500, 5.0 * at_10k);
 }
@@ -215,8 +217,8 @@ TEST(Precision, OrderAndRichardsonOnKnownNumbers) {
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, 2.0), 1e-3);
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, 1.0), 3e-3);
   EXPECT_DOUBLE_EQ(richardson_error(3e-3, std::nan("")), 3e-3);  // no order: the difference itself
-  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.9, 2.0), 1e-3);             // orders agree: Richardson
-  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.0, 4.0), 3e-3);             // they jump: the difference
+  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.9, 2.0), 1e-3);          // orders agree: Richardson
+  EXPECT_DOUBLE_EQ(ladder_error(3e-3, 1.0, 4.0), 3e-3);          // they jump: the difference
   EXPECT_DOUBLE_EQ(ladder_error(3e-3, std::nan(""), 2.0), 3e-3);
 }
 

@@ -32,9 +32,7 @@ fs::path temp_dir() {
   return dir;
 }
 
-void write_file(const fs::path& path, const std::string& text) {
-  std::ofstream(path) << text;
-}
+void write_file(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
 
 std::string vec(const V& v) { return fmt::format("[{}, {}, {}]", v[0], v[1], v[2]); }
 
@@ -233,9 +231,10 @@ TEST(ReplayOracle, BundledScenesOnBundledMotionsThroughTheBinary) {
     const fs::path out = dir / fmt::format("{}_{}.csv", c.scene, c.motion);
     // --sine library: the oracle's std::sin (the default polynomial is within 6e-7 of it,
     // math_test.cpp; here the laws are compared to 1e-9).
-    const std::string command = fmt::format("'{}' replay --scene '{}/scenes/{}.toml' --input '{}/scenes/motions/{}.csv' "
-                                            "--output '{}' --quiet --sine library",
-                                            TOONFORCE_BINARY, root, c.scene, root, c.motion, out.string());
+    const std::string command =
+        fmt::format("'{}' replay --scene '{}/scenes/{}.toml' --input '{}/scenes/motions/{}.csv' "
+                    "--output '{}' --quiet --sine library",
+                    TOONFORCE_BINARY, root, c.scene, root, c.motion, out.string());
     ASSERT_EQ(std::system(command.c_str()), 0) << command;
 
     const auto motion = read_motion_csv(root + "/scenes/motions/" + c.motion + ".csv");
@@ -270,7 +269,8 @@ TEST(ReplayOracle, BundledScenesOnBundledMotionsThroughTheBinary) {
       }
       s.surfaces.push_back(f);
     }
-    expect_matches_oracle(read_forces(out), oracle::replay(s, rows, false), rows, fmt::format("{} {}", c.scene, c.motion));
+    expect_matches_oracle(read_forces(out), oracle::replay(s, rows, false), rows,
+                          fmt::format("{} {}", c.scene, c.motion));
   }
 }
 
@@ -288,9 +288,9 @@ std::pair<int, std::string> run_binary(const std::string& args) {
 TEST(ReplayCommand, RejectsTimeThatDoesNotIncreaseNamingFileAndLine) {
   const fs::path dir = temp_dir();
   write_file(dir / "back.csv", "t,x,y,z\n0.000,0,0,0\n0.001,0,0,0\n0.001,0,0,0\n");
-  const auto [status, err] = run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}'",
-                                                    TOONFORCE_SOURCE_DIR, (dir / "back.csv").string(),
-                                                    (dir / "o.csv").string()));
+  const auto [status, err] =
+      run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}'", TOONFORCE_SOURCE_DIR,
+                             (dir / "back.csv").string(), (dir / "o.csv").string()));
   EXPECT_NE(status, 0);
   EXPECT_NE(err.find("back.csv:4: t must increase strictly"), std::string::npos) << err;
 }
@@ -299,9 +299,9 @@ TEST(ReplayCommand, RejectsStampsCloserThanTheLoopsNanosecondNamingFileAndLine) 
   // The loop's stamps are whole nanoseconds: two rows 0.1 ns apart would be one instant.
   const fs::path dir = temp_dir();
   write_file(dir / "close.csv", "t,x,y,z\n0.000,0,0,0\n0.001,0,0,0\n0.0010000001,0,0,0\n");
-  const auto [status, err] = run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}'",
-                                                    TOONFORCE_SOURCE_DIR, (dir / "close.csv").string(),
-                                                    (dir / "o.csv").string()));
+  const auto [status, err] =
+      run_binary(fmt::format("replay --scene '{}/scenes/wall.toml' --input '{}' --output '{}'", TOONFORCE_SOURCE_DIR,
+                             (dir / "close.csv").string(), (dir / "o.csv").string()));
   EXPECT_NE(status, 0);
   EXPECT_NE(err.find("close.csv:4: t must increase by 1 ns at least"), std::string::npos) << err;
 }
@@ -313,7 +313,8 @@ TEST(ReplayCommand, RejectsABadSceneNamingFileLineAndKey) {
       run_binary(fmt::format("replay --scene '{}' --input '{}/scenes/motions/strike.csv' --output '{}'",
                              (dir / "typo.toml").string(), TOONFORCE_SOURCE_DIR, (dir / "o.csv").string()));
   EXPECT_NE(status, 0);
-  EXPECT_NE(err.find("typo.toml:4: surface[1]: unknown key 'stiffnes' (did you mean 'stiffness'?)"), std::string::npos) << err;
+  EXPECT_NE(err.find("typo.toml:4: surface[1]: unknown key 'stiffnes' (did you mean 'stiffness'?)"), std::string::npos)
+      << err;
   EXPECT_NE(err.find("typo.toml:1: surface[1]: missing required key 'stiffness'"), std::string::npos) << err;
 }
 
@@ -371,7 +372,8 @@ TEST(ReplayCommand, RejectsAnUnknownScalarType) {
 }
 
 TEST(MotionCsv, AcceptsColumnsInAnyOrderAndReportsExtraOnes) {
-  const auto m = parse_motion_csv("# a comment\nz, t, y, x, fx\n0.3, 0.0, 0.2, 0.1, 9\n0.3, 0.5, 0.2, 0.1, 9\n", "m.csv");
+  const auto m =
+      parse_motion_csv("# a comment\nz, t, y, x, fx\n0.3, 0.0, 0.2, 0.1, 9\n0.3, 0.5, 0.2, 0.1, 9\n", "m.csv");
   ASSERT_TRUE(m) << m.error();
   EXPECT_EQ(m->rows[0].position_m, (Vec3<double>{0.1, 0.2, 0.3}));
   EXPECT_EQ(m->rows[1].t_s, 0.5);

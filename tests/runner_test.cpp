@@ -226,7 +226,8 @@ TEST(RealtimeRunner, StopsOnTheStopFlagAfterShuttingDown) {
   // The stop comes once the loop has ticked (a fixed 50 ms could pass before a loaded host
   // started the loop's thread).
   std::thread stopper([&stop, &task] {
-    for (int i = 0; i < 60000 && task.publishes.load() == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    for (int i = 0; i < 60000 && task.publishes.load() == 0; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     stop.store(SIGTERM);
   });

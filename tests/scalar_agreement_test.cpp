@@ -71,13 +71,14 @@ TEST(ScalarAgreement, PenaltyWall) {
   const auto d = forces<double>("wall", ScalarKind::kDouble, in_and_out, kTicks, false);
   // float: k delta with delta ~ 4e-3 m carries a relative error of a few float epsilons
   // (1.2e-7): k * 4e-3 * 1e-6 = 6e-6 N bounds it with margin.
-  EXPECT_LT(max_difference(d, forces<float>("wall", ScalarKind::kFloat, in_and_out, kTicks, false),
-                           clear_of_contact_edge), 6e-6);
+  EXPECT_LT(
+      max_difference(d, forces<float>("wall", ScalarKind::kFloat, in_and_out, kTicks, false), clear_of_contact_edge),
+      6e-6);
   // Q16.16: the position rounds by half an LSB (k * 2^-17 = 0.0114 N) and the product by half
   // an LSB more; the clamp to 8 N only shrinks differences.
-  EXPECT_LT(max_difference(d, forces<Q16_16>("wall", ScalarKind::kQ16_16, in_and_out, kTicks, false),
-                           clear_of_contact_edge),
-            kStiffness * kLsb / 2 + 2 * kLsb);
+  EXPECT_LT(
+      max_difference(d, forces<Q16_16>("wall", ScalarKind::kQ16_16, in_and_out, kTicks, false), clear_of_contact_edge),
+      kStiffness * kLsb / 2 + 2 * kLsb);
 }
 
 TEST(ScalarAgreement, RealisticFrictionWithMeasuredVelocity) {
@@ -85,12 +86,14 @@ TEST(ScalarAgreement, RealisticFrictionWithMeasuredVelocity) {
   // float: the largest gain is the Coulomb damper below v_reg, mu_c N / v_reg = 0.3 * 6 / 0.02
   // = 90 N s/m; float rounding of v (~1e-9 m/s) and N through it stays far under 1e-5 N.
   EXPECT_LT(max_difference(d, forces<float>("realistic_friction", ScalarKind::kFloat, in_and_out, kTicks, true),
-                           clear_of_contact_edge), 1e-5);
+                           clear_of_contact_edge),
+            1e-5);
   // Q16.16: the wall's 0.0114 N error reaches the Coulomb part times mu_c (0.3), and the
   // velocity's half-LSB rounding goes through the 90 N s/m damper (0.0007 N): 0.02 N bounds
   // the sum with margin for the quotient's rounding.
   EXPECT_LT(max_difference(d, forces<Q16_16>("realistic_friction", ScalarKind::kQ16_16, in_and_out, kTicks, true),
-                           clear_of_contact_edge), 0.02);
+                           clear_of_contact_edge),
+            0.02);
 }
 
 TEST(ScalarAgreement, VelocityEstimateInQ16IsBoundedByOneCountPerTick) {
@@ -98,7 +101,8 @@ TEST(ScalarAgreement, VelocityEstimateInQ16IsBoundedByOneCountPerTick) {
   // difference of one LSB per tick is 2^-16 * 1000 Hz = 0.0153 m/s, and the low-pass, a convex
   // combination, cannot exceed it. Seen through a damped wall (b = 20 N s/m, spring-free
   // motion outside nothing else) the force error is at most b times that, plus the wall's own.
-  const auto scene_text = std::string("[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\ndamping = 20\n");
+  const auto scene_text =
+      std::string("[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\ndamping = 20\n");
   const auto dd = parse_scene(scene_text, "damped.toml", ScalarKind::kDouble);
   const auto dq = parse_scene(scene_text, "damped.toml", ScalarKind::kQ16_16);
   ASSERT_TRUE(dd && dq);
@@ -117,8 +121,9 @@ TEST(ScalarAgreement, VelocityEstimateInQ16IsBoundedByOneCountPerTick) {
 
 TEST(ScalarAgreement, SuperSlippery) {
   const auto d = forces<double>("slippery", ScalarKind::kDouble, in_and_out, kTicks, true);
-  EXPECT_LT(max_difference(d, forces<float>("slippery", ScalarKind::kFloat, in_and_out, kTicks, true),
-                           clear_of_contact_edge), 6e-6);
+  EXPECT_LT(
+      max_difference(d, forces<float>("slippery", ScalarKind::kFloat, in_and_out, kTicks, true), clear_of_contact_edge),
+      6e-6);
   // Q16.16: the wall's error plus mu times half an LSB of velocity (4 * 7.6e-6) and the cap's
   // rescaling (a quotient and a product, an LSB each).
   EXPECT_LT(max_difference(d, forces<Q16_16>("slippery", ScalarKind::kQ16_16, in_and_out, kTicks, true),
@@ -145,14 +150,12 @@ TEST(ScalarAgreement, CartoonWallImpactTransient) {
   EXPECT_GT(transient_ticks_out_of_contact, 100);
   // float: t and the phase f t round at 1e-7 relative; the transient's scale
   // v_i d (k_r + k_osc) = 18 N times 1e-6 bounds it.
-  EXPECT_LT(max_difference(d, forces<float>("cartoon_wall", ScalarKind::kFloat, strikes, kTicks, true), clear),
-            2e-5);
+  EXPECT_LT(max_difference(d, forces<float>("cartoon_wall", ScalarKind::kFloat, strikes, kTicks, true), clear), 2e-5);
   // Q16.16: t rounds by half an LSB (7.6e-6 s), so the phase f t by 2.3e-4 turns, moving the
   // sine by up to 2 pi * 2.3e-4 = 1.4e-3; times v_i (d - t) k_osc <= 0.2 * 0.15 * 400 = 12 N
   // that is 0.017 N; the recoil's slope v_i k_r (40 N/s) over half an LSB of t and the wall's
   // 0.0114 N add less than 0.012 N. The clamp (8 N) only shrinks differences.
-  EXPECT_LT(max_difference(d, forces<Q16_16>("cartoon_wall", ScalarKind::kQ16_16, strikes, kTicks, true), clear),
-            0.03);
+  EXPECT_LT(max_difference(d, forces<Q16_16>("cartoon_wall", ScalarKind::kQ16_16, strikes, kTicks, true), clear), 0.03);
 }
 
 // A phase f t past Q16.16's range (20 kHz for 3 s: 60,000 turns; a scene file cannot say so,

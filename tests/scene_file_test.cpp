@@ -57,7 +57,8 @@ gap_min = -0.01
 gap_max = 0.01
 stiffness = 1500.0
 speed_threshold = 0.08
-)", "example.toml");
+)",
+                                 "example.toml");
   ASSERT_TRUE(scene) << scene.error();
   const SceneDescription& s = scene.value();
   EXPECT_EQ(s.name, "cartoon ice");
@@ -66,7 +67,7 @@ speed_threshold = 0.08
   EXPECT_EQ(s.velocity_cutoff_hz, 50.0);
   const auto& surfaces = s.of<RuntimeSurface>();
   ASSERT_EQ(surfaces.size(), 1U);
-  EXPECT_EQ(surfaces[0].plane.normal.z, 1.0);  // normalised
+  EXPECT_EQ(surfaces[0].plane.normal.z, 1.0);             // normalised
   EXPECT_EQ(surfaces[0].wall.stiffness_n_per_m, 1500.0);  // an integer is a number
   EXPECT_EQ(surfaces[0].wall.damping_n_s_per_m, 0.0);
   EXPECT_EQ(surfaces[0].tangential.kind, TangentialKind::kSlippery);
@@ -97,7 +98,8 @@ speed_threshold = 0.1
 point = [0, 0, 0.05]
 normal = [0, 0, -1]
 stiffness = 100
-)", "order.toml");
+)",
+                                 "order.toml");
   ASSERT_TRUE(scene) << scene.error();
   ASSERT_EQ(scene->order.size(), 2U);
   EXPECT_EQ(scene->order[0].kind, 1U);  // the cliff first, as written
@@ -152,7 +154,8 @@ const Malformed kMalformed[] = {
     {"positive viscous friction",
      "[[surface]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\nstiffness = 1500\n[surface.friction]\nviscous = 2.0\n",
      "surface[1].friction.viscous: must be <= 0 (got 2)", 6},
-    {"unknown top-level table", "[[surfaces]]\npoint = [0, 0, 0]\n", "unknown effect [[surfaces]] (did you mean 'surface'?)", 1},
+    {"unknown top-level table", "[[surfaces]]\npoint = [0, 0, 0]\n",
+     "unknown effect [[surfaces]] (did you mean 'surface'?)", 1},
     {"an effect this program does not have", "[[magnet]]\ncentre = [0, 0, 0]\n",
      "unknown effect [[magnet]] (the effects this program reads: [[surface]], [[cliff]])", 1},
     {"surface written as a single table", "[surface]\npoint = [0, 0, 0]\n", "surface: must be an array of tables", 1},
@@ -173,7 +176,8 @@ const Malformed kMalformed[] = {
      "oscillation_gain = 600\nduration = 0.1\nfrequency = 30\nsine = \"cordic\"\n",
      "surface[1].impact.sine: unknown sine 'cordic' (one of library, polynomial, table)", 10},
     {"device limit of zero", "[device]\nmax_force = 0\n", "device.max_force: must be > 0 (got 0)", 2},
-    {"unknown key in device", "[device]\nmax_froce = 8\n", "device: unknown key 'max_froce' (did you mean 'max_force'?)", 2},
+    {"unknown key in device", "[device]\nmax_froce = 8\n",
+     "device: unknown key 'max_froce' (did you mean 'max_force'?)", 2},
     {"TOML syntax error", "[[surface]]\npoint = [0, 0, 0\n", "TOML syntax", 2},
     {"boolean where a number goes", "[device]\nvelocity_cutoff = true\n", "must be a number, not a boolean", 2},
     // Found by tests/fuzz/scene_file_fuzz.cpp: toml++ 3.3 (Debian 12's) reaches undefined
@@ -201,13 +205,16 @@ TEST(SceneFile, AValueLargeEnoughToOverflowTheLawIsRefusedWithTheAllowedRange) {
 }
 
 TEST(SceneFile, AcceptsNonAsciiInCommentsAndStrings) {
-  const auto scene = parse_scene("# ice \xe2\x9d\x84 (paper \xc2\xa7" "4.1)\nname = \"glace \xc3\xa0 la \xc2\xa7\"\n", "utf8.toml");
+  const auto scene = parse_scene("# ice \xe2\x9d\x84 (paper \xc2\xa7"
+                                 "4.1)\nname = \"glace \xc3\xa0 la \xc2\xa7\"\n",
+                                 "utf8.toml");
   ASSERT_TRUE(scene) << scene.error();
   EXPECT_EQ(scene->name, "glace \xc3\xa0 la \xc2\xa7");
 }
 
 TEST(SceneFile, ReportsEveryErrorOfAFileAtOnce) {
-  const auto scene = parse_scene(std::string(kSurface) + "colour = \"red\"\n[[surface]]\npoint = [0, 0, 0]\n", "bad.toml");
+  const auto scene =
+      parse_scene(std::string(kSurface) + "colour = \"red\"\n[[surface]]\npoint = [0, 0, 0]\n", "bad.toml");
   ASSERT_FALSE(scene);
   EXPECT_NE(scene.error().find("bad.toml:5: surface[1]: unknown key 'colour'"), std::string::npos) << scene.error();
   EXPECT_NE(scene.error().find("bad.toml:6: surface[2]: missing required key 'normal'"), std::string::npos)
@@ -270,8 +277,9 @@ TEST(SceneFile, ControlCharactersInAKeyAreShownNotSentAndRefusedInAName) {
 TEST(SceneFile, AnEmptySceneIsAProblemToSayAndASceneWithAnEffectIsNot) {
   const auto empty = parse_scene("# only a comment\nname = \"nothing\"\n", "empty.toml");
   ASSERT_TRUE(empty) << empty.error();
-  EXPECT_NE(empty_scene_problem(empty.value(), "empty.toml").find("empty.toml: the scene has no [[surface]] or [[cliff]]"),
-            std::string::npos);
+  EXPECT_NE(
+      empty_scene_problem(empty.value(), "empty.toml").find("empty.toml: the scene has no [[surface]] or [[cliff]]"),
+      std::string::npos);
   const auto wall = parse_scene(kSurface, "wall.toml");
   ASSERT_TRUE(wall) << wall.error();
   EXPECT_EQ(empty_scene_problem(wall.value(), "wall.toml"), "");
@@ -333,8 +341,8 @@ TEST(SceneFile, Q16RefusesAStiffnessWhoseWallForceSaturatesWithFileLineKeyAndThe
   EXPECT_NE(q.error().find("stiff.toml:7: surface[1].stiffness: "), std::string::npos) << q.error();
   EXPECT_NE(q.error().find(fmt::format("stiffness up to {:.6g} N/m", allowed)), std::string::npos) << q.error();
   // Just under the bound it loads; in the devices' own workspaces (0.06 m deep) it is far under.
-  const auto under = parse_scene(big + floor_with(fmt::format("stiffness = {}\n", allowed * 0.99)), "ok.toml",
-                                 ScalarKind::kQ16_16);
+  const auto under =
+      parse_scene(big + floor_with(fmt::format("stiffness = {}\n", allowed * 0.99)), "ok.toml", ScalarKind::kQ16_16);
   EXPECT_TRUE(under) << under.error();
   const auto small = parse_scene(floor_with("stiffness = 20000\n"), "small.toml", ScalarKind::kQ16_16);
   EXPECT_TRUE(small) << small.error();
@@ -464,7 +472,8 @@ class DeepToml : public ::testing::TestWithParam<DeepText> {};
 TEST_P(DeepToml, IsRefusedWithTheLimitAndItsLineBeforeTheParserRecurses) {
   std::string error;
   EXPECT_FALSE(parses(GetParam().text, &error)) << GetParam().what;
-  EXPECT_NE(error.find(fmt::format("deep.toml:{}: nested deeper than {} levels", GetParam().line, kMaxTomlDepth)), std::string::npos)
+  EXPECT_NE(error.find(fmt::format("deep.toml:{}: nested deeper than {} levels", GetParam().line, kMaxTomlDepth)),
+            std::string::npos)
       << GetParam().what << ": " << error.substr(0, 300);
 }
 
@@ -477,11 +486,13 @@ const DeepText kDeep[] = {
     // Each part within the limit, together past it: 12 inline tables, each keyed 9 dots deep.
     {"dotted keys inside nested inline tables",
      "name = \"x\"\nk = " + repeated("{a.b.c.d.e.f.g.h.i.j = ", 12) + "1" + repeated("}", 12) + "\n"},
-    {"a header's depth added to its keys'", "name = \"x\"\n[" + repeated("a.", 40) + "b]\n" + repeated("c.", 40) + "d = 1\n", 3},
+    {"a header's depth added to its keys'",
+     "name = \"x\"\n[" + repeated("a.", 40) + "b]\n" + repeated("c.", 40) + "d = 1\n", 3},
 };
 INSTANTIATE_TEST_SUITE_P(SceneFile, DeepToml, ::testing::ValuesIn(kDeep), [](const auto& param_info) {
   std::string name;
-  for (const char c : std::string_view(param_info.param.what)) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  for (const char c : std::string_view(param_info.param.what))
+    name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
   return name;
 });
 
@@ -494,7 +505,8 @@ TEST(SceneFile, NestingWithinTheLimitAndLongFlatArraysStillParse) {
   for (int i = 0; i < 5000; ++i) flat += fmt::format("{}{}.5", i == 0 ? "" : ", ", i);
   EXPECT_TRUE(parses(flat + "]\n", &error)) << error;
   EXPECT_TRUE(parses("p = [\n  [1.0, 2.0, 3.0],\n  [4.0, 5.0, 6.0],\n]\n[[a.b.c]]\nd.e.f = 1.5\n"
-                     "g = \"" + repeated("x.", 500) + "\" # " + repeated("y.", 500) + "\n",
+                     "g = \"" +
+                         repeated("x.", 500) + "\" # " + repeated("y.", 500) + "\n",
                      &error))
       << error;
   EXPECT_TRUE(parses("[" + repeated("a.", 20) + "b]\n" + repeated("c.", 20) + "d = 1\n", &error)) << error;
@@ -520,7 +532,8 @@ TEST(SceneFile, ADeepSceneFileIsRefusedByTheLoaderWithFileAndLine) {
   const auto scene = load_scene_file(path.string());
   std::filesystem::remove(path);
   ASSERT_FALSE(scene);
-  EXPECT_NE(scene.error().find(path.string() + ":2: nested deeper than"), std::string::npos) << scene.error().substr(0, 300);
+  EXPECT_NE(scene.error().find(path.string() + ":2: nested deeper than"), std::string::npos)
+      << scene.error().substr(0, 300);
 }
 
 }  // namespace

@@ -123,7 +123,7 @@ TEST(RuntimeScene, MatchesTheCompileTimeSceneBitForBit) {
       ASSERT_TRUE(cv[i] == rv[i] || (std::isnan(cv[i]) && std::isnan(rv[i]))) << "value " << i << " tick " << k;
     }
   }
-  EXPECT_TRUE(triggered);  // the path does strike the ceiling
+  EXPECT_TRUE(triggered);                 // the path does strike the ceiling
   EXPECT_EQ(runtime.active_slots(), 1u);  // the impact's; the cliff injects nothing
   EXPECT_EQ(runtime.value_count(), 4u);
   EXPECT_EQ(runtime.effect_info(1).key, "cliff");
@@ -160,7 +160,8 @@ TEST(RuntimeScene, RefusesMoreThanItsCapacity) {
   RuntimeSurface<double>::Params p{};
   p.plane = {{0, 0, 0}, {0, 0, 1}};
   p.wall = {1000.0, 0.0};
-  for (std::size_t i = 0; i < RuntimeSurface<double>::kMaxPerScene; ++i) ASSERT_TRUE(scene.add<RuntimeSurface<double>>(p));
+  for (std::size_t i = 0; i < RuntimeSurface<double>::kMaxPerScene; ++i)
+    ASSERT_TRUE(scene.add<RuntimeSurface<double>>(p));
   EXPECT_FALSE(scene.add<RuntimeSurface<double>>(p));
   EXPECT_EQ(scene.count<RuntimeSurface<double>>(), RuntimeSurface<double>::kMaxPerScene);
   EXPECT_TRUE(scene.add<CartoonCliff<double>>(CartoonCliff<double>::Params{}));  // another kind has room

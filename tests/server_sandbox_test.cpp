@@ -47,8 +47,8 @@ int status_of_filtered_child(Body body) {
   if (WIFSIGNALED(status) && WTERMSIG(status) == SIGSYS) return ::testing::AssertionSuccess();
   if (WIFEXITED(status)) {
     return ::testing::AssertionFailure() << "the child exited with status " << WEXITSTATUS(status)
-                                         << " (the call went through, or the filter was not installed: " << kFilterFailed
-                                         << ")";
+                                         << " (the call went through, or the filter was not installed: "
+                                         << kFilterFailed << ")";
   }
   return ::testing::AssertionFailure() << "wait status " << status;
 }
@@ -137,12 +137,14 @@ const Refused kRefused[] = {
     {"ptrace_of_the_parent", [] { return static_cast<int>(syscall(SYS_ptrace, PTRACE_ATTACH, getppid(), 0, 0)); }},
     {"kill_of_the_parent", [] { return static_cast<int>(syscall(SYS_kill, getppid(), 0)); }},
     {"tgkill_of_the_parent", [] { return static_cast<int>(syscall(SYS_tgkill, getppid(), getppid(), 0)); }},
-    {"execve", [] {
+    {"execve",
+     [] {
        char* const argv[] = {const_cast<char*>("/bin/true"), nullptr};
        return static_cast<int>(syscall(SYS_execve, "/bin/true", argv, environ));
      }},
     {"socket", [] { return static_cast<int>(syscall(SYS_socket, AF_INET, SOCK_STREAM, 0)); }},
-    {"process_vm_readv_of_the_parent", [] {
+    {"process_vm_readv_of_the_parent",
+     [] {
        char mine[8];
        char theirs[8];
        iovec local{mine, sizeof mine};
@@ -150,7 +152,8 @@ const Refused kRefused[] = {
        return static_cast<int>(syscall(SYS_process_vm_readv, getppid(), &local, 1, &remote, 1, 0));
      }},
     {"fork", [] { return static_cast<int>(fork()); }},
-    {"executable_memory", [] {
+    {"executable_memory",
+     [] {
        void* p = mmap(nullptr, 4096, PROT_READ | PROT_EXEC, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
        return p == MAP_FAILED ? -1 : 0;
      }},

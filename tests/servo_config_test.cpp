@@ -14,14 +14,14 @@ namespace {
 const std::string kFloor = "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 1000.0\n";
 
 TEST(ServoSceneKeys, ReadsEverySafetyKey) {
-  const auto scene = parse_scene(
-      "[device]\nmax_force = 6.0\nengage_force = 0.3\nsoft_start = 0.5\nmax_velocity = 0.8\n"
-      "workspace_min = [-0.05, -0.04, -0.03]\nworkspace_max = [0.05, 0.04, 0.03]\nwatchdog_periods = 50\n"
-      "device_timeout_periods = 4\ncontinuous_force = 2.5\nthermal_time_constant = 45.0\n"
-      "thermal_derate_start = 0.7\npassivity_controller = false\npassivity_budget = 0.2\n"
-      "passivity_max_damping = 5.0\n" +
-          kFloor,
-      "keys.toml");
+  const auto scene =
+      parse_scene("[device]\nmax_force = 6.0\nengage_force = 0.3\nsoft_start = 0.5\nmax_velocity = 0.8\n"
+                  "workspace_min = [-0.05, -0.04, -0.03]\nworkspace_max = [0.05, 0.04, 0.03]\nwatchdog_periods = 50\n"
+                  "device_timeout_periods = 4\ncontinuous_force = 2.5\nthermal_time_constant = 45.0\n"
+                  "thermal_derate_start = 0.7\npassivity_controller = false\npassivity_budget = 0.2\n"
+                  "passivity_max_damping = 5.0\n" +
+                      kFloor,
+                  "keys.toml");
   ASSERT_TRUE(scene) << scene.error();
   const ServoConfig c = servo_config(scene.value(), 1e-3);
   EXPECT_EQ(c.period_s, 1e-3);
@@ -78,13 +78,16 @@ TEST_P(ServoSceneKeyErrors, NameFileLineAndKey) {
 const BadKey kBadKeys[] = {
     {"zero engage force", "engage_force = 0\n", "bad.toml:2: device.engage_force: must be > 0"},
     {"negative soft start", "soft_start = -1\n", "bad.toml:2: device.soft_start: must be >= 0"},
-    {"half a workspace", "workspace_min = [-1, -1, -1]\n", "device.workspace_min: needs workspace_min and workspace_max together"},
+    {"half a workspace", "workspace_min = [-1, -1, -1]\n",
+     "device.workspace_min: needs workspace_min and workspace_max together"},
     {"inverted workspace", "workspace_min = [0, 0, 0]\nworkspace_max = [1, -1, 1]\n",
      "bad.toml:3: device.workspace_max: must be greater than workspace_min on every axis"},
-    {"fractional periods", "watchdog_periods = 2.5\n", "device.watchdog_periods: must be a whole number, not a fraction"},
+    {"fractional periods", "watchdog_periods = 2.5\n",
+     "device.watchdog_periods: must be a whole number, not a fraction"},
     {"zero periods", "device_timeout_periods = 0\n", "device.device_timeout_periods: must be >= 1 (got 0)"},
     {"rated derate start", "thermal_derate_start = 1.0\n", "device.thermal_derate_start: must be below 1"},
-    {"string switch", "passivity_controller = \"yes\"\n", "device.passivity_controller: must be true or false, not a string"},
+    {"string switch", "passivity_controller = \"yes\"\n",
+     "device.passivity_controller: must be true or false, not a string"},
     {"typo", "pasivity_budget = 0.1\n", "unknown key 'pasivity_budget' (did you mean 'passivity_budget'?)"},
 };
 INSTANTIATE_TEST_SUITE_P(ServoSceneKeys, ServoSceneKeyErrors, ::testing::ValuesIn(kBadKeys));

@@ -55,13 +55,15 @@ TEST(ServoEnergyQ16, ThermalTemperatureBelowAmbientIsTakenAsAmbient) {
 TEST(ServoEnergyQ16, ThermalHeatingTargetIsTheSquaredForceRatio) {
   using Q = Q16_16;
   for (const double continuous_n : {0.88, 3.0, 7.3, 100.0}) {
-    for (const Vec3<double> force : {Vec3<double>{0.0, 0.0, 0.7}, Vec3<double>{2.5, -1.25, 0.5}, Vec3<double>{-150.0, 40.0, 3.0}}) {
+    for (const Vec3<double> force :
+         {Vec3<double>{0.0, 0.0, 0.7}, Vec3<double>{2.5, -1.25, 0.5}, Vec3<double>{-150.0, 40.0, 3.0}}) {
       ThermalModel<Q> model(ThermalConfig{continuous_n, 30.0, 0.8}, kPeriodS, 1000.0);
       const Vec3<Q> held = vec_cast<Q>(force);
       model.advance(held, ThermalModel<Q>::kTabulatedGaps + 1);
       const Vec3<double> exact = to_double(held);
       const double u = dot(exact, exact) / (continuous_n * continuous_n);
-      EXPECT_NEAR(model.temperature().to_double(), u, u * 0x1p-30 + 0x1p-31) << continuous_n << " N, |F| " << norm(exact);
+      EXPECT_NEAR(model.temperature().to_double(), u, u * 0x1p-30 + 0x1p-31)
+          << continuous_n << " N, |F| " << norm(exact);
     }
   }
 }
@@ -90,7 +92,8 @@ TYPED_TEST(ServoEnergy, ThermalCoolingOverSkippedTicksIsTheSameExponential) {
     model.advance(Vec3<TypeParam>{}, gap);
     ticks += gap;
   }
-  EXPECT_NEAR(model.temperature().to_double(), std::exp(-static_cast<double>(ticks) * kPeriodS / 30.0), kThetaTol<TypeParam>);
+  EXPECT_NEAR(model.temperature().to_double(), std::exp(-static_cast<double>(ticks) * kPeriodS / 30.0),
+              kThetaTol<TypeParam>);
 }
 
 TYPED_TEST(ServoEnergy, ThermalGapsUpToTheTableAreTheExactExponential) {
@@ -137,8 +140,15 @@ TYPED_TEST(ServoEnergy, ThermalOverALongGapNeverUnderestimatesTheTemperature) {
 TYPED_TEST(ServoEnergy, DeratingIsLinearFromDerateStartToTheContinuousForce) {
   ThermalModel<TypeParam> model(ThermalConfig{4.0, 30.0, 0.8}, kPeriodS, 8.0);
   const double tol = kIsFixed<TypeParam> ? 0x1p-15 : 1e-12;
-  for (const auto& [theta, allowed] :
-       {std::pair{0.0, 8.0}, {0.5, 8.0}, {0.8, 8.0}, {0.83, 7.4}, {0.9, 6.0}, {0.97, 4.6}, {0.99999, 4.0002}, {1.0, 4.0}, {2.0, 4.0}}) {
+  for (const auto& [theta, allowed] : {std::pair{0.0, 8.0},
+                                       {0.5, 8.0},
+                                       {0.8, 8.0},
+                                       {0.83, 7.4},
+                                       {0.9, 6.0},
+                                       {0.97, 4.6},
+                                       {0.99999, 4.0002},
+                                       {1.0, 4.0},
+                                       {2.0, 4.0}}) {
     model.set_temperature(Wide<TypeParam>::from_double(theta));
     EXPECT_NEAR(to_double(model.allowed_force()), allowed, tol) << theta;
     EXPECT_GE(to_double(model.allowed_force()), 4.0) << theta;
@@ -150,9 +160,7 @@ TYPED_TEST(ServoEnergy, TheLoopDeratesASustainedPushDownToTheContinuousForce) {
   c.safety.thermal = ThermalConfig{4.0, 20.0, 0.8};
   Rig<TypeParam> rig(floor_toml(1000.0), c);
   rig.at({0, 0, 0.01});
-  const auto allowed = [](double theta) {
-    return theta <= 0.8 ? 8.0 : 8.0 - 4.0 * std::min(1.0, (theta - 0.8) / 0.2);
-  };
+  const auto allowed = [](double theta) { return theta <= 0.8 ? 8.0 : 8.0 - 4.0 * std::min(1.0, (theta - 0.8) / 0.2); };
   double previous_theta = 0.0;
   bool full_so_far = true;  // every earlier tick commanded the full 8 N
   bool derated = false;
@@ -225,12 +233,11 @@ const std::string kSlippery = floor_toml(1500.0, "  [surface.slippery]\n  mu = 4
 /// Press on the floor, then stroke back and forth along x at 0.1 m/s, never lifting.
 SimpleSimConfig long_stroke() {
   SimpleSimConfig sim;
-  sim.script = {{0.0, {-0.03, 0, 0.01}},  {0.2, {-0.03, 0, 0.01}}, {0.8, {-0.03, 0, -0.004}},
-                {1.4, {0.03, 0, -0.004}}, {2.0, {-0.03, 0, -0.004}}, {2.6, {0.03, 0, -0.004}},
-                {3.2, {-0.03, 0, -0.004}}, {3.8, {0.03, 0, -0.004}}, {4.4, {-0.03, 0, -0.004}},
-                {5.0, {0.03, 0, -0.004}}, {5.6, {-0.03, 0, -0.004}}, {6.2, {0.03, 0, -0.004}},
-                {6.8, {-0.03, 0, -0.004}}, {7.4, {0.03, 0, -0.004}}, {8.0, {-0.03, 0, -0.004}},
-                {8.5, {-0.03, 0, 0.01}}};
+  sim.script = {
+      {0.0, {-0.03, 0, 0.01}},   {0.2, {-0.03, 0, 0.01}},  {0.8, {-0.03, 0, -0.004}}, {1.4, {0.03, 0, -0.004}},
+      {2.0, {-0.03, 0, -0.004}}, {2.6, {0.03, 0, -0.004}}, {3.2, {-0.03, 0, -0.004}}, {3.8, {0.03, 0, -0.004}},
+      {4.4, {-0.03, 0, -0.004}}, {5.0, {0.03, 0, -0.004}}, {5.6, {-0.03, 0, -0.004}}, {6.2, {0.03, 0, -0.004}},
+      {6.8, {-0.03, 0, -0.004}}, {7.4, {0.03, 0, -0.004}}, {8.0, {-0.03, 0, -0.004}}, {8.5, {-0.03, 0, 0.01}}};
   return sim;
 }
 
@@ -345,7 +352,7 @@ TEST(ServoEnergyQ16, ALoopReadingInQ16TakesTheStepOnceAndMatchesOneReadingInDoub
   std::int64_t k = 0;
   for (row = 0; row < positions.size(); ++row) {
     status = row == 2500 ? DeviceStatus::kTimeout : DeviceStatus::kOk;  // a tick without a position
-    k += row % 700 == 699 ? 4 : 1;                                         // and late ticks
+    k += row % 700 == 699 ? 4 : 1;                                      // and late ticks
     const TickStatus a = in_double.tick(k);
     const TickStatus b = in_q.tick(k);
     ASSERT_EQ(a.faults.bits(), b.faults.bits()) << row;
@@ -388,7 +395,7 @@ TYPED_TEST(ServoEnergy, PassivityDampingIsTheExcessOverTheSpeedSquaredCappedTwic
   constexpr double kMaxForceN = 8.0;
   constexpr double kRateHz = 1000.0;
   struct Case {
-    double work_j;      // the episode's work so far (the excess is work - budget)
+    double work_j;  // the episode's work so far (the excess is work - budget)
     double speed_m_per_s;
   };
   // X = 10 mJ, 10 W at 1 kHz: alpha from X rate / |v|^2 (at 2 m/s: 2.5), max_damping (at 0.3
@@ -445,10 +452,9 @@ TEST(ServoEnergyQ16, PassivityDampingStopsAtItsFixedPointForceCap) {
 // ---- active effects -----------------------------------------------------------------------------
 
 TEST(ActiveEffects, SlotsAreTheForcesTheActiveEffectsAdded) {
-  const std::string toml = floor_toml(1000.0,
-                                      "  [surface.slippery]\n  mu = 4.0\n"
-                                      "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
-                                      "  duration = 0.15\n  frequency = 30.0\n");
+  const std::string toml = floor_toml(1000.0, "  [surface.slippery]\n  mu = 4.0\n"
+                                              "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
+                                              "  duration = 0.15\n  frequency = 30.0\n");
   const RuntimeScene<double> scene = scene_from<double>(toml);
   ASSERT_EQ(scene.active_slots(), 2U);
   RuntimeScene<double>::State state{};

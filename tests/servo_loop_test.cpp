@@ -26,7 +26,7 @@ constexpr Vec3<double> kAbove{0.0, 0.0, 0.01};
 
 TYPED_TEST(ServoSafety, ClampsTheForceToMaxForceKeepingItsDirection) {
   Rig<TypeParam> rig(floor_toml(1000.0), bare_config());
-  rig.at(kAbove);  // engage outside the wall
+  rig.at(kAbove);                                  // engage outside the wall
   const TickStatus s = rig.at({0.0, 0.0, -0.02});  // 20 N asked
   EXPECT_NEAR(rig.force().z, 8.0, kForceTol<TypeParam>);
   EXPECT_NEAR(rig.force().x, 0.0, 1e-12);
@@ -107,8 +107,8 @@ TEST(Engage, Q16RampIsTheRoundedQuotientOfTheElapsedTime) {
     double soft_start_s;
     double period_s;
   };
-  for (const Ramp r : {Ramp{1.0, 1e-3}, Ramp{0.1, 1e-3}, Ramp{0.25, 2.5e-4}, Ramp{3.7, 1e-3}, Ramp{10.0, 1e-4},
-                       Ramp{0.0021, 1e-3}}) {
+  for (const Ramp r :
+       {Ramp{1.0, 1e-3}, Ramp{0.1, 1e-3}, Ramp{0.25, 2.5e-4}, Ramp{3.7, 1e-3}, Ramp{10.0, 1e-4}, Ramp{0.0021, 1e-3}}) {
     Engage<Q16_16> engage(EngageConfig{0.2, r.soft_start_s, r.period_s});
     const std::int64_t period_ns = ns_from_seconds(r.period_s);
     const std::int64_t soft_start_ns = ns_from_seconds(r.soft_start_s);
@@ -141,13 +141,14 @@ TEST(Engage, Q16RampIsTheRoundedQuotientOfTheElapsedTime) {
 TEST(Engage, Q16RampOfManyTicksNeverPassesOne) {
   const std::int64_t soft_start_ns = 300'000'000'000LL;
   std::int64_t period_ns = 1'000'000;
-  __extension__ typedef unsigned __int128 U128;  // exact 2^32 T (g++)
+  __extension__ typedef unsigned __int128 U128;          // exact 2^32 T (g++)
   const auto tenths = [soft_start_ns](std::int64_t t) {  // of 2^32 T / soft_start's fraction
     const U128 rest = (static_cast<U128>(t) << 32) % static_cast<U128>(soft_start_ns);
     return static_cast<int>(rest * 10 / static_cast<U128>(soft_start_ns));
   };
   while (tenths(period_ns) != 5) ++period_ns;  // a fraction in [0.5, 0.6): rounded up by 0.4 or more
-  Engage<Q16_16> engage(EngageConfig{0.2, static_cast<double>(soft_start_ns) * 1e-9, static_cast<double>(period_ns) * 1e-9});
+  Engage<Q16_16> engage(
+      EngageConfig{0.2, static_cast<double>(soft_start_ns) * 1e-9, static_cast<double>(period_ns) * 1e-9});
   ASSERT_EQ(engage.gain(Vec3<Q16_16>{}, 0), Q16_16{});
   for (std::int64_t k = 1; engage.state() == LoopState::kRamping; ++k) {
     ASSERT_LE(engage.gain(Vec3<Q16_16>{}, k).raw(), 65536) << "tick " << k << " of a " << period_ns << " ns period";
@@ -225,8 +226,8 @@ TEST(HipSensor, Q16RateAfterAGapIsTheExactQuotientsFromTheTickCount) {
     const PeriodsRate<Q16_16> rate = PeriodsRate<Q16_16>::of(period_ns);
     ASSERT_TRUE(rate.fits) << period_ns;
     std::vector<std::int64_t> gaps = {1, 2, 3, 7, 30, 31, 1000, 65'535, 65'536, 1'000'003};
-    for (const std::uint64_t g : {rate.twice_q_b / 2, rate.twice_q_b - 1, rate.twice_q_b, rate.twice_q_b + 1,
-                                  rate.twice_q_b + 2}) {
+    for (const std::uint64_t g :
+         {rate.twice_q_b / 2, rate.twice_q_b - 1, rate.twice_q_b, rate.twice_q_b + 1, rate.twice_q_b + 2}) {
       if (g >= 1) gaps.push_back(static_cast<std::int64_t>(g));
     }
     for (const std::int64_t g : gaps) {
@@ -253,7 +254,8 @@ TEST(HipSensor, Q16LateTickGainIsTheComputedOneAndOnePastTheTable) {
   using Sensor = HipSensor<Q, true, false>;
   const PeriodsRate<Q> rates = PeriodsRate<Q>::of(1'000'000);
   const VelocityEstimator<Q> reference(VelocityEstimator<Q>::kDefaultCutoffHz);
-  for (const std::int64_t gap : std::vector<std::int64_t>{1, 2, 7, 31, Sensor::kTabulatedGaps, Sensor::kTabulatedGaps + 1, 100, 5000}) {
+  for (const std::int64_t gap :
+       std::vector<std::int64_t>{1, 2, 7, 31, Sensor::kTabulatedGaps, Sensor::kTabulatedGaps + 1, 100, 5000}) {
     Sensor sensor(VelocityEstimator<Q>::kDefaultCutoffHz, true, kPeriod);
     BasicDeviceReading<Q> reading{};
     const Vec3<Q> start = vec_cast<Q>({0.01, -0.02, 0.03});
@@ -474,9 +476,8 @@ TYPED_TEST(ServoSafety, AFailedWriteIsADeviceErrorAndLatchesWhenItPersists) {
 TEST(ServoLoop, EffectTimeAfterADayIsAsExactAsInTheFirstSecond) {
   // An impact transient triggered at tick k0 reads t = (k - k0) T: the same at k0 = 0 and at
   // k0 = 86.4 million (a day at 1 kHz), bit for bit.
-  const std::string toml = floor_toml(1000.0,
-                                      "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
-                                      "  duration = 0.15\n  frequency = 30.0\n");
+  const std::string toml = floor_toml(1000.0, "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
+                                              "  duration = 0.15\n  frequency = 30.0\n");
   const auto run_from = [&](std::int64_t k0) {
     Rig<double> rig(toml, bare_config());
     rig.k = k0;

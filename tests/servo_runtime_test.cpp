@@ -21,12 +21,12 @@ template <class S>
 class ServoRuntime : public ::testing::Test {};
 TYPED_TEST_SUITE(ServoRuntime, ServoScalars);
 
-const std::string kEverything = floor_toml(1500.0,
-                                           "  [surface.slippery]\n  mu = 4.0\n"
-                                           "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
-                                           "  duration = 0.15\n  frequency = 30.0\n") +
-                                "[[cliff]]\npoint = [0.0, 0.0, -0.02]\nnormal = [0.0, 0.0, 1.0]\naxis = [1.0, 0.0, 0.0]\n"
-                                "gap_min = 0.0\ngap_max = 0.02\nstiffness = 1500.0\nspeed_threshold = 0.08\n";
+const std::string kEverything =
+    floor_toml(1500.0, "  [surface.slippery]\n  mu = 4.0\n"
+                       "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n"
+                       "  duration = 0.15\n  frequency = 30.0\n") +
+    "[[cliff]]\npoint = [0.0, 0.0, -0.02]\nnormal = [0.0, 0.0, 1.0]\naxis = [1.0, 0.0, 0.0]\n"
+    "gap_min = 0.0\ngap_max = 0.02\nstiffness = 1500.0\nspeed_threshold = 0.08\n";
 
 /// Every safety feature on, with limits tight enough that each one acts in the scenario.
 ServoConfig everything_on() {
@@ -50,7 +50,7 @@ std::vector<double> forces_of_a_run(std::int64_t ticks) {
   sim.real_time = false;
   SimpleSimDevice device(sim);
   auto loop = std::make_unique<ServoLoop<DriverRef, RuntimeScene<S>>>(DriverRef(device), scene_from<S>(kEverything),
-                                                                       everything_on());
+                                                                      everything_on());
   std::vector<double> forces;
   forces.reserve(static_cast<std::size_t>(3 * ticks));
   for (std::int64_t k = 0; k < ticks; ++k) {
@@ -95,7 +95,8 @@ TYPED_TEST(ServoRuntime, ATickAllocatesNothingWithEverySafetyFeatureOn) {
   static_cast<void>(loop->shutdown(20'000));
   EXPECT_EQ(scope.count(), 0U);
   // The scenario exercised the features it claims to.
-  for (const Fault f : {Fault::kEstop, Fault::kWatchdog}) EXPECT_NE(faults & static_cast<std::uint32_t>(f), 0U) << fault_name(f);
+  for (const Fault f : {Fault::kEstop, Fault::kWatchdog})
+    EXPECT_NE(faults & static_cast<std::uint32_t>(f), 0U) << fault_name(f);
   for (const Limit l : {Limit::kSoftStart, Limit::kClamped, Limit::kRateLimited, Limit::kPassivity, Limit::kThermal}) {
     EXPECT_TRUE(has(limits, l)) << static_cast<int>(l);
   }

@@ -77,13 +77,13 @@ constexpr double kPeriodS = 1e-3;
 
 /// A floor at z = 0 (normal +z), stiffness [N/m]; extra TOML appended to the surface.
 inline std::string floor_toml(double stiffness = 1000.0, const std::string& extra = "") {
-  return "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = " +
-         std::to_string(stiffness) + "\n" + extra;
+  return "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = " + std::to_string(stiffness) +
+         "\n" + extra;
 }
 
 template <Scalar S>
 RuntimeScene<S> scene_from(const std::string& toml) {
-  constexpr ScalarKind kind = kIsFixed<S> ? ScalarKind::kQ16_16
+  constexpr ScalarKind kind = kIsFixed<S>              ? ScalarKind::kQ16_16
                               : std::same_as<S, float> ? ScalarKind::kFloat
                                                        : ScalarKind::kDouble;
   auto d = parse_scene(toml, "test.toml", kind);

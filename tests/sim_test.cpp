@@ -92,7 +92,8 @@ TEST(Figure1, TheSuperSlipperySurfaceSpeedsItUp) {
   EXPECT_GT(stroke_speed_ratio(r), 1.1);
   // ... and the handle runs ahead of where the hand aims ("slides out from under the hand").
   double lead = -1.0;
-  for (std::size_t i = contact; i < contact + 300; ++i) lead = std::max(lead, r[i].true_position_m.x - r[i].hand_target_m.x);
+  for (std::size_t i = contact; i < contact + 300; ++i)
+    lead = std::max(lead, r[i].true_position_m.x - r[i].hand_target_m.x);
   EXPECT_GT(lead, 0.001);
 }
 
@@ -117,7 +118,8 @@ double dominant_frequency_hz(const std::vector<SimRecord>& r, const std::vector<
     for (std::size_t k = 0; k < ticks.size(); ++k) {
       const std::size_t i = ticks[k];
       const double dt = r[i + 1].frame.t_s - r[i].frame.t_s;
-      const double a = (r[i + 1].true_position_m.z - 2 * r[i].true_position_m.z + r[i - 1].true_position_m.z) / (dt * dt);
+      const double a =
+          (r[i + 1].true_position_m.z - 2 * r[i].true_position_m.z + r[i - 1].true_position_m.z) / (dt * dt);
       const double w = 0.5 - 0.5 * std::cos(2 * std::numbers::pi * static_cast<double>(k) / n);
       re += w * a * std::cos(2 * std::numbers::pi * f * r[i].frame.t_s);
       im -= w * a * std::sin(2 * std::numbers::pi * f * r[i].frame.t_s);
@@ -171,10 +173,10 @@ TEST(Figure3, TheCartoonWallThrowsTheStylusBackOutAndShakesItAtItsFrequency) {
 
 struct CliffFacts {
   bool ever_fell = false;
-  bool fell_over_gap = true;     // every fall happened with the handle over the gap
+  bool fell_over_gap = true;  // every fall happened with the handle over the gap
   double lowest_m = 0.0;
   double lowest_over_gap_m = 0.0;
-  double speed_at_fall = -1.0;   // lateral speed the controller saw when it fell
+  double speed_at_fall = -1.0;  // lateral speed the controller saw when it fell
 };
 
 CliffFacts cliff_facts(const FigureRun& fr) {
@@ -223,9 +225,9 @@ TEST(Figure4, SlowingDownOverTheGapDropsTheHandle) {
 class SimFiles : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           fmt::format("toonforce_sim_{}_{}", ::testing::UnitTest::GetInstance()->current_test_info()->name(),
-                       static_cast<long>(::getpid()));
+    dir_ = fs::temp_directory_path() / fmt::format("toonforce_sim_{}_{}",
+                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name(),
+                                                   static_cast<long>(::getpid()));
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -371,7 +373,8 @@ TEST(SimSession, APassiveSceneWithAPassiveHandGainsNoEnergy) {
   // plant may not gain more than the device's work plus that bound.
   auto scene = load_scene_file(std::string(TOONFORCE_SOURCE_DIR) + "/scenes/realistic_friction.toml");
   const auto hand = parse_hand_script("[hand]\nstart = [0.0, 0.0, -0.002]\n[[segment]]\ntype = \"hold\"\n"
-                                      "duration = 3.0\n", "passive.toml");
+                                      "duration = 3.0\n",
+                                      "passive.toml");
   ASSERT_TRUE(scene) << scene.error();
   ASSERT_TRUE(hand) << hand.error();
   // No soft start here: a gain that ramps up while the handle is in the wall raises the
@@ -443,16 +446,33 @@ TEST(SimTrace, HasTheLoopsColumnsThenTheSimulationsAndShortestRoundTripNumbers) 
   EXPECT_NE(text.find(",tick,surface1.contact,surface1.impact_t,true_x,"), std::string::npos) << text;
   EXPECT_NE(text.find("\n0.1,0.1,0.3333333333333333,-2e-05,0,0,0,0,0,0,"), std::string::npos) << text;
   EXPECT_NE(text.find(",1,nan,0,0,0,"), std::string::npos) << text;  // the values, then true_x..
-  EXPECT_EQ(text.substr(text.size() - 3), ",3\n") << text;          // the segment last
+  EXPECT_EQ(text.substr(text.size() - 3), ",3\n") << text;           // the segment last
 }
 
 TEST(SimTrace, EveryValueIsWrittenInItsShortestRoundTripFormWholeNumbersIncluded) {
   // The writer takes a faster path for whole numbers; the characters must still be those of
   // the shortest round-trip form ("{}"), and parse back to the same double, at the path's
   // edges too (-0 keeps its sign; 1e16 and up take an exponent).
-  const std::vector<double> values{0.0, -0.0, 1.0, -1.0, 498.0, 0.5, -3.0, 4095.0, 1e9, -1e9,
-                                   999999999999999.0, 1e15, -1e15, 9999999999999998.0, 1e16, 1e17,
-                                   9007199254740993.0, 2.5e-7, 1e300, -1e-300,
+  const std::vector<double> values{0.0,
+                                   -0.0,
+                                   1.0,
+                                   -1.0,
+                                   498.0,
+                                   0.5,
+                                   -3.0,
+                                   4095.0,
+                                   1e9,
+                                   -1e9,
+                                   999999999999999.0,
+                                   1e15,
+                                   -1e15,
+                                   9999999999999998.0,
+                                   1e16,
+                                   1e17,
+                                   9007199254740993.0,
+                                   2.5e-7,
+                                   1e300,
+                                   -1e-300,
                                    std::numeric_limits<double>::infinity(),
                                    -std::numeric_limits<double>::infinity(),
                                    std::numeric_limits<double>::quiet_NaN()};
@@ -505,8 +525,8 @@ TEST(SimSession, TracesCarryTheSafetyLayersStateFromTheLoop) {
   EXPECT_TRUE(ramped);
   EXPECT_TRUE(clamped);
   EXPECT_TRUE(active);
-  EXPECT_EQ(gain_min, 0.0);          // the ramp starts at zero
-  EXPECT_GT(energy_change, 1e-4);    // the observer saw the strike
+  EXPECT_EQ(gain_min, 0.0);        // the ramp starts at zero
+  EXPECT_GT(energy_change, 1e-4);  // the observer saw the strike
 }
 
 }  // namespace

@@ -54,7 +54,7 @@ TEST(ForceSafety, RateLimitScalesTheStepAlongItsDirection) {
   Surface<PenaltyWall<double>>::Params a{{{0, 0, 0}, {0, 0, 1}}, {1000.0, 0.0}, {}, {}};
   Surface<PenaltyWall<double>>::Params b{{{0, 0, 0}, {1, 0, 0}}, {1000.0, 0.0}, {}, {}};
   SpecLoop ctl(Scene<Surface<PenaltyWall<double>>, Surface<PenaltyWall<double>>>(a, b),
-                 config({0.0, 1000.0, false, true}));
+               config({0.0, 1000.0, false, true}));
   const auto r = ctl.tick(sample(0, {-0.003, 0, -0.004}));  // (3, 0, 4) N asked, 1 N allowed
   EXPECT_NEAR(r.force_n.x, 0.6, 1e-12);
   EXPECT_NEAR(r.force_n.z, 0.8, 1e-12);
@@ -202,10 +202,10 @@ TEST(SpecLoop, Q16SaturationRaisesItsFault) {
                                  "stiff.toml", ScalarKind::kQ16_16);
   ASSERT_TRUE(scene) << scene.error();
   SpecLoop ctl(make_runtime_scene<Q16_16>(scene.value()), servo_config(scene.value(), kDt));
-  EXPECT_FALSE(ctl.tick(sample(0, {0, 0, -0.001})).faults);     // 20 N fits
-  const auto r = ctl.tick(sample(1, {0, 0, -2.0}));              // 40000 N does not
+  EXPECT_FALSE(ctl.tick(sample(0, {0, 0, -0.001})).faults);  // 20 N fits
+  const auto r = ctl.tick(sample(1, {0, 0, -2.0}));          // 40000 N does not
   EXPECT_TRUE(r.faults.has(Fault::kFixedSaturation));
-  EXPECT_EQ(r.force_n.z, Q16_16::max());                         // saturated, not wrapped
+  EXPECT_EQ(r.force_n.z, Q16_16::max());  // saturated, not wrapped
 }
 
 TEST(ForceSafety, Q16LimitsHoldWhenTheRequestIsHuge) {
@@ -300,7 +300,8 @@ TEST(ForceSafety, Q16RateLimitStepsTowardARequestBeyondTheRange) {
   ForceSafety<Q16_16> safety(rate_only);
   const Vec3<Q16_16> from = vec_cast<Q16_16>(Vec3<double>{-20000.0, 20000.0, 0.0});
   ASSERT_EQ(safety.limit_step(from, scalar_cast<Q16_16>(30000.0)).limits, 0);  // 28284 N: not limited
-  const auto out = safety.limit_step(vec_cast<Q16_16>(Vec3<double>{30000.0, -30000.0, 0.0}), scalar_cast<Q16_16>(20000.0));
+  const auto out =
+      safety.limit_step(vec_cast<Q16_16>(Vec3<double>{30000.0, -30000.0, 0.0}), scalar_cast<Q16_16>(20000.0));
   EXPECT_TRUE(has(out.limits, Limit::kRateLimited));
   const Vec3<double> f = to_double(out.force_n);
   const double step = 20000.0 / std::sqrt(2.0);

@@ -57,7 +57,8 @@ Matrix similar(const Matrix& a) {
   Matrix nil(n, std::vector<double>(n, 0.0));
   for (std::size_t i = 0; i < n; ++i) {
     s[i][i] = 1.0;
-    for (std::size_t j = i + 1; j < n; ++j) nil[i][j] = s[i][j] = 0.7 + 0.3 * static_cast<double>(i) - 0.45 * static_cast<double>(j);
+    for (std::size_t j = i + 1; j < n; ++j)
+      nil[i][j] = s[i][j] = 0.7 + 0.3 * static_cast<double>(i) - 0.45 * static_cast<double>(j);
   }
   Matrix inverse(n, std::vector<double>(n, 0.0));
   Matrix power(n, std::vector<double>(n, 0.0));
@@ -176,8 +177,8 @@ TEST(StabilityModel, InsideThePassivityBoundEveryLoopIsStable) {
               ASSERT_LT(damping_needed_n_s_per_m(k, t, d, b_virtual), b);
               const auto rho = loop_spectral_radius(l);
               ASSERT_TRUE(rho) << rho.error();
-              EXPECT_LT(rho.value(), 1.0) << "d " << d << ", T " << t << ", b " << b << ", K " << k << ", c "
-                                          << l.velocity_feedback_n_s_per_m;
+              EXPECT_LT(rho.value(), 1.0)
+                  << "d " << d << ", T " << t << ", b " << b << ", K " << k << ", c " << l.velocity_feedback_n_s_per_m;
               ++checked;
             }
           }
@@ -301,8 +302,8 @@ constexpr double kPi = 3.14159265358979323846;
 /// along its normal through the real servo loop (the plain backward-difference velocity).
 PortDrive pressed_spring(double k, double b, int d) {
   PortDrive drive;
-  drive.scene_toml = "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = " +
-                     std::to_string(k) + "\n";
+  drive.scene_toml =
+      "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = " + std::to_string(k) + "\n";
   drive.period_s = 1e-3;
   drive.device_damping_n_s_per_m = b;
   drive.delay_ticks = d;
@@ -333,7 +334,8 @@ TEST(StabilityPort, ASampledSpringsPortEnergyPerCycleIsColgatesClosedForm) {
       const double sine = kDamping * w * kPi;
       const double ramp = kDamping * 2.0 * kPi / theta * (1.0 - std::cos(theta)) / kT;
       EXPECT_NEAR(cycle->theta_rad, theta, 1e-15);
-      EXPECT_NEAR(cycle->controller_work_j_per_m2, work, 1e-9 * std::abs(work)) << "d " << d << ", p/q " << p << "/" << q;
+      EXPECT_NEAR(cycle->controller_work_j_per_m2, work, 1e-9 * std::abs(work))
+          << "d " << d << ", p/q " << p << "/" << q;
       EXPECT_NEAR(cycle->absorbed_sine_j_per_m2(), sine - work, 1e-9 * (sine + std::abs(work)));
       EXPECT_NEAR(cycle->absorbed_ramp_j_per_m2(), ramp - work, 1e-9 * (ramp + std::abs(work)));
     }

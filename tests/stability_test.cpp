@@ -88,9 +88,9 @@ HandIntent hand(const Vec3<double>& aim, const HandImpedance& impedance, double 
   return std::move(*planned);
 }
 
-constexpr HandImpedance kFirmHand{0.1, 300.0, 15.0};   // scenes/hands/strike.toml
+constexpr HandImpedance kFirmHand{0.1, 300.0, 15.0};  // scenes/hands/strike.toml
 constexpr HandImpedance kRelaxedHand{0.1, 100.0, 2.0};
-constexpr HandImpedance kNoHand{0.0, 0.0, 0.0};        // only a press force, if any
+constexpr HandImpedance kNoHand{0.0, 0.0, 0.0};  // only a press force, if any
 
 std::string floor_toml(double stiffness, const std::string& device_extra = "", const std::string& surface_extra = "") {
   return "[device]\nmax_force = 8.0\nmax_force_rate = 2000.0\nsoft_start = 0.2\n" + device_extra +
@@ -120,7 +120,7 @@ constexpr ScalarKind kind_of() {
 struct Shown {
   bool in_contact = false;
   double impact_time_s = std::numeric_limits<double>::quiet_NaN();  ///< surface1.impact_t
-  int cliff_state = -1;                                              ///< cliff1.state (-1: no cliff)
+  int cliff_state = -1;                                             ///< cliff1.state (-1: no cliff)
 };
 
 template <class Loop>
@@ -165,8 +165,8 @@ class Rig {
     config_ = with_device(servo_config(description_, period_s), info);
     if (tweak) tweak(config_);
     EXPECT_EQ(check_servo_config(config_), "");
-    loop_ = std::make_unique<ServoLoop<TestDevice, RuntimeScene<S>>>(
-        TestDevice{sim_.get(), &injection_, &exchanges_}, make_runtime_scene<S>(description_), config_);
+    loop_ = std::make_unique<ServoLoop<TestDevice, RuntimeScene<S>>>(TestDevice{sim_.get(), &injection_, &exchanges_},
+                                                                     make_runtime_scene<S>(description_), config_);
   }
 
   /// One tick at the next integer time; `gap` > 1: the loop missed gap - 1 ticks, during
@@ -269,8 +269,8 @@ TEST(ExtremeCases, StiffWallsSettleInsideTheDelayAwareBoundAndTheSafetyLayerHold
   const double q = base.encoder_step_m;
   for (const double period : {1e-3, 0.5e-3, 0.25e-3}) {
     for (const double device_damping : {0.0, 0.1}) {
-      const double k_bound = stiffest_passive_wall_n_per_m(device_damping + kRelaxedHand.damping_n_s_per_m, period,
-                                                           base.io_delay_ticks);
+      const double k_bound =
+          stiffest_passive_wall_n_per_m(device_damping + kRelaxedHand.damping_n_s_per_m, period, base.io_delay_ticks);
       for (const double factor : {0.25, 0.5, 2.0, 8.0}) {
         const double k = factor * k_bound;
         SCOPED_TRACE(testing::Message() << "T " << period << " s, b " << device_damping << ", K " << k << " N/m ("
@@ -322,8 +322,8 @@ TEST(ExtremeCases, StiffWallsSettleInsideTheDelayAwareBoundAndTheSafetyLayerHold
 /// 8 cm across it at `stroke_speed` pressing with `press_n`, with the passivity controller on
 /// or off.
 template <Scalar S = double>
-double stroked_episode_energy(const std::string& scene, const DeviceParams& device, double stroke_speed,
-                              double press_n, bool controller) {
+double stroked_episode_energy(const std::string& scene, const DeviceParams& device, double stroke_speed, double press_n,
+                              bool controller) {
   HandSegment stroke;
   stroke.kind = SegmentKind::kStroke;
   stroke.to_m = {0.04, 0.0, -0.001};
@@ -333,8 +333,9 @@ double stroked_episode_energy(const std::string& scene, const DeviceParams& devi
   hold.kind = SegmentKind::kHold;
   hold.duration_s = 0.5;
   hold.force_n = press_n;
-  auto rig = std::make_unique<Rig<S>>(scene, device, hand({-0.04, 0, -0.001}, kRelaxedHand, 0.0, {stroke, hold}),
-                                      kPeriodS, [controller](ServoConfig& c) { c.safety.passivity.controller = controller; });
+  auto rig =
+      std::make_unique<Rig<S>>(scene, device, hand({-0.04, 0, -0.001}, kRelaxedHand, 0.0, {stroke, hold}), kPeriodS,
+                               [controller](ServoConfig& c) { c.safety.passivity.controller = controller; });
   rig->sim().set_state({-0.04, 0, 0.002}, {0, 0, 0});  // above the floor: the loop engages at once
   const double rate = rig->config().limits.max_force_rate_n_per_s;
   double worst = 0.0;
@@ -379,10 +380,9 @@ TEST(ExtremeCases, SlipperyGainNearAndAboveTheDevicesDampingIsHeldToItsEnergyBud
   for (const double factor : {0.5, 1.0, 2.0, 8.0}) {
     const double mu = factor * (device_damping + hand_damping);
     SCOPED_TRACE(testing::Message() << "mu " << mu << " N s/m");
-    const std::string scene = floor_toml(1500.0,
-                                         "passivity_budget = " + std::to_string(kBudgetJ) +
-                                             "\npassivity_max_damping = 20.0\n",
-                                         "  [surface.slippery]\n  mu = " + std::to_string(mu) + "\n");
+    const std::string scene =
+        floor_toml(1500.0, "passivity_budget = " + std::to_string(kBudgetJ) + "\npassivity_max_damping = 20.0\n",
+                   "  [surface.slippery]\n  mu = " + std::to_string(mu) + "\n");
     const double held = stroked_episode_energy(scene, falcon_with_damping(device_damping), kStroke, 1.0, true);
     EXPECT_LE(held, kBudgetJ + passivity_slack(mu, kStroke));
     if (factor >= 2.0) {
@@ -399,8 +399,8 @@ TEST(ExtremeCases, AnImpactAtTopSpeedIsClampedPushedBackOutAndItsRecoilBudgeted)
   // Just under the velocity limit (1.2 m/s, the fastest the loop renders) and above it.
   for (const double speed : {1.15, 1.6}) {
     SCOPED_TRACE(testing::Message() << "impact at " << speed << " m/s");
-    Rig<> rig(bundled("cartoon_wall"), host_sim::falcon_params(), hand({0, 0, -0.003}, kFirmHand),
-              kPeriodS, [](ServoConfig& c) { c.safety.soft_start_s = 0.0; });
+    Rig<> rig(bundled("cartoon_wall"), host_sim::falcon_params(), hand({0, 0, -0.003}, kFirmHand), kPeriodS,
+              [](ServoConfig& c) { c.safety.soft_start_s = 0.0; });
     rig.sim().set_state({0, 0, 0.004}, {0, 0, 0});
     rig.run_for(0.3);  // engaged above the floor, then resting on it where the hand holds it
     rig.sim().set_state({0, 0, 0.004}, {0, 0, -speed});  // thrown at the floor from 4 mm
@@ -450,7 +450,7 @@ TEST(ExtremeCases, RestingOnTheWallBoundaryWithSensorNoiseNeitherRetriggersNorBu
   }
   EXPECT_GT(in_contact, 100);  // it really chatters across the boundary
   EXPECT_GT(out_of_contact, 100);
-  EXPECT_EQ(triggers, 0);      // noise is far below min_impact_speed
+  EXPECT_EQ(triggers, 0);  // noise is far below min_impact_speed
   EXPECT_EQ(rig.non_finite(), 0);
   EXPECT_LT(rig.max_force(), 0.5);  // 1500 N/m times a few noise steps
   EXPECT_LT(std::abs(rig.plant().position_m().z), 2e-4);
@@ -490,8 +490,8 @@ TEST(ExtremeCases, LingeringAtTheCliffsSpeedThresholdFallsOnceAndNeverChatters) 
 TEST(ExtremeCases, PressingIntoACornerOfTwoWallsStaysClampedAndCalm) {
   // A floor (normal +z) and a wall at x = 0 (normal -x) meet along the y axis; the hand aims
   // 5 mm into both with a firm grip.
-  const std::string corner = floor_toml(1500.0) +
-                             "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [-1.0, 0.0, 0.0]\nstiffness = 1500.0\n";
+  const std::string corner =
+      floor_toml(1500.0) + "[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [-1.0, 0.0, 0.0]\nstiffness = 1500.0\n";
   Rig<> rig(corner, host_sim::falcon_params(), hand({0.005, 0, -0.005}, kFirmHand));
   rig.sim().set_state({-0.01, 0, 0.01}, {0, 0, 0});
   rig.run_for(3.0);
@@ -643,10 +643,9 @@ TEST(ExtremeCases, OnAClampedOmniThePassivityControllerStillHoldsTheSlipperyBudg
   constexpr double kBudgetJ = 0.002;
   constexpr double kStroke = 0.4;
   constexpr double kMu = 4.0;
-  const std::string scene = floor_toml(800.0,
-                                       "passivity_budget = " + std::to_string(kBudgetJ) +
-                                           "\npassivity_max_damping = 5.0\n",
-                                       "  [surface.slippery]\n  mu = 4.0\n  max_tangential_force = 5.0\n");
+  const std::string scene =
+      floor_toml(800.0, "passivity_budget = " + std::to_string(kBudgetJ) + "\npassivity_max_damping = 5.0\n",
+                 "  [surface.slippery]\n  mu = 4.0\n  max_tangential_force = 5.0\n");
   const DeviceParams omni = host_sim::omni_params();
   int clamped = 0;
   {
@@ -709,10 +708,10 @@ TEST(ExtremeCases, TheObserverAccumulatesAnHourOfWorkExactlyInQ16) {
   // displacements up to 1 mm per tick, of both signs.
   PassivityObserver<Q16_16> fixed;
   PassivityObserver<double> floating;
-  std::int64_t exact_raw = 0;    // 2^-32 J
-  double magnitude_j = 0.0;      // sum of |F.dx|, for double's rounding bound
+  std::int64_t exact_raw = 0;  // 2^-32 J
+  double magnitude_j = 0.0;    // sum of |F.dx|, for double's rounding bound
   std::uint64_t state = 0x9E3779B97F4A7C15u;
-  const auto next = [&state](std::int32_t half_range) {  // uniform in [-half_range, half_range]
+  const auto next = [&state](std::int32_t half_range) {           // uniform in [-half_range, half_range]
     state = state * 6364136223846793005u + 1442695040888963407u;  // Knuth's MMIX LCG
     const auto span = static_cast<std::uint64_t>(2 * half_range + 1);
     return static_cast<std::int32_t>(static_cast<std::int64_t>((state >> 33) % span) - half_range);

@@ -131,8 +131,8 @@ TEST(ViewerServer, ServesThePageAndNothingElse) {
 
   // Path traversal, in the spellings that get past naive checks: none reaches a file.
   for (const char* target : {"/../../../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2f..%2fetc%2fpasswd",
-                             "//etc/passwd", "/assets/../../CMakeLists.txt", "/index.html/../../README.md",
-                             "/assets/", "/%00", "/.git/config", "/ws", "/tools/viewer/web/index.html"}) {
+                             "//etc/passwd", "/assets/../../CMakeLists.txt", "/index.html/../../README.md", "/assets/",
+                             "/%00", "/.git/config", "/ws", "/tools/viewer/web/index.html"}) {
     auto res = request(*server, http::verb::get, target, host);
     EXPECT_EQ(res.result(), http::status::not_found) << target;
     EXPECT_EQ(res.body().find("root:"), std::string::npos) << target;
@@ -152,8 +152,8 @@ TEST(ViewerServer, RequestsNamingAnotherHostAreRefused) {
   EXPECT_EQ(request(*server, http::verb::get, "/", "localhost:" + port).result(), http::status::ok);
   EXPECT_EQ(request(*server, http::verb::get, "/", "[::1]:" + port).result(), http::status::ok);
   // DNS rebinding: a page of evil.example resolved to 127.0.0.1 asks with its own name.
-  for (const std::string& host :
-       std::vector<std::string>{"evil.example:" + port, "127.0.0.1:1", "127.0.0.1", "", "127.0.0.1:" + port + "@evil"}) {
+  for (const std::string& host : std::vector<std::string>{"evil.example:" + port, "127.0.0.1:1", "127.0.0.1", "",
+                                                          "127.0.0.1:" + port + "@evil"}) {
     EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::misdirected_request) << host;
   }
 }
@@ -267,7 +267,8 @@ TEST(ViewerServer, APageGetsTheHistoryThenLiveFramesInOrder) {
     EXPECT_EQ(values[2], expected_seq);
     const auto n = static_cast<std::size_t>(values[3]);
     ASSERT_EQ(values.size(), 4 + n * kViewStride);
-    for (std::size_t k = 0; k < n; ++k) EXPECT_EQ(values[4 + k * kViewStride + kTick], expected_seq + static_cast<double>(k));
+    for (std::size_t k = 0; k < n; ++k)
+      EXPECT_EQ(values[4 + k * kViewStride + kTick], expected_seq + static_cast<double>(k));
     expected_seq += static_cast<double>(n);
   }
   EXPECT_TRUE(ended);
@@ -408,8 +409,8 @@ std::string read_status(int fd) {
 // this history is 7 MB, so 16 copies alone exceed it).
 TEST(ViewerServer, HundredsOfConcurrentUpgradesGetTheCapAndBoundedMemory) {
   ViewerOptions options;
-  options.history_frames = 1U << 15;  // 7 MB of history, all of it published
-  options.send_buffer_bytes = 4096;   // what is queued stays in this process, not in the kernel
+  options.history_frames = 1U << 15;     // 7 MB of history, all of it published
+  options.send_buffer_bytes = 4096;      // what is queued stays in this process, not in the kernel
   options.evict_reading_after_s = 60.0;  // none evicted, however slowly a loaded host connects 300
   auto server = start_server(options);
   std::atomic<int> stop{0};
@@ -455,14 +456,15 @@ TEST(ViewerServer, HundredsOfConcurrentUpgradesGetTheCapAndBoundedMemory) {
   EXPECT_GT(held.max_queued_bytes, 0U);
   EXPECT_LE(held.max_queued_bytes, 16 * (chunk_bytes + 4096)) << "bytes queued for pages at most";
   const long held_kb = resident_kb();
-  EXPECT_LT(held_kb - before_kb, 64 * 1024) << "resident memory with 16 pages open, kB: " << before_kb << " -> " << held_kb;
+  EXPECT_LT(held_kb - before_kb, 64 * 1024)
+      << "resident memory with 16 pages open, kB: " << before_kb << " -> " << held_kb;
 
   for (const int fd : clients) ::close(fd);
   EXPECT_TRUE(eventually([&] { return server->stats().pages_open == 0; }));
   EXPECT_EQ(server->stats().queued_bytes, 0U) << "what the pages held is released when they close";
   const long after_kb = resident_kb();
-  EXPECT_LT(after_kb - before_kb, 64 * 1024) << "resident memory after the pages closed, kB: " << before_kb << " -> "
-                                             << after_kb;
+  EXPECT_LT(after_kb - before_kb, 64 * 1024)
+      << "resident memory after the pages closed, kB: " << before_kb << " -> " << after_kb;
   std::printf("resident memory: %ld kB before, %ld kB with 16 pages of %d upgrades, %ld kB after they closed\n",
               before_kb, held_kb, kClients, after_kb);
 }
@@ -493,8 +495,9 @@ TEST(ViewerServer, HistoryGoesOutAChunkAtATimeAndWhatTheRingLostIsCounted) {
   ASSERT_TRUE(eventually([&] { return server->stats().pages_open == 1; }));
   for (int b = 0; b < 200; ++b) publish(100);  // the page reads nothing meanwhile
   server->finish();
-  EXPECT_LE(server->stats().max_queued_bytes, (4 + kHistoryChunkFrames * kViewStride) * sizeof(double) + 4096 +
-                                                  options.max_queued_batches * (4 + 100 * kViewStride) * sizeof(double));
+  EXPECT_LE(server->stats().max_queued_bytes,
+            (4 + kHistoryChunkFrames * kViewStride) * sizeof(double) + 4096 +
+                options.max_queued_batches * (4 + 100 * kViewStride) * sizeof(double));
 
   // The page came when frames 0..4999 had been taken from the ring (publish waits for that),
   // of which the history ring kept 2000..4999: that is what it asks for.
@@ -642,13 +645,13 @@ TEST(ViewerServer, NamesGivenForTheHostAreAcceptedAndNoOthers) {
   options.hosts = {"Viewer.LAN", "192.0.2.7", "2001:DB8::1", "[2001:db8::2]"};
   auto server = start_server(options);
   const std::string port = std::to_string(server->port());
-  for (const std::string& host : std::vector<std::string>{"viewer.lan:" + port, "VIEWER.lan:" + port,
-                                                          "192.0.2.7:" + port, "[2001:db8::1]:" + port,
-                                                          "[2001:db8::2]:" + port}) {
+  for (const std::string& host :
+       std::vector<std::string>{"viewer.lan:" + port, "VIEWER.lan:" + port, "192.0.2.7:" + port,
+                                "[2001:db8::1]:" + port, "[2001:db8::2]:" + port}) {
     EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::ok) << host;
   }
-  for (const std::string& host : std::vector<std::string>{"viewer.lan", "viewer.lan:1", "other.lan:" + port,
-                                                          "www.viewer.lan:" + port}) {
+  for (const std::string& host :
+       std::vector<std::string>{"viewer.lan", "viewer.lan:1", "other.lan:" + port, "www.viewer.lan:" + port}) {
     EXPECT_EQ(request(*server, http::verb::get, "/", host).result(), http::status::misdirected_request) << host;
   }
   Client page(*server, "http://viewer.lan:" + port, 0, "viewer.lan:" + port);
@@ -703,7 +706,8 @@ TEST(ViewerCommand, HostNamesGivenOnTheCommandLineAreAccepted) {
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, err[1], STDERR_FILENO);
   posix_spawn_file_actions_addclose(&actions, err[0]);
-  std::vector<std::string> args{"toonforce", "view", trace, "--port", "0", "--host", "Viewer.LAN", "--host", "192.0.2.9"};
+  std::vector<std::string> args{"toonforce", "view",       trace,    "--port",   "0",
+                                "--host",    "Viewer.LAN", "--host", "192.0.2.9"};
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -748,7 +752,8 @@ TEST(ViewerServer, RefusesAnAddressItCannotUse) {
   options.address_option = "--address";
   auto bad_view = ViewerServer::start(options, "{}");
   ASSERT_FALSE(bad_view);
-  EXPECT_NE(bad_view.error().find("--address not-an-address: not an IP address"), std::string::npos) << bad_view.error();
+  EXPECT_NE(bad_view.error().find("--address not-an-address: not an IP address"), std::string::npos)
+      << bad_view.error();
   auto first = start_server();
   options.address = "127.0.0.1";
   options.port = first->port();
@@ -782,11 +787,10 @@ TEST(ViewerHello, CarriesTheSceneGeometryAndTheColumns) {
 }
 
 TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
-  auto run = parse_trace(
-      "t,x,y,z,vx,vy,vz,fx,fy,fz,faults,contact,cliff_state,tick,wake_latency_us,missed\n"
-      "0,0.001,0,-0.002,0,0,0,0,0,3,0,1,-1,0,12.5,0\n"
-      "0.001,0.001,0,-0.002,0,0,0,0,0,3,16,1,-1,1,40,2\n",
-      "run.csv");
+  auto run = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz,faults,contact,cliff_state,tick,wake_latency_us,missed\n"
+                         "0,0.001,0,-0.002,0,0,0,0,0,3,0,1,-1,0,12.5,0\n"
+                         "0.001,0.001,0,-0.002,0,0,0,0,0,3,16,1,-1,1,40,2\n",
+                         "run.csv");
   ASSERT_TRUE(run) << run.error();
   EXPECT_EQ(run->source, "run");
   EXPECT_TRUE(run->has_loop);
@@ -796,11 +800,10 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
   EXPECT_EQ(run->frames[1][kWakeLatencyUs], 40.0);
   EXPECT_TRUE(std::isnan(run->frames[1][kLatched]));
 
-  auto sim = parse_trace(
-      "t,x,y,z,vx,vy,vz,fx,fy,fz,faults,limits,contact,surface1.impact_t,cliff1.state,true_x\n"
-      "0,0,0,0,0,0,0,0,0,0,0,0,0,nan,0,0\n"
-      "0.002,0,0,0,0,0,0,0,0,0,1,0,,,1,0\n",
-      "sim.csv");
+  auto sim = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz,faults,limits,contact,surface1.impact_t,cliff1.state,true_x\n"
+                         "0,0,0,0,0,0,0,0,0,0,0,0,0,nan,0,0\n"
+                         "0.002,0,0,0,0,0,0,0,0,0,1,0,,,1,0\n",
+                         "sim.csv");
   ASSERT_TRUE(sim) << sim.error();
   EXPECT_EQ(sim->source, "sim");
   EXPECT_FALSE(sim->has_loop);
@@ -819,8 +822,9 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
   EXPECT_NE(error("t,x,y\n").find("bad.csv:1: not a toonforce trace"), std::string::npos);
   EXPECT_NE(error("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,zero\n").find("bad.csv:2: column 'fz': 'zero'"),
             std::string::npos);
-  EXPECT_NE(error("t,x,y,z,vx,vy,vz,fx,fy,fz\n1,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,0,0,0\n").find("bad.csv:3: column 't'"),
-            std::string::npos);
+  EXPECT_NE(
+      error("t,x,y,z,vx,vy,vz,fx,fy,fz\n1,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,0,0,0\n").find("bad.csv:3: column 't'"),
+      std::string::npos);
   EXPECT_NE(error("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0,9\n").find("more fields"), std::string::npos);
   EXPECT_NE(error("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0\n").find("3 fields"), std::string::npos);
   EXPECT_NE(error("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,0,0,0\n2,0,0,0,0,0,0,0,0,0\n")
@@ -832,7 +836,8 @@ TEST(ViewerTrace, ReadsRunAndSimTracesByColumnName) {
 // A SIGKILLed run or a full disk leaves a trace whose last row has no end of line;
 // the viewer shows the rows before it and says so (it refused the whole trace).
 TEST(TraceFile, ACutLastRowIsLeftOutAndNamedNotRefused) {
-  auto cut = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0,0\n0.002,0,0,0,0,0,0.", "cut.csv");
+  auto cut = parse_trace("t,x,y,z,vx,vy,vz,fx,fy,fz\n0,0,0,0,0,0,0,0,0,0\n0.001,0,0,0,0,0,0,0,0,0\n0.002,0,0,0,0,0,0.",
+                         "cut.csv");
   ASSERT_TRUE(cut) << cut.error();
   EXPECT_EQ(cut->frames.size(), 2U);
   EXPECT_NE(cut->note.find("cut.csv:4: the last row is cut"), std::string::npos) << cut->note;
@@ -1002,7 +1007,8 @@ int server_side(std::uint16_t server_port, const tcp::endpoint& client) {
       const int fd = std::atoi(entry->d_name);
       sockaddr_in local{}, peer{};
       socklen_t local_size = sizeof local, peer_size = sizeof peer;
-      if (::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_size) != 0 || local.sin_family != AF_INET) continue;
+      if (::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_size) != 0 || local.sin_family != AF_INET)
+        continue;
       if (::getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_size) != 0) continue;
       if (ntohs(local.sin_port) == server_port && ntohs(peer.sin_port) == client.port()) found = fd;
     }
@@ -1023,7 +1029,8 @@ TEST(ControlServer, EveryAcceptedSocketHasNoDelay) {
   ASSERT_NE(c.say_hello().find("welcome"), std::string::npos);
   Client page(*server, "http://" + host_of(*server));
   ASSERT_FALSE(page.ec) << page.ec.message();
-  for (const tcp::endpoint& end : {c.ws.next_layer().socket().local_endpoint(), page.ws.next_layer().local_endpoint()}) {
+  for (const tcp::endpoint& end :
+       {c.ws.next_layer().socket().local_endpoint(), page.ws.next_layer().local_endpoint()}) {
     const int fd = server_side(server->port(), end);
     ASSERT_GE(fd, 0);
     int nodelay = 0;

@@ -288,7 +288,9 @@ bool GpioEnableLine::set(bool active) noexcept {
   return ::ioctl(handle_, GPIOHANDLE_SET_LINE_VALUES_IOCTL, &data) == 0;
 }
 
-std::string GpioEnableLine::describe() const { return fmt::format("the amplifier-enable line {} line {}", chip_, offset_); }
+std::string GpioEnableLine::describe() const {
+  return fmt::format("the amplifier-enable line {} line {}", chip_, offset_);
+}
 
 GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
   GuardOutcome out;
@@ -353,8 +355,9 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
       silence.restart();
     } else if (ticking && !out.stalled && silent_ns > options.stall_limit_ns) {
       out.stalled = true;
-      out.cause = fmt::format("stalled: no tick for {:.0f} ms (limit {:.0f} ms), so the guardian killed it",
-                              static_cast<double>(silent_ns) * 1e-6, static_cast<double>(options.stall_limit_ns) * 1e-6);
+      out.cause =
+          fmt::format("stalled: no tick for {:.0f} ms (limit {:.0f} ms), so the guardian killed it",
+                      static_cast<double>(silent_ns) * 1e-6, static_cast<double>(options.stall_limit_ns) * 1e-6);
       ::kill(loop, SIGKILL);
       if (enabled && options.enable != nullptr && options.enable->set(false)) {  // now, not at its end
         enabled = false;

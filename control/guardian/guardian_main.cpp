@@ -101,7 +101,8 @@ int main(int argc, char** argv) {
   const auto loop_pid = static_cast<pid_t>(loop);
   guardian::SharedPage* page = guardian::attach_shared_page(static_cast<int>(page_fd));
   if (page == nullptr) {
-    std::fprintf(stderr, "toonforce-guardian: descriptor %lld is not the guardian's page; stopping the loop's process\n",
+    std::fprintf(stderr,
+                 "toonforce-guardian: descriptor %lld is not the guardian's page; stopping the loop's process\n",
                  page_fd);
     ::kill(loop_pid, SIGTERM);
     return 2;
@@ -168,7 +169,7 @@ int main(int argc, char** argv) {
     ::execv(args[0], args.data());
     std::fprintf(stderr, "toonforce-guardian: cannot start %s (%s)\n", args[0], std::strerror(errno));
   }
-  std::fprintf(stderr, "guardian: the loop's process (pid %d) ended during the loop: %s; %s\n", static_cast<int>(loop_pid),
-               outcome.cause.c_str(), outcome.zero_detail.c_str());
+  std::fprintf(stderr, "guardian: the loop's process (pid %d) ended during the loop: %s; %s\n",
+               static_cast<int>(loop_pid), outcome.cause.c_str(), outcome.zero_detail.c_str());
   return exit_status;
 }

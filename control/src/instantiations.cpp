@@ -7,14 +7,14 @@
 
 // S is a template argument: parentheses would not compile.
 // NOLINTBEGIN(bugprone-macro-parentheses)
-#define TOONFORCE_DEFINE_CONTROL(S)                                                                    \
-  template class ::toonforce::VelocityEstimator<S>;                                                    \
-  template class ::toonforce::ForceSafety<S>;                                                          \
-  template class ::toonforce::ThermalModel<S>;                                                         \
-  template class ::toonforce::Wide<S>;                                                                 \
-  template class ::toonforce::Engage<S>;                                                               \
-  template class ::toonforce::MotionLimits<S>;                                                         \
-  template class ::toonforce::ServoLoop<::toonforce::DriverRef, ::toonforce::RuntimeScene<S>>;         \
+#define TOONFORCE_DEFINE_CONTROL(S)                                                                                  \
+  template class ::toonforce::VelocityEstimator<S>;                                                                  \
+  template class ::toonforce::ForceSafety<S>;                                                                        \
+  template class ::toonforce::ThermalModel<S>;                                                                       \
+  template class ::toonforce::Wide<S>;                                                                               \
+  template class ::toonforce::Engage<S>;                                                                             \
+  template class ::toonforce::MotionLimits<S>;                                                                       \
+  template class ::toonforce::ServoLoop<::toonforce::DriverRef, ::toonforce::RuntimeScene<S>>;                       \
   template class ::toonforce::ServoLoop<::toonforce::DriverRef, ::toonforce::RuntimeScene<S>, ::toonforce::NullPins, \
                                         ::toonforce::kSpecStages>;
 // NOLINTEND(bugprone-macro-parentheses)

@@ -56,7 +56,8 @@ extern "C" void* continue_on_guardian_death(void* guardian) {
 
 Result<std::string> guardian_program_path() {
   const std::string here = self_directory();
-  for (const std::string& candidate : {here + "/toonforce-guardian", here + "/../libexec/toonforce/toonforce-guardian"}) {
+  for (const std::string& candidate :
+       {here + "/toonforce-guardian", here + "/../libexec/toonforce/toonforce-guardian"}) {
     if (!here.empty() && ::access(candidate.c_str(), X_OK) == 0) return candidate;
   }
   return Error{fmt::format("the guardian program toonforce-guardian is not beside {} (nor in ../libexec/toonforce/): "
@@ -68,16 +69,23 @@ Result<guardian::SharedPage*> split_off_guardian(const GuardianStart& start) {
   int fd = -1;
   guardian::SharedPage* page = guardian::create_shared_page(fd);
   if (page == nullptr) {
-    return Error{fmt::format("cannot make the page shared with the guardian process: {} (--no-guardian runs without it)",
-                             std::strerror(errno))};
+    return Error{
+        fmt::format("cannot make the page shared with the guardian process: {} (--no-guardian runs without it)",
+                    std::strerror(errno))};
   }
   // The guardian's arguments, made before the fork (the parent only execs after it).
   const pid_t guardian_pid = getpid();
   page->guardian_pid = guardian_pid;
-  std::vector<std::string> args{start.program, "--page-fd", std::to_string(fd), "--stall-limit-ms",
-                                fmt::format("{:.0f}", start.stall_limit_ms), "--priority", std::to_string(start.priority)};
+  std::vector<std::string> args{start.program,
+                                "--page-fd",
+                                std::to_string(fd),
+                                "--stall-limit-ms",
+                                fmt::format("{:.0f}", start.stall_limit_ms),
+                                "--priority",
+                                std::to_string(start.priority)};
   if (!start.enable_chip.empty()) {
-    args.insert(args.end(), {"--enable-chip", start.enable_chip, "--enable-offset", std::to_string(start.enable_offset)});
+    args.insert(args.end(),
+                {"--enable-chip", start.enable_chip, "--enable-offset", std::to_string(start.enable_offset)});
     if (start.enable_active_low) args.emplace_back("--enable-active-low");
   }
   args.emplace_back("--loop-pid");
@@ -103,7 +111,8 @@ Result<guardian::SharedPage*> split_off_guardian(const GuardianStart& start) {
     sigprocmask(SIG_SETMASK, &before, nullptr);
     ::close(fd);
     guardian::unmap_shared_page(page);
-    return Error{fmt::format("cannot start the loop's process: {} (--no-guardian runs without it)", std::strerror(error))};
+    return Error{
+        fmt::format("cannot start the loop's process: {} (--no-guardian runs without it)", std::strerror(error))};
   }
   if (loop == 0) {
     // The loop's process: SIGTERM when the guardian dies (it stops with zero force, as on any
@@ -119,7 +128,8 @@ Result<guardian::SharedPage*> split_off_guardian(const GuardianStart& start) {
   if (flags >= 0) fcntl(fd, F_SETFD, flags & ~FD_CLOEXEC);
   ::execv(argv[0], argv.data());
   const int error = errno;
-  std::fprintf(stderr, "cannot start the guardian program %s: %s; the loop does not start\n", argv[0], std::strerror(error));
+  std::fprintf(stderr, "cannot start the guardian program %s: %s; the loop does not start\n", argv[0],
+               std::strerror(error));
   page->guardian_ready.store(2, std::memory_order_release);
   int status = 0;
   ::waitpid(loop, &status, 0);

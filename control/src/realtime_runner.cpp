@@ -149,10 +149,9 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
     } else if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
       setup.memory_locked = true;
     } else {
-      setup.notes += fmt::format(
-          "mlockall failed ({}): page faults may stall the loop; raise 'memlock' in "
-          "/etc/security/limits.d or grant CAP_IPC_LOCK\n",
-          std::strerror(errno));
+      setup.notes += fmt::format("mlockall failed ({}): page faults may stall the loop; raise 'memlock' in "
+                                 "/etc/security/limits.d or grant CAP_IPC_LOCK\n",
+                                 std::strerror(errno));
     }
   }
 
@@ -172,8 +171,8 @@ Result<RunReport> run_realtime(PeriodicTask& task, const RealtimeOptions& option
       ready.set_value(realtime_permission_advice(options.priority));
       return;
     } else {
-      setup.notes += fmt::format("running WITHOUT real-time scheduling: SCHED_FIFO {} refused ({})\n",
-                                 options.priority, std::strerror(fifo_error));
+      setup.notes += fmt::format("running WITHOUT real-time scheduling: SCHED_FIFO {} refused ({})\n", options.priority,
+                                 std::strerror(fifo_error));
     }
     if (options.cpu >= 0) {
       const int pin_error = pin_to(options.cpu);
@@ -332,7 +331,7 @@ void zero_device(void* device) noexcept { static_cast<DeviceDriver*>(device)->em
 Result<RunReport> run_device_clocked(PeriodicTask& task, DeviceDriver& device, const RealtimeOptions& options,
                                      const std::atomic<int>& stop) {
   auto report = std::make_unique<RunReport>();  // histograms allocated here, before the loop
-  report->setup.priority = -1;  // the device's thread: its priority is not ours to set
+  report->setup.priority = -1;                  // the device's thread: its priority is not ours to set
   report->setup.notes = "wake-up latency here is the jitter of the device scheduler's period\n";
   if (options.lock_memory && !kSanitized) {
     report->setup.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
@@ -474,7 +473,7 @@ constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGSY
 
 /// What each stop signal did before install_signal_handlers: restore_signals puts it back, so
 /// a caller's own stop path (the viewer's, around the run) stays in place after the loop.
-struct sigaction g_old_stop[std::size(kStopSignals)] {};
+struct sigaction g_old_stop[std::size(kStopSignals)]{};
 
 }  // namespace
 
@@ -495,7 +494,7 @@ void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   g_direct_copy_expected.store(0, std::memory_order_relaxed);
   g_emergency = emergency;
   static_cast<void>(use_alternate_signal_stack());  // this thread's; the others install their own
-  struct sigaction action{};
+  struct sigaction action {};
   sigemptyset(&action.sa_mask);
   action.sa_sigaction = on_stop_signal;
   // Restarted: a write of the trace under way when the signal comes completes (the loop polls
@@ -508,7 +507,7 @@ void install_signal_handlers(std::atomic<int>& stop, EmergencyZero emergency) {
   action.sa_flags = static_cast<int>(SA_RESETHAND | SA_ONSTACK);
   for (const int s : kFatalSignals) sigaction(s, &action, nullptr);
   // A closed pipe (`--trace - | head`) is a write error that the writer reports, never a death.
-  struct sigaction ignore{};
+  struct sigaction ignore {};
   sigemptyset(&ignore.sa_mask);
   ignore.sa_handler = SIG_IGN;
   sigaction(SIGPIPE, &ignore, &g_old_pipe);

@@ -37,7 +37,8 @@ std::string check_servo_config(const ServoConfig& config) {
   if (!finite_positive(config.velocity_cutoff_hz)) problem("velocity_cutoff must be > 0");
   const ForceLimits& limits = config.limits;
   if (limits.has_max_force && !finite_positive(limits.max_force_n)) problem("max_force must be > 0");
-  if (limits.has_max_force_rate && !finite_positive(limits.max_force_rate_n_per_s)) problem("max_force_rate must be > 0");
+  if (limits.has_max_force_rate && !finite_positive(limits.max_force_rate_n_per_s))
+    problem("max_force_rate must be > 0");
   const SafetyConfig& s = config.safety;
   if (!(std::isfinite(s.engage_force_n) && s.engage_force_n > 0.0)) problem("engage_force must be > 0");
   if (!(std::isfinite(s.soft_start_s) && s.soft_start_s >= 0.0)) problem("soft_start must be >= 0");
@@ -51,7 +52,8 @@ std::string check_servo_config(const ServoConfig& config) {
   if (s.thermal.enabled()) {
     if (!std::isfinite(s.thermal.continuous_force_n)) problem("continuous_force must be finite");
     if (!finite_positive(s.thermal.time_constant_s)) problem("thermal_time_constant must be > 0");
-    if (!(s.thermal.derate_start >= 0.0 && s.thermal.derate_start < 1.0)) problem("thermal_derate_start must be in [0, 1)");
+    if (!(s.thermal.derate_start >= 0.0 && s.thermal.derate_start < 1.0))
+      problem("thermal_derate_start must be in [0, 1)");
     if (!limits.has_max_force) problem("the thermal model needs a max_force (from the scene or the device)");
   }
   if (!finite_positive(s.passivity.budget_j)) problem("passivity_budget must be > 0");

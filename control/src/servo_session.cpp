@@ -98,7 +98,8 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
   std::thread commands;
   if (session.interactive) {
     // fputs, not fmt::print: a failed write must not throw past the joinable writer thread.
-    std::fputs("running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n", options.messages);
+    std::fputs("running; type q and Enter (or Ctrl-C) to stop, r and Enter to re-arm after a fault\n",
+               options.messages);
     commands = std::thread([&] {
       static_cast<void>(use_alternate_signal_stack());
       read_commands(rearm, g_stop, finished);

@@ -75,9 +75,10 @@ std::optional<HandIntent> HandIntent::plan(const HandScript& script, PlanError& 
           p.duration_s = *s.duration_s;
         } else if (s.speed_m_per_s) {
           if (p.length_m == 0.0) {
-            return fail(i, "to", fmt::format("is where the hand already is ([{}, {}, {}]): a move there at a "
-                                             "speed takes no time; use hold to wait",
-                                             here.x, here.y, here.z));
+            return fail(i, "to",
+                        fmt::format("is where the hand already is ([{}, {}, {}]): a move there at a "
+                                    "speed takes no time; use hold to wait",
+                                    here.x, here.y, here.z));
           }
           p.duration_s = p.length_m / *s.speed_m_per_s;
         }
@@ -92,8 +93,9 @@ std::optional<HandIntent> HandIntent::plan(const HandScript& script, PlanError& 
         p.to_m = s.to_m;
         p.length_m = length(p.to_m - p.from_m);
         if (!(p.length_m > 0.0)) {
-          return fail(i, "to", fmt::format("is where the hand already is ([{}, {}, {}]): a {} needs a path",
-                                           here.x, here.y, here.z, segment_kind_name(s.kind)));
+          return fail(i, "to",
+                      fmt::format("is where the hand already is ([{}, {}, {}]): a {} needs a path", here.x, here.y,
+                                  here.z, segment_kind_name(s.kind)));
         }
         p.law = Law::kCruise;
         p.direction = (p.to_m - p.from_m) * (1.0 / p.length_m);
@@ -106,11 +108,12 @@ std::optional<HandIntent> HandIntent::plan(const HandScript& script, PlanError& 
         const double d_out = p.t_out_s * 0.5 * (p.v_cruise + p.v_out);
         const double d_cruise = p.length_m - d_in - d_out;
         if (d_cruise < 0.0) {
-          return fail(i, "to", fmt::format("the path is {:.4g} m long, but changing speed from {:.4g} to {:.4g} m/s{} "
-                                           "over ramp = {:.4g} s takes {:.4g} m: move `to` further, or shorten the "
-                                           "ramp, or lower the speed",
-                                           p.length_m, p.v_in, p.v_cruise, s.stop ? " and stopping" : "", s.ramp_s,
-                                           d_in + d_out));
+          return fail(
+              i, "to",
+              fmt::format("the path is {:.4g} m long, but changing speed from {:.4g} to {:.4g} m/s{} "
+                          "over ramp = {:.4g} s takes {:.4g} m: move `to` further, or shorten the "
+                          "ramp, or lower the speed",
+                          p.length_m, p.v_in, p.v_cruise, s.stop ? " and stopping" : "", s.ramp_s, d_in + d_out));
         }
         p.t_cruise_s = d_cruise / p.v_cruise;
         p.duration_s = p.t_in_s + p.t_cruise_s + p.t_out_s;
@@ -220,8 +223,7 @@ HandTarget HandIntent::at(double t_s) const noexcept {
   cursor_ = i;
   const Planned& p = segments_[i];
   const double into = t_s - p.t0_s;
-  const bool after_script = i + 1 == segments_.size() && into >= p.duration_s &&
-                            segments_[i].law != Law::kStill;
+  const bool after_script = i + 1 == segments_.size() && into >= p.duration_s && segments_[i].law != Law::kStill;
   double s = 0.0;
   double v = 0.0;
   progress(p, into, s, v);

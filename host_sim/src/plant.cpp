@@ -89,13 +89,12 @@ Plant::Plant(const DeviceParams& device, HandIntent intent, const PlantOptions& 
       for (std::size_t c = 0; c < 4; ++c) l.transition[r][c] = e[r][c];
     }
 
-    const double friction_rate = device_.coulomb_n > 0.0
-                                     ? device_.coulomb_n / device_.coulomb_smoothing_m_per_s / l.mass_kg
-                                     : 0.0;
-    const double rate = options_.integrator == Integrator::kExact
-                            ? friction_rate
-                            : std::max(std::sqrt(l.stiffness_n_per_m / l.mass_kg),
-                                       l.damping_n_s_per_m / l.mass_kg + friction_rate);
+    const double friction_rate =
+        device_.coulomb_n > 0.0 ? device_.coulomb_n / device_.coulomb_smoothing_m_per_s / l.mass_kg : 0.0;
+    const double rate =
+        options_.integrator == Integrator::kExact
+            ? friction_rate
+            : std::max(std::sqrt(l.stiffness_n_per_m / l.mass_kg), l.damping_n_s_per_m / l.mass_kg + friction_rate);
     fastest_rate_per_s_ = std::max(fastest_rate_per_s_, rate);
   }
 }
@@ -115,11 +114,11 @@ Result<Plant> Plant::create(const DeviceParams& device, HandIntent intent, const
   const double h = plant.h_s_;
   if (h * plant.fastest_rate_per_s_ > 1.0) {
     const double needed = std::ceil(options.period_s * plant.fastest_rate_per_s_);
-    return Error{fmt::format(
-        "a sub-step of {:.3g} ms is too long for {} with the {} integrator: the device and hand "
-        "have a rate of {:.0f}/s (friction smoothing and damping over the moving mass, or the hand "
-        "spring), and a step must stay below its inverse; use --substeps {} or more",
-        h * 1e3, device.name, integrator_name(options.integrator), plant.fastest_rate_per_s_, needed)};
+    return Error{
+        fmt::format("a sub-step of {:.3g} ms is too long for {} with the {} integrator: the device and hand "
+                    "have a rate of {:.0f}/s (friction smoothing and damping over the moving mass, or the hand "
+                    "spring), and a step must stay below its inverse; use --substeps {} or more",
+                    h * 1e3, device.name, integrator_name(options.integrator), plant.fastest_rate_per_s_, needed)};
   }
   plant.x_ = plant.intent_.start_m();
   return plant;
@@ -151,8 +150,7 @@ Vec3<double> Plant::input(const Linear& l, bool grasping, double t_s, const Vec3
   Vec3<double> u = force_n - coulomb(v);
   if (grasping) {
     const HandTarget& target = target_at(t_s);
-    u += target.position_m * l.stiffness_n_per_m + target.velocity_m_per_s * l.hand_damping_n_s_per_m +
-         target.force_n;
+    u += target.position_m * l.stiffness_n_per_m + target.velocity_m_per_s * l.hand_damping_n_s_per_m + target.force_n;
   }
   return u;
 }

@@ -79,9 +79,9 @@ class EmulatedPerson final : public Operator {
     }
     if (r.id == "falcon.encoders") {
       // Corners of a box inside the workspace, 30 polls each, then back to the centre.
-      static const Vec3<double> kCorners[] = {
-          {-0.045, -0.045, 0.085}, {0.045, -0.045, 0.085}, {0.045, 0.045, 0.085}, {-0.045, 0.045, 0.085},
-          {-0.045, -0.045, 0.150}, {0.045, -0.045, 0.150}, {0.045, 0.045, 0.150}, {-0.045, 0.045, 0.150}};
+      static const Vec3<double> kCorners[] = {{-0.045, -0.045, 0.085}, {0.045, -0.045, 0.085},  {0.045, 0.045, 0.085},
+                                              {-0.045, 0.045, 0.085},  {-0.045, -0.045, 0.150}, {0.045, -0.045, 0.150},
+                                              {0.045, 0.045, 0.150},   {-0.045, 0.045, 0.150}};
       const int corner = n / 30;
       if (corner < 8) {
         if (n % 30 == 0) emu_.set_grip_position(kCorners[corner]);
@@ -110,9 +110,9 @@ class EmulatedPerson final : public Operator {
     }
     if (r.id.rfind("falcon.button.", 0) == 0) {
       static const std::map<std::string, std::uint8_t> kBits{{"falcon.button.plus", falcon::kButtonPlus},
-                                                            {"falcon.button.forward", falcon::kButtonForward},
-                                                            {"falcon.button.centre", falcon::kButtonCentre},
-                                                            {"falcon.button.minus", falcon::kButtonMinus}};
+                                                             {"falcon.button.forward", falcon::kButtonForward},
+                                                             {"falcon.button.centre", falcon::kButtonCentre},
+                                                             {"falcon.button.minus", falcon::kButtonMinus}};
       const auto it = kBits.find(r.id);
       emu_.set_buttons(it != kBits.end() ? it->second : 0);  // ".release": let go
       return Progress::kWaiting;
@@ -126,7 +126,9 @@ class EmulatedPerson final : public Operator {
     if (r.id.rfind("falcon.led.", 0) == 0) {
       // Looks at the LED: the colour named in the question, alone?
       const std::string colour = r.id.substr(std::string("falcon.led.").size());
-      const std::uint8_t bit = colour == "red" ? falcon::kLedRed : colour == "green" ? falcon::kLedGreen : falcon::kLedBlue;
+      const std::uint8_t bit = colour == "red"     ? falcon::kLedRed
+                               : colour == "green" ? falcon::kLedGreen
+                                                   : falcon::kLedBlue;
       return std::string(emu_.led() == bit ? "y" : "n");
     }
     return std::nullopt;
@@ -203,7 +205,8 @@ TEST_F(FalconBringup, AHealthyFalconPassesEveryStep) {
   ASSERT_EQ(r.steps.size(), std::size(kFalconSteps));
   for (std::size_t i = 0; i < r.steps.size(); ++i) {
     EXPECT_EQ(r.steps[i].id, kFalconSteps[i]);
-    EXPECT_EQ(r.steps[i].outcome, Outcome::kPass) << r.steps[i].id << ": " << r.steps[i].finding << " | " << r.steps[i].next;
+    EXPECT_EQ(r.steps[i].outcome, Outcome::kPass)
+        << r.steps[i].id << ": " << r.steps[i].finding << " | " << r.steps[i].next;
   }
   EXPECT_TRUE(r.passed());
   EXPECT_EQ(r.target, "serial FTEMU0001, emulated usb 001/005");
@@ -244,7 +247,8 @@ TEST_F(FalconBringup, AMotorWiredBackwardsIsCaughtByTheMotorStepWhichNamesItAndC
   }
   EXPECT_GT(arm2_pulse, 0u);
   EXPECT_LT(arm2_pulse, 50u) << "stopped within a few ticks of turning the wrong way, not at the pulse's end";
-  for (std::size_t k = last_torque + 1; k < log.size(); ++k) ASSERT_EQ(log[k].motor, (std::array<std::int16_t, 3>{0, 0, 0}));
+  for (std::size_t k = last_torque + 1; k < log.size(); ++k)
+    ASSERT_EQ(log[k].motor, (std::array<std::int16_t, 3>{0, 0, 0}));
   EXPECT_EQ(log.back().motor, (std::array<std::int16_t, 3>{0, 0, 0}));
 }
 

@@ -29,9 +29,7 @@ std::string text_of(const Frame& f) { return std::string(f.begin(), f.end()); }
 
 // ---- vectors from FALCON.md §3 "Test vectors" ----
 
-TEST(FalconCodec, IdleCommandIsAllA) {
-  EXPECT_EQ(text_of(encode_command(Command{})), "<AAAAAAAAAAAAAA>");
-}
+TEST(FalconCodec, IdleCommandIsAllA) { EXPECT_EQ(text_of(encode_command(Command{})), "<AAAAAAAAAAAAAA>"); }
 
 TEST(FalconCodec, HomingCommandSetsByte13ToB) {
   Command c;
@@ -41,8 +39,8 @@ TEST(FalconCodec, HomingCommandSetsByte13ToB) {
 
 TEST(FalconCodec, ReferenceCommandWithGreenAndHoming) {
   Command c{{1, -1, 4095}, kLedGreen | kHomingRequest, 0};
-  EXPECT_EQ(encode_command(c), frame_of({0x3C, 0x42, 0x41, 0x41, 0x41, 0x50, 0x50, 0x50, 0x50, 0x50, 0x50, 0x50, 0x41,
-                                         0x44, 0x41, 0x3E}));
+  EXPECT_EQ(encode_command(c),
+            frame_of({0x3C, 0x42, 0x41, 0x41, 0x41, 0x50, 0x50, 0x50, 0x50, 0x50, 0x50, 0x50, 0x41, 0x44, 0x41, 0x3E}));
 }
 
 TEST(FalconCodec, ReferenceCommandWithExtremeWordsAndRed) {
@@ -61,7 +59,8 @@ TEST(FalconCodec, ReferenceStatusEncodersNotHomed) {
 }
 
 TEST(FalconCodec, ReferenceStatusPlusButtonAllHomedHasByte13AboveP) {
-  const Frame f = frame_of({0x3C, 0x4D, 0x50, 0x4E, 0x50, 0x4D, 0x50, 0x4E, 0x50, 0x4D, 0x50, 0x4E, 0x50, 0xB2, 0x41, 0x3E});
+  const Frame f =
+      frame_of({0x3C, 0x4D, 0x50, 0x4E, 0x50, 0x4D, 0x50, 0x4E, 0x50, 0x4D, 0x50, 0x4E, 0x50, 0xB2, 0x41, 0x3E});
   Status s;
   ASSERT_TRUE(decode_status(f, s));
   EXPECT_EQ(s.encoder, (std::array<std::int16_t, 3>{-516, -516, -516}));
@@ -80,7 +79,8 @@ TEST(FalconCodec, HeaderDocExampleJfkpIsMinus1447) {
 
 TEST(FalconCodec, CapturedNovintPacketDecodes) {
   // util/translate_packet.py, F = (0, 0, -100): V = (4095, 3906, 4034), blue LED.
-  const Frame f = frame_of({0x3C, 0x50, 0x50, 0x50, 0x41, 0x43, 0x45, 0x50, 0x41, 0x43, 0x4D, 0x50, 0x41, 0x45, 0x41, 0x3E});
+  const Frame f =
+      frame_of({0x3C, 0x50, 0x50, 0x50, 0x41, 0x43, 0x45, 0x50, 0x41, 0x43, 0x4D, 0x50, 0x41, 0x45, 0x41, 0x3E});
   Command c;
   ASSERT_TRUE(decode_command(f, c));
   EXPECT_EQ(c.motor, (std::array<std::int16_t, 3>{4095, 3906, 4034}));

@@ -28,7 +28,8 @@ const Vec3<double> kCentre{0.0, 0.0, 0.110};
 constexpr double kCountTolerance_m = 1e-4;  // a few encoder counts anywhere in the workspace
 
 struct Rig {
-  explicit Rig(EmulatorOptions o = with_firmware(), const FalconOptions& f = FalconOptions()) : emu(std::move(o)), options(f) {
+  explicit Rig(EmulatorOptions o = with_firmware(), const FalconOptions& f = FalconOptions())
+      : emu(std::move(o)), options(f) {
     auto t = std::make_unique<EmulatorTransport>(emu);
     transport = t.get();
     EXPECT_EQ(ftdi::enter_normal_mode(*t), TransportStatus::kOk);
@@ -79,7 +80,7 @@ TEST(FalconDriver, NotReadyWithRedLedUntilHomedThenGreenAndPositions) {
   EXPECT_EQ(rig.tick(), DeviceStatus::kNotReady);
   EXPECT_FALSE(rig.emu.homed());
   rig.emu.set_grip_position({0.0, 0.0, 0.095});  // straight back in
-  rig.tick();  // this command is the one that completes homing in the emulator
+  rig.tick();                                    // this command is the one that completes homing in the emulator
   EXPECT_EQ(rig.tick(), DeviceStatus::kOk);
   EXPECT_TRUE(rig.driver->homed());
   EXPECT_EQ(rig.emu.last_command().flags, kHomingRequest | kLedGreen);

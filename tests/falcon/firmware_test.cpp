@@ -85,7 +85,8 @@ TEST(FalconFirmware, RejectsEachStructuralFault) {
 
   auto no_terminator = good;
   no_terminator.resize(good.size() - 2);
-  EXPECT_NE(parse_boot_table(no_terminator).error().find("without the terminating zero-length block"), std::string::npos);
+  EXPECT_NE(parse_boot_table(no_terminator).error().find("without the terminating zero-length block"),
+            std::string::npos);
 
   auto trailing = good;
   trailing.push_back(0x12);
@@ -214,16 +215,24 @@ TEST(FalconFirmwareLoad, SendsTheFtdiSequenceOfTheReference) {
   EmulatorTransport t(emu);
   ASSERT_TRUE(load_firmware(t, image));
   using R = std::pair<std::uint8_t, std::uint16_t>;
-  const std::vector<R> expected_prefix{
-      {ftdi::kReset, ftdi::kPurgeRx},         {ftdi::kReset, ftdi::kPurgeTx},
-      {ftdi::kLatencyTimer, 16},               {ftdi::kBaudDivisor, 0x4138},
-      {ftdi::kDataFormat, 0x0008},             {ftdi::kFlowControl, 0},
-      {ftdi::kModemControl, ftdi::kRtsLow},    {ftdi::kModemControl, ftdi::kDtrLow},
-      {ftdi::kModemControl, ftdi::kDtrHigh},   {ftdi::kModemControl, ftdi::kDtrLow},
-      {ftdi::kBaudDivisor, 0x0015},            {ftdi::kReset, ftdi::kPurgeRx},
-      {ftdi::kLatencyTimer, 1},                {ftdi::kBaudDivisor, 0x0002},
-      {ftdi::kDataFormat, 0x0008},             {ftdi::kFlowControl, 0},
-      {ftdi::kReset, ftdi::kPurgeRx},          {ftdi::kReset, ftdi::kPurgeTx}};
+  const std::vector<R> expected_prefix{{ftdi::kReset, ftdi::kPurgeRx},
+                                       {ftdi::kReset, ftdi::kPurgeTx},
+                                       {ftdi::kLatencyTimer, 16},
+                                       {ftdi::kBaudDivisor, 0x4138},
+                                       {ftdi::kDataFormat, 0x0008},
+                                       {ftdi::kFlowControl, 0},
+                                       {ftdi::kModemControl, ftdi::kRtsLow},
+                                       {ftdi::kModemControl, ftdi::kDtrLow},
+                                       {ftdi::kModemControl, ftdi::kDtrHigh},
+                                       {ftdi::kModemControl, ftdi::kDtrLow},
+                                       {ftdi::kBaudDivisor, 0x0015},
+                                       {ftdi::kReset, ftdi::kPurgeRx},
+                                       {ftdi::kLatencyTimer, 1},
+                                       {ftdi::kBaudDivisor, 0x0002},
+                                       {ftdi::kDataFormat, 0x0008},
+                                       {ftdi::kFlowControl, 0},
+                                       {ftdi::kReset, ftdi::kPurgeRx},
+                                       {ftdi::kReset, ftdi::kPurgeTx}};
   const auto& log = emu.ftdi().log;
   ASSERT_GE(log.size(), expected_prefix.size());
   EXPECT_EQ(std::vector<R>(log.begin(), log.begin() + static_cast<std::ptrdiff_t>(expected_prefix.size())),
@@ -268,8 +277,7 @@ TEST(FalconFirmwareLoad, AWrongAutobaudAnswerNamesTheBytesReceived) {
   options.attempts = 1;
   auto report = load_firmware(t, image, options);
   ASSERT_FALSE(report);
-  EXPECT_NE(report.error().find("answered the autobaud 'A' with 0x42 0x41 instead of echoing 0x41"),
-            std::string::npos)
+  EXPECT_NE(report.error().find("answered the autobaud 'A' with 0x42 0x41 instead of echoing 0x41"), std::string::npos)
       << report.error();
   EXPECT_EQ(report.error().find("0x41 instead of 0x41"), std::string::npos) << report.error();
 }
@@ -325,9 +333,9 @@ TEST(FalconFirmwareLoad, GivesUpAfterTheAttemptsAndListsEveryFailure) {
   auto report = load_firmware(t, image, options);
   ASSERT_FALSE(report);
   EXPECT_EQ(emu.loads_completed(), 3u);
-  for (const char* line : {"try 1: the whole image was echoed, but the firmware does not answer",
-                           "try 2: the whole image was echoed", "try 3: the whole image was echoed",
-                           "failed after 3 tries", "What to do: unplug the Falcon's power supply"}) {
+  for (const char* line :
+       {"try 1: the whole image was echoed, but the firmware does not answer", "try 2: the whole image was echoed",
+        "try 3: the whole image was echoed", "failed after 3 tries", "What to do: unplug the Falcon's power supply"}) {
     EXPECT_NE(report.error().find(line), std::string::npos) << line << "\n" << report.error();
   }
 }
@@ -343,7 +351,8 @@ TEST(FalconFirmwareLoad, BootLoaderSilentOnABadKeySoTheLoadFails) {
   options.echo_idle_reads = 3;
   auto report = load_firmware(t, image, options);
   ASSERT_FALSE(report);
-  EXPECT_NE(report.error().find("no echo from the boot loader after image byte 1"), std::string::npos) << report.error();
+  EXPECT_NE(report.error().find("no echo from the boot loader after image byte 1"), std::string::npos)
+      << report.error();
   EXPECT_EQ(emu.state(), BootState::kRejected);
 }
 

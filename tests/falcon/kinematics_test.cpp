@@ -156,8 +156,8 @@ TEST(FalconKinematics, UnreachableTargetKeepsThePreviousEstimate) {
 // ---- the Jacobian ----
 
 TEST(FalconKinematics, AngleJacobianMatchesFiniteDifferences) {
-  const Vec3<double> points[] = {{0, 0, 0.11}, {0.03, 0.02, 0.12}, {-0.04, 0.01, 0.09}, {0.02, -0.045, 0.15},
-                                 {-0.03, -0.03, 0.1}};
+  const Vec3<double> points[] = {
+      {0, 0, 0.11}, {0.03, 0.02, 0.12}, {-0.04, 0.01, 0.09}, {0.02, -0.045, 0.15}, {-0.03, -0.03, 0.1}};
   for (const auto& p : points) {
     Mat3 analytic;
     ASSERT_TRUE(angle_jacobian(kGeometry, p, ik(p), analytic));

@@ -14,7 +14,8 @@ namespace toonforce::falcon::test {
 
 /// Key 0x08AA, 8 reserved words, entry point 0x003F8002 (high word first), one block per entry
 /// of `block_words` (length, 32-bit destination, data), then the zero-length terminator.
-inline std::vector<std::uint8_t> make_boot_image(std::initializer_list<std::size_t> block_words, std::uint32_t seed = 1) {
+inline std::vector<std::uint8_t> make_boot_image(std::initializer_list<std::size_t> block_words,
+                                                 std::uint32_t seed = 1) {
   std::vector<std::uint8_t> out;
   const auto word = [&out](std::uint16_t w) {
     out.push_back(static_cast<std::uint8_t>(w & 0xFF));

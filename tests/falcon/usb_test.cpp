@@ -58,9 +58,9 @@ class FalconUsb : public ::testing::Test {
     bed_ = std::make_unique<UsbfsEmulator>();
     // open_falcon() reads the calibration of each Falcon from the user's config directory: an
     // empty one of our own keeps the tests from depending on that of whoever runs them.
-    config_home_ = std::filesystem::temp_directory_path() /
-                   ("toonforce_usb_config_" + std::to_string(::getpid()) + "_" +
-                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    config_home_ =
+        std::filesystem::temp_directory_path() / ("toonforce_usb_config_" + std::to_string(::getpid()) + "_" +
+                                                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(config_home_);
     ::setenv("XDG_CONFIG_HOME", config_home_.c_str(), 1);
   }
@@ -195,7 +195,8 @@ TEST_F(FalconUsb, ABadCalibrationFileStopsTheOpenNamingItsLine) {
   options.read_calibration = &read_falcon_calibration;
   auto opened = open_falcon(options);
   ASSERT_FALSE(opened);
-  EXPECT_NE(opened.error().find(path + ":2: words_per_newton_metre: 12 is outside"), std::string::npos) << opened.error();
+  EXPECT_NE(opened.error().find(path + ":2: words_per_newton_metre: 12 is outside"), std::string::npos)
+      << opened.error();
 }
 
 TEST_F(FalconUsb, OpeningWithoutFirmwareSaysHowToLoadIt) {
@@ -473,7 +474,8 @@ TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
   const auto base = config_home_ / "report";
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 300 --homing-timeout 30 "
-      "--report " + base.string());
+      "--report " +
+      base.string());
   EXPECT_EQ(r.status, 0) << r.output;
   for (const char* line : {"[pass] Found and may be opened: found at usb 001/005", "[pass] Firmware: firmware runs",
                            "[pass] Homing: all three axes report homed", " replies to 300 commands",
@@ -482,7 +484,9 @@ TEST_F(FalconUsb, BringupRunsEndToEndThroughTheCommandLine) {
   }
   const std::string json = read_text(base.string() + ".json");
   EXPECT_NE(json.find("\"passed\": true"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"id\": \"motors\", \"title\": \"Motor direction\", \"outcome\": \"skipped\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"id\": \"motors\", \"title\": \"Motor direction\", \"outcome\": \"skipped\""),
+            std::string::npos)
+      << json;
   const std::string md = read_text(base.string() + ".md");
   EXPECT_NE(md.find("| USB round trip at 1 kHz | pass |"), std::string::npos) << md;
   // The step passes with up to 1 % of replies lost (a loaded host's late wake-up in umockdev's
@@ -500,7 +504,8 @@ TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAnAxisThatNeverHomes) {
   const auto base = config_home_ / "report";
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,timing --timing-ticks 100 --homing-timeout 2 "
-      "--report " + base.string());
+      "--report " +
+      base.string());
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("[FAIL] Homing: homing never completed after 2 s: arm 1 (top), arm 2 (right) reported "
                           "homed, arm 3 (left) never did"),
@@ -519,7 +524,8 @@ TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAMotorWiredBackwards) {
   std::filesystem::create_directories(config_home_);
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware,homing,motors --answer falcon.motors.hold=done "
-      "--homing-timeout 30 --report " + (config_home_ / "report").string());
+      "--homing-timeout 30 --report " +
+      (config_home_ / "report").string());
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("[FAIL] Motor direction: arm 1 (top) turned the wrong way"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("Forces were set to zero at once"), std::string::npos) << r.output;
@@ -529,9 +535,9 @@ TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAMotorWiredBackwards) {
 TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --only homeing");
   EXPECT_EQ(r.status, 2) << r.output;
-  EXPECT_NE(r.output.find("no bring-up step 'homeing' (the steps are: found, firmware, homing"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no bring-up step 'homeing' (the steps are: found, firmware, homing"), std::string::npos)
+      << r.output;
 }
-
 
 // ---- the guardian: the Falcon zeroed from outside the process that drove it ----
 
@@ -545,7 +551,8 @@ TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) 
   home(*d);
   DeviceReading r;
   for (int i = 0; i < 5; ++i) tick(*d, r, {0.0, 0.0, 4.0});
-  bed_->with(0, [](FalconEmulator& e) { ASSERT_GT(norm(e.motor_force_n()), 1.0) << "the motors push before the kill"; });
+  bed_->with(0,
+             [](FalconEmulator& e) { ASSERT_GT(norm(e.motor_force_n()), 1.0) << "the motors push before the kill"; });
   const ExternalZero zero = d->external_zero();
   ASSERT_EQ(zero.kind, ExternalZero::Kind::kUsbBulk);
   EXPECT_EQ(std::string(zero.usbfs_node), bed_->devnode(0));
@@ -556,7 +563,8 @@ TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) 
   EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
   EXPECT_GE(run.outcome.zero_ns, run.killed_ns);
   // For tools/bench/guardian-kill (a time, never asserted):
-  std::printf("guardian kill to zero (falcon): %.3f ms\n", static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
+  std::printf("guardian kill to zero (falcon): %.3f ms\n",
+              static_cast<double>(run.outcome.zero_ns - run.killed_ns) * 1e-6);
   bed_->with(0, [](FalconEmulator& e) {
     EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "the last frame the Falcon got";
     EXPECT_EQ(norm(e.motor_force_n()), 0.0);
@@ -598,7 +606,8 @@ TEST_F(FalconUsb, AForgedNodeInThePageIsNeverOpenedByTheGuardian) {
   const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(forged, nullptr);
   EXPECT_TRUE(run.outcome.loop_died);
   EXPECT_FALSE(run.outcome.zero_sent);
-  EXPECT_NE(run.outcome.warnings.find("'/etc/shadow' is not a USB device node"), std::string::npos) << run.outcome.warnings;
+  EXPECT_NE(run.outcome.warnings.find("'/etc/shadow' is not a USB device node"), std::string::npos)
+      << run.outcome.warnings;
   EXPECT_NE(run.outcome.zero_detail.find("could not be reached"), std::string::npos) << run.outcome.zero_detail;
 }
 

@@ -89,7 +89,8 @@ void stream_accounting(Bytes& in) {
     for (std::size_t p = 0; p < transfer.size(); p += kUsbPacketBytes) {
       const std::size_t len = std::min(kUsbPacketBytes, transfer.size() - p);
       if (len < kFtdiStatusBytes) break;
-      require(std::memcmp(payload.data() + expected, transfer.data() + p + kFtdiStatusBytes, len - kFtdiStatusBytes) == 0);
+      require(std::memcmp(payload.data() + expected, transfer.data() + p + kFtdiStatusBytes, len - kFtdiStatusBytes) ==
+              0);
       expected += len - kFtdiStatusBytes;
     }
     require(n == expected);

@@ -53,12 +53,12 @@ namespace {
 using namespace toonforce;
 
 enum Mode : std::uint8_t {
-  kQ16 = 1,          ///< the Q16.16 loop (else double)
-  kRawSlot = 2,      ///< the bytes written over the slot with the header's sequence (else pushed)
-  kForgeHead = 4,    ///< the header's head written into the mailbox after the push
-  kForgeTail = 8,    ///< the header's tail written into the mailbox after the push
-  kAgain = 16,       ///< the update's bytes written over the slot again between ticks
-  kRingFirst = 32,   ///< the telemetry ring's indices from the update's first bytes
+  kQ16 = 1,         ///< the Q16.16 loop (else double)
+  kRawSlot = 2,     ///< the bytes written over the slot with the header's sequence (else pushed)
+  kForgeHead = 4,   ///< the header's head written into the mailbox after the push
+  kForgeTail = 8,   ///< the header's tail written into the mailbox after the push
+  kAgain = 16,      ///< the update's bytes written over the slot again between ticks
+  kRingFirst = 32,  ///< the telemetry ring's indices from the update's first bytes
 };
 constexpr std::size_t kHeader = 27;
 
@@ -212,8 +212,9 @@ void write_seeds(const std::string& dir, const std::vector<SceneDescription>& ds
     }
     const std::string scalar = q != 0 ? "q16" : "double";
     write_seed(dir, std::string(names[i]) + "_" + scalar, q, u.get(), sizeof *u);
-    if (i == 0) write_seed(dir, std::string(names[i]) + "_raw_" + scalar, static_cast<std::uint8_t>(q | kRawSlot | kAgain),
-                           u.get(), sizeof *u);
+    if (i == 0)
+      write_seed(dir, std::string(names[i]) + "_raw_" + scalar, static_cast<std::uint8_t>(q | kRawSlot | kAgain),
+                 u.get(), sizeof *u);
   }
 }
 

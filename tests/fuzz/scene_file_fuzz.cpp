@@ -25,7 +25,7 @@ void run(const toonforce::SceneDescription& d) {
   if (!toonforce::check_servo_config(config).empty()) return;
   toonforce::Vec3<double> x{};
   toonforce::ServoLoop<ScriptedDevice, toonforce::RuntimeScene<S>> loop(ScriptedDevice{&x},
-                                                                      toonforce::make_runtime_scene<S>(d), config);
+                                                                        toonforce::make_runtime_scene<S>(d), config);
   for (int k = 0; k < 50; ++k) {
     x = {0.001 * k - 0.02, 0.0, 0.01 - 0.0004 * k};
     static_cast<void>(loop.tick(k));

@@ -39,13 +39,20 @@ class OmniPerson final : public Operator {
       if (!docks_stylus && n > 300) answer = Progress::kDone;  // says it is done; it is not
     } else if (r.id == "omni.workspace") {
       // A slow sweep through the fake's usable workspace (device frame, mm), 0.4 mm per tick.
-      static constexpr std::array<std::array<double, 3>, 9> kPath{{{0, 0, 0}, {-75, -60, -35}, {75, -60, -35}, {75, 50, -35},
-                                                                  {-75, 50, -35}, {-75, 50, 25}, {75, 50, 25}, {75, -60, 25},
-                                                                  {0, 0, 0}}};
+      static constexpr std::array<std::array<double, 3>, 9> kPath{{{0, 0, 0},
+                                                                   {-75, -60, -35},
+                                                                   {75, -60, -35},
+                                                                   {75, 50, -35},
+                                                                   {-75, 50, -35},
+                                                                   {-75, 50, 25},
+                                                                   {75, 50, 25},
+                                                                   {75, -60, 25},
+                                                                   {0, 0, 0}}};
       if (leg_ + 1 < kPath.size()) {
         const auto& a = kPath[leg_];
         const auto& b = kPath[leg_ + 1];
-        const double length = std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+        const double length =
+            std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
         const double t = std::min(1.0, 0.4 * (along_ += 1.0) / length);
         fake_.pin_hand(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]));
         if (t >= 1.0) {
@@ -114,7 +121,8 @@ TEST_F(OmniBringup, AHealthyTouchPassesEveryStep) {
   ASSERT_EQ(r.steps.size(), std::size(kOmniSteps));
   for (std::size_t i = 0; i < r.steps.size(); ++i) {
     EXPECT_EQ(r.steps[i].id, kOmniSteps[i]);
-    EXPECT_EQ(r.steps[i].outcome, Outcome::kPass) << r.steps[i].id << ": " << r.steps[i].finding << " | " << r.steps[i].next;
+    EXPECT_EQ(r.steps[i].outcome, Outcome::kPass)
+        << r.steps[i].id << ": " << r.steps[i].finding << " | " << r.steps[i].next;
   }
   EXPECT_THAT(finding(r, "driver"), HasSubstr("capped at 0.88 N"));
   const StepReport* timing = r.step("timing");
@@ -160,8 +168,8 @@ TEST(OmniBringupCommand, RunsUnattendedAgainstTheFakeLibHdThroughTheCommandLine)
   // The child process loads the fake, whose scheduler then runs in real time (no test steps it).
   const std::string base = ::testing::TempDir() + "omni_bringup_report";
   const std::string cmd = std::string(TOONFORCE_BINARY) + " bringup omni --non-interactive --omni-library " +
-                          test::kFakeHd + " --only found,driver,calibration,timing --timing-ticks 200 --report " + base +
-                          " 2>&1";
+                          test::kFakeHd + " --only found,driver,calibration,timing --timing-ticks 200 --report " +
+                          base + " 2>&1";
   FILE* p = ::popen(cmd.c_str(), "r");
   ASSERT_NE(p, nullptr);
   std::string output;

@@ -68,8 +68,8 @@ std::string testbed_description(const UsbSpec& u) {
   s += fmt::format("P: {}\n", sys);
   if (u.node) s += fmt::format("N: {}={}\n", dev, blob);
   s += fmt::format("E: DEVNAME=/dev/{}\nE: DEVTYPE=usb_device\nE: DRIVER=usb\n", dev);
-  s += fmt::format("E: BUSNUM={:03}\nE: DEVNUM={:03}\nE: MAJOR=189\nE: MINOR={}\nE: SUBSYSTEM=usb\n", u.bus,
-                   u.devnum, (u.bus - 1) * 128 + u.devnum - 1);
+  s += fmt::format("E: BUSNUM={:03}\nE: DEVNUM={:03}\nE: MAJOR=189\nE: MINOR={}\nE: SUBSYSTEM=usb\n", u.bus, u.devnum,
+                   (u.bus - 1) * 128 + u.devnum - 1);
   s += fmt::format("E: PRODUCT={:x}/{:x}/100\n", u.vid, u.pid);
   s += "A: bConfigurationValue=1\\n\nA: bNumConfigurations=1\\n\nA: bNumInterfaces= 1\\n\n";
   s += fmt::format("A: busnum={}\\n\nA: devnum={}\\n\nA: devpath={}\\n\n", u.bus, u.devnum, u.port);
@@ -105,9 +105,8 @@ std::string testbed_description(const UsbSpec& u) {
 class TouchDetection : public ::testing::Test {
  protected:
   void SetUp() override {
-    RecordProperty("proves",
-                   "detection with the real libusb, hidapi and sysfs code against devices emulated "
-                   "with umockdev from the public facts; not against a real Touch");
+    RecordProperty("proves", "detection with the real libusb, hidapi and sysfs code against devices emulated "
+                             "with umockdev from the public facts; not against a real Touch");
     testbed = umockdev_testbed_new();
     if (!umockdev_in_mock_environment()) {
       // Under CTest the emulation is required: skipping there would pass without testing.
@@ -122,7 +121,8 @@ class TouchDetection : public ::testing::Test {
     GError* error = nullptr;
     const std::string text = testbed_description(spec);
     ASSERT_TRUE(umockdev_testbed_add_from_string(testbed, text.c_str(), &error))
-        << (error != nullptr ? error->message : "") << "\n" << text;
+        << (error != nullptr ? error->message : "") << "\n"
+        << text;
   }
 
   UMockdevTestbed* testbed = nullptr;
@@ -225,9 +225,8 @@ TEST_F(TouchDetection, ASerialPortThatWillNotOpenIsReportedWithTheDialoutFixOrRe
   add(touch);
   // The kernel named ttyACM7 in sysfs, but no node exists for it.
   GError* error = nullptr;
-  const std::string tty =
-      "P: /devices/pci0000:00/0000:00:14.0/usb1/1-1/1-1:1.0/tty/ttyACM7\nE: DEVNAME=/dev/ttyACM7\n"
-      "E: MAJOR=166\nE: MINOR=7\nE: SUBSYSTEM=tty\nA: dev=166:7\\n\n";
+  const std::string tty = "P: /devices/pci0000:00/0000:00:14.0/usb1/1-1/1-1:1.0/tty/ttyACM7\nE: DEVNAME=/dev/ttyACM7\n"
+                          "E: MAJOR=166\nE: MINOR=7\nE: SUBSYSTEM=tty\nA: dev=166:7\\n\n";
   ASSERT_TRUE(umockdev_testbed_add_from_string(testbed, tty.c_str(), &error)) << error->message;
   const auto found = detect_touch_devices();
   ASSERT_EQ(found.size(), 1U);

@@ -36,8 +36,8 @@ TEST_F(OmniDeviceTest, OpensWithTheLimitsTheDeviceReports) {
   EXPECT_EQ(l.input_dof, 6);
   EXPECT_EQ(l.output_dof, 3);
   EXPECT_EQ(l.calibration_style, hd::kCalibrationInkwell);
-  EXPECT_DOUBLE_EQ(l.software_velocity_limit_m_per_s, 1.0);        // 1000 mm/s
-  EXPECT_DOUBLE_EQ(l.software_force_impulse_limit_n_per_s, 3000.0); // 3 N/ms
+  EXPECT_DOUBLE_EQ(l.software_velocity_limit_m_per_s, 1.0);          // 1000 mm/s
+  EXPECT_DOUBLE_EQ(l.software_force_impulse_limit_n_per_s, 3000.0);  // 3 N/ms
   // The fake's usable workspace x -80..80, y -65..55, z -40..30 mm, centred on (0, -5, -5):
   // scene x = x, scene y = -(z + 5), scene z = y + 5.
   EXPECT_NEAR(l.usable_workspace_min_m.x, -0.080, 1e-12);
@@ -272,8 +272,8 @@ TEST_F(OmniDeviceTest, TheForceNeverExceedsTheNominalMaximumWhateverTheTickAsks)
   const TfFakeHdStats s = fake.stats();
   EXPECT_LE(s.max_force_norm_n, 3.3);  // HD_NOMINAL_MAX_FORCE of the fake
   EXPECT_NEAR(s.last_force_n[1], 3.3, 1e-9);
-  EXPECT_EQ(s.errors_raised, 0U) << "last HD error 0x" << std::hex << omni->status().last_hd_error
-                                 << " on tick " << std::dec << omni->status().tick;  // the library never saw too much
+  EXPECT_EQ(s.errors_raised, 0U) << "last HD error 0x" << std::hex << omni->status().last_hd_error << " on tick "
+                                 << std::dec << omni->status().tick;  // the library never saw too much
 }
 
 TEST_F(OmniDeviceTest, AUserCapBelowTheNominalMaximumIsEnforced) {
@@ -564,11 +564,9 @@ INSTANTIATE_TEST_SUITE_P(
         ErrorCase{hd::kInvalidInputType, DeviceStatus::kProtocolError},
         ErrorCase{hd::kBadHandle, DeviceStatus::kProtocolError},
         // force errors: degrade and ramp back
-        ErrorCase{hd::kWarmMotors, DeviceStatus::kOk},
-        ErrorCase{hd::kExceededMaxForce, DeviceStatus::kOk},
+        ErrorCase{hd::kWarmMotors, DeviceStatus::kOk}, ErrorCase{hd::kExceededMaxForce, DeviceStatus::kOk},
         ErrorCase{hd::kExceededMaxForceImpulse, DeviceStatus::kOk},
-        ErrorCase{hd::kExceededMaxVelocity, DeviceStatus::kOk},
-        ErrorCase{hd::kForceError, DeviceStatus::kOk},
+        ErrorCase{hd::kExceededMaxVelocity, DeviceStatus::kOk}, ErrorCase{hd::kForceError, DeviceStatus::kOk},
         // device, communication, timer
         ErrorCase{hd::kDeviceFault, DeviceStatus::kDeviceFault},
         ErrorCase{hd::kDeviceAlreadyInitiated, DeviceStatus::kDeviceFault},
@@ -582,8 +580,7 @@ INSTANTIATE_TEST_SUITE_P(
         // scheduler, licence, and a code the reference does not list
         ErrorCase{hd::kInvalidPriority, DeviceStatus::kDeviceFault},
         ErrorCase{hd::kSchedulerFull, DeviceStatus::kDeviceFault},
-        ErrorCase{hd::kInvalidLicense, DeviceStatus::kDeviceFault},
-        ErrorCase{0x0777, DeviceStatus::kDeviceFault}),
+        ErrorCase{hd::kInvalidLicense, DeviceStatus::kDeviceFault}, ErrorCase{0x0777, DeviceStatus::kDeviceFault}),
     [](const ::testing::TestParamInfo<ErrorCase>& param) {
       std::string name(hd::error_name(param.param.code));
       if (name == "HD error") name = "unlisted_code";
@@ -619,8 +616,7 @@ INSTANTIATE_TEST_SUITE_P(EveryFatalCode, OmniFatalHdErrors,
                                            hd::kInvalidInputType, hd::kBadHandle, hd::kDeviceFault,
                                            hd::kDeviceAlreadyInitiated, hd::kCommError, hd::kCommConfigError,
                                            hd::kTimerError, hd::kIllegalBegin, hd::kIllegalEnd, hd::kFrameError,
-                                           hd::kInvalidPriority, hd::kSchedulerFull, hd::kInvalidLicense,
-                                           0x0777U));
+                                           hd::kInvalidPriority, hd::kSchedulerFull, hd::kInvalidLicense, 0x0777U));
 
 TEST_F(OmniDeviceTest, WarmMotorsHoldUntilTheThermalModelCools) {
   options.enable_ramp_s = 0.0;

@@ -36,9 +36,7 @@ TEST(OmniFrame, TowardTheUserInTheDeviceIsMinusYInTheScene) {
   expect_near(kFrame.position_m({4.0, -5.0, 40.0}), {0.0, -0.030, 0.0});
 }
 
-TEST(OmniFrame, RightIsRightInBoth) {
-  expect_near(kFrame.position_m({-6.0, -5.0, 10.0}), {-0.010, 0.0, 0.0});
-}
+TEST(OmniFrame, RightIsRightInBoth) { expect_near(kFrame.position_m({-6.0, -5.0, 10.0}), {-0.010, 0.0, 0.0}); }
 
 TEST(OmniFrame, TheWorkspaceCentreIsTheSceneOrigin) {
   expect_near(kFrame.position_m({4.0, -5.0, 10.0}), {0.0, 0.0, 0.0});

@@ -111,7 +111,8 @@ TEST_F(OmniLoading, AMissingDependencyIsNamedWithItsFix) {
 }
 
 TEST_F(OmniLoading, AFileThatIsNotALibraryIsReportedAsSuch) {
-  const auto path = std::filesystem::temp_directory_path() / ("toonforce-not-elf-" + std::to_string(getpid())) / "libHD.so";
+  const auto path =
+      std::filesystem::temp_directory_path() / ("toonforce-not-elf-" + std::to_string(getpid())) / "libHD.so";
   std::filesystem::create_directories(path.parent_path());
   std::ofstream(path) << "not a shared object\n";
   const hd::LoadOutcome out = hd::load_library(path.string());

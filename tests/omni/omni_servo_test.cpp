@@ -207,8 +207,13 @@ TEST_F(OmniWallTest, AnAutoCalibratingDeviceWaitsForTheArmToSweepItsWorkspace) {
   EXPECT_THAT(d.last_error(), HasSubstr("move the arm slowly through its whole workspace"));
   EXPECT_EQ(fake.stats().calibration_updates, 0U);
   // The person sweeps the arm: left, right, up, down, in, out (device frame, mm).
-  for (const auto& p : {std::array<double, 3>{-70, 20, 0}, {70, 20, 0}, {0, 60, -40}, {0, -60, 40},
-                        {0, 20, -60}, {0, 20, 60}, {0, 5, 5}}) {
+  for (const auto& p : {std::array<double, 3>{-70, 20, 0},
+                        {70, 20, 0},
+                        {0, 60, -40},
+                        {0, -60, 40},
+                        {0, 20, -60},
+                        {0, 20, 60},
+                        {0, 5, 5}}) {
     fake.pin_hand(p[0], p[1], p[2]);
     fake.step(20);
   }
@@ -337,11 +342,11 @@ TEST_P(OmniWallErrors, AreHandledAsTheirClassRequires) {
 
 INSTANTIATE_TEST_SUITE_P(
     EveryCode, OmniWallErrors,
-    ::testing::Values(hd::kInvalidEnum, hd::kInvalidValue, hd::kInvalidOperation, hd::kInvalidInputType,
-                      hd::kBadHandle, hd::kWarmMotors, hd::kExceededMaxForce, hd::kExceededMaxForceImpulse,
-                      hd::kExceededMaxVelocity, hd::kForceError, hd::kDeviceFault, hd::kDeviceAlreadyInitiated,
-                      hd::kCommError, hd::kCommConfigError, hd::kTimerError, hd::kIllegalBegin, hd::kIllegalEnd,
-                      hd::kFrameError, hd::kInvalidPriority, hd::kSchedulerFull, hd::kInvalidLicense),
+    ::testing::Values(hd::kInvalidEnum, hd::kInvalidValue, hd::kInvalidOperation, hd::kInvalidInputType, hd::kBadHandle,
+                      hd::kWarmMotors, hd::kExceededMaxForce, hd::kExceededMaxForceImpulse, hd::kExceededMaxVelocity,
+                      hd::kForceError, hd::kDeviceFault, hd::kDeviceAlreadyInitiated, hd::kCommError,
+                      hd::kCommConfigError, hd::kTimerError, hd::kIllegalBegin, hd::kIllegalEnd, hd::kFrameError,
+                      hd::kInvalidPriority, hd::kSchedulerFull, hd::kInvalidLicense),
     [](const ::testing::TestParamInfo<hd::HDerror>& param) { return std::string(hd::error_name(param.param)); });
 
 }  // namespace

@@ -68,8 +68,8 @@ class OmniFixture : public ::testing::Test {
       omni.reset();
     }
     const TfFakeHdStats s = fake.stats();
-    EXPECT_EQ(s.protocol_violations, 0U) << "the binding broke a documented rule: " << s.last_violation_call
-                                         << " (0x" << std::hex << s.last_violation << ")";
+    EXPECT_EQ(s.protocol_violations, 0U) << "the binding broke a documented rule: " << s.last_violation_call << " (0x"
+                                         << std::hex << s.last_violation << ")";
     fake.reset();
   }
 

@@ -22,7 +22,7 @@ namespace toonforce::test {
 
 struct GuardedStandIn {
   guardian::GuardOutcome outcome;
-  std::int64_t killed_ns = 0;       ///< CLOCK_MONOTONIC just before the kill
+  std::int64_t killed_ns = 0;         ///< CLOCK_MONOTONIC just before the kill
   bool active_while_ticking = false;  ///< the enable line, sampled while the stand-in ticked
 };
 
@@ -35,7 +35,8 @@ inline std::int64_t monotonic_ns() {
 /// `sample_enable`: called while the stand-in ticks (before the kill), returns whether the
 /// enable line is active; may be null.
 template <class Sample = bool (*)()>
-GuardedStandIn guard_a_stand_in(const ExternalZero& zero, guardian::EnableLine* enable, Sample sample_enable = nullptr) {
+GuardedStandIn guard_a_stand_in(const ExternalZero& zero, guardian::EnableLine* enable,
+                                Sample sample_enable = nullptr) {
   GuardedStandIn result;
   guardian::SharedPage* page = guardian::map_shared_page();
   if (page == nullptr) return result;

@@ -26,17 +26,17 @@ namespace toonforce {
 
 struct SimpleSimConfig {
   struct Keyframe {
-    double t_s = 0.0;        ///< [s] from the start of the loop, increasing
+    double t_s = 0.0;  ///< [s] from the start of the loop, increasing
     Vec3<double> position_m;
   };
-  double mass_kg = 0.1;                     ///< handle and hand mass
-  double device_damping_n_s_per_m = 0.5;    ///< the mechanism's own friction
-  double hand_stiffness_n_per_m = 200.0;    ///< the grip
+  double mass_kg = 0.1;                   ///< handle and hand mass
+  double device_damping_n_s_per_m = 0.5;  ///< the mechanism's own friction
+  double hand_stiffness_n_per_m = 200.0;  ///< the grip
   double hand_damping_n_s_per_m = 3.0;
-  double step_s = 1e-4;                     ///< largest integration sub-step [s]
-  bool real_time = true;                    ///< advance with the clock, else exchange_period_s per read
+  double step_s = 1e-4;   ///< largest integration sub-step [s]
+  bool real_time = true;  ///< advance with the clock, else exchange_period_s per read
   double exchange_period_s = 1e-3;
-  double max_advance_s = 0.05;              ///< after a longer stall, only this much is simulated
+  double max_advance_s = 0.05;  ///< after a longer stall, only this much is simulated
   /// The hand's target, linearly interpolated and looped over the last key's time. Empty: the
   /// default stroke (hover at z = 2 cm, strike the floor at 0.16 m/s, stroke along +x at
   /// 0.1 m/s 4 mm "below" it, lift, return; 3 s per loop).

@@ -80,7 +80,8 @@ inline std::vector<V> replay(const Scene& scene, const std::vector<Row>& rows, b
     const double dt_state = first_good ? dt : r.t - t_prev_good;
     V v{};
     bool needs_velocity = !scene.cliffs.empty();
-    for (const auto& s : scene.surfaces) needs_velocity = needs_velocity || s.b != 0 || s.friction || s.slippery || s.impact;
+    for (const auto& s : scene.surfaces)
+      needs_velocity = needs_velocity || s.b != 0 || s.friction || s.slippery || s.impact;
     auto impacts_next = impacts;
     auto s_f_next = s_f;
     auto fallen_next = fallen;

@@ -75,7 +75,9 @@ Stats stats_of(std::vector<double> us) {
   Stats s;
   if (us.empty()) return s;
   std::sort(us.begin(), us.end());
-  const auto at = [&](double q) { return us[std::min(us.size() - 1, static_cast<std::size_t>(q * static_cast<double>(us.size())))]; };
+  const auto at = [&](double q) {
+    return us[std::min(us.size() - 1, static_cast<std::size_t>(q * static_cast<double>(us.size())))];
+  };
   s.median_us = at(0.5);
   s.p99_us = at(0.99);
   s.max_us = us.back();
@@ -157,7 +159,8 @@ int main(int argc, char** argv) {
   const Stats reach = stats_of(reach_us);
   const double period_us = 1e6 / rate_hz;
   fmt::print("live scene updates: {} at {} Hz, one every {} ms; realtime {}; {} deadline(s) missed\n", n, rate_hz,
-             every_ms, report->setup.fifo ? fmt::format("SCHED_FIFO {}", report->setup.priority) : "no (normal priority)",
+             every_ms,
+             report->setup.fifo ? fmt::format("SCHED_FIFO {}", report->setup.priority) : "no (normal priority)",
              report->missed);
   fmt::print("[us]                               median      p99      max\n");
   fmt::print("check (set() call to return)     {:8.1f} {:8.1f} {:8.1f}\n", check.median_us, check.p99_us, check.max_us);

@@ -105,8 +105,10 @@ int main(int argc, char** argv) {
     } else if (arg == "--rate" && has_value) {
       rate_hz = std::atof(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: %s [--seconds S] [--repeats N] [--integrator semi-implicit-euler|velocity-verlet|rk4|exact] "
-                           "[--substeps N] [--rate HZ]\n", argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--seconds S] [--repeats N] [--integrator semi-implicit-euler|velocity-verlet|rk4|exact] "
+                   "[--substeps N] [--rate HZ]\n",
+                   argv[0]);
       return 2;
     }
   }

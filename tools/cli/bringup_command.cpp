@@ -87,8 +87,9 @@ bool report_base_ok(const Common& c, std::initializer_list<std::string> inputs) 
   if (c.report.empty()) return true;
   std::error_code ec;
   if (c.report.back() == '/' || std::filesystem::is_directory(c.report, ec)) {
-    fmt::print(stderr, "--report {}: is a directory; give a base name (e.g. {}/bringup): the report is written to "
-                       "BASE.md and BASE.json\n",
+    fmt::print(stderr,
+               "--report {}: is a directory; give a base name (e.g. {}/bringup): the report is written to "
+               "BASE.md and BASE.json\n",
                c.report, c.report.back() == '/' ? c.report.substr(0, c.report.size() - 1) : c.report);
     return false;
   }
@@ -151,7 +152,8 @@ void add_bringup(CLI::App& app) {
                                                   "constant, USB timing, buttons, LED");
   add_common(f, *falcon_common, joined(falcon_steps));
   f->add_option("--serial", falcon->falcon.serial, "Serial number of the Falcon (toonforce devices)");
-  f->add_option("--falcon-index", falcon->falcon.index, "The index-th Falcon when no --serial is given")->capture_default_str();
+  f->add_option("--falcon-index", falcon->falcon.index, "The index-th Falcon when no --serial is given")
+      ->capture_default_str();
   f->add_option("--firmware", falcon->falcon.firmware_path, "Firmware file to load if the Falcon has none")
       ->check(CLI::ExistingFile);
   f->add_option("--calibration", falcon->falcon.calibration_path,
@@ -163,7 +165,8 @@ void add_bringup(CLI::App& app) {
   f->add_option("--homing-timeout", falcon->homing_timeout_s, "Seconds to wait for homing, 0.1..3600")
       ->check(number_in(0.1, 3600.0))  // nan, inf, negatives reached lround out of its range
       ->capture_default_str();
-  f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")->check(number_in(10, 100000))
+  f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")
+      ->check(number_in(10, 100000))
       ->capture_default_str();
   f->callback([falcon, falcon_common, falcon_steps] {
     if (!steps_known(*falcon_common, falcon_steps)) return set_exit_code(2);
@@ -191,7 +194,8 @@ void add_bringup(CLI::App& app) {
   o->add_option("--omni-library", omni->omni.library_path, "The OpenHaptics HD library to load");
   o->add_option("--omni-max-force", omni->omni.max_force_n, "Force cap [N] (default: the continuous force)")
       ->check(non_negative_number());
-  o->add_option("--timing-ticks", omni->timing_ticks, "Scheduler ticks timed")->check(number_in(10, 20000))
+  o->add_option("--timing-ticks", omni->timing_ticks, "Scheduler ticks timed")
+      ->check(number_in(10, 20000))
       ->capture_default_str();
   o->callback([omni, omni_common, omni_steps] {
     if (!steps_known(*omni_common, omni_steps)) return set_exit_code(2);

@@ -41,7 +41,8 @@ void add_check(CLI::App& app) {
   cmd->add_flag("--allow-empty", o->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_flag("--strict", o->strict, "A plausibility warning (outside the device's limits) is an error");
   // check writes nothing; a stop signal says so and exits 1 rather than ending it silently.
-  cmd->preparse_callback([](std::size_t) { report::install_report_stop_handlers("toonforce check", "it writes nothing"); });
+  cmd->preparse_callback(
+      [](std::size_t) { report::install_report_stop_handlers("toonforce check", "it writes nothing"); });
   cmd->callback([o] {
     const auto lower = [](std::string text) {
       for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

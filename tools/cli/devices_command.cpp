@@ -48,7 +48,8 @@ DetectionReport detect_touch(const DetectOptions&) {
   // Loading the HD library to see whether it works is harmless (it is never unloaded). The
   // install checks explain what the loader cannot: /usr/lib64, libraw1394.so.8, GTDD_HOME.
   DetectionReport r{detect_touch_devices(), {openhaptics_prerequisite()}};
-  for (const auto& f : check_openhaptics_install(OpenHapticsHost::this_process())) r.prerequisites.push_back(f.prerequisite);
+  for (const auto& f : check_openhaptics_install(OpenHapticsHost::this_process()))
+    r.prerequisites.push_back(f.prerequisite);
   return r;
 }
 

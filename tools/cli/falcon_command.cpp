@@ -72,7 +72,8 @@ int run_envelope(const EnvelopeArgs& a) {
       print_error(fmt::format("{}: cannot write: {}", a.csv, std::strerror(errno)));
       return 1;
     }
-    put(fmt::format("# toonforce falcon envelope; {}\nx_m,y_m,z_m,along_x_n,along_y_n,along_z_n,every_direction_n\n", source));
+    put(fmt::format("# toonforce falcon envelope; {}\nx_m,y_m,z_m,along_x_n,along_y_n,along_z_n,every_direction_n\n",
+                    source));
   }
   struct Least {
     double n = 1e9;
@@ -92,7 +93,8 @@ int run_envelope(const EnvelopeArgs& a) {
   for (int ix = 0; ix <= steps(-60, 60); ++ix) {
     for (int iy = 0; iy <= steps(-65, 35); ++iy) {
       for (int iz = 0; iz <= steps(-60, 60); ++iz) {
-        const Vec3<double> scene{(-60 + ix * a.step_mm) * 1e-3, (-65 + iy * a.step_mm) * 1e-3, (-60 + iz * a.step_mm) * 1e-3};
+        const Vec3<double> scene{(-60 + ix * a.step_mm) * 1e-3, (-65 + iy * a.step_mm) * 1e-3,
+                                 (-60 + iz * a.step_mm) * 1e-3};
         ++points;
         falcon::Mat3 j;
         const bool ok = falcon::position_jacobian(falcon::FalconGeometry{}, falcon::scene_to_falcon(scene, centre), j);
@@ -102,7 +104,8 @@ int run_envelope(const EnvelopeArgs& a) {
         }
         ++reached;
         const double f[4] = {falcon::max_force_along(j, along_x, scale), falcon::max_force_along(j, along_y, scale),
-                             falcon::max_force_along(j, along_z, scale), falcon::force_envelope(j, scale).every_direction_n};
+                             falcon::max_force_along(j, along_z, scale),
+                             falcon::force_envelope(j, scale).every_direction_n};
         const bool core = std::abs(scene.x) <= kCoreMm * 1e-3 + 1e-9 && std::abs(scene.y) <= kCoreMm * 1e-3 + 1e-9 &&
                           std::abs(scene.z) <= kCoreMm * 1e-3 + 1e-9;
         for (int k = 0; k < 4; ++k) {
@@ -114,7 +117,8 @@ int run_envelope(const EnvelopeArgs& a) {
           core_below_4n += f[3] < 4.0 ? 1 : 0;
         }
         if (csv != nullptr) {
-          put(fmt::format("{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", scene.x, scene.y, scene.z, f[0], f[1], f[2], f[3]));
+          put(fmt::format("{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", scene.x, scene.y, scene.z, f[0], f[1],
+                          f[2], f[3]));
         }
       }
     }
@@ -130,9 +134,11 @@ int run_envelope(const EnvelopeArgs& a) {
   }
   falcon::ForceEnvelope at_centre;
   (void)falcon::force_envelope_at(falcon::FalconGeometry{}, centre, scale, at_centre);
-  fmt::print("Force the Falcon's +-{} motor words allow ({}), scene frame (x right, y away, z up):\n", scale.max_word, source);
-  fmt::print("  at the workspace centre: along x {:.2f} N, along y {:.2f} N, along z {:.2f} N, in every direction {:.2f} N\n",
-             at_centre.axis_n.x, at_centre.axis_n.z, at_centre.axis_n.y, at_centre.every_direction_n);
+  fmt::print("Force the Falcon's +-{} motor words allow ({}), scene frame (x right, y away, z up):\n", scale.max_word,
+             source);
+  fmt::print(
+      "  at the workspace centre: along x {:.2f} N, along y {:.2f} N, along z {:.2f} N, in every direction {:.2f} N\n",
+      at_centre.axis_n.x, at_centre.axis_n.z, at_centre.axis_n.y, at_centre.every_direction_n);
   fmt::print("  over the driver's workspace box (x, z -60..60 mm, y -65..35 mm, {} of {} grid points within reach):\n",
              reached, points);
   const char* names[4] = {"along x", "along y", "along z", "in every direction"};
@@ -155,7 +161,8 @@ int run_envelope(const EnvelopeArgs& a) {
 }  // namespace
 
 void add_falcon(CLI::App& app) {
-  CLI::App* falcon = app.add_subcommand("falcon", "Novint Falcon: load firmware, print the udev rule, its force envelope");
+  CLI::App* falcon =
+      app.add_subcommand("falcon", "Novint Falcon: load firmware, print the udev rule, its force envelope");
   falcon->require_subcommand(1);
 
   auto args = std::make_shared<FirmwareArgs>();
@@ -197,10 +204,12 @@ void add_falcon(CLI::App& app) {
   auto envelope = std::make_shared<EnvelopeArgs>();
   CLI::App* env = falcon->add_subcommand(
       "envelope", "The force the Falcon's motor words allow, per pose and direction, over its workspace");
-  env->add_option("--calibration", envelope->calibration, "A calibration file (default: libnifalcon's 10000 words per N m)")
+  env->add_option("--calibration", envelope->calibration,
+                  "A calibration file (default: libnifalcon's 10000 words per N m)")
       ->check(CLI::ExistingFile);
-  env->add_option("--csv", envelope->csv, "Write the grid: scene x,y,z [m], then the force [N] along x, y, z and "
-                                          "in every direction (empty where the kinematics do not reach)");
+  env->add_option("--csv", envelope->csv,
+                  "Write the grid: scene x,y,z [m], then the force [N] along x, y, z and "
+                  "in every direction (empty where the kinematics do not reach)");
   env->add_option("--step", envelope->step_mm, "Grid step [mm]")->check(number_in(1.0, 20.0))->capture_default_str();
   env->callback([envelope] {
     // Refused before anything is opened: fopen("w") would empty the calibration it reads.
@@ -213,7 +222,8 @@ void add_falcon(CLI::App& app) {
   });
 
   CLI::App* udev = falcon->add_subcommand(
-      "udev-rule", fmt::format("Print the udev rule ({}) that lets group plugdev open the Falcon", kFalconUdevRuleName));
+      "udev-rule",
+      fmt::format("Print the udev rule ({}) that lets group plugdev open the Falcon", kFalconUdevRuleName));
   udev->callback([] {
     const std::string_view rule = falcon_udev_rule();
     std::fwrite(rule.data(), 1, rule.size(), stdout);

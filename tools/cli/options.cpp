@@ -49,9 +49,7 @@ CLI::Validator positive_number() {
 
 CLI::Validator non_negative_number() {
   return CLI::Validator(
-      [](std::string& text) {
-        return check_number(text, 0.0, std::numeric_limits<double>::max(), "a number >= 0");
-      },
+      [](std::string& text) { return check_number(text, 0.0, std::numeric_limits<double>::max(), "a number >= 0"); },
       "NON-NEGATIVE");
 }
 

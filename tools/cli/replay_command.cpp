@@ -58,7 +58,8 @@ void add_replay(CLI::App& app) {
       return;
     }
     if (!summary->input_note.empty()) fmt::print(stderr, "warning: {}\n", summary->input_note);
-    if (!*quiet) std::fputs(format_summary(summary.value(), *options).c_str(), options->output_path == "-" ? stderr : stdout);
+    if (!*quiet)
+      std::fputs(format_summary(summary.value(), *options).c_str(), options->output_path == "-" ? stderr : stdout);
     if (!summary->output_error.empty()) {
       fmt::print(stderr, "toonforce: the output is incomplete: {}\n", summary->output_error);
       set_exit_code(1);

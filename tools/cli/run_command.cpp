@@ -81,7 +81,8 @@ std::optional<int> become_guardian(RunOptions& options, double stall_limit_ms) {
     if (!options.trace_path.empty() && options.trace_path != "-") {
       start.epilogue.insert(start.epilogue.end(), {"--trace", options.trace_path});
     }
-    if (!options.stats_json_path.empty()) start.epilogue.insert(start.epilogue.end(), {"--stats-json", options.stats_json_path});
+    if (!options.stats_json_path.empty())
+      start.epilogue.insert(start.epilogue.end(), {"--stats-json", options.stats_json_path});
   }
   auto page = split_off_guardian(start);  // returns in the loop's process only
   if (!page) {
@@ -100,7 +101,8 @@ std::string same_output_problem(const RunOptions& options) {
   std::error_code ec;
   const bool same = a == b || (std::filesystem::equivalent(a, b, ec) && !ec);
   if (!same) return {};
-  return fmt::format("--trace {} and --stats-json {} are the same file: one would overwrite the other; choose two", a, b);
+  return fmt::format("--trace {} and --stats-json {} are the same file: one would overwrite the other; choose two", a,
+                     b);
 }
 
 #if TOONFORCE_VIEWER
@@ -139,8 +141,9 @@ void add_run_epilogue(CLI::App& app) {
   cmd->callback([=] {
     guardian::SharedPage* page = guardian::attach_shared_page(*page_fd);
     if (page == nullptr) {
-      fmt::print(stderr, "guardian: the loop's process died and the guardian zeroed what it could; its page is gone, so "
-                         "nothing more can be said\n");
+      fmt::print(stderr,
+                 "guardian: the loop's process died and the guardian zeroed what it could; its page is gone, so "
+                 "nothing more can be said\n");
       set_exit_code(guardian::kExitLoopDied);
       return;
     }
@@ -179,7 +182,8 @@ void add_run(CLI::App& app) {
   auto options = std::make_shared<RunOptions>();
   auto quiet = std::make_shared<bool>(false);
   auto no_mlock = std::make_shared<bool>(false);
-  CLI::App* cmd = app.add_subcommand("run", "The servo loop on a device in real time, with a timing summary at the end");
+  CLI::App* cmd =
+      app.add_subcommand("run", "The servo loop on a device in real time, with a timing summary at the end");
   cmd->add_option("--device", options->device,
                   "sim (the host simulation's device and hand), falcon (Novint Falcon over USB) or omni "
                   "(Phantom Omni / Touch through OpenHaptics)")
@@ -201,12 +205,14 @@ void add_run(CLI::App& app) {
   falcon->add_option("--serial", options->falcon.serial, "Serial number of the Falcon to open (toonforce devices)");
   falcon->add_option("--falcon-index", options->falcon.index, "The index-th Falcon when no --serial is given")
       ->capture_default_str();
-  falcon->add_option("--firmware", options->falcon.firmware_path,
-                     "Firmware file to load if the Falcon has none yet (after power-up; docs/FALCON.md)")
+  falcon
+      ->add_option("--firmware", options->falcon.firmware_path,
+                   "Firmware file to load if the Falcon has none yet (after power-up; docs/FALCON.md)")
       ->check(CLI::ExistingFile);
-  falcon->add_option("--falcon-calibration", options->falcon.calibration_path,
-                     "Calibration file with the Falcon's words per N m (default: the one `toonforce bringup "
-                     "falcon` wrote for this serial number, if any; docs/FALCON.md)")
+  falcon
+      ->add_option("--falcon-calibration", options->falcon.calibration_path,
+                   "Calibration file with the Falcon's words per N m (default: the one `toonforce bringup "
+                   "falcon` wrote for this serial number, if any; docs/FALCON.md)")
       ->check(CLI::ExistingFile);
   CLI::Option_group* omni = cmd->add_option_group("Phantom Omni / Touch (--device omni)");
   omni->add_option("--omni-device", options->omni.device_name,
@@ -224,7 +230,8 @@ void add_run(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "yes", "no"}))
       ->capture_default_str();
   add_gpio_options(*cmd, options->gpio);
-  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")->check(number_in(500.0, 10000.0))
+  cmd->add_option("--rate", options->rate_hz, "Servo rate [Hz], 500..10000")
+      ->check(number_in(500.0, 10000.0))
       ->capture_default_str();
   cmd->add_option("--duration", options->duration_s, "Seconds to run; 0 runs until Ctrl-C (SIGINT) or SIGTERM")
       ->check(non_negative_number())
@@ -293,7 +300,8 @@ void add_run(CLI::App& app) {
     // The guardian first: before any thread, device or server exists, `run` forks;
     // this process becomes the guardian and the child does all the rest.
     if (*no_guardian && !options->gpio.amp_enable_pin.empty()) {
-      std::fputs("--amp-enable-pin: the guardian process holds the amplifier-enable line; --no-guardian has none\n", stderr);
+      std::fputs("--amp-enable-pin: the guardian process holds the amplifier-enable line; --no-guardian has none\n",
+                 stderr);
       set_exit_code(2);
       return;
     }
@@ -331,8 +339,10 @@ void add_run(CLI::App& app) {
       if (geteuid() == 0 || server_user_option->count() > 0) {
         const passwd* user = getpwnam(server_user->c_str());
         if (user == nullptr) {
-          fmt::print(stderr, "--server-user {}: no such user (the viewer's server process runs as this user when "
-                             "`run` is started as root)\n", *server_user);
+          fmt::print(stderr,
+                     "--server-user {}: no such user (the viewer's server process runs as this user when "
+                     "`run` is started as root)\n",
+                     *server_user);
           set_exit_code(2);
           return;
         }
@@ -342,8 +352,9 @@ void add_run(CLI::App& app) {
         setup.dropped_mappings.push_back({options->guardian, sizeof(guardian::SharedPage)});
       }
       options->scene_text = read_scene_text(options->scene_path);
-      auto scene = options->scene_text ? parse_scene(*options->scene_text, options->scene_path, options->scalar)
-                                       : load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
+      auto scene = options->scene_text
+                       ? parse_scene(*options->scene_text, options->scene_path, options->scalar)
+                       : load_scene_file(options->scene_path, options->scalar);  // errors: run_servo reports them
       viewer::HelloInfo& hello = setup.hello;
       hello.source = "run";
       hello.title = fmt::format("{} on {}", scene ? scene->name : options->scene_path, options->device);
@@ -370,10 +381,11 @@ void add_run(CLI::App& app) {
         setup.scene_name = options->scene_path;
         setup.scalar = options->scalar;
         const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
-        setup.viewer.control_options.token = !control_token->empty() ? *control_token
+        setup.viewer.control_options.token = !control_token->empty()          ? *control_token
                                              : env != nullptr && *env != '\0' ? std::string(env)
-                                                                               : viewer::random_token();
-        if (control_token->empty() && (env == nullptr || *env == '\0')) setup.token_note = " (random; set one with --control-token)";
+                                                                              : viewer::random_token();
+        if (control_token->empty() && (env == nullptr || *env == '\0'))
+          setup.token_note = " (random; set one with --control-token)";
       }
       auto started = ServerProcess::start(setup);
       if (!started) {
@@ -386,14 +398,15 @@ void add_run(CLI::App& app) {
       if (*control) options->live = &server->live();
       if (*control_wait) {
         // Before the device opens: a session that never gets its client commands no force at all.
-        fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
+        fmt::print(stderr,
+                   "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
         std::fflush(stderr);
         const bool connected = command_stop().load() == 0 && server->wait_for_control(command_stop());
         if (!connected) {
           const int signo = command_stop().load();
           const std::string gone = server->ended_early();
           fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
-                     signo != 0       ? " (stopped by " + signal_name(signo) + ")"
+                     signo != 0      ? " (stopped by " + signal_name(signo) + ")"
                      : !gone.empty() ? " (the server process " + gone + ")"
                                      : std::string());
           set_exit_code(2);  // could not start (interfaces.md: exit status)
@@ -425,7 +438,8 @@ void add_run(CLI::App& app) {
       for (const std::string& input : {options->scene_path, options->hand_script_path}) {
         std::error_code ec;
         if (!input.empty() && std::filesystem::equivalent(options->stats_json_path, input, ec) && !ec) {
-          fmt::print(stderr, "--stats-json {} is an input of the run ({}): it would be overwritten; choose another file\n",
+          fmt::print(stderr,
+                     "--stats-json {} is an input of the run ({}): it would be overwritten; choose another file\n",
                      options->stats_json_path, input);
           set_exit_code(2);
           return;

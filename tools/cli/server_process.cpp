@@ -46,7 +46,8 @@ std::string let_go_of_the_loops(const ServerSetup& setup) {
   }
   // Every descriptor but the standard streams, before it opens its socket.
   if (close_range(3, ~0U, 0) != 0) {
-    if (errno != ENOSYS) return fmt::format("viewer: its server process cannot close its descriptors: {}", std::strerror(errno));
+    if (errno != ENOSYS)
+      return fmt::format("viewer: its server process cannot close its descriptors: {}", std::strerror(errno));
     rlimit files{};
     getrlimit(RLIMIT_NOFILE, &files);
     for (rlim_t fd = 3; fd < files.rlim_cur; ++fd) close(static_cast<int>(fd));  // a kernel before 5.9
@@ -57,7 +58,8 @@ std::string let_go_of_the_loops(const ServerSetup& setup) {
   const bool written = fd >= 0 && write(fd, "1000", 4) == 4;
   const int saved = errno;
   if (fd >= 0) close(fd);
-  if (!written) return fmt::format("viewer: its server process cannot raise its oom_score_adj: {}", std::strerror(saved));
+  if (!written)
+    return fmt::format("viewer: its server process cannot raise its oom_score_adj: {}", std::strerror(saved));
   return {};
 }
 
@@ -210,7 +212,8 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& s
   std::unique_ptr<ServerProcess> p(new ServerProcess());
   p->channel_bytes_ = kServerChannelBytes;
   void* memory = mmap(nullptr, p->channel_bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-  if (memory == MAP_FAILED) return Error{fmt::format("viewer: cannot map the memory shared with its server: {}", std::strerror(errno))};
+  if (memory == MAP_FAILED)
+    return Error{fmt::format("viewer: cannot map the memory shared with its server: {}", std::strerror(errno))};
   p->channel_ = new (memory) ServerChannel{};
   std::fflush(stdout);
   std::fflush(stderr);
@@ -237,7 +240,8 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& s
     int status = 0;
     if (waitpid(child, &status, WNOHANG) == child) {
       p->pid_ = -1;
-      return Error{fmt::format("viewer: its server process {} before it listened", guardian::describe_wait_status(status))};
+      return Error{
+          fmt::format("viewer: its server process {} before it listened", guardian::describe_wait_status(status))};
     }
     sleep_ms(2);
   }
@@ -290,7 +294,7 @@ void ServerProcess::finish(bool keep_serving) {
     int status = 0;
     bool told = !keep_serving;  // to end: run_over 2, or SIGTERM below
     bool killed = false;
-    int waited_ms = 0;          // since it was told
+    int waited_ms = 0;  // since it was told
     while (waitpid(pid_, &status, WNOHANG) != pid_) {
       if (!told && command_stop().load() != 0) {
         kill(pid_, SIGTERM);

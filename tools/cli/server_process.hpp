@@ -57,20 +57,19 @@ struct ServerUser {
 struct ServerSetup {
   viewer::ViewerOptions viewer;  ///< address, port, hosts, control_options (the token); `control` is set in the child
   viewer::HelloInfo hello;
-  bool control = false;          ///< --control: /control drives the live scene
+  bool control = false;  ///< --control: /control drives the live scene
   /// The scene the control protocol edits: the text the loop's process read (once: the loop
   /// renders the same text), and the file's name for the editor's messages (file:line: key).
   std::string scene_text;
   std::string scene_name;
   ScalarKind scalar = ScalarKind::kDouble;
-  std::string token_note;        ///< appended to the "control: ..." line (e.g. "(random; ...)")
+  std::string token_note;  ///< appended to the "control: ..." line (e.g. "(random; ...)")
   /// Shared mappings the loop's process holds that the server must not (the guardian's page):
   /// unmapped in the child right after the fork.
   std::vector<DroppedMapping> dropped_mappings;
   /// Set: the user to become once the socket is bound (the loop's process runs as root).
   std::optional<ServerUser> user;
 };
-
 
 class ServerProcess {
  public:

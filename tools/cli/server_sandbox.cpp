@@ -71,15 +71,15 @@ std::string install_server_filter() {
 
   // The sockets it already holds (the listener, the connections it accepts) and the standard
   // streams it prints to. No socket, socketpair, bind, listen or connect: it opens no new one.
-  for (const char* name : {"accept", "accept4", "read", "readv", "write", "writev", "recvfrom", "recvmsg",
-                           "recvmmsg", "sendto", "sendmsg", "sendmmsg", "close", "shutdown", "getsockopt",
-                           "setsockopt", "getsockname", "getpeername"}) {
+  for (const char* name :
+       {"accept", "accept4", "read", "readv", "write", "writev", "recvfrom", "recvmsg", "recvmmsg", "sendto", "sendmsg",
+        "sendmmsg", "close", "shutdown", "getsockopt", "setsockopt", "getsockname", "getpeername"}) {
     f.allow(name);
   }
   // Asio's reactor: epoll, its eventfd interrupter and timerfd; poll/select for blocking calls.
-  for (const char* name : {"epoll_create1", "epoll_ctl", "epoll_wait", "epoll_pwait", "epoll_pwait2", "poll", "ppoll",
-                           "select", "pselect6", "eventfd2", "timerfd_create", "timerfd_settime", "timerfd_gettime",
-                           "pipe2"}) {
+  for (const char* name :
+       {"epoll_create1", "epoll_ctl", "epoll_wait", "epoll_pwait", "epoll_pwait2", "poll", "ppoll", "select",
+        "pselect6", "eventfd2", "timerfd_create", "timerfd_settime", "timerfd_gettime", "pipe2"}) {
     f.allow(name);
   }
   // Descriptor flags only (non-blocking, close-on-exec): no F_DUPFD, no locks, no leases.
@@ -101,7 +101,8 @@ std::string install_server_filter() {
   // for a thread of this process (CLONE_THREAD), never a new process.
   f.refuse("clone3", ENOSYS);
   f.allow("clone", {SCMP_A0(SCMP_CMP_MASKED_EQ, CLONE_THREAD, CLONE_THREAD)});
-  for (const char* name : {"futex", "set_robust_list", "rseq", "sched_yield", "exit", "exit_group", "restart_syscall"}) {
+  for (const char* name :
+       {"futex", "set_robust_list", "rseq", "sched_yield", "exit", "exit_group", "restart_syscall"}) {
     f.allow(name);
   }
 

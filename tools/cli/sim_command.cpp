@@ -25,7 +25,8 @@ void add_sim(CLI::App& app) {
   auto duration = std::make_shared<double>(0.0);
   auto noise = std::make_shared<double>(0.0);
   CLI::App* cmd = app.add_subcommand(
-      "sim", "Closed loop on the simulated device and hand, in simulated time (deterministic: same inputs, same bytes)");
+      "sim",
+      "Closed loop on the simulated device and hand, in simulated time (deterministic: same inputs, same bytes)");
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
   cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_flag("--strict", options->strict,
@@ -88,7 +89,8 @@ void add_sim(CLI::App& app) {
     // A servo rate Q16.16 cannot hold is a bad command-line value: exit 2 before anything runs
     // (run_sim checks it too, for other callers). An unloadable scene is run_sim's to report.
     if (auto scene = load_scene_file(options->scene_path, options->scalar)) {
-      if (const std::string bad = fixed_point::check_rate(options->rate_hz, options->scalar, scene.value()); !bad.empty()) {
+      if (const std::string bad = fixed_point::check_rate(options->rate_hz, options->scalar, scene.value());
+          !bad.empty()) {
         fmt::print(stderr, "--rate {}\n", bad);
         set_exit_code(2);
         return;

@@ -22,9 +22,12 @@ void add_view(CLI::App& app) {
   auto address = std::make_shared<std::string>("127.0.0.1");
   auto hosts = std::make_shared<std::vector<std::string>>();
   CLI::App* cmd = app.add_subcommand("view", "A recorded trace in the viewer page (play, pause, scrub) until Ctrl-C");
-  cmd->add_option("trace", *trace_path, "Trace CSV written by toonforce run --trace or toonforce sim --trace")->required();
+  cmd->add_option("trace", *trace_path, "Trace CSV written by toonforce run --trace or toonforce sim --trace")
+      ->required();
   cmd->add_option("--scene", *scene_path, "The scene file the trace was recorded with, to draw its surfaces and gap");
-  cmd->add_option("--port", *port, "Port to serve on (0: any free port)")->check(number_in(0, 65535))->capture_default_str();
+  cmd->add_option("--port", *port, "Port to serve on (0: any free port)")
+      ->check(number_in(0, 65535))
+      ->capture_default_str();
   cmd->add_option("--address", *address, "Listen on this address instead of 127.0.0.1 (other hosts can then watch)");
   cmd->add_option("--host", *hosts, kViewHostHelp)->type_name("NAME")->allow_extra_args(false)->take_all();
   cmd->callback([=] {

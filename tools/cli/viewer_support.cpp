@@ -16,7 +16,6 @@
 
 namespace toonforce::cli {
 
-
 void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
   flags.view = cmd->add_option("--view", flags.port,
                                fmt::format("Serve the live viewer page on 127.0.0.1:PORT (default {}; 0: any free "
@@ -28,15 +27,20 @@ void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
   cmd->add_option("--view-address", flags.address,
                   "Listen on this address instead of 127.0.0.1 (e.g. 0.0.0.0: other hosts can watch; read-only)")
       ->needs(flags.view);
-  cmd->add_option("--view-host", flags.hosts, kViewHostHelp)->type_name("NAME")->allow_extra_args(false)->take_all()->needs(flags.view);
+  cmd->add_option("--view-host", flags.hosts, kViewHostHelp)
+      ->type_name("NAME")
+      ->allow_extra_args(false)
+      ->take_all()
+      ->needs(flags.view);
 }
 
 Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerOptions& options,
                                                            const viewer::HelloInfo& hello,
                                                            std::optional<std::vector<viewer::ViewFrame>> recording,
                                                            std::string_view host_option) {
-  auto server = recording ? viewer::ViewerServer::start_recording(options, viewer::make_hello(hello), std::move(recording))
-                          : viewer::ViewerServer::start(options, viewer::make_hello(hello));
+  auto server = recording
+                    ? viewer::ViewerServer::start_recording(options, viewer::make_hello(hello), std::move(recording))
+                    : viewer::ViewerServer::start(options, viewer::make_hello(hello));
   if (!server) return server;
   const bool other_hosts = options.address != "127.0.0.1" && options.address != "::1";
   fmt::print(stderr, "viewer: {} (open it in a browser){}\n", server.value()->url(),
@@ -50,7 +54,8 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
       if (host.find(':') == std::string::npos || host.back() == ']') continue;  // port 80's bare form
       urls += fmt::format("{}http://{}/", urls.empty() ? "" : ", ", host);
     }
-    fmt::print(stderr, "viewer: other hosts open {}; requests naming another host are refused (add names with {} NAME)\n",
+    fmt::print(stderr,
+               "viewer: other hosts open {}; requests naming another host are refused (add names with {} NAME)\n",
                urls.empty() ? "nothing yet" : urls, host_option);
   }
   std::fflush(stderr);
@@ -65,7 +70,9 @@ class LiveControl final : public viewer::SceneControl {
  public:
   LiveControl(std::unique_ptr<SceneMailbox<RuntimeScene<S>>> owned, SceneEditor<S> editor)
       : owned_(std::move(owned)), control_(std::move(editor)) {}
-  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override { return control_.set(effect, keys); }
+  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override {
+    return control_.set(effect, keys);
+  }
   Result<std::uint64_t> add(std::string_view kind, std::string_view keys) override { return control_.add(kind, keys); }
   Result<std::uint64_t> remove(std::string_view effect) override { return control_.remove(effect); }
   Result<std::uint64_t> load(std::string_view text, std::string name) override {
@@ -78,7 +85,8 @@ class LiveControl final : public viewer::SceneControl {
   std::string scene_json() const override { return control_.scene_json(); }
 
  private:
-  std::unique_ptr<SceneMailbox<RuntimeScene<S>>> owned_;  // before the editor that points to it (null: in shared memory)
+  std::unique_ptr<SceneMailbox<RuntimeScene<S>>>
+      owned_;  // before the editor that points to it (null: in shared memory)
   viewer::EditorControl<S> control_;
 };
 

@@ -26,7 +26,7 @@ struct ViewFlags {
   int port = viewer::kDefaultPort;
   std::string address = "127.0.0.1";
   std::vector<std::string> hosts;  ///< --view-host: more names the page may be opened by
-  CLI::Option* view = nullptr;  ///< given?
+  CLI::Option* view = nullptr;     ///< given?
   bool wanted() const { return view != nullptr && view->count() > 0; }
 };
 
@@ -40,9 +40,10 @@ inline constexpr const char* kViewHostHelp =
 
 /// Starts the server and prints where to open it; an error message on failure. `host_option`
 /// is the option that adds names (for the message when other hosts can connect).
-Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerOptions& options, const viewer::HelloInfo& hello,
-                                                           std::optional<std::vector<viewer::ViewFrame>> recording = std::nullopt,
-                                                           std::string_view host_option = "--view-host");
+Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(
+    const viewer::ViewerOptions& options, const viewer::HelloInfo& hello,
+    std::optional<std::vector<viewer::ViewFrame>> recording = std::nullopt,
+    std::string_view host_option = "--view-host");
 
 /// Live scenes (`run --control`): the editor of the scene `text` (the file `name`'s, as the run
 /// read it: named in its messages) for the run's scalar, with its mailbox (set in `live`), for
@@ -53,7 +54,6 @@ Result<std::unique_ptr<viewer::ViewerServer>> start_viewer(const viewer::ViewerO
 Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& text, const std::string& name,
                                                                 ScalarKind scalar, LiveMailboxes& live,
                                                                 void* place = nullptr);
-
 
 /// Keeps serving (the page has the whole recording) until Ctrl-C or another stop signal.
 void serve_until_stopped(const viewer::ViewerServer& server, const char* what);

@@ -64,7 +64,8 @@ void add_latency(CLI::App& report) {
   auto no_callgrind = std::make_shared<bool>(false);
   CLI::App* cmd = report.add_subcommand(
       "latency", "ns and instructions per tick of each effect, paper scene and servo loop, per scalar type");
-  cmd->add_option("--root", options->root, "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
+  cmd->add_option("--root", options->root,
+                  "Source tree holding scenes/ (default: . if it has scenes/, else the build's)");
   // Every numeric option's range is checked here, before anything runs (2^64-1 cold
   // ticks ran without end, 1e308 seconds aborted in llround).
   cmd->add_option("--ticks", options->ticks, "Timed ticks per row, 1..1e10 (default 10^7)")
@@ -124,7 +125,8 @@ void add_precision(CLI::App& report) {
   cmd->add_option("--drift-hours", options->drift_hours,
                   "Simulated hours of closed loop per scene in the drift run, 0..100 (default 1; 0: none)")
       ->check(number_in(0, kMaxDriftHours));
-  cmd->add_option("--drift-rate", options->drift_rate_hz, "Servo rate of the drift run [Hz], 100..100000 (default 1000)")
+  cmd->add_option("--drift-rate", options->drift_rate_hz,
+                  "Servo rate of the drift run [Hz], 100..100000 (default 1000)")
       ->check(number_in(100, 100000));
   cmd->add_option("--drift-seed", options->drift_seed, "Seed of the drift run's hand motion (default 15)");
   cmd->add_option("--filter", options->filter, "Only scenes whose name contains one of these comma-separated texts");
@@ -162,7 +164,8 @@ void add_precision(CLI::App& report) {
     if (!docs->empty()) {
       // The command as asked for, written beside the figures.
       std::string line = "toonforce-lab report precision --docs " + *docs;
-      if (options->drift_hours != report::PrecisionOptions{}.drift_hours) line += fmt::format(" --drift-hours {:g}", options->drift_hours);
+      if (options->drift_hours != report::PrecisionOptions{}.drift_hours)
+        line += fmt::format(" --drift-hours {:g}", options->drift_hours);
       if (!options->filter.empty()) line += " --filter " + options->filter;
       if (cmd->count("--ticks") > 0) line += fmt::format(" --ticks {}", options->timing_ticks);
       const auto written = report::write_precision_documents(result.value(), *docs, line, !*no_plot);
@@ -200,7 +203,8 @@ void add_stability(CLI::App& report) {
                   "Longest run [s] of a linear-map point whose eigenvalue predicts growth, 1..3600 (default 300)")
       ->check(number_in(1, 3600));
   cmd->add_option("--filter", options->filter, "Only maps whose name contains one of these comma-separated texts");
-  cmd->add_option("--out", *out, "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not the performance pages)");
+  cmd->add_option("--out", *out,
+                  "Also write OUT/STABILITY.md and its CSVs and plots in OUT/report/ (not the performance pages)");
   cmd->add_flag("--no-plot", *no_plot, "With --out: the CSVs and STABILITY.md without plots");
   cmd->callback([options, out, no_plot] {
     if (!out->empty()) {
@@ -242,7 +246,8 @@ void add_mcu(CLI::App& report) {
   cmd->add_option("--m4f-images", options->m4f_images,
                   "The Cortex-M4F images (default: cortex-m4f beside the M3 ones; if absent, the section says so)");
   cmd->add_option("--gen", options->gen, "toonforce_mcu_gen (default: in the M3 images' parent directory)");
-  cmd->add_option("--docs", *docs, "Regenerate the microcontroller block of DIR/performance/mcu.md instead of printing it");
+  cmd->add_option("--docs", *docs,
+                  "Regenerate the microcontroller block of DIR/performance/mcu.md instead of printing it");
   cmd->callback([options, docs] {
     // The command as asked for, written into the section.
     std::string line = "toonforce-lab report mcu";
@@ -283,7 +288,9 @@ void add_all(CLI::App& report) {
   cmd->add_option("--resolution", options->stability.resolution, "Stability points per axis (default 24)")
       ->check(number_in(2, 200));
   cmd->add_option("--cpu", options->latency.cpu, "Pin the timing thread to this CPU")->check(number_in(0, kMaxCpu));
-  cmd->add_flag("--quick", *quick, "A smoke run: 10^5 ticks (100 cold), 0.01 simulated hours of drift, 1 s of closed loop, 8 points per axis");
+  cmd->add_flag(
+      "--quick", *quick,
+      "A smoke run: 10^5 ticks (100 cold), 0.01 simulated hours of drift, 1 s of closed loop, 8 points per axis");
   cmd->add_flag("--no-callgrind", *no_callgrind, "Do not count instructions");
   cmd->add_flag("--no-plot", *no_plot, "Write the CSVs and documents without plots");
   cmd->callback([options, quick, no_callgrind, no_plot] {
@@ -299,12 +306,14 @@ void add_all(CLI::App& report) {
       options->precision.closed_loop_s = 1.0;
       options->stability.resolution = 8;
     }
-    options->command_line = fmt::format("toonforce-lab report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
+    options->command_line =
+        fmt::format("toonforce-lab report all --out {}{}", options->out_dir, *quick ? " --quick" : "");
     // The microcontroller figures first (seconds; an image that fails stops here, before the
     // long reports): only with the Cortex-M3 images built, which needs the cross compiler.
     report::McuOptions mcu;
     mcu.root = options->root;
-    mcu.command = "toonforce-lab report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
+    mcu.command =
+        "toonforce-lab report mcu --docs " + options->out_dir + (root_given.empty() ? "" : " --root " + root_given);
     if (const std::string why = report::mcu_images_missing(mcu); !why.empty()) {
       std::printf("not regenerated: the microcontroller block of %s/performance/mcu.md: %s\n", options->out_dir.c_str(),
                   why.c_str());
@@ -326,7 +335,8 @@ void add_all(CLI::App& report) {
 }  // namespace
 
 void add_report(CLI::App& app) {
-  CLI::App* report = app.add_subcommand("report", "Measure toonforce: latency, precision, stability, microcontroller figures (Markdown)");
+  CLI::App* report = app.add_subcommand(
+      "report", "Measure toonforce: latency, precision, stability, microcontroller figures (Markdown)");
   report->require_subcommand(1);
   // A stop signal ends a report without a cut file (report/staged_outputs.hpp); from the start,
   // since every step runs for seconds to minutes.

@@ -68,8 +68,8 @@ int main(int argc, char** argv) {
   for (std::size_t index = 0; index < cases->size(); ++index) {
     auto& c = *cases.value()[index];
     if (!toonforce::report::selected(c.info().id, filter)) continue;
-    const bool scenario = c.info().level == Level::kScene || c.info().level == Level::kSpecLoop ||
-                          c.info().level == Level::kLoop;
+    const bool scenario =
+        c.info().level == Level::kScene || c.info().level == Level::kSpecLoop || c.info().level == Level::kLoop;
     const std::uint64_t pass = c.info().ticks_per_pass;
     const std::uint64_t ticks = scenario ? pass : branch_ticks;
     std::printf("case\t%zu\t%s\t%s\t%llu\n", index, c.info().id.c_str(), scenario ? "per-tick" : "total",

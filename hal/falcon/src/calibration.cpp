@@ -19,8 +19,8 @@ std::string default_falcon_calibration_path(std::string_view serial) {
   // A serial number is an FTDI string: keep it to characters safe in a file name.
   std::string name;
   for (const char ch : serial) {
-    const bool safe = (ch >= 'A' && ch <= 'Z') || (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') ||
-                      ch == '-' || ch == '_';
+    const bool safe =
+        (ch >= 'A' && ch <= 'Z') || (ch >= 'a' && ch <= 'z') || (ch >= '0' && ch <= '9') || ch == '-' || ch == '_';
     name += safe ? ch : '_';
   }
   return base + "/toonforce/" + (name.empty() ? std::string("falcon.toml") : "falcon-" + name + ".toml");

@@ -41,8 +41,7 @@ DeviceInfo make_info(std::string name, const FalconOptions& o) {
 
 }  // namespace
 
-FalconDriver::FalconDriver(std::unique_ptr<FalconTransport> transport, const FalconOptions& options,
-                           std::string name)
+FalconDriver::FalconDriver(std::unique_ptr<FalconTransport> transport, const FalconOptions& options, std::string name)
     : transport_(std::move(transport)),
       options_(options),
       info_(make_info(std::move(name), options)),
@@ -263,24 +262,32 @@ std::string FalconDriver::last_error() const {
                    "straight in until the LED turns green. Forces stay off until all three axes report homed.";
     case FalconFault::kPoseNotConverged:
       return who + ": the position estimate did not converge (angle residual " + std::to_string(fault_residual_rad_) +
-             " rad" + streak + "); forces are off for this tick. The grip may be at the edge of the "
+             " rad" + streak +
+             "); forces are off for this tick. The grip may be at the edge of the "
              "workspace; move it toward the centre. If it persists, re-home (pull out, push in).";
     case FalconFault::kNoReply:
       return who + " did not answer the last command within " + std::to_string(options_.max_reads_per_tick) +
-             " USB reads" + streak + "; forces are off. A single miss is harmless. If it repeats, check the USB "
+             " USB reads" + streak +
+             "; forces are off. A single miss is harmless. If it repeats, check the USB "
              "cable (no hub) and the power supply; if the LED went dark the firmware stopped: power-cycle the "
              "Falcon and run `toonforce falcon firmware FILE`.";
     case FalconFault::kUsbTimeout:
       return who + ": a USB transfer timed out after " + std::to_string(options_.io_timeout_ms) + " ms" + streak +
              " (the FTDI USB bridge stopped answering); forces are off. Check the cable and power; if it "
-             "persists, unplug and replug the Falcon and restart. " + reload;
+             "persists, unplug and replug the Falcon and restart. " +
+             reload;
     case FalconFault::kGarbled:
-      return who + " sent " + std::to_string(fault_garbled_) + " bytes that did not form a valid 16-byte frame, "
-             "and no valid reply" + streak + "; forces are off for this tick. Occasional garbling is survivable; "
+      return who + " sent " + std::to_string(fault_garbled_) +
+             " bytes that did not form a valid 16-byte frame, "
+             "and no valid reply" +
+             streak +
+             "; forces are off for this tick. Occasional garbling is survivable; "
              "if it persists check the cable and that no other program talks to the Falcon.";
     case FalconFault::kUnplugged:
-      return who + " is gone: USB reported no device (LIBUSB_ERROR_NO_DEVICE: unplugged or powered off). "
-                   "Forces are off. Plug it back in and restart. " + reload;
+      return who +
+             " is gone: USB reported no device (LIBUSB_ERROR_NO_DEVICE: unplugged or powered off). "
+             "Forces are off. Plug it back in and restart. " +
+             reload;
     case FalconFault::kUsbError:
       return who + ": USB error (" + std::string(to_string(fault_usb_)) + ")" + streak +
              "; forces are off. Unplug and replug the Falcon; if it repeats, try another USB port.";

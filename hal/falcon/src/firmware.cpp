@@ -39,17 +39,13 @@ constexpr Sha256 digest_of(std::string_view hex) {
 
 // FALCON.md §2.2 (sizes and SHA-256 "Derived" there from the libnifalcon repository's files).
 constexpr std::array<KnownFirmware, 4> kKnown{{
-    {"nvent_firmware.bin", 8492,
-     digest_of("1119e39c39fab1f37678ea62dfc715b23dd86ee7f13d78f88f707d9f09b896a1"),
+    {"nvent_firmware.bin", 8492, digest_of("1119e39c39fab1f37678ea62dfc715b23dd86ee7f13d78f88f707d9f09b896a1"),
      "the nVent driver release; libnifalcon recommends it"},
-    {"test_firmware.bin", 7324,
-     digest_of("b2700d5cd5ca217e48565fb4de5a502a636c53f6e01ebd0cad193e9f84856c6a"),
+    {"test_firmware.bin", 7324, digest_of("b2700d5cd5ca217e48565fb4de5a502a636c53f6e01ebd0cad193e9f84856c6a"),
      "novint.bin from the Novint driver's TestUtilities"},
-    {"novint_T0.bin", 7914,
-     digest_of("ae838730af34b5822c9c3949859b446614af0410730b832cc17a6ad627ea64a4"),
+    {"novint_T0.bin", 7914, digest_of("ae838730af34b5822c9c3949859b446614af0410730b832cc17a6ad627ea64a4"),
      "Novint driver install (origin and purpose undocumented)"},
-    {"novint_T2.bin", 7914,
-     digest_of("e0ae3598670fa1c8d9277bd6943c99b3152b97c400c46c1c42c60de77ff4e816"),
+    {"novint_T2.bin", 7914, digest_of("e0ae3598670fa1c8d9277bd6943c99b3152b97c400c46c1c42c60de77ff4e816"),
      "Novint driver install (same layout as T0, different content)"},
 }};
 
@@ -145,8 +141,8 @@ Result<BootTable> parse_boot_table(std::span<const std::uint8_t> image) {
       return table;
     }
     if (at + 3 + length > words) {
-      return Error{"byte " + std::to_string(2 * at) + ": block " + std::to_string(table.blocks + 1) +
-                   " claims " + std::to_string(length) + " words but the file ends after " +
+      return Error{"byte " + std::to_string(2 * at) + ": block " + std::to_string(table.blocks + 1) + " claims " +
+                   std::to_string(length) + " words but the file ends after " +
                    std::to_string(words - std::min(words, at + 3)) + " more"};
     }
     ++table.blocks;
@@ -172,8 +168,8 @@ Result<FirmwareImage> validate_firmware(std::vector<std::uint8_t> bytes, std::st
                  ". Copy the firmware file from a Novint or nVent driver install (see docs/FALCON.md)."};
   }
   const Sha256 digest = sha256(bytes);
-  const auto match = std::find_if(allowlist.begin(), allowlist.end(),
-                                  [&](const KnownFirmware& k) { return k.sha256 == digest; });
+  const auto match =
+      std::find_if(allowlist.begin(), allowlist.end(), [&](const KnownFirmware& k) { return k.sha256 == digest; });
   if (match == allowlist.end()) {
     std::string same_size;
     for (const auto& k : allowlist) {
@@ -193,7 +189,7 @@ Result<FirmwareImage> validate_firmware(std::vector<std::uint8_t> bytes, std::st
 }
 
 Result<FirmwareImage> read_firmware_file(const std::string& path, std::span<const KnownFirmware> allowlist) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
     return Error{"cannot read firmware file " + path + ": it does not exist or is not accessible"};
   }
@@ -206,7 +202,8 @@ Result<FirmwareImage> read_firmware_file(const std::string& path, std::span<cons
   if (!in) return Error{"cannot open firmware file " + path + " for reading"};
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(st.st_size));
   in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  if (in.gcount() != static_cast<std::streamsize>(bytes.size())) return Error{"error while reading firmware file " + path};
+  if (in.gcount() != static_cast<std::streamsize>(bytes.size()))
+    return Error{"error while reading firmware file " + path};
   return validate_firmware(std::move(bytes), path, allowlist);
 }
 
@@ -314,8 +311,8 @@ class Loader {
         const auto n = read_payload(std::span(got).subspan(have), error);
         if (n < 0) return error;
         have += static_cast<std::size_t>(n);
-        if (std::search(got.begin(), got.begin() + static_cast<std::ptrdiff_t>(have), kAnswer.begin(),
-                        kAnswer.end()) != got.begin() + static_cast<std::ptrdiff_t>(have)) {
+        if (std::search(got.begin(), got.begin() + static_cast<std::ptrdiff_t>(have), kAnswer.begin(), kAnswer.end()) !=
+            got.begin() + static_cast<std::ptrdiff_t>(have)) {
           return {};
         }
       }
@@ -358,7 +355,8 @@ class Loader {
       if (i > 0) answer += ' ';
       answer += hex_word(got[i], 2);
     }
-    return "the boot loader answered the autobaud 'A' with " + answer + " instead of echoing 0x41 (alone or after 0x13)";
+    return "the boot loader answered the autobaud 'A' with " + answer +
+           " instead of echoing 0x41 (alone or after 0x13)";
   }
 
   // FALCON.md §2.1 step 5: 62-byte chunks, each echoed byte for byte before the next.
@@ -428,10 +426,9 @@ Result<FirmwareLoadReport> load_firmware(FalconTransport& transport, const Firmw
   for (std::size_t i = 0; i < report.failures.size(); ++i) {
     message += "  try " + std::to_string(i + 1) + ": " + report.failures[i] + "\n";
   }
-  message +=
-      "What to do: unplug the Falcon's power supply and USB cable, plug them back in (directly into the "
-      "computer, not through a hub), wait two seconds and run `toonforce falcon firmware FILE` again. "
-      "Loads often fail the first time on a real Falcon (docs/FALCON.md, \"Firmware\").";
+  message += "What to do: unplug the Falcon's power supply and USB cable, plug them back in (directly into the "
+             "computer, not through a hub), wait two seconds and run `toonforce falcon firmware FILE` again. "
+             "Loads often fail the first time on a real Falcon (docs/FALCON.md, \"Firmware\").";
   return Error{message};
 }
 

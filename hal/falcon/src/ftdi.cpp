@@ -19,9 +19,7 @@ TransportStatus run(FalconTransport& t,
 
 }  // namespace
 
-TransportStatus purge(FalconTransport& t) noexcept {
-  return run(t, {{kReset, kPurgeRx}, {kReset, kPurgeTx}});
-}
+TransportStatus purge(FalconTransport& t) noexcept { return run(t, {{kReset, kPurgeRx}, {kReset, kPurgeTx}}); }
 
 TransportStatus enter_normal_mode(FalconTransport& t) noexcept {
   return run(t, {{kLatencyTimer, kLatencyNormalMs},

@@ -25,7 +25,7 @@ bool arm_pose(const FalconGeometry& g, std::size_t arm, const Vec3<double>& p, A
   out.w = p.z;
   out.cos_t3 = (out.v + g.f_m) / g.b_m;
   if (!(out.cos_t3 > -1.0 && out.cos_t3 < 1.0)) return false;  // also rejects NaN
-  out.sin_t3 = std::sqrt(1.0 - out.cos_t3 * out.cos_t3);     // theta3 = acos(.) is in (0, pi)
+  out.sin_t3 = std::sqrt(1.0 - out.cos_t3 * out.cos_t3);       // theta3 = acos(.) is in (0, pi)
   out.big_a = out.u + g.c_m;
   out.big_k = g.b_m * out.sin_t3 + g.d_m + g.e_m;
   return true;
@@ -114,12 +114,10 @@ bool angle_jacobian(const FalconGeometry& g, const Vec3<double>& p_m, const Angl
 bool position_jacobian(const FalconGeometry& g, const Vec3<double>& p_m, Mat3& dp_dtheta) noexcept {
   Angles theta{};
   Mat3 dtheta_dp;
-  return inverse_kinematics(g, p_m, theta) && angle_jacobian(g, p_m, theta, dtheta_dp) &&
-         invert(dtheta_dp, dp_dtheta);
+  return inverse_kinematics(g, p_m, theta) && angle_jacobian(g, p_m, theta, dtheta_dp) && invert(dtheta_dp, dp_dtheta);
 }
 
-MotorWords force_to_motor_words(const Mat3& dp_dtheta, const Vec3<double>& force_n,
-                                const MotorScale& scale) noexcept {
+MotorWords force_to_motor_words(const Mat3& dp_dtheta, const Vec3<double>& force_n, const MotorScale& scale) noexcept {
   MotorWords out;
   Vec3<double> exact = motor_words_exact(dp_dtheta, force_n, scale);
   if (!is_finite(exact)) return out;
@@ -233,8 +231,7 @@ FkResult ForwardKinematics::solve(const Angles& target) noexcept {
     result.jacobian_valid = true;
   } else {
     Mat3 dtheta_dp;
-    result.jacobian_valid =
-        angle_jacobian(geometry_, p, theta, dtheta_dp) && invert(dtheta_dp, result.dp_dtheta);
+    result.jacobian_valid = angle_jacobian(geometry_, p, theta, dtheta_dp) && invert(dtheta_dp, result.dp_dtheta);
   }
   last_m_ = p;
   return result;

@@ -74,13 +74,14 @@ std::vector<UsbFalcon> find_falcons(libusb_context* ctx, libusb_device**& list) 
     out.push_back(f);
   }
   // libusb lists devices in no documented order: number them by bus and address instead.
-  std::sort(out.begin(), out.end(),
-            [](const UsbFalcon& a, const UsbFalcon& b) { return a.bus != b.bus ? a.bus < b.bus : a.address < b.address; });
+  std::sort(out.begin(), out.end(), [](const UsbFalcon& a, const UsbFalcon& b) {
+    return a.bus != b.bus ? a.bus < b.bus : a.address < b.address;
+  });
   return out;
 }
 
 std::string describe_node(const std::string& node) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(node.c_str(), &st) != 0) return {};
   char mode[11] = "----------";
   mode[0] = S_ISCHR(st.st_mode) ? 'c' : '-';
@@ -106,7 +107,8 @@ std::string permission_fix(const std::string& node) {
     fix += "the udev rule " + rule.path + " is installed; replug the Falcon so it applies; ";
   }
   if (!plugdev.exists) {
-    fix += "create the group: `sudo groupadd plugdev` and add yourself: `sudo usermod -aG plugdev $USER`, then log out and in";
+    fix +=
+        "create the group: `sudo groupadd plugdev` and add yourself: `sudo usermod -aG plugdev $USER`, then log out and in";
   } else if (plugdev.in_session) {
     fix += "you are in group plugdev already";
   } else if (plugdev.listed) {
@@ -118,7 +120,7 @@ std::string permission_fix(const std::string& node) {
 }
 
 std::variant<std::unique_ptr<LibusbTransport>, OpenFailure> LibusbTransport::open(std::shared_ptr<UsbContext> context,
-                                                                                 const UsbFalcon& falcon) {
+                                                                                  const UsbFalcon& falcon) {
   libusb_device_handle* handle = nullptr;
   int r = libusb_open(falcon.device, &handle);
   if (r != LIBUSB_SUCCESS) {
@@ -232,8 +234,7 @@ TransportStatus LibusbTransport::run(libusb_transfer* transfer) noexcept {
 }
 
 TransportStatus LibusbTransport::control(std::uint8_t request, std::uint16_t value) noexcept {
-  const int r = libusb_control_transfer(handle_, kVendorOut,
-                                        request, value, 0, nullptr, 0, kControlTimeoutMs);
+  const int r = libusb_control_transfer(handle_, kVendorOut, request, value, 0, nullptr, 0, kControlTimeoutMs);
   return r >= 0 ? TransportStatus::kOk : from_libusb(r);
 }
 

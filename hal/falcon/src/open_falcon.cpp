@@ -68,7 +68,8 @@ Result<std::unique_ptr<LibusbTransport>> open_transport(const FalconOptions& opt
                  std::to_string(falcons.size()) + " Novint Falcon(s) are connected (numbered from 0)"};
   }
   auto opened = LibusbTransport::open(context, falcons[options.index]);
-  if (auto* failure = std::get_if<OpenFailure>(&opened)) return Error{failure->problem + ". To fix it: " + failure->fix + "."};
+  if (auto* failure = std::get_if<OpenFailure>(&opened))
+    return Error{failure->problem + ". To fix it: " + failure->fix + "."};
   return std::move(std::get<std::unique_ptr<LibusbTransport>>(opened));
 }
 
@@ -150,7 +151,8 @@ Result<std::unique_ptr<DeviceDriver>> open_falcon(const FalconOptions& options) 
   calibrated.motor.words_per_n_m = calibration.value().calibration.words_per_n_m;
   calibrated.calibration_source = calibration.value().source;
   std::string name = device_name(*t);
-  return std::unique_ptr<DeviceDriver>(std::make_unique<falcon::FalconDriver>(std::move(t), calibrated, std::move(name)));
+  return std::unique_ptr<DeviceDriver>(
+      std::make_unique<falcon::FalconDriver>(std::move(t), calibrated, std::move(name)));
 }
 
 Result<std::string> load_falcon_firmware(const std::string& path, const FalconOptions& options, bool reload) {
@@ -202,7 +204,8 @@ FalconDetection detect_falcons(const FalconDetectOptions& options) {
   out.prerequisites.push_back(udev);
 
   const falcon::GroupCheck group = falcon::check_group("plugdev");
-  Prerequisite member{"membership of group plugdev (which the udev rule grants access)", group.in_session || root, {}, {}};
+  Prerequisite member{
+      "membership of group plugdev (which the udev rule grants access)", group.in_session || root, {}, {}};
   if (root) {
     member.detail = "you are root";
   } else if (!group.exists) {

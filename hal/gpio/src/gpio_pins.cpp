@@ -11,9 +11,7 @@ namespace toonforce::gpio {
 
 namespace detail {
 
-bool write_line(gpiod_line* line, int value) noexcept {
-  return gpiod_line_set_value(line, value) == 0;
-}
+bool write_line(gpiod_line* line, int value) noexcept { return gpiod_line_set_value(line, value) == 0; }
 
 PinLevel read_line(gpiod_line* line) noexcept {
   // The line was requested with GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW when the user asked for

@@ -107,17 +107,15 @@ std::string permission_problem(const std::string& path) {
     text += fmt::format(" (mode {}, group {})", mode_text(st.st_mode), *group);
   }
   if (group && st.st_gid != 0) {
-    text += fmt::format(
-        ". Fix: add yourself to that group (sudo usermod -aG {0} $USER), then log out and in "
-        "again; check with: id | grep {0}",
-        *group);
+    text += fmt::format(". Fix: add yourself to that group (sudo usermod -aG {0} $USER), then log out and in "
+                        "again; check with: id | grep {0}",
+                        *group);
   } else {
-    text +=
-        ". Fix: let the group gpio use GPIO chips with a udev rule and join it: "
-        "echo 'SUBSYSTEM==\"gpio\", KERNEL==\"gpiochip*\", GROUP=\"gpio\", MODE=\"0660\"' | "
-        "sudo tee /etc/udev/rules.d/60-gpiochip.rules && sudo groupadd -f gpio && "
-        "sudo usermod -aG gpio $USER && sudo udevadm control --reload && sudo udevadm trigger, "
-        "then log out and in again";
+    text += ". Fix: let the group gpio use GPIO chips with a udev rule and join it: "
+            "echo 'SUBSYSTEM==\"gpio\", KERNEL==\"gpiochip*\", GROUP=\"gpio\", MODE=\"0660\"' | "
+            "sudo tee /etc/udev/rules.d/60-gpiochip.rules && sudo groupadd -f gpio && "
+            "sudo usermod -aG gpio $USER && sudo udevadm control --reload && sudo udevadm trigger, "
+            "then log out and in again";
   }
   return text;
 }
@@ -273,8 +271,8 @@ std::optional<std::string> resolve_by_name(Wanted& w, ChipCache& cache, NameInde
     std::vector<std::string> where;
     where.reserve(places.size());
     for (const auto& p : places) where.push_back(fmt::format("{}:{}", chip_name(p.path), p.offset));
-    return fmt::format("the name '{}' belongs to several lines ({}); name the line as CHIP:OFFSET",
-                       w.spec.name, join(where, ", "));
+    return fmt::format("the name '{}' belongs to several lines ({}); name the line as CHIP:OFFSET", w.spec.name,
+                       join(where, ", "));
   }
   std::string text;
   if (index.searched().empty()) {
@@ -292,12 +290,11 @@ std::optional<std::string> resolve_by_name(Wanted& w, ChipCache& cache, NameInde
 
 std::string in_use_problem(const Wanted& w, gpiod_line* line) {
   const char* consumer = gpiod_line_consumer(line);
-  return fmt::format(
-      "{}:{} is in use by {}; stop that program or release the line (`gpioinfo {}` shows who "
-      "holds each line), or choose another line",
-      chip_name(w.path), w.offset,
-      consumer != nullptr ? fmt::format("'{}'", consumer) : std::string("another user (no label)"),
-      chip_name(w.path));
+  return fmt::format("{}:{} is in use by {}; stop that program or release the line (`gpioinfo {}` shows who "
+                     "holds each line), or choose another line",
+                     chip_name(w.path), w.offset,
+                     consumer != nullptr ? fmt::format("'{}'", consumer) : std::string("another user (no label)"),
+                     chip_name(w.path));
 }
 
 /// Opens the chip, checks the offset and requests the line; the problem if any.
@@ -311,14 +308,12 @@ std::optional<std::string> request(Wanted& w, ChipCache& cache, std::string_view
   }
   const unsigned n = gpiod_chip_num_lines(opened.chip);
   if (w.offset >= n) {
-    return fmt::format("{} has {} lines (offsets 0 to {}); there is no line {}", chip_name(w.path), n,
-                       n - 1, w.offset);
+    return fmt::format("{} has {} lines (offsets 0 to {}); there is no line {}", chip_name(w.path), n, n - 1, w.offset);
   }
   errno = 0;
   gpiod_line* line = gpiod_chip_get_line(opened.chip, w.offset);
   if (line == nullptr) {
-    return fmt::format("cannot read the line info of {}:{}: {}", chip_name(w.path), w.offset,
-                       errno_text(errno));
+    return fmt::format("cannot read the line info of {}:{}: {}", chip_name(w.path), w.offset, errno_text(errno));
   }
   if (gpiod_line_is_used(line)) return in_use_problem(w, line);
 
@@ -328,8 +323,7 @@ std::optional<std::string> request(Wanted& w, ChipCache& cache, std::string_view
   if (w.spec.bias == Bias::kPullDown) flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_PULL_DOWN;
   const std::string label(consumer);
   const gpiod_line_request_config config{
-      label.c_str(),
-      w.output() ? GPIOD_LINE_REQUEST_DIRECTION_OUTPUT : GPIOD_LINE_REQUEST_DIRECTION_INPUT, flags};
+      label.c_str(), w.output() ? GPIOD_LINE_REQUEST_DIRECTION_OUTPUT : GPIOD_LINE_REQUEST_DIRECTION_INPUT, flags};
   errno = 0;
   if (gpiod_line_request(line, &config, 0) != 0) {  // outputs start at 0: tick low, LEDs off
     const int error = errno;
@@ -373,8 +367,7 @@ Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consu
   std::vector<std::string> problems;
   std::vector<Wanted> wanted;
 
-  auto add_line = [&](Role role, std::string_view option, std::string_view what,
-                      const std::string& text) {
+  auto add_line = [&](Role role, std::string_view option, std::string_view what, const std::string& text) {
     if (text.empty()) return;
     const std::string label = fmt::format("{} {}", option, text);
     auto spec = parse_line_spec(text);
@@ -382,7 +375,8 @@ Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consu
       problems.push_back(fmt::format("{}: {}", option, spec.error()));
       return;
     }
-    wanted.push_back(Wanted{role, LightState::kIdle, label, std::string(what), std::move(spec).value(), {}, 0, nullptr});
+    wanted.push_back(
+        Wanted{role, LightState::kIdle, label, std::string(what), std::move(spec).value(), {}, 0, nullptr});
   };
   add_line(Role::kTick, "--tick-pin", "tick pin", options.tick_pin);
   add_line(Role::kEstop, "--estop-pin", "e-stop", options.estop_pin);
@@ -396,13 +390,17 @@ Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consu
     }
     const auto index = static_cast<std::size_t>(led->state);
     if (light_given[index]) {
-      problems.push_back(fmt::format("--led-pin {}: the {} light is given twice", text,
-                                     light_state_name(led->state)));
+      problems.push_back(fmt::format("--led-pin {}: the {} light is given twice", text, light_state_name(led->state)));
       continue;
     }
     light_given[index] = true;
-    wanted.push_back(Wanted{Role::kLight, led->state, fmt::format("--led-pin {}", text),
-                            fmt::format("{} light", light_state_name(led->state)), led->line, {}, 0,
+    wanted.push_back(Wanted{Role::kLight,
+                            led->state,
+                            fmt::format("--led-pin {}", text),
+                            fmt::format("{} light", light_state_name(led->state)),
+                            led->line,
+                            {},
+                            0,
                             nullptr});
   }
 
@@ -424,8 +422,8 @@ Result<GpioSession> open_gpio(const GpioOptions& options, std::string_view consu
     bool duplicate = false;
     for (std::size_t j = 0; j < i; ++j) {
       if (resolved[j] && wanted[j].path == w.path && wanted[j].offset == w.offset) {
-        problems.push_back(fmt::format("{}: {}:{} is already the line of {}; each pin needs its own line",
-                                       w.option, chip_name(w.path), w.offset, wanted[j].option));
+        problems.push_back(fmt::format("{}: {}:{} is already the line of {}; each pin needs its own line", w.option,
+                                       chip_name(w.path), w.offset, wanted[j].option));
         duplicate = true;
         break;
       }
@@ -475,10 +473,13 @@ std::vector<ChipInfo> list_chips() {
 
 std::string pin_error_summary(const GpioPins& pins) {
   std::vector<std::string> parts;
-  if (pins.tick.write_errors() != 0) parts.push_back(fmt::format("tick pin: {} failed writes", pins.tick.write_errors()));
+  if (pins.tick.write_errors() != 0)
+    parts.push_back(fmt::format("tick pin: {} failed writes", pins.tick.write_errors()));
   if (pins.estop.read_errors() != 0) parts.push_back(fmt::format("e-stop: {} failed reads", pins.estop.read_errors()));
-  if (pins.enable.read_errors() != 0) parts.push_back(fmt::format("enable: {} failed reads", pins.enable.read_errors()));
-  if (pins.lights.write_errors() != 0) parts.push_back(fmt::format("lights: {} failed updates", pins.lights.write_errors()));
+  if (pins.enable.read_errors() != 0)
+    parts.push_back(fmt::format("enable: {} failed reads", pins.enable.read_errors()));
+  if (pins.lights.write_errors() != 0)
+    parts.push_back(fmt::format("lights: {} failed updates", pins.lights.write_errors()));
   return join(parts, ", ");
 }
 

@@ -58,8 +58,7 @@ Result<LineSpec> parse_line_spec(std::string_view text) {
     // "gpiochip0" or "gpiochip0:x": a chip without a valid offset, not a line name.
     const std::string_view got = fields.size() >= 2 ? fields[1] : std::string_view{};
     return Error{got.empty() ? fmt::format("'{}': no line offset after the chip; {}", text, kLineForm)
-                             : fmt::format("'{}': line offset '{}' is not a number; {}", text, got,
-                                           kLineForm)};
+                             : fmt::format("'{}': line offset '{}' is not a number; {}", text, got, kLineForm)};
   } else {
     if (fields[0].empty()) return Error{fmt::format("'{}': no line name; {}", text, kLineForm)};
     spec.name = std::string(fields[0]);
@@ -103,13 +102,13 @@ Result<LedSpec> parse_led_spec(std::string_view text) {
   const auto eq = text.find('=');
   if (eq == std::string_view::npos) {
     return Error{fmt::format("'{}': expected ROLE=LINE with ROLE one of idle, homing, armed, fault "
-                             "(e.g. armed=gpiochip0:5)", text)};
+                             "(e.g. armed=gpiochip0:5)",
+                             text)};
   }
   const auto role = text.substr(0, eq);
   const auto state = parse_light_state(role);
   if (!state) {
-    return Error{fmt::format("'{}': unknown light '{}'; the lights are idle, homing, armed, fault",
-                             text, role)};
+    return Error{fmt::format("'{}': unknown light '{}'; the lights are idle, homing, armed, fault", text, role)};
   }
   auto line = parse_line_spec(text.substr(eq + 1));
   if (!line) return Error{fmt::format("{} light: {}", role, line.error())};

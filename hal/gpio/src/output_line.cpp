@@ -29,9 +29,9 @@ Result<std::unique_ptr<OutputLine>> OutputLine::open(const LineSpec& spec, const
     chip = gpiod_chip_open(path.c_str());
     if (chip == nullptr) {
       const int error = errno;
-      return Error{fmt::format("{}: cannot open {}: {}{}", spec.text, path, std::strerror(error),
-                               error == EACCES ? " (the user needs read-write access to it: the gpio group, docs/GPIO.md)"
-                                               : "")};
+      return Error{fmt::format(
+          "{}: cannot open {}: {}{}", spec.text, path, std::strerror(error),
+          error == EACCES ? " (the user needs read-write access to it: the gpio group, docs/GPIO.md)" : "")};
     }
     line = gpiod_chip_get_line(chip, spec.offset);
     if (line == nullptr) {
@@ -69,6 +69,8 @@ void OutputLine::close_copy() noexcept {
   line_ = nullptr;
 }
 
-bool OutputLine::set(bool active) noexcept { return line_ != nullptr && gpiod_line_set_value(line_, active ? 1 : 0) == 0; }
+bool OutputLine::set(bool active) noexcept {
+  return line_ != nullptr && gpiod_line_set_value(line_, active ? 1 : 0) == 0;
+}
 
 }  // namespace toonforce::gpio

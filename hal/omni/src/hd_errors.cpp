@@ -54,10 +54,8 @@ std::string_view error_meaning(HDerror code) noexcept {
     case kExceededMaxVelocity:
       return "the handle moved faster than the library's safety limit; force was zeroed and is "
              "ramped back";
-    case kForceError:
-      return "incompatible force commands in one frame; force was zeroed and is ramped back";
-    case kDeviceFault:
-      return "the device or its driver reported a fault; the servo loop stopped";
+    case kForceError: return "incompatible force commands in one frame; force was zeroed and is ramped back";
+    case kDeviceFault: return "the device or its driver reported a fault; the servo loop stopped";
     case kDeviceAlreadyInitiated:
       return "the device is already initialised (by this or another program); the servo loop "
              "stopped";
@@ -67,18 +65,15 @@ std::string_view error_meaning(HDerror code) noexcept {
     case kCommConfigError:
       return "the driver's communication set-up is wrong (device configuration); the servo loop "
              "stopped";
-    case kTimerError:
-      return "the servo timer could not start or keep its rate; the servo loop stopped";
+    case kTimerError: return "the servo timer could not start or keep its rate; the servo loop stopped";
     case kIllegalBegin:
     case kIllegalEnd:
     case kFrameError:
       return "a begin/end frame was used out of order (a fault of this binding); the servo loop "
              "stopped";
     case kInvalidPriority:
-    case kSchedulerFull:
-      return "the vendor scheduler refused a callback; the servo loop stopped";
-    case kInvalidLicense:
-      return "the OpenHaptics licence check failed; the servo loop stopped";
+    case kSchedulerFull: return "the vendor scheduler refused a callback; the servo loop stopped";
+    case kInvalidLicense: return "the OpenHaptics licence check failed; the servo loop stopped";
     default: return "an error code the OpenHaptics reference does not list; the servo loop stopped";
   }
 }

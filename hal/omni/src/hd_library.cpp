@@ -189,8 +189,7 @@ std::string dependency_fix(std::string_view name) {
            "libtinfo5`";
   }
   if (name.starts_with("libraw1394")) return "install libraw1394: `sudo apt-get install libraw1394-11`";
-  return fmt::format("install the package that provides {} (`apt-file search {}` finds it)", name,
-                     name);
+  return fmt::format("install the package that provides {} (`apt-file search {}` finds it)", name, name);
 }
 
 LoadOutcome load_library(std::string_view path) {
@@ -234,15 +233,14 @@ LoadOutcome load_library(std::string_view path) {
       case LoadProblem::kNotLoadable:
         return fail(LoadProblem::kNotLoadable, fmt::format("{} could not be loaded: {}", opened, found.detail),
                     "it must be OpenHaptics' libHD.so for this machine (64-bit x86-64 Linux)");
-      default:
-        break;
+      default: break;
     }
     if (searched) {
       return fail(LoadProblem::kNotFound,
                   "OpenHaptics is not installed, or not where the dynamic loader looks: none of "
                   "libHD.so, libHD.so.3.4, libHD.so.3.0 was found",
-                  fmt::format("{}. If libHD.so is installed elsewhere, set {}=/path/to/libHD.so",
-                              kInstallAdvice, kLibraryEnvVar));
+                  fmt::format("{}. If libHD.so is installed elsewhere, set {}=/path/to/libHD.so", kInstallAdvice,
+                              kLibraryEnvVar));
     }
     return fail(LoadProblem::kNotFound, fmt::format("{} does not exist or cannot be read", origin),
                 "point it at OpenHaptics' libHD.so (the installer puts it in /usr/lib), or leave it "
@@ -253,8 +251,7 @@ LoadOutcome load_library(std::string_view path) {
   if (auto it = loaded().find(resolved); it != loaded().end()) return LoadOutcome{it->second, {}, {}, {}, {}};
 
   // Version in the file name (libHD.so.3.4.0): refuse another major version before use.
-  const std::string file_version =
-      version_from_file_name(std::filesystem::path(resolved).filename().string());
+  const std::string file_version = version_from_file_name(std::filesystem::path(resolved).filename().string());
   if (!file_version.empty() && major_version(file_version) != kSupportedMajorVersion) {
     return fail(LoadProblem::kWrongVersion,
                 fmt::format("{} is OpenHaptics HD library version {}, but toonforce needs version {} "

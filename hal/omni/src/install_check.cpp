@@ -17,8 +17,8 @@ namespace fs = std::filesystem;
 
 /// Where the loader looks (Debian's multiarch directory, the classic ones) and where vendor
 /// installers put libraries (/usr/lib64, /usr/local/lib).
-constexpr const char* kLibraryDirs[] = {"/usr/lib/x86_64-linux-gnu", "/lib/x86_64-linux-gnu", "/usr/lib", "/lib",
-                                        "/usr/lib64", "/usr/local/lib"};
+constexpr const char* kLibraryDirs[] = {
+    "/usr/lib/x86_64-linux-gnu", "/lib/x86_64-linux-gnu", "/usr/lib", "/lib", "/usr/lib64", "/usr/local/lib"};
 
 class Tree {
  public:
@@ -143,8 +143,8 @@ std::vector<OpenHapticsInstallFinding> check_openhaptics_install(const OpenHapti
     in_lib64.insert(in_lib64.end(), found.begin(), found.end());
   }
   if (!in_lib64.empty()) {
-    Prerequisite p{"dynamic loader path for /usr/lib64 (OpenHaptics' libraries)", tree.loader_searches("/usr/lib64"),
-                   {}, {}};
+    Prerequisite p{
+        "dynamic loader path for /usr/lib64 (OpenHaptics' libraries)", tree.loader_searches("/usr/lib64"), {}, {}};
     if (p.ok) {
       p.detail = fmt::format("/usr/lib64 is listed in /etc/ld.so.conf(.d) ({})", join(in_lib64));
     } else {
@@ -186,15 +186,15 @@ std::vector<OpenHapticsInstallFinding> check_openhaptics_install(const OpenHapti
   if (!touch_driver.empty()) {
     constexpr const char* kDefaultHome = "/usr/share/3DSystems";
     Prerequisite p{"GTDD_HOME and its config directory (the Touch driver's configuration)", false, {}, {}};
-    const std::string make_dir = fmt::format(
-        "sudo mkdir -p {0}/config && sudo chgrp plugdev {0}/config && sudo chmod 2775 {0}/config",
-        host.gtdd_home.value_or(kDefaultHome));
+    const std::string make_dir =
+        fmt::format("sudo mkdir -p {0}/config && sudo chgrp plugdev {0}/config && sudo chmod 2775 {0}/config",
+                    host.gtdd_home.value_or(kDefaultHome));
     if (!host.gtdd_home || host.gtdd_home->empty()) {
-      p.detail = fmt::format("GTDD_HOME is not set in this environment; the Touch driver ({}) looks for its "
-                             "configuration, calibration and motor-temperature files under $GTDD_HOME{}",
-                             touch_driver.front(),
-                             tree.is_directory("/usr/share/3DSystems/config") ? " (/usr/share/3DSystems/config exists)"
-                                                                               : "");
+      p.detail =
+          fmt::format("GTDD_HOME is not set in this environment; the Touch driver ({}) looks for its "
+                      "configuration, calibration and motor-temperature files under $GTDD_HOME{}",
+                      touch_driver.front(),
+                      tree.is_directory("/usr/share/3DSystems/config") ? " (/usr/share/3DSystems/config exists)" : "");
       p.fix = fmt::format("add GTDD_HOME=\"{0}\" to /etc/environment and log in again (a systemd service needs "
                           "Environment=GTDD_HOME={0}; sudo drops it unless given -E); {1}; then run Touch_Setup",
                           kDefaultHome, make_dir);
@@ -202,8 +202,8 @@ std::vector<OpenHapticsInstallFinding> check_openhaptics_install(const OpenHapti
       p.detail = fmt::format("GTDD_HOME={} but {}/config does not exist", *host.gtdd_home, *host.gtdd_home);
       p.fix = make_dir + "; then run Touch_Setup, which writes the device's configuration there";
     } else if (const auto configs = tree.files_in(*host.gtdd_home + "/config", ".config"); configs.empty()) {
-      p.detail = fmt::format("GTDD_HOME={}, but {}/config holds no device configuration", *host.gtdd_home,
-                             *host.gtdd_home);
+      p.detail =
+          fmt::format("GTDD_HOME={}, but {}/config holds no device configuration", *host.gtdd_home, *host.gtdd_home);
       p.fix = "run Touch_Setup with the Touch plugged in; it writes \"Default Device.config\" there (its name is "
               "the device name `--omni-device` takes)";
     } else {

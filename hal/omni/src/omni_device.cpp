@@ -40,9 +40,8 @@ hd::HDErrorInfo take_error(const hd::HdFunctions& f) {
 /// "HD_COMM_ERROR (0x302, internal -28: <the library's own description>)".
 std::string describe(const hd::HdFunctions& f, const hd::HDErrorInfo& e) {
   const char* vendor = f.hdGetErrorString(e.errorCode);
-  return fmt::format("{} (0x{:03x}, internal {}{}{})", hd::error_name(e.errorCode), e.errorCode,
-                     e.internalErrorCode, vendor != nullptr && vendor[0] != '\0' ? ": " : "",
-                     vendor != nullptr ? vendor : "");
+  return fmt::format("{} (0x{:03x}, internal {}{}{})", hd::error_name(e.errorCode), e.errorCode, e.internalErrorCode,
+                     vendor != nullptr && vendor[0] != '\0' ? ": " : "", vendor != nullptr ? vendor : "");
 }
 
 std::string get_string(const hd::HdFunctions& f, hd::HDenum name) {
@@ -79,17 +78,15 @@ std::string check_options(const OmniOptions& o) {
     return fmt::format("max force {} N must be >= 0 (0: the device's nominal continuous force)", o.max_force_n);
   }
   if (bad_time(o.enable_ramp_s) || bad_time(o.force_error_hold_s) || bad_time(o.recovery_ramp_s) ||
-      bad_time(o.warm_motors_hold_s) || bad_time(o.calibration_check_period_s) ||
-      bad_time(o.temperature_period_s)) {
+      bad_time(o.warm_motors_hold_s) || bad_time(o.calibration_check_period_s) || bad_time(o.temperature_period_s)) {
     return "ramp, hold and check times must be finite and >= 0 s";
   }
   if (!(o.warm_motors_resume_temperature > 0.0 && o.warm_motors_resume_temperature <= 1.0)) {
     return "warm_motors_resume_temperature must be in (0, 1]";
   }
   if (o.max_consecutive_overruns < 1) return "max_consecutive_overruns must be >= 1";
-  if (o.workspace_centre_mm &&
-      !(std::isfinite(o.workspace_centre_mm->x) && std::isfinite(o.workspace_centre_mm->y) &&
-        std::isfinite(o.workspace_centre_mm->z))) {
+  if (o.workspace_centre_mm && !(std::isfinite(o.workspace_centre_mm->x) && std::isfinite(o.workspace_centre_mm->y) &&
+                                 std::isfinite(o.workspace_centre_mm->z))) {
     return "the workspace centre must be finite";
   }
   return {};
@@ -155,8 +152,8 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   static_cast<void>(take_error(f));  // nothing left over from an earlier use
 
   const char* name = options.device_name.empty() ? nullptr : options.device_name.c_str();
-  const std::string shown_name = name != nullptr ? fmt::format("\"{}\"", options.device_name)
-                                                 : std::string("HD_DEFAULT_DEVICE");
+  const std::string shown_name =
+      name != nullptr ? fmt::format("\"{}\"", options.device_name) : std::string("HD_DEFAULT_DEVICE");
   const hd::HHD handle = f.hdInitDevice(name);
   if (const hd::HDErrorInfo e = take_error(f); e.errorCode != hd::kSuccess || handle == hd::kInvalidHandle) {
     return Error{fmt::format(
@@ -165,8 +162,7 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
         "user may open its port (`toonforce devices` tells); try the device name configured there "
         "(\"Default Device\") instead of the default; and outside the US set "
         "LC_NUMERIC=en_US.UTF-8, which the driver needs to read its configuration.",
-        shown_name, library.path(),
-        e.errorCode != hd::kSuccess ? describe(f, e) : std::string("no device handle"))};
+        shown_name, library.path(), e.errorCode != hd::kSuccess ? describe(f, e) : std::string("no device handle"))};
   }
   // Version and model first: they decide whether closing may call hdDisableDevice.
   // Version: the library says which HD API it implements (the file name may not).
@@ -189,11 +185,10 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
     }
   } init_guard{f, handle, disable_on_close};
   if (const int major = hd::major_version(version); major >= 0 && major != hd::kSupportedMajorVersion) {
-    return Error{fmt::format(
-        "{} reports OpenHaptics HD version {}, but toonforce needs version {} (3.4 for the Touch, "
-        "3.0 for the FireWire Omni). Install OpenHaptics 3.4 from 3D Systems, or set {} to its "
-        "libHD.so.",
-        library.path(), version, hd::kSupportedMajorVersion, hd::kLibraryEnvVar)};
+    return Error{fmt::format("{} reports OpenHaptics HD version {}, but toonforce needs version {} (3.4 for the Touch, "
+                             "3.0 for the FireWire Omni). Install OpenHaptics 3.4 from 3D Systems, or set {} to its "
+                             "libHD.so.",
+                             library.path(), version, hd::kSupportedMajorVersion, hd::kLibraryEnvVar)};
   }
 
   // Limits, read once (OMNI.md §2.2 item 8); never hard-coded (§3).
@@ -245,8 +240,8 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   const bool has_usable = get_doubles(f, hd::kUsableWorkspaceDimensions, usable.data());
   const bool has_max = get_doubles(f, hd::kMaxWorkspaceDimensions, maximal.data());
   const auto box_ok = [](const omni::DeviceBoxMm& b) {
-    return std::all_of(b.begin(), b.end(), [](double v) { return std::isfinite(v); }) && b[0] < b[3] &&
-           b[1] < b[4] && b[2] < b[5];
+    return std::all_of(b.begin(), b.end(), [](double v) { return std::isfinite(v); }) && b[0] < b[3] && b[1] < b[4] &&
+           b[2] < b[5];
   };
   Vec3<double> centre{};
   if (options.workspace_centre_mm) {
@@ -278,10 +273,10 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   // checked and updated inside the loop, and forces stay off until the check says OK.
   static_cast<void>(get_int(f, hd::kCalibrationStyle, limits.calibration_styles));
   const int styles = limits.calibration_styles;
-  limits.calibration_style = (styles & hd::kCalibrationAuto) != 0       ? hd::kCalibrationAuto
-                             : (styles & hd::kCalibrationInkwell) != 0  ? hd::kCalibrationInkwell
+  limits.calibration_style = (styles & hd::kCalibrationAuto) != 0           ? hd::kCalibrationAuto
+                             : (styles & hd::kCalibrationInkwell) != 0      ? hd::kCalibrationInkwell
                              : (styles & hd::kCalibrationEncoderReset) != 0 ? hd::kCalibrationEncoderReset
-                                                                        : 0;
+                                                                            : 0;
   if (limits.calibration_style == hd::kCalibrationEncoderReset && options.encoder_reset_at_open) {
     const hd::HDenum state = f.hdCheckCalibration();
     static_cast<void>(take_error(f));
@@ -323,7 +318,10 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
 }
 
 OmniDevice::OmniDevice(const hd::Library& library, hd::HHD handle, const OmniOptions& options)
-    : library_(&library), hd_(&library.functions()), handle_(handle), options_(options),
+    : library_(&library),
+      hd_(&library.functions()),
+      handle_(handle),
+      options_(options),
       period_s_(1.0 / options.scheduler_rate_hz) {
   calibration_check_ticks_ = ticks_for(options.calibration_check_period_s, period_s_);
   temperature_ticks_ = ticks_for(options.temperature_period_s, period_s_);
@@ -464,9 +462,7 @@ void OmniDevice::emergency_zero() noexcept { emergency_.store(true, std::memory_
 
 // ---- the frame (servo thread) ---------------------------------------------------------------
 
-hd::HDCallbackCode OmniDevice::frame_callback(void* self) noexcept {
-  return static_cast<OmniDevice*>(self)->frame();
-}
+hd::HDCallbackCode OmniDevice::frame_callback(void* self) noexcept { return static_cast<OmniDevice*>(self)->frame(); }
 
 void OmniDevice::note_error(const hd::HDErrorInfo& e) noexcept {
   const hd::ErrorClass c = hd::classify(e.errorCode);
@@ -644,8 +640,8 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
   // Leaving a hold: after a force error, at the hold's end; after warm motors, also only once
   // the thermal model has cooled (when the device has one).
   if (held_ && tick_ >= hold_until_tick_) {
-    const bool still_warm = warm_hold_ && temperature_readable_ &&
-                            published_.motor_temperature > options_.warm_motors_resume_temperature;
+    const bool still_warm =
+        warm_hold_ && temperature_readable_ && published_.motor_temperature > options_.warm_motors_resume_temperature;
     if (!still_warm) {
       held_ = false;
       warm_hold_ = false;
@@ -727,7 +723,7 @@ hd::HDCallbackCode OmniDevice::frame() noexcept {
   published_.update_rate_hz = rate_hz;
   published_.buttons = reading_.buttons;
   published_.device_status = reading_status_;
-  published_.phase = ending        ? OmniPhase::kStopped
+  published_.phase = ending         ? OmniPhase::kStopped
                      : !calibrated_ ? OmniPhase::kCalibrating
                      : held_        ? OmniPhase::kHeld
                      : scale < 1.0  ? OmniPhase::kRamping
@@ -767,8 +763,8 @@ std::string OmniDevice::last_error() const {
   const auto internal = last_internal_.load(std::memory_order_relaxed);
   const auto at_tick = last_code_tick_.load(std::memory_order_relaxed);
   const auto hd_error = [&] {
-    return fmt::format("OpenHaptics reported {} (0x{:03x}, internal {}, {}) on tick {}: {}", hd::error_name(code),
-                       code, internal, hd::to_string(hd::classify(code)), at_tick, hd::error_meaning(code));
+    return fmt::format("OpenHaptics reported {} (0x{:03x}, internal {}, {}) on tick {}: {}", hd::error_name(code), code,
+                       internal, hd::to_string(hd::classify(code)), at_tick, hd::error_meaning(code));
   };
   switch (reason) {
     case EndReason::kFatalHdError: {
@@ -800,12 +796,11 @@ std::string OmniDevice::last_error() const {
                      : std::string();
     if (s.calibration == hd::kCalibrationNeedsManualInput) {
       const int style = limits_.calibration_style;
-      const char* act =
-          style == hd::kCalibrationAuto
-              ? "move the arm slowly through its whole workspace, to its limits in every direction"
-          : style == hd::kCalibrationEncoderReset
-              ? "hold the arm in its reset pose (all links at right angles) and open the device again"
-              : "put the stylus in the inkwell";
+      const char* act = style == hd::kCalibrationAuto
+                            ? "move the arm slowly through its whole workspace, to its limits in every direction"
+                        : style == hd::kCalibrationEncoderReset
+                            ? "hold the arm in its reset pose (all links at right angles) and open the device again"
+                            : "put the stylus in the inkwell";
       return fmt::format("the device needs calibrating and forces stay off until it is: {}; it calibrates "
                          "by itself once it has seen that{}",
                          act, update);

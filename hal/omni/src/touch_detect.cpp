@@ -131,18 +131,16 @@ OpenProblem describe_open_failure(std::string_view node, std::string_view kind, 
     case EPERM: {
       const std::string problem = fmt::format("this user may not open {} (permission denied)", node);
       if (kind == "tty") {
-        return {problem,
-                "add yourself to the dialout group, which owns /dev/ttyACM* (`sudo usermod -aG dialout "
-                "$USER`), then log out and in again; chmod 777 on the port is not needed"};
+        return {problem, "add yourself to the dialout group, which owns /dev/ttyACM* (`sudo usermod -aG dialout "
+                         "$USER`), then log out and in again; chmod 777 on the port is not needed"};
       }
       const std::string_view subsystem = kind == "hidraw" ? "hidraw" : "usb";
-      return {problem,
-              fmt::format("allow it with a udev rule: put `SUBSYSTEM==\"{}\", ATTRS{{idVendor}}==\"2988\", "
-                          "MODE=\"0660\", GROUP=\"plugdev\"` in /etc/udev/rules.d/99-3dsystems-touch.rules "
-                          "(the Touch Device Driver's installer ships a similar 99-3dsystems.rules), run "
-                          "`sudo udevadm control --reload-rules && sudo udevadm trigger`, add yourself to "
-                          "plugdev (`sudo usermod -aG plugdev $USER`) and log in again",
-                          subsystem)};
+      return {problem, fmt::format("allow it with a udev rule: put `SUBSYSTEM==\"{}\", ATTRS{{idVendor}}==\"2988\", "
+                                   "MODE=\"0660\", GROUP=\"plugdev\"` in /etc/udev/rules.d/99-3dsystems-touch.rules "
+                                   "(the Touch Device Driver's installer ships a similar 99-3dsystems.rules), run "
+                                   "`sudo udevadm control --reload-rules && sudo udevadm trigger`, add yourself to "
+                                   "plugdev (`sudo usermod -aG plugdev $USER`) and log in again",
+                                   subsystem)};
     }
     case ENOENT:
     case ENODEV:
@@ -229,8 +227,8 @@ std::vector<DetectedDevice> detect_touch_devices() {
       DetectedDevice d;
       d.kind = known_product(h->product_id)
                    ? fmt::format("3D Systems Touch (USB HID, {:04x}:{:04x})", h->vendor_id, h->product_id)
-                   : fmt::format("3D Systems device (USB {:04x}:{:04x}, not a known Touch product id)",
-                                 h->vendor_id, h->product_id);
+                   : fmt::format("3D Systems device (USB {:04x}:{:04x}, not a known Touch product id)", h->vendor_id,
+                                 h->product_id);
       d.location = "hidraw " + path;
       if (h->serial_number != nullptr) {
         for (const wchar_t* c = h->serial_number; *c != L'\0'; ++c) d.serial += static_cast<char>(*c & 0x7F);
@@ -261,10 +259,10 @@ Prerequisite openhaptics_prerequisite(std::string_view library_path) {
   }
   p.ok = true;
   const std::string& version = loaded.library->file_version();
-  p.detail = fmt::format("{} loads{}, with all {} HD functions toonforce uses", loaded.library->path(),
-                         version.empty() ? " (its HD version is checked when a device opens)"
-                                         : fmt::format(" (version {})", version),
-                         hd::kFunctionCount);
+  p.detail = fmt::format(
+      "{} loads{}, with all {} HD functions toonforce uses", loaded.library->path(),
+      version.empty() ? " (its HD version is checked when a device opens)" : fmt::format(" (version {})", version),
+      hd::kFunctionCount);
   return p;
 }
 

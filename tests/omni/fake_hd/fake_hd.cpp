@@ -123,19 +123,19 @@ constexpr HDCallbackCode HD_CALLBACK_DONE = 0;
 
 // ---- the simulated Omni -----------------------------------------------------------------------
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kL1 = 0.13335;  // [m] upper arm (OMNI.md §4.2, literature value)
-constexpr double kL2 = 0.13335;  // [m] forearm to the gimbal centre
+constexpr double kL1 = 0.13335;                          // [m] upper arm (OMNI.md §4.2, literature value)
+constexpr double kL2 = 0.13335;                          // [m] forearm to the gimbal centre
 constexpr double kCountsPerRad = 15000.0 / (2.0 * kPi);  // base encoders (§1.1)
-constexpr double kMass = 0.15;           // [kg] apparent inertia plus the fingers holding it
-constexpr double kDeviceDamping = 0.3;   // [N s/m] back-drive friction, viscous
-constexpr double kUncalibratedOffsetMm = 20.0;  // an uncalibrated device reports garbage
-constexpr double kVelocityCutoffHz = 100.0;     // the library's own velocity smoothing
-constexpr double kAutoCalibrationSweepRad = 0.5; // each base joint's sweep that teaches auto calibration
+constexpr double kMass = 0.15;                           // [kg] apparent inertia plus the fingers holding it
+constexpr double kDeviceDamping = 0.3;                   // [N s/m] back-drive friction, viscous
+constexpr double kUncalibratedOffsetMm = 20.0;           // an uncalibrated device reports garbage
+constexpr double kVelocityCutoffHz = 100.0;              // the library's own velocity smoothing
+constexpr double kAutoCalibrationSweepRad = 0.5;         // each base joint's sweep that teaches auto calibration
 constexpr int kMaxCallbacks = 32;
 constexpr int kMaxSyncJobs = 16;
 constexpr std::size_t kErrorStackDepth = 64;
-const double kUsableWorkspace[6] = {-80.0, -65.0, -40.0, 80.0, 55.0, 30.0};    // [mm]
-const double kMaxWorkspace[6] = {-105.0, -90.0, -60.0, 105.0, 80.0, 50.0};      // [mm]
+const double kUsableWorkspace[6] = {-80.0, -65.0, -40.0, 80.0, 55.0, 30.0};  // [mm]
+const double kMaxWorkspace[6] = {-105.0, -90.0, -60.0, 105.0, 80.0, 50.0};   // [mm]
 
 using V3 = std::array<double, 3>;
 
@@ -164,9 +164,7 @@ const V3 kNeutralBase = forward({0.0, 0.0, 0.0});
 V3 base_from_device(const V3& d_m) {
   return {kNeutralBase[0] + d_m[2], kNeutralBase[1] + d_m[0], kNeutralBase[2] + d_m[1]};
 }
-V3 device_from_base(const V3& b) {
-  return {b[1] - kNeutralBase[1], b[2] - kNeutralBase[2], b[0] - kNeutralBase[0]};
-}
+V3 device_from_base(const V3& b) { return {b[1] - kNeutralBase[1], b[2] - kNeutralBase[2], b[0] - kNeutralBase[0]}; }
 double norm(const V3& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 struct Injection {
@@ -410,8 +408,8 @@ void simulate(Fake& f, double dt) {
     const double h = dt / kSubsteps;
     for (int s = 0; s < kSubsteps; ++s) {
       for (std::size_t i = 0; i < 3; ++i) {
-        const double force = f.applied[i] + f.hand_k * (f.hand_target[i] - f.position[i]) -
-                             (f.hand_b + kDeviceDamping) * f.velocity[i];
+        const double force =
+            f.applied[i] + f.hand_k * (f.hand_target[i] - f.position[i]) - (f.hand_b + kDeviceDamping) * f.velocity[i];
         f.velocity[i] += force / kMass * h;  // semi-implicit Euler
         f.position[i] += f.velocity[i] * h;
       }
@@ -442,7 +440,8 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
   for (int i = 0; i < f.callback_count; ++i) {
     if (!f.callbacks[static_cast<std::size_t>(i)].active) continue;
     int at = due_count++;
-    while (at > 0 && due[static_cast<std::size_t>(at - 1)].priority < f.callbacks[static_cast<std::size_t>(i)].priority) {
+    while (at > 0 &&
+           due[static_cast<std::size_t>(at - 1)].priority < f.callbacks[static_cast<std::size_t>(i)].priority) {
       due[static_cast<std::size_t>(at)] = due[static_cast<std::size_t>(at - 1)];
       --at;
     }
@@ -480,7 +479,8 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
     any_done = true;
     for (int k = 0; k < f.sync_count; ++k) {
       if (f.sync_jobs[static_cast<std::size_t>(k)] == job) {
-        for (int m = k + 1; m < f.sync_count; ++m) f.sync_jobs[static_cast<std::size_t>(m - 1)] = f.sync_jobs[static_cast<std::size_t>(m)];
+        for (int m = k + 1; m < f.sync_count; ++m)
+          f.sync_jobs[static_cast<std::size_t>(m - 1)] = f.sync_jobs[static_cast<std::size_t>(m)];
         --f.sync_count;
         break;
       }
@@ -614,8 +614,7 @@ TF_EXPORT void hdEndFrame(HHD device) {
     const V3 step{command[0] - f.previous_command[0], command[1] - f.previous_command[1],
                   command[2] - f.previous_command[2]};
     // A kick is a large change toward a force; dropping to zero is the safe direction.
-    if (f.software_force_limit && magnitude > 1e-9 &&
-        norm(step) / (f.tick_dt_s * 1000.0) > f.impulse_limit_n_per_ms) {
+    if (f.software_force_limit && magnitude > 1e-9 && norm(step) / (f.tick_dt_s * 1000.0) > f.impulse_limit_n_per_ms) {
       push_error(f, HD_EXCEEDED_MAX_FORCE_IMPULSE);
       force_error = true;
     }
@@ -720,7 +719,8 @@ TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
   std::lock_guard lock(f.mu);
   switch (name) {
     case HD_CURRENT_POSITION:
-      if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_POSITION)")) std::copy(f.reported_mm.begin(), f.reported_mm.end(), values);
+      if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_POSITION)"))
+        std::copy(f.reported_mm.begin(), f.reported_mm.end(), values);
       return;
     case HD_CURRENT_VELOCITY:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_VELOCITY)")) {
@@ -728,7 +728,8 @@ TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
       }
       return;
     case HD_CURRENT_JOINT_ANGLES:
-      if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_JOINT_ANGLES)")) std::copy(f.joints.begin(), f.joints.end(), values);
+      if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_JOINT_ANGLES)"))
+        std::copy(f.joints.begin(), f.joints.end(), values);
       return;
     case HD_CURRENT_GIMBAL_ANGLES:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_GIMBAL_ANGLES)")) std::fill(values, values + 3, 0.0);
@@ -757,8 +758,7 @@ TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
     case HD_INPUT_DOF:
     case HD_OUTPUT_DOF:
     case HD_CALIBRATION_STYLE:
-    case HD_CURRENT_INKWELL_SWITCH:
-      return violation(f, HD_INVALID_INPUT_TYPE, "hdGetDoublev");
+    case HD_CURRENT_INKWELL_SWITCH: return violation(f, HD_INVALID_INPUT_TYPE, "hdGetDoublev");
     default: return violation(f, HD_INVALID_ENUM, "hdGetDoublev");
   }
 }
@@ -914,15 +914,15 @@ TF_EXPORT void hdStopScheduler() {
   f.cv_done.notify_all();
 }
 
-TF_EXPORT HDSchedulerHandle hdScheduleAsynchronous(HDSchedulerCallback callback, void* user_data,
-                                                   HDushort priority) {
+TF_EXPORT HDSchedulerHandle hdScheduleAsynchronous(HDSchedulerCallback callback, void* user_data, HDushort priority) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   if (f.callback_count >= kMaxCallbacks) {
     push_error(f, HD_SCHEDULER_FULL);
     return 0;
   }
-  f.callbacks[static_cast<std::size_t>(f.callback_count++)] = Callback{f.next_callback, callback, user_data, priority, true};
+  f.callbacks[static_cast<std::size_t>(f.callback_count++)] =
+      Callback{f.next_callback, callback, user_data, priority, true};
   return f.next_callback++;
 }
 
@@ -943,7 +943,8 @@ TF_EXPORT void hdScheduleSynchronous(HDSchedulerCallback callback, void* user_da
   if (!job.done) {  // the scheduler stopped first: forget the job
     for (int k = 0; k < f.sync_count; ++k) {
       if (f.sync_jobs[static_cast<std::size_t>(k)] == &job) {
-        for (int m = k + 1; m < f.sync_count; ++m) f.sync_jobs[static_cast<std::size_t>(m - 1)] = f.sync_jobs[static_cast<std::size_t>(m)];
+        for (int m = k + 1; m < f.sync_count; ++m)
+          f.sync_jobs[static_cast<std::size_t>(m - 1)] = f.sync_jobs[static_cast<std::size_t>(m)];
         --f.sync_count;
         break;
       }
@@ -1057,8 +1058,8 @@ TF_EXPORT void tf_fake_hd_set_version(const char* version) {
   f.version = version != nullptr ? version : "";
 }
 
-TF_EXPORT void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n,
-                                     double stiffness_n_per_mm, double damping_n_s_per_mm) {
+TF_EXPORT void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n, double stiffness_n_per_mm,
+                                     double damping_n_s_per_mm) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   f.max_force_n = max_force_n;
@@ -1134,8 +1135,7 @@ TF_EXPORT void tf_fake_hd_pin_hand(const double position_mm[3]) {
   }
 }
 
-TF_EXPORT void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m,
-                                      double damping_n_s_per_m) {
+TF_EXPORT void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m, double damping_n_s_per_m) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   f.pinned = false;
@@ -1178,8 +1178,8 @@ TF_EXPORT void tf_fake_hd_get_stats(TfFakeHdStats* s) {
   s->last_violation = f.last_violation;
   std::memcpy(s->last_violation_call, f.last_violation_call, sizeof s->last_violation_call);
   s->errors_raised = f.errors_raised;
-  s->async_callbacks = static_cast<int>(std::count_if(
-      f.callbacks.begin(), f.callbacks.begin() + f.callback_count, [](const Callback& c) { return c.active; }));
+  s->async_callbacks = static_cast<int>(std::count_if(f.callbacks.begin(), f.callbacks.begin() + f.callback_count,
+                                                      [](const Callback& c) { return c.active; }));
   s->scheduler_running = f.running ? 1 : 0;
   s->device_initialized = f.initialized ? 1 : 0;
   s->init_calls = f.init_calls;

@@ -15,30 +15,30 @@ extern "C" {
 #endif
 
 /* Where an injected error is raised. */
-#define TF_FAKE_HD_AT_BEGIN 0 /* inside hdBeginFrame */
-#define TF_FAKE_HD_AT_END 1   /* inside hdEndFrame */
-#define TF_FAKE_HD_AT_INIT 2  /* hdInitDevice fails with it */
-#define TF_FAKE_HD_AT_START 3 /* hdStartScheduler fails with it */
+#define TF_FAKE_HD_AT_BEGIN 0              /* inside hdBeginFrame */
+#define TF_FAKE_HD_AT_END 1                /* inside hdEndFrame */
+#define TF_FAKE_HD_AT_INIT 2               /* hdInitDevice fails with it */
+#define TF_FAKE_HD_AT_START 3              /* hdStartScheduler fails with it */
 #define TF_FAKE_HD_AT_CALIBRATION_UPDATE 4 /* hdUpdateCalibration fails with it */
 
 /* A call that broke a documented rule (counted in protocol_violations). */
 #define TF_FAKE_HD_WRONG_THREAD 0xFFFFu
 
 typedef struct TfFakeHdStats {
-  unsigned long ticks;          /* scheduler ticks run */
-  double sim_time_s;            /* simulated time, skipped periods included */
-  unsigned long frames;         /* completed hdBeginFrame/hdEndFrame pairs */
-  double last_force_n[3];       /* last HD_CURRENT_FORCE commanded [N, device frame], as given */
-  double max_force_norm_n;      /* largest commanded force norm since reset [N], as given */
-  double applied_force_n[3];    /* what the simulated motors applied last frame [N] */
-  int force_output_enabled;     /* HD_FORCE_OUTPUT */
+  unsigned long ticks;                       /* scheduler ticks run */
+  double sim_time_s;                         /* simulated time, skipped periods included */
+  unsigned long frames;                      /* completed hdBeginFrame/hdEndFrame pairs */
+  double last_force_n[3];                    /* last HD_CURRENT_FORCE commanded [N, device frame], as given */
+  double max_force_norm_n;                   /* largest commanded force norm since reset [N], as given */
+  double applied_force_n[3];                 /* what the simulated motors applied last frame [N] */
+  int force_output_enabled;                  /* HD_FORCE_OUTPUT */
   unsigned long enabled_uncalibrated_frames; /* frames ended with output on while not calibrated */
   unsigned long nonzero_uncalibrated_frames; /* frames commanding a non-zero force while not calibrated */
-  unsigned long protocol_violations; /* calls breaking a documented rule (never injected) */
-  unsigned int last_violation;       /* HD code it raised, or TF_FAKE_HD_WRONG_THREAD */
-  char last_violation_call[64];      /* the function and parameter */
-  unsigned long errors_raised;       /* errors pushed (injected, natural and violations) */
-  int async_callbacks;               /* scheduled and still active */
+  unsigned long protocol_violations;         /* calls breaking a documented rule (never injected) */
+  unsigned int last_violation;               /* HD code it raised, or TF_FAKE_HD_WRONG_THREAD */
+  char last_violation_call[64];              /* the function and parameter */
+  unsigned long errors_raised;               /* errors pushed (injected, natural and violations) */
+  int async_callbacks;                       /* scheduled and still active */
   int scheduler_running;
   int device_initialized;
   unsigned long init_calls;
@@ -47,11 +47,11 @@ typedef struct TfFakeHdStats {
   unsigned long calibration_update_errors;    /* updates the device refused with an error */
   unsigned long calibration_updates_in_frame; /* updates between hdBeginFrame and hdEndFrame */
   unsigned long disable_device_calls;         /* hdDisableDevice calls since reset */
-  unsigned int calibration;          /* HD_CALIBRATION_OK / NEEDS_UPDATE / NEEDS_MANUAL_INPUT */
-  double position_mm[3];             /* true HIP position [mm, device frame] */
-  double reported_position_mm[3];    /* what HD_CURRENT_POSITION said at the last hdBeginFrame */
-  double joint_angles_rad[3];        /* encoder-quantised base joints at the last hdBeginFrame */
-  double motor_temperature;          /* the thermal model, 0 cold .. 1 warm */
+  unsigned int calibration;                   /* HD_CALIBRATION_OK / NEEDS_UPDATE / NEEDS_MANUAL_INPUT */
+  double position_mm[3];                      /* true HIP position [mm, device frame] */
+  double reported_position_mm[3];             /* what HD_CURRENT_POSITION said at the last hdBeginFrame */
+  double joint_angles_rad[3];                 /* encoder-quantised base joints at the last hdBeginFrame */
+  double motor_temperature;                   /* the thermal model, 0 cold .. 1 warm */
   double scheduler_rate_hz;
 } TfFakeHdStats;
 
@@ -66,8 +66,8 @@ void tf_fake_hd_set_manual(int on);
 unsigned long tf_fake_hd_step(unsigned long ticks);
 
 void tf_fake_hd_set_version(const char* version); /* what hdGetString(HD_VERSION) answers */
-void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n,
-                           double stiffness_n_per_mm, double damping_n_s_per_mm);
+void tf_fake_hd_set_limits(double max_force_n, double max_continuous_force_n, double stiffness_n_per_mm,
+                           double damping_n_s_per_mm);
 /* The calibration state and the styles the device supports. The state then changes as a
  * person's actions change it (what OpenHaptics' calibration example and the ROS node expect):
  *   NEEDS_MANUAL_INPUT -> NEEDS_UPDATE when the stylus is docked in the inkwell (inkwell style)
@@ -95,8 +95,7 @@ void tf_fake_hd_set_callback_time(double seconds);
 /* The hand holds the HIP exactly at `position_mm` (device frame), whatever the force. */
 void tf_fake_hd_pin_hand(const double position_mm[3]);
 /* The hand is a spring-damper toward `target_mm` (device frame) on the simulated mass. */
-void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m,
-                            double damping_n_s_per_m);
+void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m, double damping_n_s_per_m);
 /* Overrides the motor thermal model (t >= 0) or returns to it (t < 0). */
 void tf_fake_hd_set_motor_temperature(double t);
 /* 0: HD_MOTOR_TEMPERATURE answers HD_INVALID_ENUM, as on a device without the model. */

@@ -186,9 +186,8 @@ StepReport homing(Session& io, const FalconBringupOptions& o) {
     return fail(s, "the Falcon answered no command while waiting: " + d.last_error(),
                 "check the USB cable and the power supply, then run the bring-up again");
   }
-  const std::string why = end == Session::End::kTimeout
-                              ? fmt::format("after {:.0f} s", o.homing_timeout_s)
-                              : std::string("when you said it was done");
+  const std::string why = end == Session::End::kTimeout ? fmt::format("after {:.0f} s", o.homing_timeout_s)
+                                                        : std::string("when you said it was done");
   if (mask == 0) {
     return fail(s, fmt::format("no axis reported homed {} (homed flags 0x00)", why),
                 "pull the grip all the way out until it stops, then push it straight in, holding it at its "
@@ -272,9 +271,11 @@ StepReport encoders(Session& io, const FalconBringupOptions& o) {
   if (!spans_enough()) {
     std::string short_of;
     for (std::size_t i = 0; i < 3; ++i) {
-      if (span[i] < kNeededSpanCounts) short_of += fmt::format("{}{} turned {} counts", short_of.empty() ? "" : "; ", kArmName[i], span[i]);
+      if (span[i] < kNeededSpanCounts)
+        short_of += fmt::format("{}{} turned {} counts", short_of.empty() ? "" : "; ", kArmName[i], span[i]);
     }
-    for (const auto& [name, r] : {std::pair{"left-right", reach.x}, std::pair{"in-out", reach.y}, std::pair{"up-down", reach.z}}) {
+    for (const auto& [name, r] :
+         {std::pair{"left-right", reach.x}, std::pair{"in-out", reach.y}, std::pair{"up-down", reach.z}}) {
       if (r < kNeededSpanM) short_of += fmt::format("{}{:.0f} mm {}", short_of.empty() ? "" : "; ", r * 1e3, name);
     }
     return fail(s,
@@ -286,8 +287,8 @@ StepReport encoders(Session& io, const FalconBringupOptions& o) {
   }
   if (poses * 100 < samples * 99) {
     s.outcome = Outcome::kWarn;
-    s.finding = fmt::format("every encoder counts, but the position estimate failed on {} of {} readings", samples - poses,
-                            samples);
+    s.finding = fmt::format("every encoder counts, but the position estimate failed on {} of {} readings",
+                            samples - poses, samples);
     s.next = "an encoder may miss counts: move slowly and run the step again; if it persists, check the encoder cables";
     return s;
   }
@@ -426,9 +427,9 @@ StepReport force_constant(Session& io, const FalconBringupOptions& o, const std:
   const double k_used = d.motor_scale().words_per_n_m;
   measure(s, "constant in use", fmt::format("{:.6g}", k_used), "words / (N m)");
   measure(s, "from", d.calibration_source());
-  const auto method = person.ask({"falcon.force.method",
-                                  "How will you measure the force? 'weight' (hang a known mass from the grip), "
-                                  "'spring-scale' (pull against the grip with one), or 'skip':"});
+  const auto method =
+      person.ask({"falcon.force.method", "How will you measure the force? 'weight' (hang a known mass from the grip), "
+                                         "'spring-scale' (pull against the grip with one), or 'skip':"});
   if (!method || *method == "skip") {
     s.outcome = Outcome::kSkipped;
     s.finding = method ? "skipped on request" : "needs a person with a known weight or a spring scale";
@@ -451,12 +452,15 @@ StepReport force_constant(Session& io, const FalconBringupOptions& o, const std:
   c.serial = serial;
   c.date = utc_now();
   if (*method == "weight") {
-    const auto mass = number({"falcon.force.mass_kg", "Mass of the weight, in kg (0.05 to 0.6; 200 g is good):"}, 0.05, 0.6);
-    if (!mass) return fail(s, "no usable mass was given (0.05 to 0.6 kg)", "run the step again and give the mass in kg");
+    const auto mass =
+        number({"falcon.force.mass_kg", "Mass of the weight, in kg (0.05 to 0.6; 200 g is good):"}, 0.05, 0.6);
+    if (!mass)
+      return fail(s, "no usable mass was given (0.05 to 0.6 kg)", "run the step again and give the mass in kg");
     io.idle(0.05);
     Hold hold(io.reading().position_m);
     const auto holding = [&] { return hold.force(io.reading(), io.status() == DeviceStatus::kOk); };
-    if (!io.confirm({"falcon.force.release", "Let go of the grip: the Falcon now holds it where it is. Press Enter."}, holding)) {
+    if (!io.confirm({"falcon.force.release", "Let go of the grip: the Falcon now holds it where it is. Press Enter."},
+                    holding)) {
       io.idle(0.2);
       return fail(s, "nobody confirmed letting go of the grip", "run the step again");
     }
@@ -480,10 +484,11 @@ StepReport force_constant(Session& io, const FalconBringupOptions& o, const std:
     measure(s, "weight", fmt::format("{:.4g}", weight_n), "N");
     measure(s, "force asked to hold it", fmt::format("{:.4g}", lift_n), "N");
     if (error > 0.005 || saturated || !(lift_n > 0.05 * weight_n)) {
-      return fail(s,
-                  fmt::format("the Falcon could not hold the weight still (it ended {:.1f} mm from where it was held{})",
-                              error * 1e3, saturated ? ", at the limit of its motors" : ""),
-                  "use a lighter weight (100-200 g), hung at the grip's centre, and keep it from swinging");
+      return fail(
+          s,
+          fmt::format("the Falcon could not hold the weight still (it ended {:.1f} mm from where it was held{})",
+                      error * 1e3, saturated ? ", at the limit of its motors" : ""),
+          "use a lighter weight (100-200 g), hung at the grip's centre, and keep it from swinging");
     }
     ratio = lift_n / weight_n;
     c.method = "weight";
@@ -527,17 +532,19 @@ StepReport force_constant(Session& io, const FalconBringupOptions& o, const std:
   if (!written) return fail(s, written.error(), "give a writable --calibration-out FILE");
   measure(s, "written to", path);
   if (std::abs(given_per_asked - 1.0) <= 0.10) {
-    return pass(s, fmt::format("the Falcon gives {:.2f} times the force asked: the constant in use holds (within 10 %); "
-                               "the measurement, {:.6g} words per N m, is written to {}",
-                               given_per_asked, c.words_per_n_m, path));
+    return pass(s,
+                fmt::format("the Falcon gives {:.2f} times the force asked: the constant in use holds (within 10 %); "
+                            "the measurement, {:.6g} words per N m, is written to {}",
+                            given_per_asked, c.words_per_n_m, path));
   }
   s.outcome = Outcome::kWarn;
   s.finding = fmt::format("the Falcon gives {:.2f} times the force it is asked for: its constant is {:.6g} words per "
                           "N m, not the {:.6g} in use ({})",
                           given_per_asked, c.words_per_n_m, k_used, d.calibration_source());
-  s.next = fmt::format("written to {}: `toonforce run --device falcon` reads it from now on for this Falcon (serial {}). "
-                       "Forces were {} than scenes asked until now",
-                       path, serial.empty() ? "?" : serial, given_per_asked > 1.0 ? "stronger" : "weaker");
+  s.next =
+      fmt::format("written to {}: `toonforce run --device falcon` reads it from now on for this Falcon (serial {}). "
+                  "Forces were {} than scenes asked until now",
+                  path, serial.empty() ? "?" : serial, given_per_asked > 1.0 ? "stronger" : "weaker");
   return s;
 }
 
@@ -572,8 +579,7 @@ StepReport timing(Session& io, const FalconBringupOptions& o) {
   measure(s, "round trip median / p99 / max", fmt::format("{:.0f} / {:.0f} / {:.0f}", h.p50, h.p99, h.max), "us");
   measure(s, "paced at 1 kHz", o.paced ? "yes" : "no (as fast as the device answers)");
   if (lost * 100 > static_cast<std::uint64_t>(o.timing_ticks)) {
-    return fail(s,
-                fmt::format("{} of {} commands got no reply: {}", lost, o.timing_ticks, d.last_error()),
+    return fail(s, fmt::format("{} of {} commands got no reply: {}", lost, o.timing_ticks, d.last_error()),
                 "plug the Falcon directly into the computer (no hub), check its power supply, and close any other "
                 "program that talks to it");
   }
@@ -600,12 +606,13 @@ StepReport buttons(Session& io, const FalconBringupOptions& o) {
                                  {falcon::kButtonMinus, "minus", "far left (-)"}};
   for (const Button& b : kButtons) {
     std::uint32_t seen = 0;
-    const auto end = io.wait({fmt::format("falcon.button.{}", b.id), fmt::format("Press and hold the {} button.", b.name)},
-                             o.button_timeout_s, [&] {
-                               const std::uint32_t now = io.driver().last_status().buttons();
-                               if (now != 0) seen = now;
-                               return now != 0;
-                             });
+    const auto end =
+        io.wait({fmt::format("falcon.button.{}", b.id), fmt::format("Press and hold the {} button.", b.name)},
+                o.button_timeout_s, [&] {
+                  const std::uint32_t now = io.driver().last_status().buttons();
+                  if (now != 0) seen = now;
+                  return now != 0;
+                });
     if (end != Session::End::kCondition) {
       return fail(s, fmt::format("the {} button was never seen pressed", b.name),
                   "check that the grip is pushed fully onto the Falcon (it is removable) and press the button firmly; "
@@ -614,8 +621,9 @@ StepReport buttons(Session& io, const FalconBringupOptions& o) {
     io.idle(0.05);
     seen = io.driver().last_status().buttons();
     if (seen != b.bit) {
-      return fail(s, fmt::format("pressing the {} button, the Falcon reported buttons 0x{:X} instead of 0x{:X}", b.name, seen,
-                                 b.bit),
+      return fail(s,
+                  fmt::format("pressing the {} button, the Falcon reported buttons 0x{:X} instead of 0x{:X}", b.name,
+                              seen, b.bit),
                   "press only that button; if another one is reported, the grip is not the four-button grip toonforce "
                   "knows (FALCON.md §3) or its wiring differs");
     }
@@ -638,7 +646,8 @@ StepReport leds(Session& io) {
   for (const Colour& c : kColours) {
     d.set_led(c.bit);
     io.idle(0.3);
-    const auto answer = io.person().ask({fmt::format("falcon.led.{}", c.name), fmt::format("Is the Falcon's LED {} now? [y/n]", c.name)});
+    const auto answer = io.person().ask(
+        {fmt::format("falcon.led.{}", c.name), fmt::format("Is the Falcon's LED {} now? [y/n]", c.name)});
     const auto yes = answer ? parse_yes_no(*answer) : std::nullopt;
     if (!yes) {
       d.set_led(0);
@@ -731,10 +740,10 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
          "`lsusb -d 0403:cb48` should list it");
   } else if (chosen == nullptr) {
     fail(found,
-         o.falcon.serial.empty()
-             ? fmt::format("Falcon number {} was asked for, but {} are connected", o.falcon.index, detection.devices.size())
-             : fmt::format("no Falcon with serial number {} among the {} connected", o.falcon.serial,
-                           detection.devices.size()),
+         o.falcon.serial.empty() ? fmt::format("Falcon number {} was asked for, but {} are connected", o.falcon.index,
+                                               detection.devices.size())
+                                 : fmt::format("no Falcon with serial number {} among the {} connected",
+                                               o.falcon.serial, detection.devices.size()),
          "`toonforce devices` lists them with their serial numbers");
   } else if (!chosen->can_open) {
     fail(found, fmt::format("the Falcon at {} cannot be opened by this user: {}", chosen->location, chosen->problem),
@@ -749,7 +758,8 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
       report.target = fmt::format("{}{}", serial.empty() ? "" : "serial " + serial + ", ", chosen->location);
       measure(found, "location", chosen->location);
       measure(found, "serial", serial.empty() ? "(none)" : serial);
-      pass(found, fmt::format("found at {}{} and opened", chosen->location, serial.empty() ? "" : ", serial " + serial));
+      pass(found,
+           fmt::format("found at {}{} and opened", chosen->location, serial.empty() ? "" : ", serial " + serial));
     }
   }
   add(std::move(found));  // opening is needed by every later step, so it always runs
@@ -759,11 +769,12 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
   if (stopped_by.empty()) {
     StepReport s = make_step("firmware", "Firmware");
     const auto mode = falcon::ftdi::enter_normal_mode(*transport);
-    const falcon::FirmwareProbe probe = mode == falcon::TransportStatus::kOk ? falcon::probe_firmware(*transport)
-                                                                              : falcon::FirmwareProbe{false, mode};
+    const falcon::FirmwareProbe probe =
+        mode == falcon::TransportStatus::kOk ? falcon::probe_firmware(*transport) : falcon::FirmwareProbe{false, mode};
     if (probe.transport != falcon::TransportStatus::kOk) {
-      fail(s, fmt::format("USB error ({}) while asking the Falcon whether its firmware runs",
-                          falcon::to_string(probe.transport)),
+      fail(s,
+           fmt::format("USB error ({}) while asking the Falcon whether its firmware runs",
+                       falcon::to_string(probe.transport)),
            "unplug the Falcon's USB cable and power, plug them back in, and run the bring-up again");
     } else if (probe.loaded) {
       pass(s, "firmware runs: the Falcon answers commands");
@@ -788,7 +799,8 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
       }
     }
     if (s.outcome == Outcome::kPass) {
-      auto calibration = resolve_falcon_calibration(o.falcon.calibration_path, serial, &falcon::read_falcon_calibration);
+      auto calibration =
+          resolve_falcon_calibration(o.falcon.calibration_path, serial, &falcon::read_falcon_calibration);
       if (!calibration) {
         fail(s, calibration.error(), "fix or remove the calibration file, or measure it again with the force step");
       } else {
@@ -831,8 +843,9 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
       }
       if (needs_homed && !driver->homed()) {
         StepReport s = make_step(step.id, step.title);
-        add(fail(s, "the Falcon is not homed, and this step needs positions", "run the homing step first (it is in the "
-                                                                               "default set)"));
+        add(fail(s, "the Falcon is not homed, and this step needs positions",
+                 "run the homing step first (it is in the "
+                 "default set)"));
         continue;
       }
       try {
@@ -847,8 +860,8 @@ Report run_falcon_bringup(FalconAccess& access, Operator& person, const FalconBr
   } else {
     for (const auto& [id, title] : {std::pair{"homing", "Homing"}, std::pair{"encoders", "Encoders and workspace"},
                                     std::pair{"motors", "Motor direction"}, std::pair{"force", "Force constant"},
-                                    std::pair{"timing", "USB round trip at 1 kHz"}, std::pair{"buttons", "Grip buttons"},
-                                    std::pair{"leds", "LED"}}) {
+                                    std::pair{"timing", "USB round trip at 1 kHz"},
+                                    std::pair{"buttons", "Grip buttons"}, std::pair{"leds", "LED"}}) {
       not_run(id, title);
     }
   }

@@ -128,9 +128,10 @@ StepReport tick_pin(Operator& person, gpio::GpioPins& pins, const GpioBringupOpt
     return fail(s, fmt::format("{} of {} writes to the tick pin failed", errors, clock.k()),
                 "check the line with `gpioinfo`: another program may have taken it, or the chip went away");
   }
-  const auto answer = end == End::kPerson
-                          ? person.ask({"gpio.tick.frequency_hz", "What frequency did you read on the tick pin, in Hz?"})
-                          : std::nullopt;
+  const auto answer =
+      end == End::kPerson
+          ? person.ask({"gpio.tick.frequency_hz", "What frequency did you read on the tick pin, in Hz?"})
+          : std::nullopt;
   if (!answer) {
     s.outcome = Outcome::kSkipped;
     s.finding = fmt::format("the pin toggled {} times without an error, but nobody read its frequency", clock.k());
@@ -198,9 +199,13 @@ StepReport estop(Operator& person, const gpio::GpioPins& pins, const GpioBringup
   if (!config) return fail(s, config.error(), "report this as a bug");
   gpio::GpioPins test_pins = pins;
   const PinLevel before = test_pins.estop.read();
-  measure(s, "released reads", before == PinLevel::kInactive ? "released" : before == PinLevel::kActive ? "ENGAGED" : "error");
+  measure(s, "released reads",
+          before == PinLevel::kInactive ? "released"
+          : before == PinLevel::kActive ? "ENGAGED"
+                                        : "error");
   if (before == PinLevel::kError) {
-    return fail(s, "the e-stop line cannot be read", "check the line with `gpioinfo`; see docs/GPIO.md for permissions");
+    return fail(s, "the e-stop line cannot be read",
+                "check the line with `gpioinfo`; see docs/GPIO.md for permissions");
   }
   if (before == PinLevel::kActive) {
     return fail(s, "the e-stop reads engaged although nobody pressed it",
@@ -218,36 +223,41 @@ StepReport estop(Operator& person, const gpio::GpioPins& pins, const GpioBringup
   std::int64_t seen_at = -1;
   double force_before = 0.0;
   double force_then = -1.0;
-  const End end = wait(person, clock, {"gpio.estop.press", "Press the emergency stop, and keep it pressed."}, o.person_timeout_s,
-                       o.rate_hz,
-                       [&] {
-                         const double before_n = rig.bench.written_n.z;
-                         const TickStatus st = rig.loop.tick(k);
-                         if (seen_at < 0 && st.faults.has(Fault::kEstop)) {
-                           seen_at = k;
-                           force_before = before_n;
-                           force_then = rig.bench.written_n.z;
-                         }
-                         ++k;
-                       },
-                       [&] { return seen_at >= 0; });
+  const End end = wait(
+      person, clock, {"gpio.estop.press", "Press the emergency stop, and keep it pressed."}, o.person_timeout_s,
+      o.rate_hz,
+      [&] {
+        const double before_n = rig.bench.written_n.z;
+        const TickStatus st = rig.loop.tick(k);
+        if (seen_at < 0 && st.faults.has(Fault::kEstop)) {
+          seen_at = k;
+          force_before = before_n;
+          force_then = rig.bench.written_n.z;
+        }
+        ++k;
+      },
+      [&] { return seen_at >= 0; });
   if (seen_at < 0) {
-    return fail(s, end == End::kPerson ? "you pressed the e-stop, but the loop never saw it" : "the e-stop was never seen pressed",
-                "check the wiring and the line the --estop-pin option names (its offset on the chip); if it is the "
-                "right line, its polarity may be inverted (:active-low)");
+    return fail(
+        s,
+        end == End::kPerson ? "you pressed the e-stop, but the loop never saw it" : "the e-stop was never seen pressed",
+        "check the wiring and the line the --estop-pin option names (its offset on the chip); if it is the "
+        "right line, its polarity may be inverted (:active-low)");
   }
   measure(s, "force before", fmt::format("{:.3f}", force_before), "N");
   measure(s, "force in the tick the e-stop was seen", fmt::format("{:.3f}", force_then), "N");
   if (force_then != 0.0) {
-    return fail(s, fmt::format("the loop saw the e-stop but still wrote {:.3f} N in that tick", force_then), "report this as a bug");
+    return fail(s, fmt::format("the loop saw the e-stop but still wrote {:.3f} N in that tick", force_then),
+                "report this as a bug");
   }
   // Latched: released, it stays off until re-armed; a re-arm while pressed is refused.
   rig.loop.request_rearm();
   rig.loop.tick(k++);
   clock.wait_next();
   const bool refused_while_pressed = rig.loop.last_status().rearm_refused;
-  wait(person, clock, {"gpio.estop.release", "Release the emergency stop."}, o.person_timeout_s, o.rate_hz,
-       [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().estop.read() == PinLevel::kInactive; });
+  wait(
+      person, clock, {"gpio.estop.release", "Release the emergency stop."}, o.person_timeout_s, o.rate_hz,
+      [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().estop.read() == PinLevel::kInactive; });
   const bool still_off = rig.bench.written_n.z == 0.0 && rig.loop.state() == LoopState::kFaulted;
   // Re-armed, the loop engages again as at start: only where the scene force is small (the
   // bench leaves the floor and comes back).
@@ -257,9 +267,10 @@ StepReport estop(Operator& person, const gpio::GpioPins& pins, const GpioBringup
   measure(s, "off after release until re-armed", still_off ? "yes" : "no");
   measure(s, "force back after re-arm", rearmed ? "yes" : "no");
   if (!refused_while_pressed || !still_off || !rearmed) {
-    return fail(s, "the e-stop cut the force, but the latch did not behave: re-arm refused while pressed "
-                       + std::string(refused_while_pressed ? "yes" : "no") + ", off after release " + (still_off ? "yes" : "no") +
-                       ", back after re-arm " + (rearmed ? "yes" : "no"),
+    return fail(s,
+                "the e-stop cut the force, but the latch did not behave: re-arm refused while pressed " +
+                    std::string(refused_while_pressed ? "yes" : "no") + ", off after release " +
+                    (still_off ? "yes" : "no") + ", back after re-arm " + (rearmed ? "yes" : "no"),
                 "release the e-stop fully before re-arming; if the line bounces, check the switch");
   }
   return pass(s, fmt::format("zero force in the tick the loop saw the e-stop ({:.2f} N before); latched until released "
@@ -275,33 +286,39 @@ StepReport enable(Operator& person, const gpio::GpioPins& pins, const GpioBringu
   Rig rig(make_runtime_scene<double>(scene), config.value(), pins);
   Clock clock(o.rate_hz, o.paced);
   std::int64_t k = 0;
-  wait(person, clock, {"gpio.enable.press", "Press and hold the enable switch."}, o.person_timeout_s, o.rate_hz,
-       [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().enable.read() == PinLevel::kActive; });
+  wait(
+      person, clock, {"gpio.enable.press", "Press and hold the enable switch."}, o.person_timeout_s, o.rate_hz,
+      [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().enable.read() == PinLevel::kActive; });
   if (!engage(rig, clock, k)) {
     return fail(s, "with the enable switch held, the force never came on",
                 "check the line the --enable-pin option names and its polarity (:active-low; docs/GPIO.md)");
   }
   std::int64_t released_at = -1;
   double force_then = -1.0;
-  const End end = wait(person, clock, {"gpio.enable.release", "Let go of the enable switch."}, o.person_timeout_s, o.rate_hz,
-                       [&] {
-                         rig.loop.tick(k);
-                         if (released_at < 0 && rig.loop.state() == LoopState::kIdle) {
-                           released_at = k;
-                           force_then = rig.bench.written_n.z;
-                         }
-                         ++k;
-                       },
-                       [&] { return released_at >= 0; });
+  const End end = wait(
+      person, clock, {"gpio.enable.release", "Let go of the enable switch."}, o.person_timeout_s, o.rate_hz,
+      [&] {
+        rig.loop.tick(k);
+        if (released_at < 0 && rig.loop.state() == LoopState::kIdle) {
+          released_at = k;
+          force_then = rig.bench.written_n.z;
+        }
+        ++k;
+      },
+      [&] { return released_at >= 0; });
   if (released_at < 0) {
-    return fail(s, end == End::kPerson ? "you let go, but the loop still saw the switch held" : "letting go was never seen",
-                "check the wiring; the polarity may be inverted (:active-low)");
+    return fail(
+        s, end == End::kPerson ? "you let go, but the loop still saw the switch held" : "letting go was never seen",
+        "check the wiring; the polarity may be inverted (:active-low)");
   }
   measure(s, "force in the tick the release was seen", fmt::format("{:.3f}", force_then), "N");
-  if (force_then != 0.0) return fail(s, fmt::format("{:.3f} N written in the tick of the release", force_then), "report this as a bug");
-  wait(person, clock, {"gpio.enable.press.again", "Press and hold the enable switch again."}, o.person_timeout_s, o.rate_hz,
-       [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().enable.read() == PinLevel::kActive; });
-  if (!engage(rig, clock, k)) return fail(s, "the force did not come back when the switch was held again", "check the switch");
+  if (force_then != 0.0)
+    return fail(s, fmt::format("{:.3f} N written in the tick of the release", force_then), "report this as a bug");
+  wait(
+      person, clock, {"gpio.enable.press.again", "Press and hold the enable switch again."}, o.person_timeout_s,
+      o.rate_hz, [&] { rig.loop.tick(k++); }, [&] { return rig.loop.pins().enable.read() == PinLevel::kActive; });
+  if (!engage(rig, clock, k))
+    return fail(s, "the force did not come back when the switch was held again", "check the switch");
   return pass(s, "zero force in the tick the switch was let go, and the force back once it was held again");
 }
 
@@ -328,7 +345,8 @@ Report run_gpio_bringup(Operator& person, const GpioBringupOptions& o) {
   StepReport lines = make_step("lines", "Lines open");
   std::optional<gpio::GpioSession> session;
   if (o.pins.empty()) {
-    fail(lines, "no GPIO line was given", "name the lines as `toonforce run` takes them: --tick-pin, --estop-pin, --enable-pin (docs/GPIO.md)");
+    fail(lines, "no GPIO line was given",
+         "name the lines as `toonforce run` takes them: --tick-pin, --estop-pin, --enable-pin (docs/GPIO.md)");
   } else {
     auto opened = gpio::open_gpio(o.pins);
     if (!opened) {

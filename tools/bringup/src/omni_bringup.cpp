@@ -32,7 +32,7 @@ struct Probe {
   enum Mode : int { kIdle = 0, kPulse = 1 };
   OmniDevice* device = nullptr;
   std::atomic<int> mode{kIdle};
-  Vec3<double> pulse_n{};       // written before mode = kPulse
+  Vec3<double> pulse_n{};  // written before mode = kPulse
   Vec3<double> start_m{};
   int pulse_ticks = 0;
   double min_motion_m = 0.0;
@@ -161,18 +161,20 @@ StepReport calibration(Session& io, const OmniBringupOptions& o) {
   io.run_ticks(2);
   if (calibrated()) return pass(s, "hdCheckCalibration says OK: forces may come on");
   const int style = d.limits().calibration_style;
-  const char* what = style == hd::kCalibrationAuto ? "Move the stylus slowly through the whole workspace, to its limits "
-                                                     "in every direction, until the device is calibrated."
+  const char* what = style == hd::kCalibrationAuto
+                         ? "Move the stylus slowly through the whole workspace, to its limits "
+                           "in every direction, until the device is calibrated."
                      : style == hd::kCalibrationEncoderReset
                          ? "This device calibrates by encoder reset when it is opened: hold the arm in its reset "
                            "pose (all links at right angles) and run the bring-up again."
                          : "Put the stylus in the inkwell (its holder on the base) and leave it there a moment.";
   io.wait({"omni.calibration", what}, o.calibration_timeout_s, calibrated);
   const OmniStatus st = d.status();
-  measure(s, "calibration style", style == hd::kCalibrationAuto       ? "auto"
-                                  : style == hd::kCalibrationInkwell  ? "inkwell"
-                                  : style == hd::kCalibrationEncoderReset ? "encoder reset"
-                                                                          : "none reported");
+  measure(s, "calibration style",
+          style == hd::kCalibrationAuto           ? "auto"
+          : style == hd::kCalibrationInkwell      ? "inkwell"
+          : style == hd::kCalibrationEncoderReset ? "encoder reset"
+                                                  : "none reported");
   measure(s, "calibration errors", fmt::format("{}", st.calibration_errors));
   if (calibrated()) return pass(s, "calibrated: hdCheckCalibration says OK");
   return fail(s, "the device is still not calibrated: " + d.last_error(),
@@ -202,7 +204,8 @@ StepReport workspace(Session& io, const OmniBringupOptions& o) {
       ++seen;
     }
     const Vec3<double> reach = hi - lo;
-    return seen > 0 && reach.x >= fraction * usable.x && reach.y >= fraction * usable.y && reach.z >= fraction * usable.z;
+    return seen > 0 && reach.x >= fraction * usable.x && reach.y >= fraction * usable.y &&
+           reach.z >= fraction * usable.z;
   };
   io.wait({"omni.workspace",
            "Move the stylus slowly to every limit of the workspace: left and right, up and down, toward you and "
@@ -212,8 +215,9 @@ StepReport workspace(Session& io, const OmniBringupOptions& o) {
   measure(s, "reach x (left-right)", fmt::format("{:.0f} of {:.0f}", reach.x * 1e3, usable.x * 1e3), "mm");
   measure(s, "reach y (in-out)", fmt::format("{:.0f} of {:.0f}", reach.y * 1e3, usable.y * 1e3), "mm");
   measure(s, "reach z (up-down)", fmt::format("{:.0f} of {:.0f}", reach.z * 1e3, usable.z * 1e3), "mm");
-  if (enough()) return pass(s, fmt::format("the stylus reached {:.0f} x {:.0f} x {:.0f} mm of the usable workspace",
-                                           reach.x * 1e3, reach.y * 1e3, reach.z * 1e3));
+  if (enough())
+    return pass(s, fmt::format("the stylus reached {:.0f} x {:.0f} x {:.0f} mm of the usable workspace", reach.x * 1e3,
+                               reach.y * 1e3, reach.z * 1e3));
   return fail(s,
               fmt::format("the stylus reached only {:.0f} x {:.0f} x {:.0f} mm; {:.0f} % of the usable workspace "
                           "({:.0f} x {:.0f} x {:.0f} mm) along each axis was expected",
@@ -306,7 +310,8 @@ StepReport timing(Session& io, const OmniBringupOptions& o) {
     s.next = "a quieter or real-time host (`toonforce doctor`), or a lower --rate";
     return s;
   }
-  return pass(s, fmt::format("{} ticks; period median {:.0f} us, p99 {:.0f} us; {} overruns", n, h.p50, h.p99, overruns));
+  return pass(s,
+              fmt::format("{} ticks; period median {:.0f} us, p99 {:.0f} us; {} overruns", n, h.p50, h.p99, overruns));
 }
 
 StepReport buttons(Session& io, const OmniBringupOptions& o) {
@@ -319,11 +324,12 @@ StepReport buttons(Session& io, const OmniBringupOptions& o) {
   } kButtons[] = {{1U, "1", "first (front, HD_DEVICE_BUTTON_1)"}, {2U, "2", "second (back, HD_DEVICE_BUTTON_2)"}};
   for (const auto& b : kButtons) {
     std::uint32_t seen = 0;
-    const auto end = io.wait({fmt::format("omni.button.{}", b.id), fmt::format("Press and hold the {} stylus button.", b.name)},
-                             o.button_timeout_s, [&] {
-                               seen = d.status().buttons;
-                               return seen != 0;
-                             });
+    const auto end =
+        io.wait({fmt::format("omni.button.{}", b.id), fmt::format("Press and hold the {} stylus button.", b.name)},
+                o.button_timeout_s, [&] {
+                  seen = d.status().buttons;
+                  return seen != 0;
+                });
     if (end != Session::End::kCondition) {
       return fail(s, fmt::format("the {} button was never seen pressed", b.name),
                   "press it firmly; check it with the vendor's Touch_Diagnostic");
@@ -357,10 +363,10 @@ Report run_omni_bringup(Operator& person, const OmniBringupOptions& o) {
   };
   const auto not_run = [&](const char* id, const char* title) {
     StepReport s = make_step(id, title);
-    s.finding = !stopped_by.empty()                      ? "not run: " + stopped_by + " failed"
-                : !step_selected(id, o.only, o.skip)     ? std::string("not asked for")
-                                                         : std::string("needs a person: a non-interactive run skips "
-                                                                       "it unless named with --only");
+    s.finding = !stopped_by.empty()                  ? "not run: " + stopped_by + " failed"
+                : !step_selected(id, o.only, o.skip) ? std::string("not asked for")
+                                                     : std::string("needs a person: a non-interactive run skips "
+                                                                   "it unless named with --only");
     report.steps.push_back(std::move(s));
   };
 
@@ -380,8 +386,10 @@ Report run_omni_bringup(Operator& person, const OmniBringupOptions& o) {
   } else {
     auto opened = open_omni(o.omni);
     if (!opened) {
-      fail(found, opened.error(), install_fixes.empty() ? "see the message; `toonforce devices` checks the node's "
-                                                          "permission" : install_fixes);
+      fail(found, opened.error(),
+           install_fixes.empty() ? "see the message; `toonforce devices` checks the node's "
+                                   "permission"
+                                 : install_fixes);
     } else {
       device = std::move(opened).value();
       report.target = device->info().name;
@@ -395,13 +403,17 @@ Report run_omni_bringup(Operator& person, const OmniBringupOptions& o) {
     const OmniLimits& l = device->limits();
     measure(driver, "device", device->info().name);
     measure(driver, "peak force (HD_NOMINAL_MAX_FORCE)", fmt::format("{:.3g}", l.max_force_n), "N");
-    measure(driver, "continuous force", l.max_continuous_force_n > 0 ? fmt::format("{:.3g}", l.max_continuous_force_n) : "not reported", l.max_continuous_force_n > 0 ? "N" : "");
+    measure(driver, "continuous force",
+            l.max_continuous_force_n > 0 ? fmt::format("{:.3g}", l.max_continuous_force_n) : "not reported",
+            l.max_continuous_force_n > 0 ? "N" : "");
     measure(driver, "force cap in use", fmt::format("{:.3g} ({})", l.force_cap_n, l.force_cap_source), "N");
     measure(driver, "hdDisableDevice on close", device->disables_device_on_close() ? "yes" : "no (FireWire stack)");
-    pass(driver, fmt::format("{}; forces capped at {:.3g} N ({})", device->info().name, l.force_cap_n, l.force_cap_source));
+    pass(driver,
+         fmt::format("{}; forces capped at {:.3g} N ({})", device->info().name, l.force_cap_n, l.force_cap_source));
     if (l.max_continuous_force_n <= 0) {
       driver.outcome = Outcome::kWarn;
-      driver.next = "the device reports no continuous force: the cap is its peak force; give --omni-max-force to lower it";
+      driver.next =
+          "the device reports no continuous force: the cap is its peak force; give --omni-max-force to lower it";
     }
     add(std::move(driver));
 
@@ -423,7 +435,8 @@ Report run_omni_bringup(Operator& person, const OmniBringupOptions& o) {
                  {"timing", "Scheduler rate", [&] { return timing(io, o); }},
                  {"buttons", "Stylus buttons", [&] { return buttons(io, o); }}};
     for (const auto& step : steps) {
-      const bool wanted = step_selected(step.id, o.only, o.skip) && !(unattended && needs_person(step.id) && o.only.empty());
+      const bool wanted =
+          step_selected(step.id, o.only, o.skip) && !(unattended && needs_person(step.id) && o.only.empty());
       if (!stopped_by.empty() || !wanted) {
         not_run(step.id, step.title);
         continue;
@@ -449,9 +462,10 @@ Report run_omni_bringup(Operator& person, const OmniBringupOptions& o) {
     io.wait({"omni.stopping", "(stopping)"}, 1.0, [&] { return !device->running(); });
     device->stop();
   } else {
-    for (const auto& [id, title] : {std::pair{"driver", "Driver and limits"}, std::pair{"calibration", "Calibration"},
-                                    std::pair{"workspace", "Encoders and workspace"}, std::pair{"motors", "Motor direction"},
-                                    std::pair{"timing", "Scheduler rate"}, std::pair{"buttons", "Stylus buttons"}}) {
+    for (const auto& [id, title] :
+         {std::pair{"driver", "Driver and limits"}, std::pair{"calibration", "Calibration"},
+          std::pair{"workspace", "Encoders and workspace"}, std::pair{"motors", "Motor direction"},
+          std::pair{"timing", "Scheduler rate"}, std::pair{"buttons", "Stylus buttons"}}) {
       not_run(id, title);
     }
   }

@@ -15,7 +15,8 @@ namespace toonforce::bringup {
 std::optional<bool> parse_yes_no(std::string_view text) {
   std::string t;
   for (const char c : text) {
-    if (!std::isspace(static_cast<unsigned char>(c))) t += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (!std::isspace(static_cast<unsigned char>(c)))
+      t += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   }
   if (t == "y" || t == "yes" || t == "true" || t == "1") return true;
   if (t == "n" || t == "no" || t == "false" || t == "0") return false;

@@ -67,16 +67,19 @@ namespace {
 std::string md_escape(std::string_view text) {
   std::string out;
   for (const char c : text) {
-    if (c == '|') out += "\\|";
-    else if (c == '\n') out += "<br>";
-    else out += c;
+    if (c == '|')
+      out += "\\|";
+    else if (c == '\n')
+      out += "<br>";
+    else
+      out += c;
   }
   return out;
 }
 
 std::string histogram_markdown(const Histogram& h) {
-  std::string out = fmt::format("\n{} samples: min {:.1f}, median {:.1f}, p99 {:.1f}, max {:.1f} {}\n\n", h.samples, h.min,
-                                h.p50, h.p99, h.max, h.unit);
+  std::string out = fmt::format("\n{} samples: min {:.1f}, median {:.1f}, p99 {:.1f}, max {:.1f} {}\n\n", h.samples,
+                                h.min, h.p50, h.p99, h.max, h.unit);
   out += fmt::format("| {} | count | |\n| --- | --- | --- |\n", h.unit);
   const std::uint64_t peak = h.counts.empty() ? 0 : *std::max_element(h.counts.begin(), h.counts.end());
   for (std::size_t i = 0; i < h.counts.size(); ++i) {
@@ -97,8 +100,9 @@ std::string number(double v) { return std::isfinite(v) ? fmt::format("{:.17g}", 
 
 std::string to_markdown(const Report& r) {
   std::string out = fmt::format("# Bring-up of the {}\n\n", r.device);
-  out += fmt::format("- device: {}\n- started: {}\n- toonforce: {}\n- result: **{}**\n\n", r.target.empty() ? "?" : r.target,
-                     r.started_utc, r.toonforce_version, r.passed() ? "no step failed" : "a step FAILED");
+  out += fmt::format("- device: {}\n- started: {}\n- toonforce: {}\n- result: **{}**\n\n",
+                     r.target.empty() ? "?" : r.target, r.started_utc, r.toonforce_version,
+                     r.passed() ? "no step failed" : "a step FAILED");
   out += "| step | result | finding |\n| --- | --- | --- |\n";
   for (const auto& s : r.steps) {
     out += fmt::format("| {} | {} | {} |\n", s.title, to_string(s.outcome), md_escape(s.finding));
@@ -125,10 +129,11 @@ std::string to_json(const Report& r) {
   out += fmt::format("  \"passed\": {},\n  \"steps\": [", r.passed() ? "true" : "false");
   for (std::size_t i = 0; i < r.steps.size(); ++i) {
     const StepReport& s = r.steps[i];
-    out += fmt::format("{}\n    {{\"id\": {}, \"title\": {}, \"outcome\": {}, \"finding\": {}, \"next\": {}, \"measurements\": {{",
-                       i == 0 ? "" : ",", json_string(s.id), json_string(s.title),
-                       json_string(s.outcome == Outcome::kFail ? "fail" : to_string(s.outcome)), json_string(s.finding),
-                       json_string(s.next));
+    out += fmt::format(
+        "{}\n    {{\"id\": {}, \"title\": {}, \"outcome\": {}, \"finding\": {}, \"next\": {}, \"measurements\": {{",
+        i == 0 ? "" : ",", json_string(s.id), json_string(s.title),
+        json_string(s.outcome == Outcome::kFail ? "fail" : to_string(s.outcome)), json_string(s.finding),
+        json_string(s.next));
     for (std::size_t m = 0; m < s.measurements.size(); ++m) {
       const Measurement& x = s.measurements[m];
       out += fmt::format("{}{}: {{\"value\": {}, \"unit\": {}}}", m == 0 ? "" : ", ", json_string(x.name),

@@ -88,8 +88,8 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
   if (!kind) {
     static const std::vector<std::string> kKinds{"move", "stroke", "strike", "cross", "hold", "release"};
     const auto near = nearest_key(*type, kKinds);
-    r.error("type", fmt::format("unknown segment type '{}'{} (move, stroke, strike, cross, hold or release)", printable(*type),
-                                near ? fmt::format(", did you mean '{}'?", *near) : std::string()));
+    r.error("type", fmt::format("unknown segment type '{}'{} (move, stroke, strike, cross, hold or release)",
+                                printable(*type), near ? fmt::format(", did you mean '{}'?", *near) : std::string()));
     r.finish();
     return false;
   }
@@ -108,8 +108,8 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
   }
   if (applies("speed", s.kind)) s.speed_m_per_s = r.optional_number("speed", Range::kPositive);
   if (applies("duration", s.kind)) {
-    s.duration_s = r.optional_number("duration", s.kind == SegmentKind::kRelease ? Range::kNonNegative
-                                                                                 : Range::kPositive);
+    s.duration_s =
+        r.optional_number("duration", s.kind == SegmentKind::kRelease ? Range::kNonNegative : Range::kPositive);
   }
   if (applies("ramp", s.kind)) s.ramp_s = r.number_or("ramp", s.ramp_s, Range::kNonNegative);
   // A stroke stops at its end; a strike aims through the wall and a crossing carries on.
@@ -146,8 +146,10 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
     case SegmentKind::kStroke:
     case SegmentKind::kCross:
       if (!r.has("speed")) r.error("", "missing required key 'speed' [m/s]");
-      if (!r.has("force")) r.error("", fmt::format("missing required key 'force' [N] (the {} presses with it; 0 to "
-                                                   "only touch)", name));
+      if (!r.has("force"))
+        r.error("", fmt::format("missing required key 'force' [N] (the {} presses with it; 0 to "
+                                "only touch)",
+                                name));
       break;
     case SegmentKind::kStrike:
       if (!r.has("speed")) r.error("", "missing required key 'speed' [m/s]");
@@ -155,8 +157,7 @@ bool read_segment(const toml::table& table, std::size_t number, ErrorList& error
     case SegmentKind::kHold:
       if (!r.has("duration")) r.error("", "missing required key 'duration' [s]");
       break;
-    case SegmentKind::kRelease:
-      break;
+    case SegmentKind::kRelease: break;
   }
   r.finish();
   return errors.count() == before;

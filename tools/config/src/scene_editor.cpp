@@ -34,7 +34,8 @@ std::string kind_list() {
   std::string out;
   [&]<std::size_t... I>(std::index_sequence<I...>) {
     ((out += fmt::format("{}{}", out.empty() ? "" : ", ", Kinds::Kind<I>::kKey)), ...);
-  }(std::make_index_sequence<Kinds::kind_count()>{});
+  }
+  (std::make_index_sequence<Kinds::kind_count()>{});
   return out;
 }
 
@@ -48,8 +49,10 @@ Result<EffectName> parse_effect_name(std::string_view text, const toml::table& d
   std::size_t number = 0;
   bool ok = !digits.empty() && digits.size() <= 4;
   for (const char c : digits) {
-    if (std::isdigit(static_cast<unsigned char>(c)) == 0) ok = false;
-    else number = number * 10 + static_cast<std::size_t>(c - '0');
+    if (std::isdigit(static_cast<unsigned char>(c)) == 0)
+      ok = false;
+    else
+      number = number * 10 + static_cast<std::size_t>(c - '0');
   }
   if (kind == Kinds::kind_count() || !ok || number == 0) {
     return Error{fmt::format("'{}' names no effect: write the kind and its number from 1, as in traces (surface2, "
@@ -212,9 +215,9 @@ Result<SceneChange> SceneDocument::load(std::string_view text, std::string sourc
   // for others would run with the old ones, so it is refused rather than half applied.
   const toml::node* before = impl_->doc.get("device");
   const toml::node* after = root->get("device");
-  const bool same_device = (before == nullptr && after == nullptr) ||
-                           (before != nullptr && after != nullptr && before->is_table() && after->is_table() &&
-                            *before->as_table() == *after->as_table());
+  const bool same_device =
+      (before == nullptr && after == nullptr) || (before != nullptr && after != nullptr && before->is_table() &&
+                                                  after->is_table() && *before->as_table() == *after->as_table());
   if (!same_device) {
     return Error{fmt::format("{}: its [device] table differs from the running scene's: the safety limits are the "
                              "loop's, fixed when it starts; stop and start with this scene instead\n",
@@ -239,8 +242,8 @@ Result<SceneChange> SceneDocument::fire(std::string_view effect, std::string_vie
   const std::size_t place = place_of(order, name->kind, name->index);
   const auto runtime = make_runtime_scene<double>(impl_->scene);
   if (place == order.size() || runtime.event_index(place, event) < 0) {
-    return Error{fmt::format("{}: a {} has no event '{}' (surface: impact; cliff: look_down)\n", what, name->key,
-                             event)};
+    return Error{
+        fmt::format("{}: a {} has no event '{}' (surface: impact; cliff: look_down)\n", what, name->key, event)};
   }
   if (name->kind == Kinds::kind_index(RuntimeSurface<double>::kKey)) {
     if (!impl_->scene.of<RuntimeSurface>()[name->index].impact.enabled) {

@@ -21,8 +21,8 @@ void read_device(const toml::table& table, ErrorList& errors, ScalarKind scalar,
   if (scalar == ScalarKind::kQ16_16) {
     const double time_constant_s = 1.0 / (2.0 * 3.14159265358979323846 * scene.velocity_cutoff_hz);
     if (Q16_16::from_double(time_constant_s).raw() == 0) {
-      r.error("velocity_cutoff", fmt::format("{} Hz is too high for Q16.16: its time constant rounds to 0",
-                                             scene.velocity_cutoff_hz));
+      r.error("velocity_cutoff",
+              fmt::format("{} Hz is too high for Q16.16: its time constant rounds to 0", scene.velocity_cutoff_hz));
     }
   }
   r.finish();
@@ -41,8 +41,10 @@ void read_settings(TableReader& root, SceneSettings& settings) {
 
 void check_scene(const std::vector<SceneEntry>&, std::size_t values, const std::string& file, ErrorList& errors) {
   if (values > kMaxEffectValues) {
-    errors.add(1, "", fmt::format("{}: its effects show {} values, more than the {} a telemetry frame carries; "
-                                  "split the scene", file, values, kMaxEffectValues));
+    errors.add(1, "",
+               fmt::format("{}: its effects show {} values, more than the {} a telemetry frame carries; "
+                           "split the scene",
+                           file, values, kMaxEffectValues));
   }
 }
 
@@ -89,7 +91,8 @@ double max_over_workspace(const Envelope& e, F f) {
 
 /// The deepest penetration delta = -n.(x - p0) the workspace allows (0: never in contact).
 double deepest_m(const Envelope& e, const Plane<double>& plane) {
-  return std::max(0.0, max_over_workspace(e, [&](const Vec3<double>& x) { return -dot(plane.normal, x - plane.point_m); }));
+  return std::max(0.0,
+                  max_over_workspace(e, [&](const Vec3<double>& x) { return -dot(plane.normal, x - plane.point_m); }));
 }
 
 /// The penalty wall's largest force in normal use, k delta_max + b v_max (effects.md §1: the
@@ -100,12 +103,13 @@ double check_wall(TableReader& r, const Envelope& e, const Plane<double>& plane,
   const double damper_n = w.damping_n_s_per_m * e.speed_m_per_s;
   if (!(spring_n + damper_n > kMaxProduct)) return spring_n + damper_n;
   const auto stiffness_error = [&](double allowed_n) {
-    r.error("stiffness", fmt::format("{:g} N/m saturates Q16.16: at the deepest penetration {} allows ({:g} m) the wall "
-                                     "pushes {:g} N{}, over the {:g} N Q16.16 holds; allowed with --scalar q16.16: "
-                                     "stiffness up to {:.6g} N/m",
-                                     w.stiffness_n_per_m, e.workspace, depth_m, spring_n + damper_n,
-                                     damper_n > 0.0 ? fmt::format(" (with damping x max_velocity {:g} N)", damper_n) : "",
-                                     kMaxProduct, allowed_n / depth_m));
+    r.error("stiffness",
+            fmt::format("{:g} N/m saturates Q16.16: at the deepest penetration {} allows ({:g} m) the wall "
+                        "pushes {:g} N{}, over the {:g} N Q16.16 holds; allowed with --scalar q16.16: "
+                        "stiffness up to {:.6g} N/m",
+                        w.stiffness_n_per_m, e.workspace, depth_m, spring_n + damper_n,
+                        damper_n > 0.0 ? fmt::format(" (with damping x max_velocity {:g} N)", damper_n) : "",
+                        kMaxProduct, allowed_n / depth_m));
   };
   const auto damping_error = [&](double allowed_n) {
     r.error("damping", fmt::format("{:g} N s/m saturates Q16.16: entering at max_velocity {:g} m/s the wall's damping "
@@ -144,11 +148,12 @@ void check_fixed_point(TableReader& r, const SceneSettings& settings, const Runt
     if (gain > kMaxProduct || force_n > kMaxProduct) {
       if (t.friction.coulomb > 0.0) {
         const double allowed = std::min((kMaxProduct - viscous) * v_reg, kMaxProduct - viscous * v) / normal_n;
-        r.error("friction.coulomb",
-                fmt::format("{:g} saturates Q16.16: against the wall's {:g} N at the deepest penetration its gain "
-                            "mu_c N / v_reg is {:g} N s/m, over the {:g} N s/m Q16.16 holds; allowed with --scalar q16.16: "
-                            "coulomb up to {:.6g}",
-                            t.friction.coulomb, normal_n, gain, kMaxProduct, std::max(0.0, allowed)));
+        r.error(
+            "friction.coulomb",
+            fmt::format("{:g} saturates Q16.16: against the wall's {:g} N at the deepest penetration its gain "
+                        "mu_c N / v_reg is {:g} N s/m, over the {:g} N s/m Q16.16 holds; allowed with --scalar q16.16: "
+                        "coulomb up to {:.6g}",
+                        t.friction.coulomb, normal_n, gain, kMaxProduct, std::max(0.0, allowed)));
       } else {
         r.error("friction.viscous",
                 fmt::format("{:g} N s/m saturates Q16.16 at max_velocity {:g} m/s ({:g} N); allowed with --scalar "
@@ -158,10 +163,10 @@ void check_fixed_point(TableReader& r, const SceneSettings& settings, const Runt
     }
   } else if (t.kind == TangentialKind::kSlippery && t.slippery.mu_n_s_per_m * v > kMaxProduct) {
     // effects.md §3: F_t = mu v_t before the cap.
-    r.error("slippery.mu", fmt::format("{:g} N s/m saturates Q16.16: at max_velocity {:g} m/s mu v_t is {:g} N, over "
-                                       "the {:g} N Q16.16 holds; allowed with --scalar q16.16: mu up to {:.6g} N s/m",
-                                       t.slippery.mu_n_s_per_m, v, t.slippery.mu_n_s_per_m * v, kMaxProduct,
-                                       kMaxProduct / v));
+    r.error("slippery.mu",
+            fmt::format("{:g} N s/m saturates Q16.16: at max_velocity {:g} m/s mu v_t is {:g} N, over "
+                        "the {:g} N Q16.16 holds; allowed with --scalar q16.16: mu up to {:.6g} N s/m",
+                        t.slippery.mu_n_s_per_m, v, t.slippery.mu_n_s_per_m * v, kMaxProduct, kMaxProduct / v));
   }
   if (p.impact.enabled) {
     // effects.md §4: F = v_i (d - t) (k_r + k_osc sin(omega t)), largest at t = 0 with
@@ -187,15 +192,15 @@ void check_fixed_point(TableReader& r, const SceneSettings& settings, const Cart
   if (wall_n > kMaxProduct) return;  // said
   // effects.md §5: under a ledge the side face pushes k times the distance past the edge.
   const double past_m = std::max(0.0, max_over_workspace(e, [&](const Vec3<double>& x) {
-    const double across = dot(p.axis, x - p.ground.point_m);
-    return std::max(p.gap_min_m - across, across - p.gap_max_m);
-  }));
+                                   const double across = dot(p.axis, x - p.ground.point_m);
+                                   return std::max(p.gap_min_m - across, across - p.gap_max_m);
+                                 }));
   if (deepest_m(e, p.ground) > 0.0 && p.wall.stiffness_n_per_m * past_m > kMaxProduct) {
     r.error("stiffness", fmt::format("{:g} N/m saturates Q16.16: {} lets the HIP go {:g} m past a ledge's edge, where "
                                      "the side face pushes {:g} N, over the {:g} N Q16.16 holds; allowed with "
                                      "--scalar q16.16: stiffness up to {:.6g} N/m",
-                                     p.wall.stiffness_n_per_m, e.workspace, past_m,
-                                     p.wall.stiffness_n_per_m * past_m, kMaxProduct, kMaxProduct / past_m));
+                                     p.wall.stiffness_n_per_m, e.workspace, past_m, p.wall.stiffness_n_per_m * past_m,
+                                     kMaxProduct, kMaxProduct / past_m));
   }
 }
 
@@ -212,7 +217,6 @@ void check_fixed_point_device(TableReader& root, const SceneSettings& settings) 
                            damping, v, damping * scale, kMaxProduct, kMaxProduct / scale));
   }
 }
-
 
 }  // namespace scene_reader
 
@@ -256,7 +260,8 @@ RateLimit max_rate(const SceneSettings& settings, const std::vector<CartoonCliff
   if ((kMaxProduct - 1.0) / tau_c_s < limit.max_rate_hz) {
     limit = {(kMaxProduct - 1.0) / tau_c_s,
              fmt::format("the velocity estimator's 1 + rate / (2 pi velocity_cutoff) must stay within {:g} "
-                         "(velocity_cutoff = {:g} Hz)", kMaxProduct, settings.velocity_cutoff_hz)};
+                         "(velocity_cutoff = {:g} Hz)",
+                         kMaxProduct, settings.velocity_cutoff_hz)};
   }
   // cliff.hpp: s_f += (s - s_f) / (1 + tau rate).
   for (std::size_t i = 0; i < cliffs.size(); ++i) {

@@ -15,7 +15,6 @@
 
 namespace toonforce {
 
-
 void ErrorList::add(const toml::source_region& where, std::string_view path, std::string_view problem) {
   add(where.begin.line, path, problem);
 }
@@ -24,8 +23,8 @@ void ErrorList::add(std::uint32_t line, std::string_view path, std::string_view 
   ++count_;
   if (entries_.size() >= kKept) return;
   if (line == 0) {  // about the whole file (it cannot be read): no line to name
-    entries_.push_back({line, path.empty() ? fmt::format("{}: {}", file_, problem)
-                                           : fmt::format("{}: {}: {}", file_, path, problem)});
+    entries_.push_back(
+        {line, path.empty() ? fmt::format("{}: {}", file_, problem) : fmt::format("{}: {}: {}", file_, path, problem)});
   } else if (path.empty()) {
     entries_.push_back({line, fmt::format("{}:{}: {}", file_, line, problem)});
   } else {
@@ -125,7 +124,8 @@ std::optional<std::string> nearest_key(std::string_view key, std::span<const std
   const std::size_t allowed = std::max<std::size_t>(2, key.size() / 3);
   for (const auto& candidate : known) {
     // The distance is at least the difference in length: a 20 MB key is never compared in full.
-    const std::size_t length_gap = key.size() > candidate.size() ? key.size() - candidate.size() : candidate.size() - key.size();
+    const std::size_t length_gap =
+        key.size() > candidate.size() ? key.size() - candidate.size() : candidate.size() - key.size();
     if (length_gap > allowed) continue;
     const std::size_t d = edit_distance(key, candidate);
     if (!best || d < best_distance) {
@@ -223,7 +223,7 @@ std::optional<double> TableReader::to_number(std::string_view key, const toml::n
 }
 
 std::optional<double> TableReader::required_number(std::string_view key, Range range, std::string_view unit,
-                                                    std::string_view hint) {
+                                                   std::string_view hint) {
   const toml::node* node = take(key);
   if (node == nullptr) {
     error("", fmt::format("missing required key '{}'{}{}", key, unit.empty() ? "" : " ", unit));
@@ -252,8 +252,8 @@ std::optional<Vec3<double>> TableReader::required_vec3(std::string_view key, std
   }
   const toml::array* array = node->as_array();
   if (array == nullptr || array->size() != 3) {
-    error(key, fmt::format("must be an array of three numbers{}{}, like [0.0, 0.0, 1.0]",
-                           unit.empty() ? "" : " ", unit));
+    error(key,
+          fmt::format("must be an array of three numbers{}{}, like [0.0, 0.0, 1.0]", unit.empty() ? "" : " ", unit));
     return std::nullopt;
   }
   double v[3] = {};
@@ -364,8 +364,7 @@ void TableReader::finish(std::string_view what, std::string_view note) {
     } else if (tables && !note.empty()) {
       problem += fmt::format(" ({})", note);
     }
-    errors_.add(key.source().begin.line != 0 ? key.source().begin.line : node.source().begin.line,
-                path_, problem);
+    errors_.add(key.source().begin.line != 0 ? key.source().begin.line : node.source().begin.line, path_, problem);
   }
 }
 
@@ -427,8 +426,8 @@ class DepthScan {
       case ',': dots_ = 0; break;
       case '[':
       case '{':
-        if (in_header_) break;                              // the second '[' of "[[table]]"
-        if (c == '[' && open_ == 0 && line_start) {         // a table header
+        if (in_header_) break;                       // the second '[' of "[[table]]"
+        if (c == '[' && open_ == 0 && line_start) {  // a table header
           in_header_ = true;
           header_ = 0;
           committed_ = 0;
@@ -460,10 +459,10 @@ class DepthScan {
   std::uint32_t depth() const noexcept { return header_ + committed_ + open_ + dots_ + 1; }
 
   std::array<std::uint32_t, kMaxTomlDepth + 2> key_dots_{};  ///< the key's dots at each open level
-  std::uint32_t open_ = 0;                                  ///< arrays and inline tables open
-  std::uint32_t committed_ = 0;                             ///< sum of key_dots_[0..open_]
-  std::uint32_t header_ = 0;                                ///< levels of the current table header
-  std::uint32_t dots_ = 0;                                  ///< dots since the last separator
+  std::uint32_t open_ = 0;                                   ///< arrays and inline tables open
+  std::uint32_t committed_ = 0;                              ///< sum of key_dots_[0..open_]
+  std::uint32_t header_ = 0;                                 ///< levels of the current table header
+  std::uint32_t dots_ = 0;                                   ///< dots since the last separator
   bool in_header_ = false;
   bool line_start_ = true;
 };
@@ -491,13 +490,14 @@ bool check_text(std::string_view text, ErrorList& errors) {
     if (static_cast<unsigned char>(c) >= 0x80) {
       const std::size_t n = utf8_length(text, i);
       if (n == 0) {
-        errors.add(line, "", fmt::format("invalid UTF-8 (byte 0x{:02X}); save the file as UTF-8",
-                                         static_cast<unsigned char>(c)));
+        errors.add(line, "",
+                   fmt::format("invalid UTF-8 (byte 0x{:02X}); save the file as UTF-8", static_cast<unsigned char>(c)));
         return false;
       }
       if (state == State::kNormal || state == State::kLineEndingBackslash) {
-        errors.add(line, "", "a non-ASCII character outside a comment or a string; TOML keys and values are ASCII "
-                             "unless quoted");
+        errors.add(line, "",
+                   "a non-ASCII character outside a comment or a string; TOML keys and values are ASCII "
+                   "unless quoted");
         return false;
       }
       i += n;
@@ -505,44 +505,72 @@ bool check_text(std::string_view text, ErrorList& errors) {
     }
     if (c == '\n') ++line;
     if ((state == State::kNormal || (state == State::kComment && c == '\n')) && !depth.on(c)) {
-      errors.add(line, "", fmt::format("nested deeper than {} levels (table headers, dotted keys, arrays and inline "
-                                       "tables counted together); a scene or hand script needs a handful",
-                                       kMaxTomlDepth));
+      errors.add(line, "",
+                 fmt::format("nested deeper than {} levels (table headers, dotted keys, arrays and inline "
+                             "tables counted together); a scene or hand script needs a handful",
+                             kMaxTomlDepth));
       return false;
     }
     switch (state) {
       case State::kNormal:
-        if (c == '#') state = State::kComment;
-        else if (starts(i, "\"\"\"")) { state = State::kMultiBasic; skip(3); continue; }
-        else if (starts(i, "'''")) { state = State::kMultiLiteral; skip(3); continue; }
-        else if (c == '"') state = State::kBasic;
-        else if (c == '\'') state = State::kLiteral;
+        if (c == '#')
+          state = State::kComment;
+        else if (starts(i, "\"\"\"")) {
+          state = State::kMultiBasic;
+          skip(3);
+          continue;
+        } else if (starts(i, "'''")) {
+          state = State::kMultiLiteral;
+          skip(3);
+          continue;
+        } else if (c == '"')
+          state = State::kBasic;
+        else if (c == '\'')
+          state = State::kLiteral;
         break;
       case State::kComment:
         if (c == '\n') state = State::kNormal;
         break;
       case State::kBasic:
-        if (c == '\\') { skip(2); continue; }
+        if (c == '\\') {
+          skip(2);
+          continue;
+        }
         if (c == '"' || c == '\n') state = State::kNormal;
         break;
       case State::kLiteral:
         if (c == '\'' || c == '\n') state = State::kNormal;
         break;
       case State::kMultiBasic:
-        if (starts(i, "\"\"\"")) { state = State::kNormal; skip(3); continue; }
+        if (starts(i, "\"\"\"")) {
+          state = State::kNormal;
+          skip(3);
+          continue;
+        }
         if (c == '\\') {
           std::size_t k = i + 1;
           while (k < text.size() && (text[k] == ' ' || text[k] == '\t' || text[k] == '\r')) ++k;
-          if (k < text.size() && text[k] == '\n') { state = State::kLineEndingBackslash; skip(1); continue; }
+          if (k < text.size() && text[k] == '\n') {
+            state = State::kLineEndingBackslash;
+            skip(1);
+            continue;
+          }
           skip(2);
           continue;
         }
         break;
       case State::kLineEndingBackslash:  // whitespace and newlines, up to the next character
-        if (c != ' ' && c != '\t' && c != '\r' && c != '\n') { state = State::kMultiBasic; continue; }
+        if (c != ' ' && c != '\t' && c != '\r' && c != '\n') {
+          state = State::kMultiBasic;
+          continue;
+        }
         break;
       case State::kMultiLiteral:
-        if (starts(i, "'''")) { state = State::kNormal; skip(3); continue; }
+        if (starts(i, "'''")) {
+          state = State::kNormal;
+          skip(3);
+          continue;
+        }
         break;
     }
     skip(1);

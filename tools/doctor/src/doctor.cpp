@@ -167,13 +167,15 @@ Finding check_fifo(const Host& host, int priority) {
   }
   const auto limit = host.soft_limit("Max realtime priority");
   if (limit && (!*limit || **limit >= static_cast<std::uint64_t>(priority))) {
-    f.finding = fmt::format("permitted up to priority {} (rtprio limit)", *limit ? std::to_string(**limit) : "unlimited");
+    f.finding =
+        fmt::format("permitted up to priority {} (rtprio limit)", *limit ? std::to_string(**limit) : "unlimited");
     return f;
   }
   const std::uint64_t have = limit && *limit ? **limit : 0;
   f.verdict = have > 0 ? Verdict::kWarn : Verdict::kFail;
-  f.finding = have > 0 ? fmt::format("only up to priority {} (rtprio limit), below the {} toonforce run uses", have, priority)
-                       : "not permitted: rtprio limit 0 and no CAP_SYS_NICE (the loop would run as an ordinary thread)";
+  f.finding =
+      have > 0 ? fmt::format("only up to priority {} (rtprio limit), below the {} toonforce run uses", have, priority)
+               : "not permitted: rtprio limit 0 and no CAP_SYS_NICE (the loop would run as an ordinary thread)";
   f.fix = cap_or_limit_fix("CAP_SYS_NICE: sudo setcap cap_sys_nice,cap_ipc_lock+ep $(command -v toonforce)");
   return f;
 }
@@ -212,7 +214,8 @@ Finding check_throttling(const Host& host) {
   // spinning RT thread would be stopped for 50 ms each second.
   f.verdict = Verdict::kInfo;
   f.finding = fmt::format("on (sched_rt_runtime_us = {}): harmless to a loop that sleeps each period, as "
-                          "toonforce's does", *runtime);
+                          "toonforce's does",
+                          *runtime);
   return f;
 }
 
@@ -304,7 +307,8 @@ Finding check_clock(const Host& host, bool check_resolution) {
   }
   if (source == "jiffies" || source == "acpi_pm") {
     f.verdict = std::max(f.verdict, Verdict::kWarn);
-    f.fix = f.fix.empty() ? "prefer the TSC clock source (clocksource=tsc tsc=reliable on the kernel command line)" : f.fix;
+    f.fix =
+        f.fix.empty() ? "prefer the TSC clock source (clocksource=tsc tsc=reliable on the kernel command line)" : f.fix;
   }
   f.finding = fmt::format("CLOCK_MONOTONIC resolution {}, clock source {}", resolution, source);
   return f;
@@ -461,7 +465,8 @@ void check_gpiochips(const Host& host, std::vector<Finding>& findings) {
     if (name.rfind("gpiochip", 0) == 0) chips.push_back({"/dev/" + name, entry.path()});
   }
   std::sort(chips.begin(), chips.end(), [](const Node& a, const Node& b) { return a.name < b.name; });
-  if (chips.empty()) findings.push_back({"GPIO", Verdict::kInfo, "no /dev/gpiochip* (needed only for --*-pin options)", ""});
+  if (chips.empty())
+    findings.push_back({"GPIO", Verdict::kInfo, "no /dev/gpiochip* (needed only for --*-pin options)", ""});
   for (const Node& chip : chips) {
     check_node(host, "GPIO", chip, Verdict::kFail, "",
                "add a udev rule giving group gpio rw on gpiochip nodes (SUBSYSTEM==\"gpio\", KERNEL==\"gpiochip*\", "
@@ -532,8 +537,8 @@ std::string format_findings(const std::vector<Finding>& findings) {
     warnings += f.verdict == Verdict::kWarn;
   }
   out += fmt::format("\n{}: {} failure(s), {} warning(s)\n",
-                     failures == 0 ? "READY for a real-time haptic loop" : "NOT READY for a real-time haptic loop", failures,
-                     warnings);
+                     failures == 0 ? "READY for a real-time haptic loop" : "NOT READY for a real-time haptic loop",
+                     failures, warnings);
   return out;
 }
 

@@ -118,8 +118,7 @@ int main(int argc, char** argv) {
     std::printf("real GPIO lines: output %s, input %s\n", toonforce::gpio::output_line(),
                 toonforce::gpio::input_line());
   } else if (EmulatedGpio::available()) {
-    emulation = std::make_unique<EmulatedGpio>(
-        std::vector<toonforce::gpio::emulation::ChipSpec>{{"bench", 8, {}}});
+    emulation = std::make_unique<EmulatedGpio>(std::vector<toonforce::gpio::emulation::ChipSpec>{{"bench", 8, {}}});
     std::printf("EMULATED /dev/gpiochip0 (umockdev): these times are the emulation's, not "
                 "hardware's\n");
   } else {

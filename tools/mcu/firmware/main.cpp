@@ -201,7 +201,8 @@ struct Run {
   // converts their double settings, and the target only copies them into place, so nothing
   // converts through floating point at run time either. The first tick's dt of replay's loop
   // is the recordings' period, as replay's (replay_config; the generator checks they share it).
-  static constexpr SpecLoop kSpecLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::config(image::kMotionPeriodS, true)};
+  static constexpr SpecLoop kSpecLoop{MotionDevice{nullptr, &row}, kScene,
+                                      SceneDef::config(image::kMotionPeriodS, true)};
   static constexpr FullLoop kFullLoop{MotionDevice{nullptr, &row}, kScene, SceneDef::every_config(kPeriodS)};
 
   static SpecLoop& make_spec(const Motion& motion) noexcept {
@@ -291,14 +292,12 @@ struct Run {
       agree = agree && f == again.force();  // the shadow is the loop's own computation
     }
     const std::uint32_t deepest = spec_stack > full_stack ? spec_stack : full_stack;
-    const std::uint32_t from_top =
-        static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(&__stack_top)) - sp +
-        (effects_stack > deepest ? effects_stack : deepest);
+    const std::uint32_t from_top = static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(&__stack_top)) - sp +
+                                   (effects_stack > deepest ? effects_stack : deepest);
     if (from_top > g_window_high_water) g_window_high_water = from_top;
     out << "count " << SceneDef::kName << ' ' << motion.name << ' ' << rows << " loop "
-        << static_cast<std::int64_t>(whole.sum) << ' ' << whole.max << " every "
-        << static_cast<std::int64_t>(every.sum) << ' ' << every.max << " effects "
-        << static_cast<std::int64_t>(effects.sum) << ' ' << effects.max << '\n';
+        << static_cast<std::int64_t>(whole.sum) << ' ' << whole.max << " every " << static_cast<std::int64_t>(every.sum)
+        << ' ' << every.max << " effects " << static_cast<std::int64_t>(effects.sum) << ' ' << effects.max << '\n';
     if (!agree) out << "error " << SceneDef::kName << ' ' << motion.name << ": effects pass differs from the loop\n";
     return agree;
   }
@@ -371,8 +370,10 @@ bool calibrate() noexcept {
   g_empty_window = empty;
   const std::uint32_t nops = count([] { asm volatile(".rept 100\n nop\n .endr" ::: "memory"); });
   out << "calibration " << empty << ' ' << nops << '\n';
-  if (nops != 100) out << "error: the instruction counter saw " << nops << " for 100 NOPs (is QEMU in -icount shift="
-                       << static_cast<std::int32_t>(TOONFORCE_MCU_ICOUNT_SHIFT) << " mode?)\n";
+  if (nops != 100)
+    out << "error: the instruction counter saw " << nops
+        << " for 100 NOPs (is QEMU in -icount shift=" << static_cast<std::int32_t>(TOONFORCE_MCU_ICOUNT_SHIFT)
+        << " mode?)\n";
   return nops == 100;
 }
 
@@ -411,9 +412,26 @@ template <class Q>
 bool check_saturating_operators() noexcept {
   if constexpr (kIsFixed<Q>) {
     using Raw = std::int32_t;
-    constexpr Raw kEdges[] = {0, 1, -1, 2, -2, 0x7FFF'FFFF, -0x7FFF'FFFF - 1, 0x7FFF'FFFE, -0x7FFF'FFFF, 0x4000'0000,
-                              -0x4000'0000, 0x1'0000, -0x1'0000, 0xB5'04F3, -0xB5'04F3, 0xB5'04F4, -0xB5'04F4,
-                              0x7FFF'8000, 12'345'678, -87'654'321};
+    constexpr Raw kEdges[] = {0,
+                              1,
+                              -1,
+                              2,
+                              -2,
+                              0x7FFF'FFFF,
+                              -0x7FFF'FFFF - 1,
+                              0x7FFF'FFFE,
+                              -0x7FFF'FFFF,
+                              0x4000'0000,
+                              -0x4000'0000,
+                              0x1'0000,
+                              -0x1'0000,
+                              0xB5'04F3,
+                              -0xB5'04F3,
+                              0xB5'04F4,
+                              -0xB5'04F4,
+                              0x7FFF'8000,
+                              12'345'678,
+                              -87'654'321};
     constexpr std::size_t kN = sizeof kEdges / sizeof kEdges[0];
     struct Expected {
       Raw sum, difference, product, negation;
@@ -428,16 +446,29 @@ bool check_saturating_operators() noexcept {
           const std::int64_t p = std::int64_t{kEdges[i]} * kEdges[j];
           const std::int64_t rounded = (p + ((std::int64_t{1} << 15) + (p >> 63))) >> 16;
           Raw ignored = 0;
-          e[i * kN + j] = {(a + b).raw(), (a - b).raw(), (a * b).raw(), (-a).raw(),
+          e[i * kN + j] = {(a + b).raw(),
+                           (a - b).raw(),
+                           (a * b).raw(),
+                           (-a).raw(),
                            __builtin_add_overflow(kEdges[i], kEdges[j], &ignored),
                            __builtin_sub_overflow(kEdges[i], kEdges[j], &ignored),
-                           rounded != static_cast<Raw>(rounded), __builtin_sub_overflow(0, kEdges[i], &ignored)};
+                           rounded != static_cast<Raw>(rounded),
+                           __builtin_sub_overflow(0, kEdges[i], &ignored)};
         }
       }
       return e;
     }();
-    constexpr std::int64_t kWideEdges[] = {0, 1, -1, INT64_MAX, -INT64_MAX, INT64_MAX - 1, std::int64_t{1} << 62,
-                                           -(std::int64_t{1} << 62), 0xFFFF'FFFF, -0xFFFF'FFFFLL, 0x1'0000'0000};
+    constexpr std::int64_t kWideEdges[] = {0,
+                                           1,
+                                           -1,
+                                           INT64_MAX,
+                                           -INT64_MAX,
+                                           INT64_MAX - 1,
+                                           std::int64_t{1} << 62,
+                                           -(std::int64_t{1} << 62),
+                                           0xFFFF'FFFF,
+                                           -0xFFFF'FFFFLL,
+                                           0x1'0000'0000};
     constexpr std::size_t kWideN = sizeof kWideEdges / sizeof kWideEdges[0];
     std::size_t wrong = 0;
     static_cast<void>(take_fixed_saturated());
@@ -471,8 +502,8 @@ bool check_saturating_operators() noexcept {
         wrong += sum.raw() != expected || take_fixed_saturated() != overflows;
       }
     }
-    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + kN + kWideN * kWideN << " cases, "
-        << wrong << " wrong\n";
+    out << "saturating operators " << (wrong == 0 ? "ok" : "wrong") << ' ' << kN * kN * 3 + kN + kWideN * kWideN
+        << " cases, " << wrong << " wrong\n";
     return wrong == 0;
   } else {
     return true;

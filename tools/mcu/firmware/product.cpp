@@ -164,7 +164,8 @@ int run_image() {
   print("product ");
   print(SceneDef::kName);
   print(" handler_tick_max ");
-  print_number(static_cast<std::int64_t>((ns + (1ULL << (TOONFORCE_MCU_ICOUNT_SHIFT - 1))) >> TOONFORCE_MCU_ICOUNT_SHIFT));
+  print_number(
+      static_cast<std::int64_t>((ns + (1ULL << (TOONFORCE_MCU_ICOUNT_SHIFT - 1))) >> TOONFORCE_MCU_ICOUNT_SHIFT));
   print("\ndone\n");
   return 0;
 }

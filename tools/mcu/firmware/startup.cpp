@@ -86,12 +86,11 @@ extern "C" [[noreturn]] void _exit(int) { trap("_exit called (abort or assert)")
 // (in LR) says the process stack (ARMv7-M ARM B1.5.6, B1.5.8); its seventh word is the PC of
 // the faulting instruction (a precise fault's).
 extern "C" [[gnu::naked]] void fault_entry() {
-  asm volatile(
-      "tst lr, #4\n"
-      "ite eq\n"
-      "mrseq r0, msp\n"
-      "mrsne r0, psp\n"
-      "b toonforce_fault_report\n");
+  asm volatile("tst lr, #4\n"
+               "ite eq\n"
+               "mrseq r0, msp\n"
+               "mrsne r0, psp\n"
+               "b toonforce_fault_report\n");
 }
 
 // Which fault (IPSR), its status bits (CFSR 0xE000ED28, HFSR 0xE000ED2C: ARMv7-M ARM B3.2.15,
@@ -103,17 +102,17 @@ extern "C" [[noreturn]] void toonforce_fault_report(const std::uint32_t* frame) 
   asm volatile("mrs %0, ipsr" : "=r"(ipsr));
   const std::uint32_t cfsr = board::reg(0xE000ED28);
   const std::uint32_t hfsr = board::reg(0xE000ED2C);
-  static constexpr const char* kException[] = {"Thread", "Reset", "NMI", "HardFault", "MemManage", "BusFault",
-                                               "UsageFault"};
+  static constexpr const char* kException[] = {"Thread",    "Reset",    "NMI",       "HardFault",
+                                               "MemManage", "BusFault", "UsageFault"};
   struct Bit {
     std::uint32_t mask;
     const char* name;
   };
-  static constexpr Bit kCfsr[] = {
-      {1U << 0, "IACCVIOL"},    {1U << 1, "DACCVIOL"},    {1U << 3, "MUNSTKERR"},  {1U << 4, "MSTKERR"},
-      {1U << 8, "IBUSERR"},     {1U << 9, "PRECISERR"},   {1U << 10, "IMPRECISERR"}, {1U << 11, "UNSTKERR"},
-      {1U << 12, "STKERR"},     {1U << 16, "UNDEFINSTR"}, {1U << 17, "INVSTATE"},  {1U << 18, "INVPC"},
-      {1U << 19, "NOCP"},       {1U << 24, "UNALIGNED"},  {1U << 25, "DIVBYZERO"}};
+  static constexpr Bit kCfsr[] = {{1U << 0, "IACCVIOL"},     {1U << 1, "DACCVIOL"},   {1U << 3, "MUNSTKERR"},
+                                  {1U << 4, "MSTKERR"},      {1U << 8, "IBUSERR"},    {1U << 9, "PRECISERR"},
+                                  {1U << 10, "IMPRECISERR"}, {1U << 11, "UNSTKERR"},  {1U << 12, "STKERR"},
+                                  {1U << 16, "UNDEFINSTR"},  {1U << 17, "INVSTATE"},  {1U << 18, "INVPC"},
+                                  {1U << 19, "NOCP"},        {1U << 24, "UNALIGNED"}, {1U << 25, "DIVBYZERO"}};
   char text[256];
   char* out = put(text, "trap: ");
   out = put(out, (ipsr & 0x1FFU) < 7 ? kException[ipsr & 0x1FFU] : "fault");

@@ -133,27 +133,26 @@ std::string_view sine_name(SineMethod m) {
 std::string settings_of(const ServoConfig& config) {
   const auto& l = config.limits;
   const auto& f = config.safety;
-  return fmt::format(
-      "    ServoConfig c;\n"
-      "    c.limits = ForceLimits{{{}, {}, {}, {}}};\n"
-      "    c.velocity_cutoff_hz = {};\n"
-      "    c.safety.engage_force_n = {};\n"
-      "    c.safety.soft_start_s = {};\n"
-      "    c.safety.has_max_velocity = {};\n"
-      "    c.safety.max_velocity_m_per_s = {};\n"
-      "    c.safety.has_workspace = {};\n"
-      "    c.safety.workspace_min_m = {};\n"
-      "    c.safety.workspace_max_m = {};\n"
-      "    c.safety.watchdog_periods = {};\n"
-      "    c.safety.device_timeout_periods = {};\n"
-      "    c.safety.thermal = ThermalConfig{{{}, {}, {}}};\n"
-      "    c.safety.passivity = PassivityConfig{{{}, {}, {}}};\n",
-      lit(l.max_force_n), lit(l.max_force_rate_n_per_s), l.has_max_force, l.has_max_force_rate,
-      lit(config.velocity_cutoff_hz), lit(f.engage_force_n), lit(f.soft_start_s), f.has_max_velocity,
-      lit(f.max_velocity_m_per_s), f.has_workspace, lit(f.workspace_min_m), lit(f.workspace_max_m),
-      f.watchdog_periods, f.device_timeout_periods, lit(f.thermal.continuous_force_n),
-      lit(f.thermal.time_constant_s), lit(f.thermal.derate_start), f.passivity.controller,
-      lit(f.passivity.budget_j), lit(f.passivity.max_damping_n_s_per_m));
+  return fmt::format("    ServoConfig c;\n"
+                     "    c.limits = ForceLimits{{{}, {}, {}, {}}};\n"
+                     "    c.velocity_cutoff_hz = {};\n"
+                     "    c.safety.engage_force_n = {};\n"
+                     "    c.safety.soft_start_s = {};\n"
+                     "    c.safety.has_max_velocity = {};\n"
+                     "    c.safety.max_velocity_m_per_s = {};\n"
+                     "    c.safety.has_workspace = {};\n"
+                     "    c.safety.workspace_min_m = {};\n"
+                     "    c.safety.workspace_max_m = {};\n"
+                     "    c.safety.watchdog_periods = {};\n"
+                     "    c.safety.device_timeout_periods = {};\n"
+                     "    c.safety.thermal = ThermalConfig{{{}, {}, {}}};\n"
+                     "    c.safety.passivity = PassivityConfig{{{}, {}, {}}};\n",
+                     lit(l.max_force_n), lit(l.max_force_rate_n_per_s), l.has_max_force, l.has_max_force_rate,
+                     lit(config.velocity_cutoff_hz), lit(f.engage_force_n), lit(f.soft_start_s), f.has_max_velocity,
+                     lit(f.max_velocity_m_per_s), f.has_workspace, lit(f.workspace_min_m), lit(f.workspace_max_m),
+                     f.watchdog_periods, f.device_timeout_periods, lit(f.thermal.continuous_force_n),
+                     lit(f.thermal.time_constant_s), lit(f.thermal.derate_start), f.passivity.controller,
+                     lit(f.passivity.budget_j), lit(f.passivity.max_damping_n_s_per_m));
 }
 
 /// One scene as a compile-time type and its constructor arguments, from the run-time scene
@@ -181,9 +180,9 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
         case TangentialKind::kNone: break;
         case TangentialKind::kFriction:
           tangential = "RealisticFriction<S>";
-          tangential_arg = fmt::format("{{{}, {}, {}}}", lit(p.tangential.friction.viscous_n_s_per_m),
-                                       lit(p.tangential.friction.coulomb),
-                                       lit(p.tangential.friction.regularization_speed_m_per_s));
+          tangential_arg =
+              fmt::format("{{{}, {}, {}}}", lit(p.tangential.friction.viscous_n_s_per_m),
+                          lit(p.tangential.friction.coulomb), lit(p.tangential.friction.regularization_speed_m_per_s));
           break;
         case TangentialKind::kSlippery:
           tangential = "SuperSlippery<S>";
@@ -228,29 +227,28 @@ std::string scene_struct(const std::string& name, const SceneDescription& d, con
   // The every-stage loop's: the same with every stage acting (report::search_config), so
   // that what the image counts of that loop reaches each stage's expensive branch.
   const std::string every = settings_of(every_config);
-  return fmt::format(
-      "/// {} ({})\n"
-      "struct {}Scene {{\n"
-      "  static constexpr char kName[] = \"{}\";\n"
-      "  using Type = Scene<{}>;\n"
-      "  static constexpr Type make() noexcept {{\n"
-      "    return Type(\n"
-      "        {});\n"
-      "  }}\n"
-      "  static constexpr ServoConfig config(double period_s, bool time_from_stamps) noexcept {{\n"
-      "{}"
-      "    c.period_s = period_s;\n"
-      "    c.time_from_stamps = time_from_stamps;\n"
-      "    return c;\n"
-      "  }}\n"
-      "  /// The every-stage loop's settings: every stage acting (toonforce/report/stage_configs.hpp).\n"
-      "  static constexpr ServoConfig every_config(double period_s) noexcept {{\n"
-      "{}"
-      "    c.period_s = period_s;\n"
-      "    return c;\n"
-      "  }}\n"
-      "}};\n\n",
-      d.name, d.source, camel(name), name, type_list, arg_list, settings, every);
+  return fmt::format("/// {} ({})\n"
+                     "struct {}Scene {{\n"
+                     "  static constexpr char kName[] = \"{}\";\n"
+                     "  using Type = Scene<{}>;\n"
+                     "  static constexpr Type make() noexcept {{\n"
+                     "    return Type(\n"
+                     "        {});\n"
+                     "  }}\n"
+                     "  static constexpr ServoConfig config(double period_s, bool time_from_stamps) noexcept {{\n"
+                     "{}"
+                     "    c.period_s = period_s;\n"
+                     "    c.time_from_stamps = time_from_stamps;\n"
+                     "    return c;\n"
+                     "  }}\n"
+                     "  /// The every-stage loop's settings: every stage acting (toonforce/report/stage_configs.hpp).\n"
+                     "  static constexpr ServoConfig every_config(double period_s) noexcept {{\n"
+                     "{}"
+                     "    c.period_s = period_s;\n"
+                     "    return c;\n"
+                     "  }}\n"
+                     "}};\n\n",
+                     d.name, d.source, camel(name), name, type_list, arg_list, settings, every);
 }
 
 /// Writes `text` to `path` only when it differs, so a rebuild that changes nothing recompiles
@@ -267,9 +265,8 @@ bool write_if_changed(const std::string& path, const std::string& text) {
 
 int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMethod> sine,
              const std::vector<Named>& scenes, const std::vector<Named>& motions) {
-  std::string header =
-      "// Generated by toonforce_mcu_gen from the scene and motion files named below; do not edit.\n"
-      "#pragma once\n#include \"mcu_types.hpp\"\n\nnamespace toonforce::mcu::image {\n\n";
+  std::string header = "// Generated by toonforce_mcu_gen from the scene and motion files named below; do not edit.\n"
+                       "#pragma once\n#include \"mcu_types.hpp\"\n\nnamespace toonforce::mcu::image {\n\n";
   header += fmt::format("using S = {};\n\n", scalar == ScalarKind::kQ16_16 ? "Q16_16" : "float");
   std::string scene_names;
   for (const auto& s : scenes) {
@@ -278,7 +275,7 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
       std::fprintf(stderr, "toonforce_mcu_gen: %s\n", d.error().c_str());
       return 1;
     }
-    if (sine) override_sine(d.value(), *sine);  // as `toonforce replay --sine` does
+    if (sine) override_sine(d.value(), *sine);                // as `toonforce replay --sine` does
     const ServoConfig config = servo_config(d.value(), 1.0);  // the period is the image's
     const ServoConfig every = report::search_config(d.value(), 1.0);
     if (scalar == ScalarKind::kQ16_16) {
@@ -290,9 +287,8 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
   }
   header += fmt::format("using Scenes = SceneList<{}>;\n\n", scene_names);
 
-  std::string source =
-      "// Generated by toonforce_mcu_gen from the motion files named below; do not edit.\n"
-      "#include \"image.hpp\"\n\nnamespace toonforce::mcu::image {\nnamespace {\n\n";
+  std::string source = "// Generated by toonforce_mcu_gen from the motion files named below; do not edit.\n"
+                       "#include \"image.hpp\"\n\nnamespace toonforce::mcu::image {\nnamespace {\n\n";
   // Each motion as the device on the target reads it: already in the image's scalar, converted
   // here exactly as replay's loop converts a double reading (scalar_cast), so no tick on the
   // target converts through floating point; stamps in whole nanoseconds, as replay takes them.
@@ -307,16 +303,19 @@ int generate(const std::string& out_dir, ScalarKind scalar, std::optional<SineMe
     const auto& rows = motion->rows;
     const std::int64_t first_dt_ns = rows[1].t_ns - rows[0].t_ns;
     if (period_ns && *period_ns != first_dt_ns) {
-      std::fprintf(stderr, "toonforce_mcu_gen: %s: its first dt is %lld ns, another motion's %lld ns; an image's "
-                   "motions share one (its loops are built at compile time)\n", m.path.c_str(),
-                   static_cast<long long>(first_dt_ns), static_cast<long long>(*period_ns));
+      std::fprintf(stderr,
+                   "toonforce_mcu_gen: %s: its first dt is %lld ns, another motion's %lld ns; an image's "
+                   "motions share one (its loops are built at compile time)\n",
+                   m.path.c_str(), static_cast<long long>(first_dt_ns), static_cast<long long>(*period_ns));
       return 1;
     }
     period_ns = first_dt_ns;
     const auto as_scalar = [&](const Vec3<double>& v, std::size_t line) -> std::optional<std::string> {
       if (!is_finite(v)) {  // replay flags such a row; a device in Q16.16 or float has no NaN to say it
-        std::fprintf(stderr, "toonforce_mcu_gen: %s:%zu: a non-finite position or velocity cannot be linked into "
-                     "an image (its device reads in the loop's scalar)\n", m.path.c_str(), line);
+        std::fprintf(stderr,
+                     "toonforce_mcu_gen: %s:%zu: a non-finite position or velocity cannot be linked into "
+                     "an image (its device reads in the loop's scalar)\n",
+                     m.path.c_str(), line);
         return std::nullopt;
       }
       if (scalar == ScalarKind::kQ16_16) return lit(vec_cast<Q16_16>(v));
@@ -492,8 +491,8 @@ int compare(const std::string& target_path, const std::vector<Named>& host) {
     for (std::size_t k = 0; k < std::min(got.size(), expected.size()); ++k) {
       const Row& a = got[k];
       const Row& b = expected[k];
-      const bool same = a.f[0] == b.f[0] && a.f[1] == b.f[1] && a.f[2] == b.f[2] && a.faults == b.faults &&
-                        a.limits == b.limits;
+      const bool same =
+          a.f[0] == b.f[0] && a.f[1] == b.f[1] && a.f[2] == b.f[2] && a.faults == b.faults && a.limits == b.limits;
       if (!same && mismatches++ == 0) first = k;
     }
     if (got.size() != expected.size() || mismatches != 0) {
@@ -600,7 +599,8 @@ bool read_figures(const std::string& path, std::map<std::string, SceneFigures>& 
 
 int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
   std::string error;
-  std::printf("| image | text | data | bss | flash (text + data) | static RAM (data + bss) | .motion (test data, not counted) |\n");
+  std::printf(
+      "| image | text | data | bss | flash (text + data) | static RAM (data + bss) | .motion (test data, not counted) |\n");
   std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const auto& s : sizes) {
     std::map<std::string, std::uint64_t> sec;
@@ -638,7 +638,8 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
   std::printf("\n| scene | ticks | replay's loop tick, mean | max | every-stage loop tick, mean | max | "
               "effects + safety, mean | max | stack per tick [B] | loop state, replay's / every stage [B] |%s\n",
               searched ? " searched inputs: ticks | their max, replay's loop / every stage / effects + safety |" : "");
-  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |%s\n", searched ? " ---: | ---: |" : "");
+  std::printf("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |%s\n",
+              searched ? " ---: | ---: |" : "");
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const auto& r = runs[i];
     const SceneFigures& f = read[i];
@@ -663,8 +664,10 @@ int figures(const std::vector<Named>& sizes, const std::vector<Named>& runs) {
 
 int strikes(const std::string& out_dir, std::size_t count, const std::vector<std::string>& scenes) {
   if (count != report::kSearchStrikes) {
-    std::fprintf(stderr, "toonforce_mcu_gen: --count %zu, but the search path has %zu strikes (report::kSearchStrikes); "
-                 "set TOONFORCE_MCU_STRIKE_COUNT in tools/mcu/images.cmake to it\n", count, report::kSearchStrikes);
+    std::fprintf(stderr,
+                 "toonforce_mcu_gen: --count %zu, but the search path has %zu strikes (report::kSearchStrikes); "
+                 "set TOONFORCE_MCU_STRIKE_COUNT in tools/mcu/images.cmake to it\n",
+                 count, report::kSearchStrikes);
     return 1;
   }
   for (const auto& scene : scenes) {

@@ -244,14 +244,38 @@ py::dict check(const std::string& scene_path, const std::optional<std::string>& 
 /// A trace column's unit (SI; "" for flags, bit sets, states, counts; "1" for ratios).
 std::string unit_of(std::string_view column) {
   static constexpr std::pair<std::string_view, std::string_view> kUnits[] = {
-      {"t", "s"},           {"x", "m"},           {"y", "m"},           {"z", "m"},
-      {"vx", "m/s"},        {"vy", "m/s"},        {"vz", "m/s"},        {"fx", "N"},
-      {"fy", "N"},          {"fz", "N"},          {"scene_fx", "N"},    {"scene_fy", "N"},
-      {"scene_fz", "N"},    {"damping_fx", "N"},  {"damping_fy", "N"},  {"damping_fz", "N"},
-      {"max_force", "N"},   {"temperature", "1"}, {"observed_energy", "J"}, {"episode_energy", "J"},
-      {"gain", "1"},        {"true_x", "m"},      {"true_y", "m"},      {"true_z", "m"},
-      {"true_vx", "m/s"},   {"true_vy", "m/s"},   {"true_vz", "m/s"},   {"hand_x", "m"},
-      {"hand_y", "m"},      {"hand_z", "m"},      {"device_fx", "N"},   {"device_fy", "N"},
+      {"t", "s"},
+      {"x", "m"},
+      {"y", "m"},
+      {"z", "m"},
+      {"vx", "m/s"},
+      {"vy", "m/s"},
+      {"vz", "m/s"},
+      {"fx", "N"},
+      {"fy", "N"},
+      {"fz", "N"},
+      {"scene_fx", "N"},
+      {"scene_fy", "N"},
+      {"scene_fz", "N"},
+      {"damping_fx", "N"},
+      {"damping_fy", "N"},
+      {"damping_fz", "N"},
+      {"max_force", "N"},
+      {"temperature", "1"},
+      {"observed_energy", "J"},
+      {"episode_energy", "J"},
+      {"gain", "1"},
+      {"true_x", "m"},
+      {"true_y", "m"},
+      {"true_z", "m"},
+      {"true_vx", "m/s"},
+      {"true_vy", "m/s"},
+      {"true_vz", "m/s"},
+      {"hand_x", "m"},
+      {"hand_y", "m"},
+      {"hand_z", "m"},
+      {"device_fx", "N"},
+      {"device_fy", "N"},
       {"device_fz", "N"},
   };
   for (const auto& [name, unit] : kUnits) {
@@ -446,8 +470,8 @@ py::tuple sim(const std::string& scene_path, const std::optional<std::string>& s
   if (auto i = host_sim::parse_integrator(integrator)) {
     options.integrator = *i;
   } else {
-    raise_value_error(fmt::format("integrator must be semi-implicit-euler, velocity-verlet, rk4 or exact (got '{}')",
-                                  integrator));
+    raise_value_error(
+        fmt::format("integrator must be semi-implicit-euler, velocity-verlet, rk4 or exact (got '{}')", integrator));
   }
   options.substeps = substeps;
   options.seed = seed;
@@ -566,8 +590,7 @@ py::list figures(const std::string& out_dir, const std::string& root, const std:
 /// columns out, never while Python copies them.
 class TelemetryColumns final : public TelemetrySink {
  public:
-  explicit TelemetryColumns(const std::vector<std::string>& value_names)
-      : values_(value_names.size()) {
+  explicit TelemetryColumns(const std::vector<std::string>& value_names) : values_(value_names.size()) {
     names_.assign(kTraceCoreColumns.begin(), kTraceCoreColumns.end());
     const std::vector<std::string> extra = telemetry_columns(value_names, false);
     names_.insert(names_.end(), extra.begin(), extra.end());
@@ -575,14 +598,21 @@ class TelemetryColumns final : public TelemetrySink {
   }
   void publish(const TelemetryFrame& frame) noexcept override {
     if (!frame_row(row_, frame, values_, false)) return;
-    const double core[10] = {row_.core.t_s,          row_.core.position_m.x,       row_.core.position_m.y,
-                             row_.core.position_m.z, row_.core.velocity_m_per_s.x, row_.core.velocity_m_per_s.y,
-                             row_.core.velocity_m_per_s.z, row_.core.force_n.x,  row_.core.force_n.y,
+    const double core[10] = {row_.core.t_s,
+                             row_.core.position_m.x,
+                             row_.core.position_m.y,
+                             row_.core.position_m.z,
+                             row_.core.velocity_m_per_s.x,
+                             row_.core.velocity_m_per_s.y,
+                             row_.core.velocity_m_per_s.z,
+                             row_.core.force_n.x,
+                             row_.core.force_n.y,
                              row_.core.force_n.z};
     const std::lock_guard lock(mutex_);
     try {
       for (std::size_t i = 0; i < 10; ++i) columns_[i].push_back(core[i]);
-      for (std::size_t i = 0; i < row_.count && 10 + i < columns_.size(); ++i) columns_[10 + i].push_back(row_.values[i]);
+      for (std::size_t i = 0; i < row_.count && 10 + i < columns_.size(); ++i)
+        columns_[10 + i].push_back(row_.values[i]);
     } catch (...) {
       ++dropped_;  // out of memory: the frame is lost, the run goes on
     }
@@ -616,8 +646,8 @@ class LiveRun {
  public:
   LiveRun(const std::string& scene_path, const std::optional<std::string>& scene_text, const std::string& script_path,
           const std::string& device, double rate_hz, double duration_s, const std::string& sim_device,
-          std::uint64_t seed, const std::string& trace_path, int priority, int cpu, bool lock_memory,
-          bool allow_empty, bool strict) {
+          std::uint64_t seed, const std::string& trace_path, int priority, int cpu, bool lock_memory, bool allow_empty,
+          bool strict) {
     std::string text;
     if (scene_text) {
       text = *scene_text;
@@ -681,7 +711,9 @@ class LiveRun {
   LiveRun(const LiveRun&) = delete;
   LiveRun& operator=(const LiveRun&) = delete;
 
-  std::uint64_t set(const std::string& effect, const std::string& keys_toml) { return sent(editor_->set(effect, keys_toml)); }
+  std::uint64_t set(const std::string& effect, const std::string& keys_toml) {
+    return sent(editor_->set(effect, keys_toml));
+  }
   std::uint64_t add(const std::string& key, const std::string& keys_toml) { return sent(editor_->add(key, keys_toml)); }
   std::uint64_t remove(const std::string& effect) { return sent(editor_->remove(effect)); }
   std::uint64_t fire(const std::string& effect, const std::string& event, double value) {
@@ -789,15 +821,16 @@ PYBIND11_MODULE(_toonforce, m) {
         py::arg("rate_hz"), py::arg("scalar"), py::arg("duration_s"), py::arg("device"), py::arg("integrator"),
         py::arg("substeps"), py::arg("seed"), py::arg("sensor_noise_m"), py::arg("sine"), py::arg("allow_empty"),
         py::arg("strict"), py::arg("trace_path"));
-  m.def("replay", &replay, py::arg("scene_path"), py::arg("scene_text"), py::arg("motion_path"),
-        py::arg("motion_text"), py::arg("scalar"), py::arg("sine"), py::arg("allow_empty"), py::arg("output_path"));
+  m.def("replay", &replay, py::arg("scene_path"), py::arg("scene_text"), py::arg("motion_path"), py::arg("motion_text"),
+        py::arg("scalar"), py::arg("sine"), py::arg("allow_empty"), py::arg("output_path"));
   m.def("figures", &figures, py::arg("out_dir"), py::arg("root"), py::arg("format"), py::arg("plot"));
   py::class_<LiveRun>(m, "LiveRun")
-      .def(py::init<const std::string&, const std::optional<std::string>&, const std::string&, const std::string&, double,
-                    double, const std::string&, std::uint64_t, const std::string&, int, int, bool, bool, bool>(),
-           py::arg("scene_path"), py::arg("scene_text"), py::arg("script_path"), py::arg("device"), py::arg("rate_hz"),
-           py::arg("duration_s"), py::arg("sim_device"), py::arg("seed"), py::arg("trace_path"), py::arg("priority"),
-           py::arg("cpu"), py::arg("lock_memory"), py::arg("allow_empty"), py::arg("strict"))
+      .def(
+          py::init<const std::string&, const std::optional<std::string>&, const std::string&, const std::string&,
+                   double, double, const std::string&, std::uint64_t, const std::string&, int, int, bool, bool, bool>(),
+          py::arg("scene_path"), py::arg("scene_text"), py::arg("script_path"), py::arg("device"), py::arg("rate_hz"),
+          py::arg("duration_s"), py::arg("sim_device"), py::arg("seed"), py::arg("trace_path"), py::arg("priority"),
+          py::arg("cpu"), py::arg("lock_memory"), py::arg("allow_empty"), py::arg("strict"))
       .def("set", &LiveRun::set, py::arg("effect"), py::arg("keys_toml"))
       .def("add", &LiveRun::add, py::arg("key"), py::arg("keys_toml"))
       .def("remove", &LiveRun::remove, py::arg("effect"))

@@ -32,7 +32,8 @@ std::vector<std::string_view> split(std::string_view line) {
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = line.find(',', start);
-    fields.push_back(trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
+    fields.push_back(
+        trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
@@ -61,7 +62,9 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
   if (!whole.empty() && whole.back() != '\n') {
     const std::size_t last_nl = whole.rfind('\n');
     if (last_nl != std::string_view::npos) {
-      cut_line = static_cast<std::size_t>(std::count(whole.begin(), whole.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) + 2;
+      cut_line = static_cast<std::size_t>(
+                     std::count(whole.begin(), whole.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) +
+                 2;
       whole = whole.substr(0, last_nl + 1);
     }
   }
@@ -118,12 +121,14 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
     for (std::size_t k = 0; k < 7; ++k) {
       if (!column[k]) continue;
       const auto value = parse_double(fields[*column[k]]);
-      if (!value) return fail(fmt::format("column '{}': '{}' is not a number", kNames[k], printable(fields[*column[k]])));
+      if (!value)
+        return fail(fmt::format("column '{}': '{}' is not a number", kNames[k], printable(fields[*column[k]])));
       values[k] = *value;
     }
     if (!std::isfinite(values[0])) return fail(fmt::format("t must be finite (got {})", values[0]));
     // The loop takes t to the nearest nanosecond (an integer stamp, effects/tick.hpp).
-    if (!(std::fabs(values[0]) < 9.2e9)) return fail(fmt::format("t = {} s is beyond the stamps' range (|t| < 9.2e9 s)", values[0]));
+    if (!(std::fabs(values[0]) < 9.2e9))
+      return fail(fmt::format("t = {} s is beyond the stamps' range (|t| < 9.2e9 s)", values[0]));
     const std::int64_t t_ns = ns_from_seconds(values[0]);
     if (!motion.rows.empty() && !(values[0] > previous_t)) {
       return fail(fmt::format("t must increase strictly ({} after {})", values[0], previous_t));
@@ -133,8 +138,8 @@ Result<Motion> parse_motion_csv(const std::string& text, const std::string& sour
                               values[0], previous_t));
     }
     previous_t = values[0];
-    motion.rows.push_back({values[0], t_ns, {values[1], values[2], values[3]}, {values[4], values[5], values[6]},
-                           line_number});
+    motion.rows.push_back(
+        {values[0], t_ns, {values[1], values[2], values[3]}, {values[4], values[5], values[6]}, line_number});
   }
   if (!have_header) return Error{fmt::format("{}: empty motion file (need a header t,x,y,z)", source_name)};
   if (motion.rows.size() < 2) {

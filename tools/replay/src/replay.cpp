@@ -75,8 +75,8 @@ struct MotionDevice {
 };
 
 template <Scalar S>
-Result<ReplaySummary> replay_as(const SceneDescription& description, const Motion& motion,
-                                const ReplayOptions& options, std::FILE* out) {
+Result<ReplaySummary> replay_as(const SceneDescription& description, const Motion& motion, const ReplayOptions& options,
+                                std::FILE* out) {
   ReplaySummary summary;
   summary.scene_name = description.name;
   summary.surfaces = description.of<RuntimeSurface>().size();
@@ -114,8 +114,8 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
   // The caller's numbers: the row's fields as the file has them, NaN for the empty ones.
   std::vector<double> numbers;
   if (options.rows != nullptr) {
-    std::vector<std::string> columns_named{"t", "fx", "fy", "fz", "faults", "limits", "scene_fx", "scene_fy",
-                                           "scene_fz", "contact"};
+    std::vector<std::string> columns_named{"t",      "fx",       "fy",       "fz",       "faults",
+                                           "limits", "scene_fx", "scene_fy", "scene_fz", "contact"};
     columns_named.insert(columns_named.end(), names.begin(), names.end());
     numbers.reserve(columns_named.size());
     options.rows->begin(columns_named, motion.rows.size());
@@ -132,8 +132,8 @@ Result<ReplaySummary> replay_as(const SceneDescription& description, const Motio
     const bool counted = !status.faults.has(Fault::kNonFiniteInput) && !status.faults.has(Fault::kNonFiniteForce);
     const Vec3<double> scene_f = counted ? to_double(loop.scene_force()) : Vec3<double>{};
     if (out != nullptr) {
-      fmt::format_to(std::back_inserter(w.row), "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z, status.faults.bits(),
-                     status.limits, scene_f.x, scene_f.y, scene_f.z);
+      fmt::format_to(std::back_inserter(w.row), "{},{},{},{},{},{},{},{},{}", r.t_s, f.x, f.y, f.z,
+                     status.faults.bits(), status.limits, scene_f.x, scene_f.y, scene_f.z);
     }
     if (options.rows != nullptr) {
       numbers.assign({r.t_s, f.x, f.y, f.z, static_cast<double>(status.faults.bits()),
@@ -196,14 +196,16 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
                                   : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
-  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
+  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path);
+      !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
   }
   if (options.sine == SineMethod::kLibrary && options.scalar == ScalarKind::kQ16_16) {
     return Error{"--sine library needs a floating-point scalar; use polynomial or table with q16.16"};
   }
   // Before anything is opened for writing: an output must never replace an input.
-  for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.input_path, "the motion"}}) {
+  for (const auto& [input, what] :
+       {std::pair{options.scene_path, "the scene"}, std::pair{options.input_path, "the motion"}}) {
     if (!options.output_path.empty() && same_file(options.output_path, input)) {
       return Error{fmt::format("--output {} is {} ({}): it would be overwritten; choose another file",
                                options.output_path, what, input)};
@@ -222,7 +224,8 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   for (std::size_t i = 1; i < motion->rows.size(); ++i) {
     const std::int64_t dt_ns = motion->rows[i].t_ns - motion->rows[i - 1].t_ns;
     const double recorded_rate_hz = 1e9 / static_cast<double>(dt_ns + 1);
-    if (const std::string bad = fixed_point::check_rate(recorded_rate_hz, options.scalar, scene.value()); !bad.empty()) {
+    if (const std::string bad = fixed_point::check_rate(recorded_rate_hz, options.scalar, scene.value());
+        !bad.empty()) {
       return Error{fmt::format("{}:{}: t: {} ns after the previous row (t rounded to whole ns, so at least {} ns "
                                "as recorded), a servo rate of {}\n",
                                options.input_path, motion->rows[i].line, dt_ns, dt_ns + 1, bad)};
@@ -230,14 +233,14 @@ Result<ReplaySummary> run_replay(const ReplayOptions& options) {
   }
 
   // No output file when the rows go only to the caller's sink (empty output_path).
-  File out(options.output_path.empty() ? nullptr
+  File out(options.output_path.empty()  ? nullptr
            : options.output_path == "-" ? stdout
                                         : std::fopen(options.output_path.c_str(), "wb"));
-  if (!out && !options.output_path.empty()) return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};
+  if (!out && !options.output_path.empty())
+    return Error{fmt::format("{}: cannot open for writing: {}", options.output_path, std::strerror(errno))};
   if (options.sine) override_sine(scene.value(), *options.sine);
   Result<ReplaySummary> summary = with_scalar(
-      options.scalar,
-      [&]<Scalar S>() { return replay_as<S>(scene.value(), motion.value(), options, out.get()); },
+      options.scalar, [&]<Scalar S>() { return replay_as<S>(scene.value(), motion.value(), options, out.get()); },
       [](ScalarKind kind) -> Result<ReplaySummary> {
         return Error{fmt::format("--scalar {}: this build has no replay for it", scalar_kind_name(kind))};
       });
@@ -261,11 +264,12 @@ std::string format_summary(const ReplaySummary& s, const ReplayOptions& options)
     }
     text += fmt::format("note    ignored input columns: {}\n", names);
   }
-  text += fmt::format("forces  peak {:.4g} N at t = {:.6g} s (scene peak before safety {:.4g} N); in contact {} ticks\n",
-                      s.peak_force_n, s.peak_force_t_s, s.peak_scene_force_n, s.ticks_in_contact);
+  text +=
+      fmt::format("forces  peak {:.4g} N at t = {:.6g} s (scene peak before safety {:.4g} N); in contact {} ticks\n",
+                  s.peak_force_n, s.peak_force_t_s, s.peak_scene_force_n, s.ticks_in_contact);
   text += fmt::format("effects impacts triggered {}; cliff falls {}\n", s.impacts, s.cliff_falls);
-  text += fmt::format("safety  rate-limited {} ticks, clamped {} ticks, faults {} ticks{}\n", s.rate_limited,
-                      s.clamped, s.fault_ticks,
+  text += fmt::format("safety  rate-limited {} ticks, clamped {} ticks, faults {} ticks{}\n", s.rate_limited, s.clamped,
+                      s.fault_ticks,
                       s.fault_bits != 0 ? fmt::format(" ({})", describe_faults(s.fault_bits)) : std::string());
   if (options.output_path != "-") text += fmt::format("output  {}\n", options.output_path);
   return text;

@@ -20,7 +20,8 @@ std::string merge_generated(const std::string& existing, const std::string& gene
                             std::string_view end_marker) {
   const std::string begin(begin_marker);
   const std::string end(end_marker);
-  const std::string block = begin + "\n" + generated + (generated.empty() || generated.back() == '\n' ? "" : "\n") + end;
+  const std::string block =
+      begin + "\n" + generated + (generated.empty() || generated.back() == '\n' ? "" : "\n") + end;
   const auto b = existing.find(begin);
   const auto e = b == std::string::npos ? std::string::npos : existing.find(end, b);
   if (b == std::string::npos || e == std::string::npos) {
@@ -72,7 +73,8 @@ Result<bool> plot(StagedOutputs& outputs, const std::string& kind, const fs::pat
   argv.insert(argv.end(), options.begin(), options.end());
   auto status = run_process(argv);
   if (!status) return Error{fmt::format("plot: {} (install python3-matplotlib: tools/setup-deps)", status.error())};
-  if (status.value() != 0) return Error{fmt::format("plot: `{}` failed with status {}", shell_line(argv), status.value())};
+  if (status.value() != 0)
+    return Error{fmt::format("plot: `{}` failed with status {}", shell_line(argv), status.value())};
   return true;
 }
 
@@ -94,17 +96,18 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
       "How toonforce behaves on stiff and extreme cases: maps of the closed loop on the host simulation, and the "
       "nine extreme cases of our stability checklist (below) as tests with the safety layer on.\n\n",
       command);
-  md += "## Theory\n\n"
-        "Colgate and Brown (ICRA 1994; Colgate and Schenkel 1997): a device of mass m and physical damping b, "
-        "sampled every T with a zero-order hold, rendering the wall F = -K x - B (x_k - x_(k-1))/T is passive if "
-        "b > K T / 2 + |B|. Diolaiti et al. (\"Stability of haptic rendering: discretization, quantization, time "
-        "delay, and Coulomb effects\", IEEE T-RO 22(2), 2006) add a delay t_d between reading and force: b > K (T/2 "
-        "+ t_d) + |B|, i.e. with d whole ticks of delay **b > (1 + 2 d) K T / 2 + |B|**. The maps draw exactly this "
-        "bound, from control/passivity_bound.hpp (the functions the plausibility report of `toonforce check` uses), "
-        "with the delay d of each map's device: 0 for the ideal device of the first four maps, 1 for the Falcon-class "
-        "device of the impact maps (its `io_delay_ticks`). The bound is about passivity (no energy ever given back "
-        "beyond what came in, whatever the user does); it is sufficient for the stability of the loop with any "
-        "passive termination, not necessary: a given loop can be stable outside it (a heavier mass, a damped hand).\n\n";
+  md +=
+      "## Theory\n\n"
+      "Colgate and Brown (ICRA 1994; Colgate and Schenkel 1997): a device of mass m and physical damping b, "
+      "sampled every T with a zero-order hold, rendering the wall F = -K x - B (x_k - x_(k-1))/T is passive if "
+      "b > K T / 2 + |B|. Diolaiti et al. (\"Stability of haptic rendering: discretization, quantization, time "
+      "delay, and Coulomb effects\", IEEE T-RO 22(2), 2006) add a delay t_d between reading and force: b > K (T/2 "
+      "+ t_d) + |B|, i.e. with d whole ticks of delay **b > (1 + 2 d) K T / 2 + |B|**. The maps draw exactly this "
+      "bound, from control/passivity_bound.hpp (the functions the plausibility report of `toonforce check` uses), "
+      "with the delay d of each map's device: 0 for the ideal device of the first four maps, 1 for the Falcon-class "
+      "device of the impact maps (its `io_delay_ticks`). The bound is about passivity (no energy ever given back "
+      "beyond what came in, whatever the user does); it is sufficient for the stability of the loop with any "
+      "passive termination, not necessary: a given loop can be stable outside it (a heavier mass, a damped hand).\n\n";
   {
     // Where the delay-aware bound is exact and where it only bounds: against
     // Colgate and Schenkel's b_req of the same discrete law, computed here.
@@ -134,117 +137,119 @@ std::string stability_document(const StabilityReport& s, const std::string& comm
         "matrices of known eigenvalues, checks the model against the closed form sqrt(1 + K T^2 / 2m) of an undamped "
         "sampled spring, checks that every loop inside the bound has rho < 1, and checks that the simulation's energy "
         "grows at rho^(2k)).\n\n";
-  md += "## How a point is classified, and how accurate that is\n\n"
-        "**By the eigenvalues** (the reference, on the linear maps): rho < 1 or rho > 1. Its accuracy is that of the "
-        "eigenvalue routine, about 1e-15 relative for these simple, well separated eigenvalues, so only points with "
-        "|rho - 1| below about 1e-12 could be misclassified (each map's section counts those within 1e-9 of 1 as "
-        "marginal). It is exact for the linear loop in contact; it says nothing of what happens once the growth leaves the linear range (the wall is one-sided: the "
-        "handle bounces off it; the impact maps' clamp and friction).\n\n"
-        "**By a simulated run** (the nonlinear truth over a finite time): each point is one closed-loop run on the "
-        "host simulation (host_sim: the device and hand physics, the same servo loop as `toonforce sim`, with the "
-        "spec's stages, every T). Its energy is\n\n"
-        "    V = 1/2 m |v|^2 + 1/2 k_hand |x - r|^2 + U_wall(depth) - F_press . x  -  (the same at rest at "
-        "equilibrium)\n\n"
-        "from the simulation's true state at every tick (m the moving mass, k_hand and r the hand's stiffness and "
-        "aim, F_press a constant force the hand presses with; U_wall the potential of the wall's force: K d^2 / 2, or "
-        "where the force is clamped at F_max, K d^2 / 2 up to d_c = F_max / K and F_max (d - d_c) + K d_c^2 / 2 "
-        "beyond), so V >= 0 and V = 0 at rest. With V0 its initial value:\n\n"
-        "- **unstable**: the state became non-finite, or V exceeded 10 V_ref (a run-away), or the peak of V over the "
-        "last quarter of the run is more than 1.1 times its peak over the first quarter (still growing at the end; not "
-        "counted while that peak is below 1e-3 V_ref, the dither of quantisation and friction). "
-        "V_ref is V0, except on the cartoon wall, which adds energy by design for 0.15 s after each entry: there both "
-        "tests start at 0.2 s and V_ref is the largest V until then (so what the transient added is budgeted, and a "
-        "loop that grows on its own is still seen);\n"
-        "- **decaying**: V never exceeded V0 (within 0.1 %);\n"
-        "- **bounded**: neither: V rose above V0 at some time but did not grow (a decaying or steady oscillation, "
-        "a limit cycle held by the one-sided contact, friction, quantisation or saturation).\n\n"
-        "A run sees growth only if it lasts a few e-folding times. On the linear maps a point with rho > 1 therefore "
-        "runs for 3 e-folding times (the energy grows e^6), at least the stated duration and at most 300 s "
-        "(`--longest-run`); each map's section counts the points whose eigenvalue predicts growth their run did not "
-        "show, and says whether the run was too short or the growth ended outside the linear range.\n\n"
-        "**Passivity**, by Colgate and Schenkel (\"Passivity of a class of sampled-data systems: application to haptic "
-        "interfaces\", J. Robotic Systems 14(1), 1997), on the maps with a linear model: the device of damping b with "
-        "the discrete law F = -H(z) x (here H(z) = z^-d (K - c V(z)), V the velocity estimator, c = -B or +mu) is "
-        "passive if and only if b > b_req = max over theta of (T/2) Re{(1 - e^(-j theta)) H(e^(j theta))} / (1 - cos "
-        "theta), evaluated on 4096 frequencies and at 1e-7 rad for the limit theta -> 0 (where, or at pi, the maximum "
-        "of these smooth curves lies: accurate to about 1e-12; tests/stability_model_test.cpp). That is a property of the port under every input; "
-        "no closed-loop run here measures it (a run with a constant press force is one input among all those a user "
-        "can apply), so a decaying run is only that. For the laws of these maps b_req is the drawn bound (the test "
-        "checks it), so each section's passivity count matches its bound count by construction (labelled so there: not "
-        "independent evidence); it would part from it with a velocity "
-        "filter.\n\n"
-        "**Passivity by port energy** (measured on the code, every point of the same maps, as an independent check of "
-        "b_req's model): the handle is made a motion source driving the real servo loop (`ServoLoop` with the spec's "
-        "stages, the point's scene law and velocity estimator, no clamp or rate limit; tools/report stability.hpp "
-        "`port_passivity`). The loop reads x(kT) = x0 + A sin(w k T) (A = 1 um, x0 deep enough that the wall pushes "
-        "at every tick even against its damping; the slippery force stays under 0.06 N of its 2 N cap; so the law is "
-        "linear), and each force F_k it writes is held over [(k + d) T, (k + d + 1) T] (the device's delay d, 0 "
-        "here). The work the held forces do on the handle is exact, W = sum_j F_(j-d) (x_(j+1) - x_j), F being "
-        "constant over each hold interval, summed over p whole periods in q whole ticks after the estimator's "
-        "transient: p = 1 and q = 1 / (f T) rounded for periods of 50 ticks and more, else q = 1009 (a prime) and "
-        "p <= 504, so the window's sum is the exact average over the sampling phase and no frequency aliases to DC. "
-        "The device's damping absorbs b integral v^2 dt: b A^2 w pi per cycle for the sinusoid, and b sum (x_(j+1) - "
-        "x_j)^2 / T for the motion through the same samples moving linearly between them, the least any motion "
-        "through those samples dissipates (Colgate and Schenkel's worst case; the loop sees only the samples, so one "
-        "run gives both). The port, device and controller, absorbs b integral v^2 dt - W per cycle; divided by "
-        "integral v^2 dt it gives the damping that frequency needs, W / integral v^2 dt [N s/m] (for the linear "
-        "motion: Colgate and Schenkel's integrand at theta = w T, measured on the code instead of modelled). A point "
-        "is passive by port energy if the port absorbs >= 0 at each of 40 frequencies log-spaced from 0.1 Hz to just "
-        "under Nyquist (a margin within 1e-9 of the dampings involved counts as 0: round-off), on every axis the "
-        "map's model has (the slippery map: along the normal and along the surface). Each section counts the points "
-        "whose verdict agrees with b_req's, for both motions, gives the largest difference between the measured and "
-        "the modelled integrand at the same theta, and lists disagreements with the reason the model gives for them "
-        "on the same frequencies: b_req's maximum off the grid (it lies at theta -> 0 for the spring and the slippery "
-        "gain, 6e-4 rad away at 0.1 Hz and 1 ms), or a sinusoid not being the worst input: it dissipates theta^2 / (2 "
-        "(1 - cos theta)) times what the linear motion through its samples does (up to pi^2 / 4 at Nyquist), so "
-        "where b_req's maximum is at high frequency (the wall's damping B: its integrand K T / 2 - B cos theta peaks "
-        "at Nyquist) a sinusoid finds passive a law that is not. tests/stability_model_test.cpp checks the "
-        "measurement against Colgate's closed form for a sampled spring behind 0, 1 and 2 ticks of delay and that "
-        "its verdict flips 1e-4 either side of the bound.\n\n"
-        "The first four maps use an ideal device (the Falcon's estimated mass 0.15 kg and only viscous damping: no "
-        "Coulomb friction, encoder or DAC steps, I/O delay or saturation; exact integration of the held force) "
-        "and the plain backward-difference velocity, the setting of the Colgate-Brown bound; the impact maps use the "
-        "full Falcon-class model (one tick of I/O delay) held by a firm hand, with the bundled scenes' safety stage; "
-        "their eigenvalues are those of the loop in contact without friction, quantisation, clamp or transient, a "
-        "guide only (the run is the reference there, over 1 s).\n";
+  md +=
+      "## How a point is classified, and how accurate that is\n\n"
+      "**By the eigenvalues** (the reference, on the linear maps): rho < 1 or rho > 1. Its accuracy is that of the "
+      "eigenvalue routine, about 1e-15 relative for these simple, well separated eigenvalues, so only points with "
+      "|rho - 1| below about 1e-12 could be misclassified (each map's section counts those within 1e-9 of 1 as "
+      "marginal). It is exact for the linear loop in contact; it says nothing of what happens once the growth leaves the linear range (the wall is one-sided: the "
+      "handle bounces off it; the impact maps' clamp and friction).\n\n"
+      "**By a simulated run** (the nonlinear truth over a finite time): each point is one closed-loop run on the "
+      "host simulation (host_sim: the device and hand physics, the same servo loop as `toonforce sim`, with the "
+      "spec's stages, every T). Its energy is\n\n"
+      "    V = 1/2 m |v|^2 + 1/2 k_hand |x - r|^2 + U_wall(depth) - F_press . x  -  (the same at rest at "
+      "equilibrium)\n\n"
+      "from the simulation's true state at every tick (m the moving mass, k_hand and r the hand's stiffness and "
+      "aim, F_press a constant force the hand presses with; U_wall the potential of the wall's force: K d^2 / 2, or "
+      "where the force is clamped at F_max, K d^2 / 2 up to d_c = F_max / K and F_max (d - d_c) + K d_c^2 / 2 "
+      "beyond), so V >= 0 and V = 0 at rest. With V0 its initial value:\n\n"
+      "- **unstable**: the state became non-finite, or V exceeded 10 V_ref (a run-away), or the peak of V over the "
+      "last quarter of the run is more than 1.1 times its peak over the first quarter (still growing at the end; not "
+      "counted while that peak is below 1e-3 V_ref, the dither of quantisation and friction). "
+      "V_ref is V0, except on the cartoon wall, which adds energy by design for 0.15 s after each entry: there both "
+      "tests start at 0.2 s and V_ref is the largest V until then (so what the transient added is budgeted, and a "
+      "loop that grows on its own is still seen);\n"
+      "- **decaying**: V never exceeded V0 (within 0.1 %);\n"
+      "- **bounded**: neither: V rose above V0 at some time but did not grow (a decaying or steady oscillation, "
+      "a limit cycle held by the one-sided contact, friction, quantisation or saturation).\n\n"
+      "A run sees growth only if it lasts a few e-folding times. On the linear maps a point with rho > 1 therefore "
+      "runs for 3 e-folding times (the energy grows e^6), at least the stated duration and at most 300 s "
+      "(`--longest-run`); each map's section counts the points whose eigenvalue predicts growth their run did not "
+      "show, and says whether the run was too short or the growth ended outside the linear range.\n\n"
+      "**Passivity**, by Colgate and Schenkel (\"Passivity of a class of sampled-data systems: application to haptic "
+      "interfaces\", J. Robotic Systems 14(1), 1997), on the maps with a linear model: the device of damping b with "
+      "the discrete law F = -H(z) x (here H(z) = z^-d (K - c V(z)), V the velocity estimator, c = -B or +mu) is "
+      "passive if and only if b > b_req = max over theta of (T/2) Re{(1 - e^(-j theta)) H(e^(j theta))} / (1 - cos "
+      "theta), evaluated on 4096 frequencies and at 1e-7 rad for the limit theta -> 0 (where, or at pi, the maximum "
+      "of these smooth curves lies: accurate to about 1e-12; tests/stability_model_test.cpp). That is a property of the port under every input; "
+      "no closed-loop run here measures it (a run with a constant press force is one input among all those a user "
+      "can apply), so a decaying run is only that. For the laws of these maps b_req is the drawn bound (the test "
+      "checks it), so each section's passivity count matches its bound count by construction (labelled so there: not "
+      "independent evidence); it would part from it with a velocity "
+      "filter.\n\n"
+      "**Passivity by port energy** (measured on the code, every point of the same maps, as an independent check of "
+      "b_req's model): the handle is made a motion source driving the real servo loop (`ServoLoop` with the spec's "
+      "stages, the point's scene law and velocity estimator, no clamp or rate limit; tools/report stability.hpp "
+      "`port_passivity`). The loop reads x(kT) = x0 + A sin(w k T) (A = 1 um, x0 deep enough that the wall pushes "
+      "at every tick even against its damping; the slippery force stays under 0.06 N of its 2 N cap; so the law is "
+      "linear), and each force F_k it writes is held over [(k + d) T, (k + d + 1) T] (the device's delay d, 0 "
+      "here). The work the held forces do on the handle is exact, W = sum_j F_(j-d) (x_(j+1) - x_j), F being "
+      "constant over each hold interval, summed over p whole periods in q whole ticks after the estimator's "
+      "transient: p = 1 and q = 1 / (f T) rounded for periods of 50 ticks and more, else q = 1009 (a prime) and "
+      "p <= 504, so the window's sum is the exact average over the sampling phase and no frequency aliases to DC. "
+      "The device's damping absorbs b integral v^2 dt: b A^2 w pi per cycle for the sinusoid, and b sum (x_(j+1) - "
+      "x_j)^2 / T for the motion through the same samples moving linearly between them, the least any motion "
+      "through those samples dissipates (Colgate and Schenkel's worst case; the loop sees only the samples, so one "
+      "run gives both). The port, device and controller, absorbs b integral v^2 dt - W per cycle; divided by "
+      "integral v^2 dt it gives the damping that frequency needs, W / integral v^2 dt [N s/m] (for the linear "
+      "motion: Colgate and Schenkel's integrand at theta = w T, measured on the code instead of modelled). A point "
+      "is passive by port energy if the port absorbs >= 0 at each of 40 frequencies log-spaced from 0.1 Hz to just "
+      "under Nyquist (a margin within 1e-9 of the dampings involved counts as 0: round-off), on every axis the "
+      "map's model has (the slippery map: along the normal and along the surface). Each section counts the points "
+      "whose verdict agrees with b_req's, for both motions, gives the largest difference between the measured and "
+      "the modelled integrand at the same theta, and lists disagreements with the reason the model gives for them "
+      "on the same frequencies: b_req's maximum off the grid (it lies at theta -> 0 for the spring and the slippery "
+      "gain, 6e-4 rad away at 0.1 Hz and 1 ms), or a sinusoid not being the worst input: it dissipates theta^2 / (2 "
+      "(1 - cos theta)) times what the linear motion through its samples does (up to pi^2 / 4 at Nyquist), so "
+      "where b_req's maximum is at high frequency (the wall's damping B: its integrand K T / 2 - B cos theta peaks "
+      "at Nyquist) a sinusoid finds passive a law that is not. tests/stability_model_test.cpp checks the "
+      "measurement against Colgate's closed form for a sampled spring behind 0, 1 and 2 ticks of delay and that "
+      "its verdict flips 1e-4 either side of the bound.\n\n"
+      "The first four maps use an ideal device (the Falcon's estimated mass 0.15 kg and only viscous damping: no "
+      "Coulomb friction, encoder or DAC steps, I/O delay or saturation; exact integration of the held force) "
+      "and the plain backward-difference velocity, the setting of the Colgate-Brown bound; the impact maps use the "
+      "full Falcon-class model (one tick of I/O delay) held by a firm hand, with the bundled scenes' safety stage; "
+      "their eigenvalues are those of the loop in contact without friction, quantisation, clamp or transient, a "
+      "guide only (the run is the reference there, over 1 s).\n";
   md += stability_markdown(s, plot_dir);
-  md += "\n## Extreme cases, as tests\n\n"
-        "Each extreme case of our checklist is a test in "
-        "tests/stability_test.cpp (binary `toonforce_stability_tests`), run by every CTest run: the servo loop "
-        "(`ServoLoop`, its whole safety layer: engage, soft start, velocity limit, workspace bounds, watchdog, "
-        "passivity observer and controller, force-rate limit and clamp; configured as `toonforce run --device sim` "
-        "configures it) on the simulated device, checking that the "
-        "commanded force stays within the clamp, the energy stays bounded, nothing becomes NaN, and the loop "
-        "recovers or re-arms as designed:\n\n"
-        "| case | test |\n| --- | --- |\n"
-        "| 1. stiffness through and beyond the delay-aware bound 2 (b + b_hand) / 3T at T = 1, 0.5, 0.25 ms, b = 0 "
-        "included: inside it the handle settles to the quantisation's one-count dither; beyond it the clamp and rate "
-        "limit hold the limit cycle | "
-        "`ExtremeCases.StiffWallsSettleInsideTheDelayAwareBoundAndTheSafetyLayerHoldsTheLimitCycleBeyondIt` |\n"
-        "| 2. negative virtual damping near and above b - KT/2 | "
-        "`ExtremeCases.SlipperyGainNearAndAboveTheDevicesDampingIsHeldToItsEnergyBudget` |\n"
-        "| 3. impact at the device's top speed, recoil at full amplitude | "
-        "`ExtremeCases.AnImpactAtTopSpeedIsClampedPushedBackOutAndItsRecoilBudgeted` |\n"
-        "| 4. chattering at the wall, the cliff threshold +- epsilon, a corner | "
-        "`ExtremeCases.RestingOnTheWallBoundaryWithSensorNoiseNeitherRetriggersNorBuzzes`, "
-        "`ExtremeCases.LingeringAtTheCliffsSpeedThresholdFallsOnceAndNeverChatters`, "
-        "`ExtremeCases.PressingIntoACornerOfTwoWallsStaysClampedAndCalm` |\n"
-        "| 5. jitter, a missed tick, a sustained 2T, a burst of late ticks; a stall past the watchdog | "
-        "`ExtremeCases.TimingFaultsKeepTheForceWithinItsRateLimitAndAStallZeroesItUntilReArmed` |\n"
-        "| 6. encoder quantisation, slow approach, filter lag, NaN and Inf readings | "
-        "`ExtremeCases.SensorFaultsGiveZeroForceOrStayBoundedAndTheLoopRecovers` |\n"
-        "| 7. force clamp (Falcon 8 N, Omni 3.3 N) and force-rate clamp; the passivity controller when clamped | "
-        "`ExtremeCases.OnAClampedOmniThePassivityControllerStillHoldsTheSlipperyBudget` |\n"
-        "| 8. fixed-point range ends, the energy observer over hours, float and Q16.16 (and double) over 10^6 ticks: no drift, bit-identical runs | "
-        "`ExtremeCases.FixedPointRangeEndsSaturateWithAFaultAndStayBounded`, "
-        "`ExtremeCases.TheObserverAccumulatesAnHourOfWorkExactlyInQ16`, "
-        "`ExtremeCases.DoubleFloatAndQ16RepeatThemselvesExactlyOverAMillionTicks`, "
-        "`ExtremeCases.TheSameRunTwiceGivesTheSameBits` |\n"
-        "| 9. long-run energy of an isolated passive scene | "
-        "`ExtremeCases.AnIsolatedPassiveSceneNeverGainsEnergy` |\n\n"
-        "The closed-loop drift of every paper scene and scalar type (the passivity observer against the plant's true "
-        "port work, float and Q16.16 against double, over simulated hours) is in docs/performance/precision.md "
-        "(precision report).\n";
+  md +=
+      "\n## Extreme cases, as tests\n\n"
+      "Each extreme case of our checklist is a test in "
+      "tests/stability_test.cpp (binary `toonforce_stability_tests`), run by every CTest run: the servo loop "
+      "(`ServoLoop`, its whole safety layer: engage, soft start, velocity limit, workspace bounds, watchdog, "
+      "passivity observer and controller, force-rate limit and clamp; configured as `toonforce run --device sim` "
+      "configures it) on the simulated device, checking that the "
+      "commanded force stays within the clamp, the energy stays bounded, nothing becomes NaN, and the loop "
+      "recovers or re-arms as designed:\n\n"
+      "| case | test |\n| --- | --- |\n"
+      "| 1. stiffness through and beyond the delay-aware bound 2 (b + b_hand) / 3T at T = 1, 0.5, 0.25 ms, b = 0 "
+      "included: inside it the handle settles to the quantisation's one-count dither; beyond it the clamp and rate "
+      "limit hold the limit cycle | "
+      "`ExtremeCases.StiffWallsSettleInsideTheDelayAwareBoundAndTheSafetyLayerHoldsTheLimitCycleBeyondIt` |\n"
+      "| 2. negative virtual damping near and above b - KT/2 | "
+      "`ExtremeCases.SlipperyGainNearAndAboveTheDevicesDampingIsHeldToItsEnergyBudget` |\n"
+      "| 3. impact at the device's top speed, recoil at full amplitude | "
+      "`ExtremeCases.AnImpactAtTopSpeedIsClampedPushedBackOutAndItsRecoilBudgeted` |\n"
+      "| 4. chattering at the wall, the cliff threshold +- epsilon, a corner | "
+      "`ExtremeCases.RestingOnTheWallBoundaryWithSensorNoiseNeitherRetriggersNorBuzzes`, "
+      "`ExtremeCases.LingeringAtTheCliffsSpeedThresholdFallsOnceAndNeverChatters`, "
+      "`ExtremeCases.PressingIntoACornerOfTwoWallsStaysClampedAndCalm` |\n"
+      "| 5. jitter, a missed tick, a sustained 2T, a burst of late ticks; a stall past the watchdog | "
+      "`ExtremeCases.TimingFaultsKeepTheForceWithinItsRateLimitAndAStallZeroesItUntilReArmed` |\n"
+      "| 6. encoder quantisation, slow approach, filter lag, NaN and Inf readings | "
+      "`ExtremeCases.SensorFaultsGiveZeroForceOrStayBoundedAndTheLoopRecovers` |\n"
+      "| 7. force clamp (Falcon 8 N, Omni 3.3 N) and force-rate clamp; the passivity controller when clamped | "
+      "`ExtremeCases.OnAClampedOmniThePassivityControllerStillHoldsTheSlipperyBudget` |\n"
+      "| 8. fixed-point range ends, the energy observer over hours, float and Q16.16 (and double) over 10^6 ticks: no drift, bit-identical runs | "
+      "`ExtremeCases.FixedPointRangeEndsSaturateWithAFaultAndStayBounded`, "
+      "`ExtremeCases.TheObserverAccumulatesAnHourOfWorkExactlyInQ16`, "
+      "`ExtremeCases.DoubleFloatAndQ16RepeatThemselvesExactlyOverAMillionTicks`, "
+      "`ExtremeCases.TheSameRunTwiceGivesTheSameBits` |\n"
+      "| 9. long-run energy of an isolated passive scene | "
+      "`ExtremeCases.AnIsolatedPassiveSceneNeverGainsEnergy` |\n\n"
+      "The closed-loop drift of every paper scene and scalar type (the passivity observer against the plant's true "
+      "port work, float and Q16.16 against double, over simulated hours) is in docs/performance/precision.md "
+      "(precision report).\n";
   return md;
 }
 
@@ -273,10 +278,11 @@ std::string performance_section(const LatencyReport& latency, const std::string&
   return md;
 }
 
-std::string precision_section(const PrecisionReport& precision, const std::string& command, const std::string& plot_dir) {
+std::string precision_section(const PrecisionReport& precision, const std::string& command,
+                              const std::string& plot_dir) {
   std::string md;
-  md += fmt::format("<!-- Generated by `{}`; edit tools/report/src/precision.cpp and documents.cpp, not this part. -->\n\n",
-                    command);
+  md += fmt::format(
+      "<!-- Generated by `{}`; edit tools/report/src/precision.cpp and documents.cpp, not this part. -->\n\n", command);
   md += "## Error against run time\n\n";
   // The command that made these figures (report precision --docs passes its own line), and
   // the default one.
@@ -314,7 +320,8 @@ Result<std::vector<std::string>> write_stability_documents(const DocumentsOption
       std::vector<std::string> args{"--title", map.title, "--xlabel", map.x_label, "--ylabel", map.y_label};
       if (!map.log_x) args.emplace_back("--linear-x");
       if (!map.log_y) args.emplace_back("--linear-y");
-      if (auto p = plot(outputs, "stability", csv.value(), figures / (map.name + ".png"), args); !p) return Error{p.error()};
+      if (auto p = plot(outputs, "stability", csv.value(), figures / (map.name + ".png"), args); !p)
+        return Error{p.error()};
     }
   }
   const fs::path stability_md = out / "STABILITY.md";
@@ -357,7 +364,8 @@ Result<std::vector<std::string>> write_documents(const DocumentsOptions& options
     if (auto c = outputs.commit(); !c) return Error{c.error()};
   }
   written.push_back(performance.string());
-  auto precision_written = write_precision_documents(precision.value(), options.out_dir, options.command_line, options.plot);
+  auto precision_written =
+      write_precision_documents(precision.value(), options.out_dir, options.command_line, options.plot);
   if (!precision_written) return Error{precision_written.error()};
   written.insert(written.end(), precision_written->begin(), precision_written->end());
 
@@ -397,16 +405,17 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   const fs::path convergence_csv_path = figures / "convergence.csv";
   const fs::path closed_loop_csv_path = figures / "closed_loop.csv";
   std::vector<fs::path> staged;
-  for (const auto& [path, text] : {std::pair{precision_csv_path, precision_csv(precision)},
-                                   std::pair{drift_csv_path, drift_csv(precision)},
-                                   std::pair{convergence_csv_path, convergence_csv(precision)},
-                                   std::pair{closed_loop_csv_path, closed_loop_csv(precision)}}) {
+  for (const auto& [path, text] :
+       {std::pair{precision_csv_path, precision_csv(precision)}, std::pair{drift_csv_path, drift_csv(precision)},
+        std::pair{convergence_csv_path, convergence_csv(precision)},
+        std::pair{closed_loop_csv_path, closed_loop_csv(precision)}}) {
     auto w = outputs.write(path, text);
     if (!w) return Error{w.error()};
     staged.push_back(w.value());
   }
   if (with_plots) {
-    if (auto p = plot(outputs, "work-precision", staged[0], figures / "work_precision.png"); !p) return Error{p.error()};
+    if (auto p = plot(outputs, "work-precision", staged[0], figures / "work_precision.png"); !p)
+      return Error{p.error()};
     if (!precision.drift.empty()) {
       if (auto p = plot(outputs, "drift", staged[1], figures / "drift.png"); !p) return Error{p.error()};
     }
@@ -427,7 +436,8 @@ Result<std::vector<std::string>> write_precision_documents(const PrecisionReport
   if (text.find(kPrecisionBeginMarker) == std::string::npos) {
     // First time: the block goes right after the main generated block (or at the end).
     const auto e = text.find(kEndMarker);
-    const std::string block = std::string(kPrecisionBeginMarker) + "\n" + section + std::string(kPrecisionEndMarker) + "\n";
+    const std::string block =
+        std::string(kPrecisionBeginMarker) + "\n" + section + std::string(kPrecisionEndMarker) + "\n";
     if (e == std::string::npos) {
       text = merge_generated(text, section, kPrecisionBeginMarker, kPrecisionEndMarker);
     } else {
@@ -468,7 +478,8 @@ Result<std::vector<std::string>> write_mcu_documents(const McuReport& mcu, const
     text += (text.empty() ? "" : "\n") + std::string("## Microcontroller\n");
   }
   StagedOutputs outputs;
-  if (auto w = outputs.write(performance, merge_generated(text, mcu_markdown(mcu), kMcuBeginMarker, kMcuEndMarker)); !w) {
+  if (auto w = outputs.write(performance, merge_generated(text, mcu_markdown(mcu), kMcuBeginMarker, kMcuEndMarker));
+      !w) {
     return Error{w.error()};
   }
   return outputs.commit();

@@ -12,7 +12,9 @@ namespace {
 /// The largest `x` in [0, hi] for which `scene_text(x)` loads for q16.16 (accepted at 0).
 template <class F>
 double largest_accepted(F scene_text, double hi) {
-  const auto ok = [&](double x) { return static_cast<bool>(parse_scene(scene_text(x), "map.toml", ScalarKind::kQ16_16)); };
+  const auto ok = [&](double x) {
+    return static_cast<bool>(parse_scene(scene_text(x), "map.toml", ScalarKind::kQ16_16));
+  };
   if (ok(hi)) return hi;
   double lo = 0.0;
   for (int i = 0; i < 60; ++i) {
@@ -40,7 +42,8 @@ std::string fixed_point_map_markdown() {
     std::string text = device;
     if (!cliff_tau.empty()) {
       text += "[[cliff]]\npoint = [0, 0, 0]\nnormal = [0, 0, 1]\naxis = [1, 0, 0]\ngap_min = -0.01\ngap_max = 0.01\n"
-              "stiffness = 1500\nspeed_threshold = 0.08\ntau = " + cliff_tau + "\n";
+              "stiffness = 1500\nspeed_threshold = 0.08\ntau = " +
+              cliff_tau + "\n";
     }
     const auto scene = parse_scene(text, "map.toml", ScalarKind::kQ16_16);
     if (!scene) return;
@@ -76,8 +79,9 @@ std::string fixed_point_map_markdown() {
   }
 
   md += "\nLargest speed gains against the top speed ([device] max_velocity; wall 1500 N/m, 0.06 m deep):\n\n";
-  md += "| max_velocity [m/s] | damping [N s/m] | slippery mu [N s/m] | impact abs(k_r) + abs(k_osc), d = 0.15 s [N/m] | "
-        "impact, d = 1 s [N/m] |\n| ---: | ---: | ---: | ---: | ---: |\n";
+  md +=
+      "| max_velocity [m/s] | damping [N s/m] | slippery mu [N s/m] | impact abs(k_r) + abs(k_osc), d = 0.15 s [N/m] | "
+      "impact, d = 1 s [N/m] |\n| ---: | ---: | ---: | ---: | ---: |\n";
   for (const double v : {0.5, 1.2, 2.0, 5.0, 10.0}) {
     const auto with = [&](const std::string& keys) { return floor_scene(0.06, v, "stiffness = 1500\n" + keys); };
     const double b = largest_accepted([&](double x) { return with(fmt::format("damping = {}\n", x)); }, 32767.0);
@@ -87,7 +91,8 @@ std::string fixed_point_map_markdown() {
       return largest_accepted(
           [&](double x) {
             return with(fmt::format("[surface.impact]\nrecoil_gain = {}\noscillation_gain = {}\nduration = {}\n"
-                                    "frequency = 5\n", x / 3.0, 2.0 * x / 3.0, d));
+                                    "frequency = 5\n",
+                                    x / 3.0, 2.0 * x / 3.0, d));
           },
           32767.0);
     };

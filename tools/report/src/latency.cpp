@@ -69,8 +69,7 @@ Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress&
     LatencyRow row;
     row.info = c->info();
     row.ticks = histogram.count();
-    row.mean_ns = std::max(0.0, histogram.mean_in_bins() - report.clock.overhead_mean_cycles) /
-                  cycles_per_ns;
+    row.mean_ns = std::max(0.0, histogram.mean_in_bins() - report.clock.overhead_mean_cycles) / cycles_per_ns;
     row.median_ns = to_ns(histogram.percentile(0.5));
     row.p999_ns = to_ns(histogram.percentile(0.999));
     row.max_ns = to_ns(histogram.max());
@@ -119,7 +118,8 @@ Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress&
               return Error{fmt::format("{}: {} ticks run, {} counted", row.info.id, ticks->size(), counts.size())};
             }
             row.search_ticks = std::move(ticks).value();
-            for (const auto c : counts) row.search_instructions.push_back(static_cast<double>(c) - report.harness_instructions);
+            for (const auto c : counts)
+              row.search_instructions.push_back(static_cast<double>(c) - report.harness_instructions);
           }
         }
       }
@@ -177,18 +177,22 @@ std::string search_markdown(const LatencyReport& r) {
       "on which the soft start, the passivity damping, the thermal derating and the rate limit or clamp acted at "
       "once.\n\n",
       kSearchStrikes, kSearchStrikeTicks);
-  md += "| scene | scalar | effects + safety: max found (scenario's max) | whole loop: mean, max found (scenario's max) "
-        "| what acted on the max tick | soft start | passivity | thermal | rate limit | clamp | all five |\n";
+  md +=
+      "| scene | scalar | effects + safety: max found (scenario's max) | whole loop: mean, max found (scenario's max) "
+      "| what acted on the max tick | soft start | passivity | thermal | rate limit | clamp | all five |\n";
   md += "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
   const auto find = [&r](Level level, const std::string& subject, ScalarKind scalar, std::string_view form) {
     for (const auto& row : r.rows) {
-      if (row.info.level == level && row.info.subject == subject && row.info.scalar == scalar && row.info.form == form) {
+      if (row.info.level == level && row.info.subject == subject && row.info.scalar == scalar &&
+          row.info.form == form) {
         return &row;
       }
     }
     return static_cast<const LatencyRow*>(nullptr);
   };
-  const auto max_of = [](const LatencyRow* row) { return row && row->instructions_max ? cell(row->instructions_max, 0) : "-"; };
+  const auto max_of = [](const LatencyRow* row) {
+    return row && row->instructions_max ? cell(row->instructions_max, 0) : "-";
+  };
   for (const auto& loop : r.rows) {
     if (loop.info.level != Level::kLoop || loop.info.form != "search" || loop.search_ticks.empty()) continue;
     const LatencyRow* scene = find(Level::kScene, loop.info.subject, loop.info.scalar, "search");
@@ -199,8 +203,8 @@ std::string search_markdown(const LatencyReport& r) {
       double worst = 0.0;
       for (std::size_t k = 0; k < loop.search_ticks.size(); ++k) {
         const std::uint8_t l = loop.search_ticks[k].limits;
-        const bool hit = all ? ((l & mask) == mask &&
-                                (l & (static_cast<std::uint8_t>(Limit::kRateLimited) | static_cast<std::uint8_t>(Limit::kClamped))) != 0)
+        const bool hit = all ? ((l & mask) == mask && (l & (static_cast<std::uint8_t>(Limit::kRateLimited) |
+                                                            static_cast<std::uint8_t>(Limit::kClamped))) != 0)
                              : (l & mask) != 0;
         if (!hit) continue;
         ++n;
@@ -212,8 +216,8 @@ std::string search_markdown(const LatencyReport& r) {
     const SearchTick& t = loop.search_ticks[std::min(at, loop.search_ticks.size() - 1)];
     md += fmt::format("| {} | {} | {} ({}) | {}, {} ({}) | {} | {} | {} | {} | {} | {} | {} |\n", loop.info.subject,
                       scalar_kind_name(loop.info.scalar), max_of(scene), max_of(scene_pass),
-                      cell(loop.instructions_mean, 0), max_of(&loop), max_of(loop_pass), limits_words(t.limits, t.faults),
-                      stage(static_cast<std::uint8_t>(Limit::kSoftStart), false),
+                      cell(loop.instructions_mean, 0), max_of(&loop), max_of(loop_pass),
+                      limits_words(t.limits, t.faults), stage(static_cast<std::uint8_t>(Limit::kSoftStart), false),
                       stage(static_cast<std::uint8_t>(Limit::kPassivity), false),
                       stage(static_cast<std::uint8_t>(Limit::kThermal), false),
                       stage(static_cast<std::uint8_t>(Limit::kRateLimited), false),

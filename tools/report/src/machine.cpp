@@ -43,8 +43,7 @@ std::string load_average() {
 }
 
 std::string describe(const MachineInfo& m) {
-  return fmt::format("{}, {} vCPUs, Linux {}, {}", m.cpu.empty() ? "unknown CPU" : m.cpu, m.cpus, m.kernel,
-                     m.compiler);
+  return fmt::format("{}, {} vCPUs, Linux {}, {}", m.cpu.empty() ? "unknown CPU" : m.cpu, m.cpus, m.kernel, m.compiler);
 }
 
 }  // namespace toonforce::report

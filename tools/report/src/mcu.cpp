@@ -231,16 +231,30 @@ Result<bool> measure(McuCore& core, const fs::path& dir, bool all_scenes, const 
     if (progress) progress(fmt::format("mcu: {} under QEMU ({})", image.string(), core.machine));
     // As run_image.cmake runs it: -icount for exact counts, the output through semihosting
     // into a file, no display, serial or monitor.
-    const std::vector<std::string> argv{tools.qemu, "-machine", core.machine, "-cpu", core.cpu, "-display", "none",
-                                        "-monitor", "none", "-serial", "none", "-chardev",
-                                        "file,id=out,path=" + qemu_option_value(out.string()), "-semihosting-config",
-                                        "enable=on,target=native,chardev=out", "-icount",
-                                        fmt::format("shift={},align=off,sleep=off", shift), "-kernel", image.string()};
+    const std::vector<std::string> argv{tools.qemu,
+                                        "-machine",
+                                        core.machine,
+                                        "-cpu",
+                                        core.cpu,
+                                        "-display",
+                                        "none",
+                                        "-monitor",
+                                        "none",
+                                        "-serial",
+                                        "none",
+                                        "-chardev",
+                                        "file,id=out,path=" + qemu_option_value(out.string()),
+                                        "-semihosting-config",
+                                        "enable=on,target=native,chardev=out",
+                                        "-icount",
+                                        fmt::format("shift={},align=off,sleep=off", shift),
+                                        "-kernel",
+                                        image.string()};
     auto status = run_captured(argv, log.string(), log.string(), kQemuTimeout);
     const std::string output = read_text(out);
     const bool finished = output.find("\ndone\n") != std::string::npos;
     if (!status || status.value() != 0 || !finished) {
-      const std::string how = !status                ? status.error()
+      const std::string how = !status               ? status.error()
                               : status.value() != 0 ? fmt::format("exit status {}", status.value())
                                                     : "it ended without its \"done\" line";
       return Error{fmt::format(
@@ -257,15 +271,15 @@ Result<bool> measure(McuCore& core, const fs::path& dir, bool all_scenes, const 
   auto status = run_captured(gen_argv, tables.string(), err.string());
   if (!status) return Error{status.error()};
   if (status.value() != 0) {
-    return Error{fmt::format("{} figures failed with status {}:{}", tools.gen, status.value(),
-                             last_lines(read_text(err), 10))};
+    return Error{
+        fmt::format("{} figures failed with status {}:{}", tools.gen, status.value(), last_lines(read_text(err), 10))};
   }
   // Two tables, a blank line between them: the sizes, then the instructions per tick.
   const std::string text = read_text(tables);
   const auto gap = text.find("\n\n");
   if (gap == std::string::npos || text.rfind("| image |", 0) != 0 || text.compare(gap + 2, 9, "| scene |") != 0) {
-    return Error{fmt::format("{} figures printed something other than its two tables:{}", tools.gen,
-                             last_lines(text, 6))};
+    return Error{
+        fmt::format("{} figures printed something other than its two tables:{}", tools.gen, last_lines(text, 6))};
   }
   core.size_table = text.substr(0, gap + 1);
   core.run_table = text.substr(gap + 2);
@@ -336,7 +350,8 @@ Result<McuReport> run_mcu(const McuOptions& options, const Progress& progress) {
   report.m4f.machine = "mps2-an386";
   report.m4f.cpu = "cortex-m4";
 
-  const fs::path m4f_dir = options.m4f_images.empty() ? m3_dir.parent_path() / "cortex-m4f" : fs::path(options.m4f_images);
+  const fs::path m4f_dir =
+      options.m4f_images.empty() ? m3_dir.parent_path() / "cortex-m4f" : fs::path(options.m4f_images);
   report.m4f.dir = shown(m4f_dir, options.root);
   report.m4f.opt = cache_value(m4f_dir, "TOONFORCE_MCU_OPT");
   std::error_code ec;
@@ -429,15 +444,14 @@ std::string mcu_markdown(const McuReport& report) {
   }
   md += fmt::format("{}   # runs them again and regenerates this part\n```\n\n", report.command);
   if (report.build_command.empty()) md += "The images were built as tools/mcu/README.md says. ";
-  md += fmt::format(
-      "For each image it runs (MACHINE CPU: `mps2-an385 cortex-m3` for the Cortex-M3 images, `mps2-an386 "
-      "cortex-m4` for the Cortex-M4F ones; the -icount shift is tools/mcu/images.cmake's):\n\n```sh\n"
-      "arm-none-eabi-size -A size_NAME.elf > size_NAME.txt\n"
-      "qemu-system-arm -machine MACHINE -cpu CPU -display none -monitor none -serial none \\\n"
-      "  -chardev file,id=out,path=NAME.txt -semihosting-config enable=on,target=native,chardev=out \\\n"
-      "  -icount shift={},align=off,sleep=off -kernel NAME.elf\n"
-      "toonforce_mcu_gen figures --size NAME=size_NAME.txt... --run NAME=NAME.txt...\n```\n\n",
-      report.icount_shift);
+  md += fmt::format("For each image it runs (MACHINE CPU: `mps2-an385 cortex-m3` for the Cortex-M3 images, `mps2-an386 "
+                    "cortex-m4` for the Cortex-M4F ones; the -icount shift is tools/mcu/images.cmake's):\n\n```sh\n"
+                    "arm-none-eabi-size -A size_NAME.elf > size_NAME.txt\n"
+                    "qemu-system-arm -machine MACHINE -cpu CPU -display none -monitor none -serial none \\\n"
+                    "  -chardev file,id=out,path=NAME.txt -semihosting-config enable=on,target=native,chardev=out \\\n"
+                    "  -icount shift={},align=off,sleep=off -kernel NAME.elf\n"
+                    "toonforce_mcu_gen figures --size NAME=size_NAME.txt... --run NAME=NAME.txt...\n```\n\n",
+                    report.icount_shift);
   for (const McuCore* core : {&report.m3, &report.m4f}) {
     if (!core->present) {
       md += fmt::format("### {} (QEMU {})\n\n{}\n\n", core->title, core->machine, core->absent);

@@ -76,8 +76,8 @@ EventColumns event_columns(const SceneT& scene) {
 
 /// The loop on `passes` passes of the scenario at `rate_hz`; the forces of the last.
 template <Scalar S>
-Forces run_passes(const SceneDescription& desc, std::string_view scene, double rate_hz,
-                  std::optional<SineMethod> sine, int passes) {
+Forces run_passes(const SceneDescription& desc, std::string_view scene, double rate_hz, std::optional<SineMethod> sine,
+                  int passes) {
   Vec3<double> x{};
   SpecLoop<S> loop(PlayedPositions{&x}, scene_with<S>(desc, sine), servo_config(desc, 1.0 / rate_hz));
   const EventColumns columns = event_columns(loop.scene());
@@ -98,7 +98,8 @@ Forces run_passes(const SceneDescription& desc, std::string_view scene, double r
       st.in_contact = loop.describe(values.data());
       for (const std::size_t i : columns.impact_t) {
         // The most recent trigger among the running impacts.
-        if (!std::isnan(values[i]) && (std::isnan(st.impact_t_s) || values[i] < st.impact_t_s)) st.impact_t_s = values[i];
+        if (!std::isnan(values[i]) && (std::isnan(st.impact_t_s) || values[i] < st.impact_t_s))
+          st.impact_t_s = values[i];
       }
       for (const std::size_t i : columns.cliff_state) st.cliffs_fallen += values[i] > 0.5 ? 1 : 0;
       out.state.push_back(st);
@@ -189,8 +190,7 @@ AnalyticRow analytic_run(const SceneDescription& desc, const AnalyticWall& wall,
     if (k >= n) {
       const Vec3<double> f = to_double(loop.force());
       // The wall's normal is +z: any x or y force is an error too.
-      row.sampled_max_error_n =
-          std::max(row.sampled_max_error_n, norm(f - Vec3<double>{0.0, 0.0, wall.force_n(t)}));
+      row.sampled_max_error_n = std::max(row.sampled_max_error_n, norm(f - Vec3<double>{0.0, 0.0, wall.force_n(t)}));
       fz.push_back(f.z + std::hypot(f.x, f.y));
     }
   }
@@ -210,9 +210,7 @@ AnalyticRow analytic_run(const SceneDescription& desc, const AnalyticWall& wall,
   return row;
 }
 
-bool scene_selected(std::string_view scene, const std::string& filter) {
-  return selected(std::string(scene), filter);
-}
+bool scene_selected(std::string_view scene, const std::string& filter) { return selected(std::string(scene), filter); }
 
 std::string sci(double v) { return v == 0.0 ? "0" : fmt::format("{:.2e}", v); }
 std::string order_text(double p) { return std::isnan(p) ? std::string("-") : fmt::format("{:.2f}", p); }
@@ -225,7 +223,8 @@ Result<std::vector<DriftSeries>> drift_run(const std::string& path, std::string_
   hand.script = random_hand_script(o.drift_seed, duration_s + 1.0);
   host_sim::PlanError plan_error;
   auto intent = host_sim::HandIntent::plan(hand.script, plan_error);
-  if (!intent) return Error{fmt::format("drift hand: segment {}: {}: {}", plan_error.segment, plan_error.key, plan_error.problem)};
+  if (!intent)
+    return Error{fmt::format("drift hand: segment {}: {}: {}", plan_error.segment, plan_error.key, plan_error.problem)};
   hand.intent = std::move(*intent);
 
   constexpr std::array<ScalarKind, 3> kKinds{ScalarKind::kDouble, ScalarKind::kFloat, ScalarKind::kQ16_16};
@@ -243,8 +242,8 @@ Result<std::vector<DriftSeries>> drift_run(const std::string& path, std::string_
   }
   const std::int64_t total = sessions[0].ticks_for(duration_s);
   constexpr std::size_t kBuckets = 12;
-  const std::int64_t per_bucket = std::max<std::int64_t>(1, (total + static_cast<std::int64_t>(kBuckets) - 1) /
-                                                                 static_cast<std::int64_t>(kBuckets));
+  const std::int64_t per_bucket = std::max<std::int64_t>(
+      1, (total + static_cast<std::int64_t>(kBuckets) - 1) / static_cast<std::int64_t>(kBuckets));
   // Series: 0-2 observer against port work per scalar; 3-4 E_obs of float, Q16 against double;
   // 5-6 force of float, Q16 against double.
   std::vector<DriftSeries> series;
@@ -537,7 +536,8 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
     return rate > 0.0 && std::abs(ratio - std::round(ratio)) <= 1e-9;
   };
   for (const double rate : options.rates_hz) {
-    if (!divides(rate)) return Error{fmt::format("rate {} Hz does not divide the reference rate {} Hz", rate, reference_rate)};
+    if (!divides(rate))
+      return Error{fmt::format("rate {} Hz does not divide the reference rate {} Hz", rate, reference_rate)};
   }
   for (std::size_t i = 1; i < options.reference_rates_hz.size(); ++i) {
     if (options.reference_rates_hz[i] != 2.0 * options.reference_rates_hz[i - 1]) {
@@ -613,7 +613,8 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
     for (std::size_t i = 0; i + 1 < ladder.size(); ++i) {
       const double rate = options.reference_rates_hz[i];
       const Difference d = difference(ladder[i], rate, ladder[i + 1], 2.0 * rate, windows);
-      ConvergenceStep step{rate, d.max_n, d.rms_n, d.away_max_n, d.away_rms_n, std::nan(""), std::nan(""), std::nan("")};
+      ConvergenceStep step{rate,         d.max_n,      d.rms_n,      d.away_max_n,
+                           d.away_rms_n, std::nan(""), std::nan(""), std::nan("")};
       if (i > 0) {
         step.rms_order = observed_order(conv.steps.back().rms_diff_n, step.rms_diff_n);
         step.away_rms_order = observed_order(conv.steps.back().away_rms_diff_n, step.away_rms_diff_n);
@@ -641,12 +642,15 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
       const Forces check =
           run_any(reference_desc.value(), scene, ScalarKind::kDouble, conv.check_rate_hz, SineMethod::kLibrary);
       const Difference d = difference(reference, reference_rate, check, conv.check_rate_hz, windows);
-      conv.check = {reference_rate, d.max_n, d.rms_n, d.away_max_n, d.away_rms_n, std::nan(""), std::nan(""), std::nan("")};
+      conv.check = {reference_rate, d.max_n,      d.rms_n,      d.away_max_n,
+                    d.away_rms_n,   std::nan(""), std::nan(""), std::nan("")};
       const double tick_s = 1.0 / reference_rate;
-      for (const Lateness& l : event_lateness(find_events(check.state, 0.0, conv.check_rate_hz), events, 2.0 * tick_s, 0.02)) {
+      for (const Lateness& l :
+           event_lateness(find_events(check.state, 0.0, conv.check_rate_hz), events, 2.0 * tick_s, 0.02)) {
         conv.check_unmatched_events += l.unmatched;
         if (l.matched > 0) {
-          conv.check_event_shift_s = std::max({conv.check_event_shift_s, std::abs(l.max_late_s), std::abs(l.min_late_s)});
+          conv.check_event_shift_s =
+              std::max({conv.check_event_shift_s, std::abs(l.max_late_s), std::abs(l.min_late_s)});
         }
       }
       // The check run is itself late by up to its own share: first order, the reference's shift
@@ -666,7 +670,8 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
         double change = 0.0;
         const std::size_t lo = i >= whole_ticks ? i - whole_ticks : 0;
         const std::size_t hi = std::min(n - 1, i + whole_ticks);
-        for (std::size_t j = lo; j <= hi; ++j) change = std::max(change, norm(reference.force_n[j] - reference.force_n[i]));
+        for (std::size_t j = lo; j <= hi; ++j)
+          change = std::max(change, norm(reference.force_n[j] - reference.force_n[i]));
         change *= shift_ticks / static_cast<double>(whole_ticks);
         conv.event_max_bound_n = std::max(conv.event_max_bound_n, change);
         event_sum += change * change;
@@ -683,19 +688,18 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
       if (!conv.steps.empty()) {
         const ConvergenceStep& last = conv.steps.back();
         const ConvergenceStep& before = conv.steps.size() > 1 ? conv.steps[conv.steps.size() - 2] : last;
-        conv.reference_away_rms_error_n = std::max(conv.reference_away_rms_error_n,
-                                                   scale_for(before.away_rms_order, last.away_rms_order) * d.away_rms_n);
-        conv.reference_away_max_error_n = std::max(conv.reference_away_max_error_n,
-                                                   scale_for(before.away_max_order, last.away_max_order) * d.away_max_n);
+        conv.reference_away_rms_error_n = std::max(
+            conv.reference_away_rms_error_n, scale_for(before.away_rms_order, last.away_rms_order) * d.away_rms_n);
+        conv.reference_away_max_error_n = std::max(
+            conv.reference_away_max_error_n, scale_for(before.away_max_order, last.away_max_order) * d.away_max_n);
       } else {
         conv.reference_away_rms_error_n = scale * d.away_rms_n;
         conv.reference_away_max_error_n = scale * d.away_max_n;
       }
-      conv.reference_rms_error_n =
-          std::max({conv.reference_rms_error_n, scale * d.rms_n,
-                    std::hypot(conv.reference_away_rms_error_n, conv.event_rms_bound_n)});
-      conv.reference_max_error_n = std::max({conv.reference_max_error_n, scale * d.max_n,
-                                             conv.reference_away_max_error_n + conv.event_max_bound_n});
+      conv.reference_rms_error_n = std::max({conv.reference_rms_error_n, scale * d.rms_n,
+                                             std::hypot(conv.reference_away_rms_error_n, conv.event_rms_bound_n)});
+      conv.reference_max_error_n = std::max(
+          {conv.reference_max_error_n, scale * d.max_n, conv.reference_away_max_error_n + conv.event_max_bound_n});
     }
     report.convergence.push_back(conv);
 
@@ -771,8 +775,9 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
           const double overhead = report.clock.overhead_mean_cycles;
           row.mean_ns = std::max(0.0, histogram.mean_in_bins() - overhead) / report.clock.cycles_per_ns;
           const std::uint64_t median = histogram.percentile(0.5);
-          row.median_ns = static_cast<double>(median > report.clock.overhead_cycles ? median - report.clock.overhead_cycles : 0) /
-                          report.clock.cycles_per_ns;
+          row.median_ns =
+              static_cast<double>(median > report.clock.overhead_cycles ? median - report.clock.overhead_cycles : 0) /
+              report.clock.cycles_per_ns;
           report.rows.push_back(row);
         }
       }
@@ -789,14 +794,15 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
       std::vector<ClosedLoopRun> cl_ladder;
       for (const double rate : ladder_rates) {
         say(fmt::format("{}: closed loop, double reference cl_ladder at {:g} Hz", scene, rate));
-        cl_ladder.push_back(closed_loop_run(path, hand, closed_loop_sim_config(ScalarKind::kDouble, rate, options.drift_seed),
-                                            options.closed_loop_s));
+        cl_ladder.push_back(closed_loop_run(
+            path, hand, closed_loop_sim_config(ScalarKind::kDouble, rate, options.drift_seed), options.closed_loop_s));
         if (!cl_ladder.back().refused.empty()) return Error{cl_ladder.back().refused};
       }
       ClosedLoopConvergence cl_conv;
       cl_conv.scene = std::string(scene);
       for (std::size_t i = 0; i + 1 < cl_ladder.size(); ++i) {
-        const ClosedDifference d = closed_difference(cl_ladder[i], ladder_rates[i], cl_ladder[i + 1], ladder_rates[i + 1]);
+        const ClosedDifference d =
+            closed_difference(cl_ladder[i], ladder_rates[i], cl_ladder[i + 1], ladder_rates[i + 1]);
         ClosedLoopStep step{ladder_rates[i], d.force_rms_n, d.position_rms_m, std::nan(""), std::nan("")};
         if (i > 0) {
           step.force_order = observed_order(cl_conv.steps.back().force_rms_diff_n, step.force_rms_diff_n);
@@ -826,7 +832,8 @@ Result<PrecisionReport> run_precision(const PrecisionOptions& options, const Pro
           c->run(std::max<std::uint64_t>(c->info().ticks_per_pass, 10000));
           histogram = CycleHistogram();
           c->time(options.timing_ticks, histogram);
-          loop_ns = std::max(0.0, histogram.mean_in_bins() - report.clock.overhead_mean_cycles) / report.clock.cycles_per_ns;
+          loop_ns =
+              std::max(0.0, histogram.mean_in_bins() - report.clock.overhead_mean_cycles) / report.clock.cycles_per_ns;
         }
         for (const double rate : options.rates_hz) {
           ClosedLoopRow row;
@@ -920,12 +927,12 @@ std::string precision_csv(const PrecisionReport& r) {
     for (const auto& c : r.convergence) {
       if (c.scene == row.scene) reference_error = c.reference_away_rms_error_n;
     }
-    csv += fmt::format("{},{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.2f},{:.1f},{},{:.6e}\n",
-                       row.scene, scalar_kind_name(row.scalar),
-                       row.sine ? sine_method_name(*row.sine) : std::string_view("-"), row.rate_hz, row.max_error_n,
-                       row.rms_error_n, row.away_max_error_n, row.away_rms_error_n, row.same_rate_max_error_n,
-                       row.held_max_error_n, row.held_rms_error_n, row.held_away_rms_error_n, row.mean_ns,
-                       row.median_ns, row.fault_ticks, reference_error);
+    csv += fmt::format(
+        "{},{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.2f},{:.1f},{},{:.6e}\n", row.scene,
+        scalar_kind_name(row.scalar), row.sine ? sine_method_name(*row.sine) : std::string_view("-"), row.rate_hz,
+        row.max_error_n, row.rms_error_n, row.away_max_error_n, row.away_rms_error_n, row.same_rate_max_error_n,
+        row.held_max_error_n, row.held_rms_error_n, row.held_away_rms_error_n, row.mean_ns, row.median_ns,
+        row.fault_ticks, reference_error);
   }
   return csv;
 }
@@ -945,13 +952,14 @@ std::string convergence_csv(const PrecisionReport& r) {
   std::string csv = "scene,rate_hz,next_rate_hz,max_diff_n,rms_diff_n,away_max_diff_n,away_rms_diff_n,away_rms_order\n";
   for (const auto& c : r.convergence) {
     for (const auto& s : c.steps) {
-      csv += fmt::format("{},{:g},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", c.scene, s.rate_hz, 2.0 * s.rate_hz,
-                         s.max_diff_n, s.rms_diff_n, s.away_max_diff_n, s.away_rms_diff_n, order_text(s.away_rms_order));
+      csv +=
+          fmt::format("{},{:g},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", c.scene, s.rate_hz, 2.0 * s.rate_hz,
+                      s.max_diff_n, s.rms_diff_n, s.away_max_diff_n, s.away_rms_diff_n, order_text(s.away_rms_order));
     }
     if (c.check_rate_hz > 0.0) {  // the check rung: the reference against a run a multiple of its rate
       const ConvergenceStep& s = c.check;
-      csv += fmt::format("{},{:g},{:g},{:.6e},{:.6e},{:.6e},{:.6e},-\n", c.scene, s.rate_hz, c.check_rate_hz, s.max_diff_n,
-                         s.rms_diff_n, s.away_max_diff_n, s.away_rms_diff_n);
+      csv += fmt::format("{},{:g},{:g},{:.6e},{:.6e},{:.6e},{:.6e},-\n", c.scene, s.rate_hz, c.check_rate_hz,
+                         s.max_diff_n, s.rms_diff_n, s.away_max_diff_n, s.away_rms_diff_n);
     }
   }
   return csv;
@@ -967,13 +975,14 @@ std::string closed_loop_csv(const PrecisionReport& r) {
     for (const auto& c : r.closed_loop_convergence) {
       if (c.scene == row.scene) reference_error = c.reference_force_rms_error_n;
     }
-    csv += fmt::format("{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{:.6e},{}\n",
-                       row.scene, scalar_kind_name(row.scalar), row.rate_hz, row.force_rms_error_n,
-                       row.force_max_error_n, row.position_rms_error_m, row.position_max_error_m, row.loop_ticks,
-                       row.loop_ticks_left_out, row.loop_runs, row.loop_mean_min_ns, row.loop_mean_max_ns, row.loop_mean_ns, row.loop_median_ns, row.loop_p99_ns,
-                       row.loop_cpu_us_per_s, row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0,
-                       std::isnan(row.m3_instructions_per_s) ? std::string() : fmt::format("{:.0f}", row.m3_instructions_per_s),
-                       reference_error, row.refused.empty() ? "" : "refused");
+    csv += fmt::format(
+        "{},{},{:g},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{:.6e},{}\n",
+        row.scene, scalar_kind_name(row.scalar), row.rate_hz, row.force_rms_error_n, row.force_max_error_n,
+        row.position_rms_error_m, row.position_max_error_m, row.loop_ticks, row.loop_ticks_left_out, row.loop_runs,
+        row.loop_mean_min_ns, row.loop_mean_max_ns, row.loop_mean_ns, row.loop_median_ns, row.loop_p99_ns,
+        row.loop_cpu_us_per_s, row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0,
+        std::isnan(row.m3_instructions_per_s) ? std::string() : fmt::format("{:.0f}", row.m3_instructions_per_s),
+        reference_error, row.refused.empty() ? "" : "refused");
   }
   return csv;
 }
@@ -1054,8 +1063,8 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     for (const auto& s : c.steps) {
       md += fmt::format("| {} | {:g} / {:g} kHz | {} | {} | {} | {} | {} | {} | {} |\n", c.scene, s.rate_hz / 1e3,
                         2.0 * s.rate_hz / 1e3, sci(s.max_diff_n), sci(s.rms_diff_n), order_text(s.rms_order),
-                        sci(s.away_max_diff_n),
-                        sci(s.away_rms_diff_n), order_text(s.away_rms_order), order_text(s.away_max_order));
+                        sci(s.away_max_diff_n), sci(s.away_rms_diff_n), order_text(s.away_rms_order),
+                        order_text(s.away_max_order));
     }
     if (c.check_rate_hz > 0.0) {
       const ConvergenceStep& s = c.check;
@@ -1076,19 +1085,22 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       "quadrature, the event bound's RMS taken over the whole pass). **Event shift**: the largest shift of an event "
       "between the reference and the check run, and the shift the bound assumes, in reference ticks.\n\n",
       reference_rate, check_factor, check_factor, check_factor, check_factor - 1.0);
-  md += "| scene | away: RMS [N] | away: max [N] | every tick: RMS [N] | every tick: max [N] | event bound: max / RMS "
-        "[N] | event shift: vs check / bound [ticks] | events in the compared pass |\n| --- | ---: | ---: | ---: | ---: | "
-        "---: | ---: | --- |\n";
+  md +=
+      "| scene | away: RMS [N] | away: max [N] | every tick: RMS [N] | every tick: max [N] | event bound: max / RMS "
+      "[N] | event shift: vs check / bound [ticks] | events in the compared pass |\n| --- | ---: | ---: | ---: | ---: | "
+      "---: | ---: | --- |\n";
   for (const auto& c : r.convergence) {
     std::string counts;
     for (const auto& [kind, n] : c.event_counts) {
       counts += fmt::format("{}{} {}", counts.empty() ? "" : ", ", n, event_kind_name(kind));
     }
-    if (c.check_unmatched_events > 0) counts += fmt::format("; {} not matched in the check run", c.check_unmatched_events);
-    md += fmt::format("| {} | {} | {} | {} | {} | {} / {} | {:.2f} / {:.2f} | {} |\n", c.scene,
-                      sci(c.reference_away_rms_error_n), sci(c.reference_away_max_error_n), sci(c.reference_rms_error_n),
-                      sci(c.reference_max_error_n), sci(c.event_max_bound_n), sci(c.event_rms_bound_n),
-                      c.check_event_shift_s * reference_rate, c.event_shift_bound_s * reference_rate, counts);
+    if (c.check_unmatched_events > 0)
+      counts += fmt::format("; {} not matched in the check run", c.check_unmatched_events);
+    md +=
+        fmt::format("| {} | {} | {} | {} | {} | {} / {} | {:.2f} / {:.2f} | {} |\n", c.scene,
+                    sci(c.reference_away_rms_error_n), sci(c.reference_away_max_error_n), sci(c.reference_rms_error_n),
+                    sci(c.reference_max_error_n), sci(c.event_max_bound_n), sci(c.event_rms_bound_n),
+                    c.check_event_shift_s * reference_rate, c.event_shift_bound_s * reference_rate, counts);
   }
 
   md += fmt::format(
@@ -1127,23 +1139,29 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
   };
   double worst_reference = 0.0;
   for (const auto& c : r.convergence) worst_reference = std::max(worst_reference, c.reference_away_rms_error_n);
-  summary_row(fmt::format("double: RMS held error away from events vs the {:g} kHz reference (its own: {}) [N]",
-                          reference_rate / 1e3, sci(worst_reference)),
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.held_away_rms_error_n : 0.0; });
+  summary_row(
+      fmt::format("double: RMS held error away from events vs the {:g} kHz reference (its own: {}) [N]",
+                  reference_rate / 1e3, sci(worst_reference)),
+      [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.held_away_rms_error_n : 0.0; });
   summary_row("double: max sampled error away from events [N]",
               [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.away_max_error_n : 0.0; });
   summary_row("double: max sampled error, every tick (events included) [N]",
               [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.max_error_n : 0.0; });
-  summary_row("float: max error vs double at the same rate [N]",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kFloat ? row.same_rate_max_error_n : 0.0; });
-  summary_row("q16.16: max error vs double at the same rate [N]",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.same_rate_max_error_n : 0.0; });
-  summary_row("double: mean ns per tick",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.mean_ns : 0.0; }, true);
-  summary_row("float: mean ns per tick",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kFloat ? row.mean_ns : 0.0; }, true);
-  summary_row("q16.16: mean ns per tick",
-              [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; }, true);
+  summary_row("float: max error vs double at the same rate [N]", [](const PrecisionRow& row) {
+    return row.scalar == ScalarKind::kFloat ? row.same_rate_max_error_n : 0.0;
+  });
+  summary_row("q16.16: max error vs double at the same rate [N]", [](const PrecisionRow& row) {
+    return row.scalar == ScalarKind::kQ16_16 ? row.same_rate_max_error_n : 0.0;
+  });
+  summary_row(
+      "double: mean ns per tick",
+      [](const PrecisionRow& row) { return row.scalar == ScalarKind::kDouble ? row.mean_ns : 0.0; }, true);
+  summary_row(
+      "float: mean ns per tick",
+      [](const PrecisionRow& row) { return row.scalar == ScalarKind::kFloat ? row.mean_ns : 0.0; }, true);
+  summary_row(
+      "q16.16: mean ns per tick",
+      [](const PrecisionRow& row) { return row.scalar == ScalarKind::kQ16_16 ? row.mean_ns : 0.0; }, true);
   md += "\n";
 
   // What makes a "vs double at the same rate" figure large: an event on another tick,
@@ -1166,13 +1184,13 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       shifts += fmt::format(
           "- {}, {}{}, {:g} Hz: {} {:.0f} tick{} {} than double (double: t = {:.4f} s); the handle at its tick: x = {:.1f} "
           "um, z = {:.1f} um{}; that row's max vs double: {} N\n",
-          row.scene, scalar_kind_name(row.scalar), row.sine ? fmt::format(" ({} sine)", sine_method_name(*row.sine)) : "",
-          row.rate_hz, event_kind_name(e.kind), std::abs(ticks), std::abs(ticks) > 1.5 ? "s" : "",
-          ticks < 0.0 ? "earlier" : "later", e.double_t_s, e.position_m.x * 1e6, e.position_m.z * 1e6,
-          row.scalar == ScalarKind::kQ16_16
-              ? fmt::format(" (as Q16.16 holds them: x = {:.1f} um, z = {:.1f} um)", q16(e.position_m.x) * 1e6,
-                            q16(e.position_m.z) * 1e6)
-              : std::string(),
+          row.scene, scalar_kind_name(row.scalar),
+          row.sine ? fmt::format(" ({} sine)", sine_method_name(*row.sine)) : "", row.rate_hz, event_kind_name(e.kind),
+          std::abs(ticks), std::abs(ticks) > 1.5 ? "s" : "", ticks < 0.0 ? "earlier" : "later", e.double_t_s,
+          e.position_m.x * 1e6, e.position_m.z * 1e6,
+          row.scalar == ScalarKind::kQ16_16 ? fmt::format(" (as Q16.16 holds them: x = {:.1f} um, z = {:.1f} um)",
+                                                          q16(e.position_m.x) * 1e6, q16(e.position_m.z) * 1e6)
+                                            : std::string(),
           sci(row.same_rate_max_error_n));
     }
   }
@@ -1198,7 +1216,8 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       "the filtered velocity (an impact's speed threshold, the cliff's) can be later: the 50 Hz estimate itself lags "
       "differently at each rate.\n\n",
       reference_rate, 1e3 / reference_rate);
-  md += "| scene | rate | contact onset | contact end | impact trigger | cliff fall |\n| --- | ---: | --- | --- | --- | --- |\n";
+  md +=
+      "| scene | rate | contact onset | contact end | impact trigger | cliff fall |\n| --- | ---: | --- | --- | --- | --- |\n";
   for (const auto& row : r.rows) {
     if (row.scalar != ScalarKind::kDouble || (row.sine && *row.sine != SineMethod::kLibrary)) continue;
     md += fmt::format("| {} | {:g} Hz | {} | {} | {} | {} |\n", row.scene, row.rate_hz,
@@ -1221,12 +1240,14 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
           ref_max = c.reference_max_error_n;
         }
       }
-      md += fmt::format("\n#### {} (reference's own error, RMS: {} N away from events, {} N every tick; max: {} N every tick)\n\n", scene,
-                        sci(ref), sci(ref_all), sci(ref_max));
+      md += fmt::format(
+          "\n#### {} (reference's own error, RMS: {} N away from events, {} N every tick; max: {} N every tick)\n\n",
+          scene, sci(ref), sci(ref_all), sci(ref_max));
       md += "| scalar | sine | rate | max error [N] | RMS error [N] | away: max [N] | away: RMS [N] | max vs double, "
             "same rate [N] | held max [N] | held RMS [N] | held RMS, away [N] | mean ns | median ns | CPU per second "
             "[us] | fault ticks |\n";
-      md += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+      md +=
+          "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     }
     md += fmt::format("| {} | {} | {:g} Hz | {} | {} | {} | {} | {} | {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {} |\n",
                       scalar_kind_name(row.scalar), row.sine ? sine_method_name(*row.sine) : std::string_view("-"),
@@ -1291,14 +1312,16 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
             ? "The Cortex-M3 images were not built when this ran: \"not built\" below (`cmake --workflow --preset "
               "release && ctest --preset release -L mcu` builds them)."
             : "Here from the images as `report mcu` ran them just before this report.");
-    if (!plot_dir.empty()) md += fmt::format("![closed loop: force error against CPU per simulated second]({}/closed_loop.png)\n\n", plot_dir);
+    if (!plot_dir.empty())
+      md +=
+          fmt::format("![closed loop: force error against CPU per simulated second]({}/closed_loop.png)\n\n", plot_dir);
     md += "The reference ladder:\n\n| scene | rates | force: RMS diff [N] | order | position: RMS diff [m] | order |\n"
           "| --- | --- | ---: | ---: | ---: | ---: |\n";
     for (const auto& c : r.closed_loop_convergence) {
       for (const auto& s : c.steps) {
-        md += fmt::format("| {} | {:g} / {:g} kHz | {} | {} | {} | {} |\n", c.scene, s.rate_hz / 1e3, 2.0 * s.rate_hz / 1e3,
-                          sci(s.force_rms_diff_n), order_text(s.force_order), sci(s.position_rms_diff_m),
-                          order_text(s.position_order));
+        md += fmt::format("| {} | {:g} / {:g} kHz | {} | {} | {} | {} |\n", c.scene, s.rate_hz / 1e3,
+                          2.0 * s.rate_hz / 1e3, sci(s.force_rms_diff_n), order_text(s.force_order),
+                          sci(s.position_rms_diff_m), order_text(s.position_order));
       }
     }
     md += "\n| scene | reference's own error: force RMS [N] | position RMS [m] |\n| --- | ---: | ---: |\n";
@@ -1306,26 +1329,28 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       md += fmt::format("| {} | {} | {} |\n", c.scene, sci(c.reference_force_rms_error_n),
                         sci(c.reference_position_rms_error_m));
     }
-    md += "\n| scene | scalar | rate | force RMS error [N] | force max error [N] | position RMS error [m] | position max "
-          "error [m] | ticks per run | loop tick: mean [ns] | median [ns] | p99 [ns] | runs' means, min..max [ns] | "
-          "**loop CPU per simulated second [us]** | scripted pass: tick [ns] | scripted pass: CPU per simulated second "
-          "[us] (computed: its tick x rate) | Cortex-M3: instructions per simulated second [10^6] (computed: 1 kHz mean per tick x rate) |\n"
-          "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+    md +=
+        "\n| scene | scalar | rate | force RMS error [N] | force max error [N] | position RMS error [m] | position max "
+        "error [m] | ticks per run | loop tick: mean [ns] | median [ns] | p99 [ns] | runs' means, min..max [ns] | "
+        "**loop CPU per simulated second [us]** | scripted pass: tick [ns] | scripted pass: CPU per simulated second "
+        "[us] (computed: its tick x rate) | Cortex-M3: instructions per simulated second [10^6] (computed: 1 kHz mean per tick x rate) |\n"
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& row : r.closed_loop) {
       if (!row.refused.empty()) {
         md += fmt::format("| {} | {} | {:g} Hz | refused: {} | | | | | | | | | | | | |\n", row.scene,
                           scalar_kind_name(row.scalar), row.rate_hz, row.refused);
         continue;
       }
-      const std::string m3 = row.scalar != ScalarKind::kQ16_16          ? std::string("-")
-                             : std::isnan(row.m3_instructions_per_s) ? std::string("not built")
-                                                                      : fmt::format("{:.2f}", row.m3_instructions_per_s / 1e6);
-      md += fmt::format("| {} | {} | {:g} Hz | {} | {} | {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {:.1f}..{:.1f} | **{:.0f}** | {:.1f} | {:.0f} | {} |\n",
-                        row.scene, scalar_kind_name(row.scalar), row.rate_hz, sci(row.force_rms_error_n),
-                        sci(row.force_max_error_n), sci(row.position_rms_error_m), sci(row.position_max_error_m),
-                        row.loop_ticks, row.loop_mean_ns, row.loop_median_ns, row.loop_p99_ns, row.loop_mean_min_ns,
-                        row.loop_mean_max_ns, row.loop_cpu_us_per_s,
-                        row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0, m3);
+      const std::string m3 = row.scalar != ScalarKind::kQ16_16 ? std::string("-")
+                             : std::isnan(row.m3_instructions_per_s)
+                                 ? std::string("not built")
+                                 : fmt::format("{:.2f}", row.m3_instructions_per_s / 1e6);
+      md += fmt::format(
+          "| {} | {} | {:g} Hz | {} | {} | {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {:.1f}..{:.1f} | **{:.0f}** | {:.1f} | {:.0f} | {} |\n",
+          row.scene, scalar_kind_name(row.scalar), row.rate_hz, sci(row.force_rms_error_n), sci(row.force_max_error_n),
+          sci(row.position_rms_error_m), sci(row.position_max_error_m), row.loop_ticks, row.loop_mean_ns,
+          row.loop_median_ns, row.loop_p99_ns, row.loop_mean_min_ns, row.loop_mean_max_ns, row.loop_cpu_us_per_s,
+          row.scripted_mean_ns, row.scripted_mean_ns * row.rate_hz / 1000.0, m3);
     }
   }
   if (!r.drift.empty()) {
@@ -1362,9 +1387,10 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
         r.options.drift_hours, r.options.drift_rate_hz, r.options.drift_hours,
         r.options.drift_hours * 3600.0 * r.options.drift_rate_hz, r.options.drift_seed, r.drift_segments_per_h);
     if (!plot_dir.empty()) md += fmt::format("![drift over simulated hours]({}/drift.png)\n\n", plot_dir);
-    md += "| scene | scalar | quantity | max over first bucket | max over last bucket | at the end (signed) | slope per "
-          "hour | R^2 | energy through the port, sum abs(F . dx) [J] | CPU time, scene [s] |\n"
-          "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
+    md +=
+        "| scene | scalar | quantity | max over first bucket | max over last bucket | at the end (signed) | slope per "
+        "hour | R^2 | energy through the port, sum abs(F . dx) [J] | CPU time, scene [s] |\n"
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& d : r.drift) {
       if (d.max_abs.empty()) continue;
       md += fmt::format("| {} | {} | {} [{}] | {} | {} | {} | {} | {:.2f} | {} | {:.1f} |\n", d.scene,

@@ -87,8 +87,8 @@ std::vector<Lateness> event_lateness(const std::vector<Event>& reference, const 
 
 bool near_event(const std::vector<Event>& events, double t_s, double before_s, double after_s) noexcept {
   // The first event later than t - after: only it and the ones up to t + before can cover t.
-  auto it = std::lower_bound(events.begin(), events.end(), t_s - after_s,
-                             [](const Event& e, double t) { return e.t_s < t; });
+  auto it =
+      std::lower_bound(events.begin(), events.end(), t_s - after_s, [](const Event& e, double t) { return e.t_s < t; });
   for (; it != events.end() && it->t_s <= t_s + before_s; ++it) {
     if (t_s >= it->t_s - before_s && t_s <= it->t_s + after_s) return true;
   }

@@ -166,7 +166,8 @@ bool hqr(Matrix& a, Index n, std::vector<std::complex<double>>& out) {
             r /= s;
             if (m == l) break;
             const double u = std::fabs(at(a, m, m - 1)) * (std::fabs(q) + std::fabs(r));
-            const double v = std::fabs(p) * (std::fabs(at(a, m - 1, m - 1)) + std::fabs(z) + std::fabs(at(a, m + 1, m + 1)));
+            const double v =
+                std::fabs(p) * (std::fabs(at(a, m - 1, m - 1)) + std::fabs(z) + std::fabs(at(a, m + 1, m + 1)));
             if (u <= kEps * v) break;
           }
           for (Index i = m; i < nn - 1; ++i) {

@@ -406,7 +406,8 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     const host_sim::DeviceParams falcon = host_sim::falcon_params();
     const host_sim::HandImpedance hand{0.1, 300.0, 15.0};  // the firm grip of scenes/hands/strike.toml
     s.map.name = cartoon ? "impact_cartoon_wall" : "impact_penalty_wall";
-    s.map.title = cartoon ? "Impact speed and stiffness: the cartoon wall" : "Impact speed and stiffness: a penalty wall";
+    s.map.title =
+        cartoon ? "Impact speed and stiffness: the cartoon wall" : "Impact speed and stiffness: a penalty wall";
     s.map.x_label = "impact speed [m/s]";
     s.map.y_label = "virtual stiffness K [N/m]";
     constexpr double kAim = -0.002;
@@ -444,9 +445,8 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
       e.duration_s = kImpactDuration;
       e.scene_toml = "[device]\nmax_force = 8.0\nmax_force_rate = 2000.0\n" + wall_toml(k, 0.0);
       if (cartoon) {
-        e.scene_toml +=
-            "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n  duration = 0.15\n"
-            "  frequency = 30.0\n";
+        e.scene_toml += "  [surface.impact]\n  recoil_gain = 200.0\n  oscillation_gain = 400.0\n  duration = 0.15\n"
+                        "  frequency = 30.0\n";
       }
       e.wall_stiffness_n_per_m = k;
       e.wall_max_force_n = 8.0;  // the scene's clamp (and the device's saturation)
@@ -554,10 +554,11 @@ double required_damping_at_n_s_per_m(const SampledLoop& l, double theta) noexcep
   using Complex = std::complex<double>;
   const Complex z_inverse = std::polar(1.0, -theta);
   const double half_sin = std::sin(theta / 2.0);
-  const double one_minus_cos = 2.0 * half_sin * half_sin;  // 1 - cos theta without cancellation
+  const double one_minus_cos = 2.0 * half_sin * half_sin;    // 1 - cos theta without cancellation
   const Complex difference(one_minus_cos, std::sin(theta));  // 1 - z^-1, likewise
   const Complex estimator = l.velocity_gain * difference / (l.period_s * (1.0 - (1.0 - l.velocity_gain) * z_inverse));
-  const Complex h = std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
+  const Complex h =
+      std::pow(z_inverse, l.delay_ticks) * (l.stiffness_n_per_m - l.velocity_feedback_n_s_per_m * estimator);
   return l.period_s / 2.0 * std::real(difference * h) / one_minus_cos;
 }
 
@@ -620,8 +621,8 @@ Result<PortCycle> port_cycle_of(const PortDrive& drive, const SceneDescription& 
   // The estimator forgets its start as (1 - a)^k: 40 / a ticks leave e^-40 of it.
   const std::int64_t settle = drive.delay_ticks + 2 + static_cast<std::int64_t>(std::ceil(40.0 / a));
   std::vector<double> forces(static_cast<std::size_t>(settle + q), 0.0);
-  ServoLoop<MotionSource, RuntimeScene<double>, NullPins, kSpecStages> loop(
-      MotionSource{&drive, p, q, &forces}, make_runtime_scene<double>(desc), config);
+  ServoLoop<MotionSource, RuntimeScene<double>, NullPins, kSpecStages> loop(MotionSource{&drive, p, q, &forces},
+                                                                            make_runtime_scene<double>(desc), config);
   for (std::int64_t k = 0; k < settle + q - drive.delay_ticks; ++k) static_cast<void>(loop.tick(k));
 
   // Hold interval j = [jT, (j+1)T] carries the force written at tick j - d. Over q ticks (p
@@ -770,8 +771,7 @@ Result<StabilityReport> run_stability(const StabilityOptions& options, const Pro
           if (p.spectral_radius > 1.0) {
             p.efold_s = experiment.period_s / std::log(p.spectral_radius);
             if (s.lengthen) {
-              experiment.duration_s =
-                  std::max(experiment.duration_s, std::min(options.longest_run_s, 3.0 * p.efold_s));
+              experiment.duration_s = std::max(experiment.duration_s, std::min(options.longest_run_s, 3.0 * p.efold_s));
             }
           }
         }
@@ -794,14 +794,14 @@ std::string stability_csv(const StabilityMap& map) {
       "kind,x,y,class,inside_bound,peak_ratio,growth,max_force_n,spectral_radius,efold_s,run_s,passivity_margin_n_s_per_m,"
       "port_margin_ramp_n_s_per_m,port_margin_sine_n_s_per_m\n";
   for (const auto& p : map.points) {
-    csv += fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{},{},{}\n", p.x, p.y,
-                       stability_name(p.outcome.stability), p.inside_bound ? 1 : 0, p.outcome.peak_ratio,
-                       p.outcome.growth, p.outcome.max_force_n,
-                       p.has_spectrum ? fmt::format("{:.9f}", p.spectral_radius) : std::string(),
-                       p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s,
-                       p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string(),
-                       p.has_port ? fmt::format("{:.6g}", p.port.margin_ramp_n_s_per_m) : std::string(),
-                       p.has_port ? fmt::format("{:.6g}", p.port.margin_sine_n_s_per_m) : std::string());
+    csv +=
+        fmt::format("point,{:.6g},{:.6g},{},{},{:.6g},{:.6g},{:.6g},{},{},{:.6g},{},{},{}\n", p.x, p.y,
+                    stability_name(p.outcome.stability), p.inside_bound ? 1 : 0, p.outcome.peak_ratio, p.outcome.growth,
+                    p.outcome.max_force_n, p.has_spectrum ? fmt::format("{:.9f}", p.spectral_radius) : std::string(),
+                    p.efold_s > 0.0 ? fmt::format("{:.6g}", p.efold_s) : std::string(), p.run_s,
+                    p.has_spectrum ? fmt::format("{:.6g}", p.passivity_margin_n_s_per_m) : std::string(),
+                    p.has_port ? fmt::format("{:.6g}", p.port.margin_ramp_n_s_per_m) : std::string(),
+                    p.has_port ? fmt::format("{:.6g}", p.port.margin_sine_n_s_per_m) : std::string());
   }
   for (const auto& [x, y] : map.bound_curve) csv += fmt::format("bound,{:.6g},{:.6g},,,,,,,,,,,\n", x, y);
   return csv;
@@ -848,17 +848,18 @@ std::string port_markdown(const StabilityMap& map) {
     if (ramp == by_b_req) {
       ++agree_ramp;
     } else {
-      disagreements.push_back({&p, "ramp", grid_ramp == ramp ? "b_req's maximum lies off the forcing frequencies"
-                                                            : "the code parts from the model"});
+      disagreements.push_back(
+          {&p, "ramp",
+           grid_ramp == ramp ? "b_req's maximum lies off the forcing frequencies" : "the code parts from the model"});
     }
     if (sine == by_b_req) {
       ++agree_sine;
     } else {
-      disagreements.push_back(
-          {&p, "sinusoid",
-           grid_sine != sine                ? "the code parts from the model"
-           : grid_ramp == by_b_req          ? "a sinusoid dissipates more than the worst motion through its samples"
-                                            : "b_req's maximum lies off the forcing frequencies"});
+      disagreements.push_back({&p, "sinusoid",
+                               grid_sine != sine ? "the code parts from the model"
+                               : grid_ramp == by_b_req
+                                   ? "a sinusoid dissipates more than the worst motion through its samples"
+                                   : "b_req's maximum lies off the forcing frequencies"});
     }
   }
   std::string md = fmt::format(
@@ -925,9 +926,9 @@ std::string spectral_markdown(const StabilityMap& map) {
       "\nPassivity by Colgate and Schenkel's b_req of the discrete law (necessary and sufficient for the linear "
       "port): inside the bound {} passive, {} not; outside it {} passive, {} not{}.{}\n",
       passive[1][1], passive[1][0], passive[0][1], passive[0][0],
-      on_the_bound == 0 ? std::string()
-                        : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound,
-                                      kOnTheBoundNsPerM),
+      on_the_bound == 0
+          ? std::string()
+          : fmt::format("; {} on it, b = b_req within {:g} N s/m (marginal)", on_the_bound, kOnTheBoundNsPerM),
       as_the_bound ? " *True by construction*: for this map's law b_req is the drawn bound (a closed form, "
                      "tests/stability_model_test.cpp), so these counts are the bound's rows again, not independent "
                      "evidence; the measured check of passivity is the port energy below."
@@ -964,8 +965,9 @@ std::string spectral_markdown(const StabilityMap& map) {
         "contact and bounces; on the impact maps also the 8 N clamp, Coulomb friction and quantisation). The "
         "slowest-growing of them:\n\n",
         unseen.size(), too_short, kEfoldsToSee, static_cast<int>(unseen.size()) - too_short);
-    md += fmt::format("| {} | {} | rho | e-folding [s] | run [s] | run's class |\n| ---: | ---: | ---: | ---: | ---: | --- |\n",
-                      map.x_label, map.y_label);
+    md += fmt::format(
+        "| {} | {} | rho | e-folding [s] | run [s] | run's class |\n| ---: | ---: | ---: | ---: | ---: | --- |\n",
+        map.x_label, map.y_label);
     for (std::size_t i = 0; i < std::min<std::size_t>(unseen.size(), 8); ++i) {
       const auto* p = unseen[i];
       md += fmt::format("| {:.4g} | {:.4g} | {:.7f} | {:.3g} | {:.3g} | {} |\n", p->x, p->y, p->spectral_radius,
@@ -991,11 +993,14 @@ std::string stability_markdown(const StabilityReport& r, const std::string& plot
     md += fmt::format("| outside the bound | {} | {} | {} |\n\n", counts[1][0], counts[1][1], counts[1][2]);
     if (!map.points.empty() && map.points.front().has_spectrum) md += spectral_markdown(map);
   }
-  md += fmt::format("\n{} points, {:.1f} s of CPU.\n", [&r] {
-    std::size_t n = 0;
-    for (const auto& m : r.maps) n += m.points.size();
-    return n;
-  }(), r.cpu_s);
+  md += fmt::format(
+      "\n{} points, {:.1f} s of CPU.\n",
+      [&r] {
+        std::size_t n = 0;
+        for (const auto& m : r.maps) n += m.points.size();
+        return n;
+      }(),
+      r.cpu_s);
   return md;
 }
 

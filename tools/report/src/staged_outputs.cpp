@@ -70,7 +70,8 @@ void on_stop(int signo, siginfo_t* info, void*) {
     }
   }
   for (int i = 0; i < kSlots; ++i) {
-    if (g_staged_in_use[static_cast<std::size_t>(i)].load()) ::unlink(g_staged_paths[static_cast<std::size_t>(i)].data());
+    if (g_staged_in_use[static_cast<std::size_t>(i)].load())
+      ::unlink(g_staged_paths[static_cast<std::size_t>(i)].data());
   }
   const char* name = sigabbrev_np(signo);
   say(g_command);
@@ -98,7 +99,8 @@ Result<fs::path> StagedOutputs::stage(const fs::path& target) {
   const fs::path staged = target.parent_path() / fmt::format(".{}.staged-{}{}", target.stem().string(), ::getpid(),
                                                              target.extension().string());
   const int slot = take_slot(staged);
-  if (slot < 0) return Error{fmt::format("cannot stage {}: too many files in one step, or the path is too long", target.string())};
+  if (slot < 0)
+    return Error{fmt::format("cannot stage {}: too many files in one step, or the path is too long", target.string())};
   entries_.push_back(Entry{staged, target, slot});
   return staged;
 }

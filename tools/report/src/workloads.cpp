@@ -220,7 +220,8 @@ struct LoopWork {
   using Loop = ServoLoop<ScriptedDevice, SceneT, NullPins, kStages>;
 
   LoopWork(SceneT scene, ServoConfig config, std::vector<Vec3<double>> samples)
-      : scene_(std::move(scene)), config_(config),
+      : scene_(std::move(scene)),
+        config_(config),
         samples_(std::make_shared<std::vector<Vec3<double>>>(std::move(samples))) {
     rebuild();
   }
@@ -259,7 +260,6 @@ struct LoopWork {
 /// passivity observer and controller, rate limit, clamp.
 /// Replay's configuration at a fixed rate: the [device] clamp and rate limit only.
 ServoConfig spec_config(const SceneDescription& desc, double rate_hz) { return servo_config(desc, 1.0 / rate_hz); }
-
 
 // ---- inputs ---------------------------------------------------------------------------------
 
@@ -410,7 +410,8 @@ struct SearchLoopWork {
   using Loop = ServoLoop<Device, SceneT, NullPins, kEveryStage>;
 
   SearchLoopWork(SceneT scene, ServoConfig config, std::vector<Vec3<double>> samples)
-      : scene_(std::move(scene)), config_(config),
+      : scene_(std::move(scene)),
+        config_(config),
         samples_(std::make_shared<std::vector<Vec3<double>>>(std::move(samples))) {
     rebuild();
   }
@@ -523,7 +524,8 @@ class CaseBuilder {
       auto inputs = search_inputs<S>(search_path(name));
       const std::size_t ticks = inputs.size();
       add(Level::kScene, name, "search", "search", ticks,
-          SceneWork<RuntimeScene<S>>{make_runtime_scene<S>(*desc), ForceSafety<S>(desc->limits), std::move(inputs), {}, {}});
+          SceneWork<RuntimeScene<S>>{
+              make_runtime_scene<S>(*desc), ForceSafety<S>(desc->limits), std::move(inputs), {}, {}});
     }
   }
   void loop_searches() {
@@ -558,55 +560,74 @@ class CaseBuilder {
         EffectWork<E>{params, state, std::move(inputs), {}, nullptr});
   }
 
-  static Vec3<double> above(Lcg& r) { return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(0.0005, 0.005)}; }
-  static Vec3<double> inside(Lcg& r) { return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(-0.005, -0.0005)}; }
-  static Vec3<double> any_velocity(Lcg& r) { return {r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2)}; }
+  static Vec3<double> above(Lcg& r) {
+    return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(0.0005, 0.005)};
+  }
+  static Vec3<double> inside(Lcg& r) {
+    return {r.uniform(-0.03, 0.03), r.uniform(-0.03, 0.03), r.uniform(-0.005, -0.0005)};
+  }
+  static Vec3<double> any_velocity(Lcg& r) {
+    return {r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2), r.uniform(-0.2, 0.2)};
+  }
 
   void penalty_wall() {
-    const auto s = make_runtime_scene<S>(loaded_.wall).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
+    const auto s =
+        make_runtime_scene<S>(loaded_.wall).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using Spring = Surface<SpringWall<S>>;
     const typename Spring::Params spring{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, {}};
-    effect<Spring>("penalty wall", "out of contact", spring, {},
-                   branch_inputs<S>(1, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), any_velocity(r), 0); }));
-    effect<Spring>("penalty wall", "in contact", spring, {},
-                   branch_inputs<S>(2, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), any_velocity(r), 0); }));
+    effect<Spring>("penalty wall", "out of contact", spring, {}, branch_inputs<S>(1, [](Lcg& r, std::size_t) {
+                     return tick_input<S>(above(r), any_velocity(r), 0);
+                   }));
+    effect<Spring>("penalty wall", "in contact", spring, {}, branch_inputs<S>(2, [](Lcg& r, std::size_t) {
+                     return tick_input<S>(inside(r), any_velocity(r), 0);
+                   }));
     using Damped = Surface<PenaltyWall<S>>;
     const typename Damped::Params damped{s.plane, {s.wall.stiffness_n_per_m, scalar_cast<S>(2.0)}, {}, {}};
-    effect<Damped>("penalty wall, damping 2 N s/m", "in contact", damped, {},
-                   branch_inputs<S>(3, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), any_velocity(r), 0); }));
+    effect<Damped>(
+        "penalty wall, damping 2 N s/m", "in contact", damped, {},
+        branch_inputs<S>(3, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), any_velocity(r), 0); }));
   }
 
   void friction() {
-    const auto s = make_runtime_scene<S>(loaded_.friction).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.friction)
+                       .template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, RealisticFriction<S>>;
     const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.friction, {}};
     const std::string name = "realistic friction";
-    effect<F>(name, "out of contact", p, {},
-              branch_inputs<S>(4, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), r.horizontal(0.0, 0.3), 0); }));
-    effect<F>(name, "in contact, |v_t| < v_reg", p, {}, branch_inputs<S>(5, [](Lcg& r, std::size_t) {
-                return tick_input<S>(inside(r), r.horizontal(0.001, 0.018) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
+    effect<F>(name, "out of contact", p, {}, branch_inputs<S>(4, [](Lcg& r, std::size_t) {
+                return tick_input<S>(above(r), r.horizontal(0.0, 0.3), 0);
               }));
-    effect<F>(name, "in contact, |v_t| > v_reg", p, {}, branch_inputs<S>(6, [](Lcg& r, std::size_t) {
-                return tick_input<S>(inside(r), r.horizontal(0.03, 0.3) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
-              }));
+    effect<F>(
+        name, "in contact, |v_t| < v_reg", p, {}, branch_inputs<S>(5, [](Lcg& r, std::size_t) {
+          return tick_input<S>(inside(r), r.horizontal(0.001, 0.018) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
+        }));
+    effect<F>(
+        name, "in contact, |v_t| > v_reg", p, {}, branch_inputs<S>(6, [](Lcg& r, std::size_t) {
+          return tick_input<S>(inside(r), r.horizontal(0.03, 0.3) + Vec3<double>{0, 0, r.uniform(-0.05, 0.05)}, 0);
+        }));
   }
 
   void slippery() {
-    const auto s = make_runtime_scene<S>(loaded_.slippery).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.slippery)
+                       .template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, SuperSlippery<S>>;
     const typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, s.tangential.slippery, {}};
     const std::string name = "super-slippery";
-    effect<F>(name, "out of contact", p, {},
-              branch_inputs<S>(7, [](Lcg& r, std::size_t) { return tick_input<S>(above(r), r.horizontal(0.0, 1.0), 0); }));
+    effect<F>(name, "out of contact", p, {}, branch_inputs<S>(7, [](Lcg& r, std::size_t) {
+                return tick_input<S>(above(r), r.horizontal(0.0, 1.0), 0);
+              }));
     // mu = 4 N s/m, cap 2 N: below 0.5 m/s the force is mu v_t, above it is scaled to the cap.
-    effect<F>(name, "in contact, under the cap", p, {},
-              branch_inputs<S>(8, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), r.horizontal(0.01, 0.45), 0); }));
-    effect<F>(name, "in contact, capped", p, {},
-              branch_inputs<S>(9, [](Lcg& r, std::size_t) { return tick_input<S>(inside(r), r.horizontal(0.6, 1.5), 0); }));
+    effect<F>(name, "in contact, under the cap", p, {}, branch_inputs<S>(8, [](Lcg& r, std::size_t) {
+                return tick_input<S>(inside(r), r.horizontal(0.01, 0.45), 0);
+              }));
+    effect<F>(name, "in contact, capped", p, {}, branch_inputs<S>(9, [](Lcg& r, std::size_t) {
+                return tick_input<S>(inside(r), r.horizontal(0.6, 1.5), 0);
+              }));
   }
 
   void impact() {
-    const auto s = make_runtime_scene<S>(loaded_.cartoon).template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
+    const auto s = make_runtime_scene<S>(loaded_.cartoon)
+                       .template params<RuntimeSurface<S>>(0);  // a copy: the scene is a temporary
     using F = Surface<SpringWall<S>, NoTangential<S>, ImpactTransient<S>>;
     typename F::Params p{s.plane, {s.wall.stiffness_n_per_m, S{}}, {}, s.impact.law};
     const std::string name = "impact transient";
@@ -653,16 +674,23 @@ class CaseBuilder {
     using C = CartoonCliff<S>;
     const std::string name = "cartoon cliff";
     // Gap x in [0, 0.02]; threshold 0.08 m/s; rearm height 1 mm.
-    const auto ledge_x = [](Lcg& r) { return r.uniform(0.0, 1.0) < 0.5 ? r.uniform(-0.03, -0.001) : r.uniform(0.021, 0.05); };
-    const auto fast = [](Lcg& r) { return Vec3<double>{r.uniform(0.12, 0.4), r.uniform(-0.05, 0.05), r.uniform(-0.05, 0.05)}; };
-    const auto slow = [](Lcg& r) { return Vec3<double>{r.uniform(0.0, 0.04), r.uniform(-0.02, 0.02), r.uniform(-0.02, 0.02)}; };
+    const auto ledge_x = [](Lcg& r) {
+      return r.uniform(0.0, 1.0) < 0.5 ? r.uniform(-0.03, -0.001) : r.uniform(0.021, 0.05);
+    };
+    const auto fast = [](Lcg& r) {
+      return Vec3<double>{r.uniform(0.12, 0.4), r.uniform(-0.05, 0.05), r.uniform(-0.05, 0.05)};
+    };
+    const auto slow = [](Lcg& r) {
+      return Vec3<double>{r.uniform(0.0, 0.04), r.uniform(-0.02, 0.02), r.uniform(-0.02, 0.02)};
+    };
     typename C::State supported_fast{scalar_cast<S>(0.2), false};
     typename C::State supported_slow{scalar_cast<S>(0.01), false};
     typename C::State fallen{scalar_cast<S>(0.01), true};
     effect<C>(name, "supported, on a ledge", p, supported_fast, branch_inputs<S>(16, [&](Lcg& r, std::size_t) {
                 return tick_input<S>({ledge_x(r), 0.0, r.uniform(-0.003, -0.0002)}, fast(r), 0);
               }));
-    effect<C>(name, "supported, over the gap (bridged)", p, supported_fast, branch_inputs<S>(17, [&](Lcg& r, std::size_t) {
+    effect<C>(name, "supported, over the gap (bridged)", p, supported_fast,
+              branch_inputs<S>(17, [&](Lcg& r, std::size_t) {
                 return tick_input<S>({r.uniform(0.001, 0.019), 0.0, r.uniform(-0.003, -0.0002)}, fast(r), 0);
               }));
     effect<C>(name, "supported, above the ground", p, supported_fast, branch_inputs<S>(18, [&](Lcg& r, std::size_t) {
@@ -815,7 +843,8 @@ Result<std::unique_ptr<TickCase>> make_spec_loop_case(const std::string& root, s
   auto desc = load(root, scene, scalar);
   if (!desc) return Error{desc.error()};
   return with_scalar(
-      scalar, [&]<Scalar S>() -> Result<std::unique_ptr<TickCase>> {
+      scalar,
+      [&]<Scalar S>() -> Result<std::unique_ptr<TickCase>> {
         return spec_loop_case<S>(desc.value(), scene, rate_hz, sine);
       },
       [](ScalarKind) -> Result<std::unique_ptr<TickCase>> { return Error{"scalar not built"}; });
@@ -835,7 +864,8 @@ Result<std::vector<SearchTick>> search_loop_ticks(const std::string& root, std::
   auto desc = load(root, scene, scalar);
   if (!desc) return Error{desc.error()};
   return with_scalar(
-      scalar, [&]<Scalar S>() -> Result<std::vector<SearchTick>> {
+      scalar,
+      [&]<Scalar S>() -> Result<std::vector<SearchTick>> {
         SearchLoopWork<RuntimeScene<S>> work(make_runtime_scene<S>(desc.value()), search_config(desc.value(), kRateHz),
                                              search_path(scene).position_m);
         std::vector<SearchTick> ticks;
@@ -862,9 +892,9 @@ Result<std::vector<std::unique_ptr<TickCase>>> make_cases(const std::string& roo
   std::vector<std::unique_ptr<TickCase>> effects;
   std::vector<std::unique_ptr<TickCase>> scenes;
   std::vector<std::unique_ptr<TickCase>> controllers;
-  for (auto added : {add_scalar<double>(root, effects, scenes, controllers),
-                     add_scalar<float>(root, effects, scenes, controllers),
-                     add_scalar<Q16_16>(root, effects, scenes, controllers)}) {
+  for (auto added :
+       {add_scalar<double>(root, effects, scenes, controllers), add_scalar<float>(root, effects, scenes, controllers),
+        add_scalar<Q16_16>(root, effects, scenes, controllers)}) {
     if (!added) return Error{added.error()};
   }
   for (auto* group : {&effects, &scenes, &controllers}) {

@@ -51,7 +51,8 @@ std::string end_trace(const std::string& path, const Verdict& v, const Telemetry
   }
   f.value_count = static_cast<std::uint16_t>(std::min<std::size_t>(effect_values, f.values.size()));
   if (!write_frame(*writer.value(), f, effect_values, true) || !writer.value()->close()) {
-    return fmt::format("{}: the zero-force row could not be written: {}", path, std::strerror(errno != 0 ? errno : EIO));
+    return fmt::format("{}: the zero-force row could not be written: {}", path,
+                       std::strerror(errno != 0 ? errno : EIO));
   }
   return {};
 }
@@ -62,9 +63,10 @@ std::string describe_verdict(const Verdict& v, const TelemetryFrame* last) {
                                  std::max<std::int64_t>(0, v.ticks - 1), v.cause);
   if (v.zero_sent != 0) {
     const double after_ms = static_cast<double>(v.zero_ns - v.death_ns) * 1e-6;
-    text += after_ms >= 0.0 ? fmt::format("guardian: zero force commanded {:.3f} ms after its end: {}\n", after_ms, v.zero_detail)
-                            : fmt::format("guardian: zero force commanded at the stall, {:.3f} ms before its end: {}\n",
-                                          -after_ms, v.zero_detail);
+    text += after_ms >= 0.0
+                ? fmt::format("guardian: zero force commanded {:.3f} ms after its end: {}\n", after_ms, v.zero_detail)
+                : fmt::format("guardian: zero force commanded at the stall, {:.3f} ms before its end: {}\n", -after_ms,
+                              v.zero_detail);
   } else {
     text += fmt::format("guardian: {}\n", v.zero_detail);
   }
@@ -79,15 +81,17 @@ std::string describe_verdict(const Verdict& v, const TelemetryFrame* last) {
 
 std::string verdict_json(const Verdict& v, const TelemetryFrame* last) {
   std::string out = "{\n";
-  out += fmt::format("  \"loop_process_died\": true,\n  \"loop_pid\": {},\n  \"cause\": {},\n", v.loop_pid, json_string(v.cause));
-  out += fmt::format("  \"loop_ended\": {},\n  \"stalled\": {},\n  \"ticks\": {},\n  \"t_end_s\": {},\n", v.loop_ended != 0,
-                     v.stalled != 0, std::max<std::int64_t>(0, v.ticks), v.t_end_s);
+  out += fmt::format("  \"loop_process_died\": true,\n  \"loop_pid\": {},\n  \"cause\": {},\n", v.loop_pid,
+                     json_string(v.cause));
+  out += fmt::format("  \"loop_ended\": {},\n  \"stalled\": {},\n  \"ticks\": {},\n  \"t_end_s\": {},\n",
+                     v.loop_ended != 0, v.stalled != 0, std::max<std::int64_t>(0, v.ticks), v.t_end_s);
   out += fmt::format("  \"zero_sent\": {},\n  \"zero_after_ms\": {},\n  \"zero\": {},\n", v.zero_sent != 0,
-                     v.zero_sent != 0 ? static_cast<double>(v.zero_ns - v.death_ns) * 1e-6 : 0.0, json_string(v.zero_detail));
+                     v.zero_sent != 0 ? static_cast<double>(v.zero_ns - v.death_ns) * 1e-6 : 0.0,
+                     json_string(v.zero_detail));
   out += fmt::format("  \"death_monotonic_ns\": {},\n  \"zero_monotonic_ns\": {},\n", v.death_ns, v.zero_ns);
   const Vec3<double> f = last != nullptr ? last->force_n : Vec3<double>{};
-  out += fmt::format("  \"last_frame\": {{\"t_s\": {}, \"force_n\": [{}, {}, {}]}}\n", last != nullptr ? last->t_s : 0.0,
-                     f.x, f.y, f.z);
+  out += fmt::format("  \"last_frame\": {{\"t_s\": {}, \"force_n\": [{}, {}, {}]}}\n",
+                     last != nullptr ? last->t_s : 0.0, f.x, f.y, f.z);
   out += "}\n";
   return out;
 }

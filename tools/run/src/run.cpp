@@ -85,13 +85,15 @@ class RunConsumer final : public FrameConsumer {
       summary_.trace_error = fmt::format("stopped at t = {:.3f} s: it reached --max-output {} (give a larger one, or 0 "
                                          "for no limit)",
                                          f.t_s, describe_bytes(trace_limit_bytes));
-      fmt::print(messages_, "t = {:.3f} s: the trace reached --max-output {}: nothing more is written, the run goes on\n",
-                 f.t_s, describe_bytes(trace_limit_bytes));
+      fmt::print(messages_,
+                 "t = {:.3f} s: the trace reached --max-output {}: nothing more is written, the run goes on\n", f.t_s,
+                 describe_bytes(trace_limit_bytes));
     } else {
       summary_.trace_error =
           fmt::format("writing failed at t = {:.3f} s: {}", f.t_s, std::strerror(errno != 0 ? errno : EIO));
-      fmt::print(messages_, "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n",
-                 f.t_s, std::strerror(errno != 0 ? errno : EIO));
+      fmt::print(messages_,
+                 "t = {:.3f} s: the trace cannot be written ({}): nothing more is written, the run goes on\n", f.t_s,
+                 std::strerror(errno != 0 ? errno : EIO));
     }
     std::fflush(messages_);
   }
@@ -116,8 +118,7 @@ class RunConsumer final : public FrameConsumer {
 };
 
 template <Scalar S, LoopStages kStages, class PinsT>
-Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver,
-                          PinsT& pins) {
+Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& scene, DeviceDriver& driver, PinsT& pins) {
   const double period_s = 1.0 / options.rate_hz;
   const ServoConfig config = with_device(servo_config(scene, period_s), driver.info());
   if (const std::string problems = check_servo_config(config); !problems.empty()) {
@@ -140,9 +141,9 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
     trace->limit_size(options.max_output_bytes);
     // About 8 bytes a value; a run until stopped has no expected size (the limit alone).
     const std::uint64_t expected =
-        options.duration_s > 0.0
-            ? static_cast<std::uint64_t>(std::llround(options.duration_s * options.rate_hz)) * trace->columns().size() * 8U
-            : 0U;
+        options.duration_s > 0.0 ? static_cast<std::uint64_t>(std::llround(options.duration_s * options.rate_hz)) *
+                                       trace->columns().size() * 8U
+                                 : 0U;
     const std::string room = trace_room_warning(options.trace_path, expected, options.max_output_bytes);
     if (!room.empty()) fmt::print(options.messages, "warning: {}", room);
   }
@@ -181,7 +182,8 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   // the guardian stands down. Said again here for a run that ended before its first tick.
   if (options.guardian != nullptr) options.guardian->loop_ended.store(1, std::memory_order_release);
   if (options.guardian != nullptr && getppid() != options.guardian->guardian_pid) {
-    fmt::print(options.messages, "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
+    fmt::print(options.messages,
+               "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
                options.guardian->guardian_pid);
   }
   if (!report) return Error{report.error()};
@@ -224,7 +226,8 @@ std::string describe_faults(std::uint32_t bits) {
 Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
   if (options.device == "sim") {
     const auto preset = host_sim::parse_device_preset(options.sim_device);
-    if (!preset) return Error{fmt::format("--sim-device {}: unknown device model (falcon or omni)", options.sim_device)};
+    if (!preset)
+      return Error{fmt::format("--sim-device {}: unknown device model (falcon or omni)", options.sim_device)};
     std::optional<host_sim::HandIntent> intent;
     if (options.hand_script_path.empty()) {
       intent = host_sim::HandIntent::holding({0.0, 0.0, 0.01});
@@ -237,7 +240,8 @@ Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
     host_sim::PlantOptions plant;
     plant.period_s = 1.0 / options.rate_hz;
     plant.substeps = std::max(1, static_cast<int>(std::ceil(4000.0 / options.rate_hz)));
-    auto driver = host_sim::SimDriver::create(host_sim::device_params(*preset), std::move(*intent), plant, options.seed);
+    auto driver =
+        host_sim::SimDriver::create(host_sim::device_params(*preset), std::move(*intent), plant, options.seed);
     if (!driver) return Error{driver.error()};
     return std::unique_ptr<DeviceDriver>(std::move(driver.value()));
   }
@@ -270,22 +274,27 @@ Result<RunSummary> run_servo(const RunOptions& options) {
                              options.duration_s, kMaxRunDurationS)};
   }
   if (options.duration_s > 0.0 && std::llround(options.duration_s * options.rate_hz) < 1) {
-    return Error{fmt::format("--duration {:g}: less than one tick at {:g} Hz (allowed: 0, until stopped, or {:g} .. {:g} s)",
-                             options.duration_s, options.rate_hz, 1.0 / options.rate_hz, kMaxRunDurationS)};
+    return Error{
+        fmt::format("--duration {:g}: less than one tick at {:g} Hz (allowed: 0, until stopped, or {:g} .. {:g} s)",
+                    options.duration_s, options.rate_hz, 1.0 / options.rate_hz, kMaxRunDurationS)};
   }
   // No output may replace an input: both are checked before anything is opened for writing.
-  for (const auto& [output, flag] : {std::pair{options.trace_path, "--trace"}, std::pair{options.stats_json_path, "--stats-json"}}) {
-    for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.hand_script_path, "the hand script"}}) {
+  for (const auto& [output, flag] :
+       {std::pair{options.trace_path, "--trace"}, std::pair{options.stats_json_path, "--stats-json"}}) {
+    for (const auto& [input, what] :
+         {std::pair{options.scene_path, "the scene"}, std::pair{options.hand_script_path, "the hand script"}}) {
       std::error_code ec;
       if (!output.empty() && output != "-" && !input.empty() && std::filesystem::equivalent(output, input, ec) && !ec) {
-        return Error{fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
+        return Error{
+            fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
       }
     }
   }
   auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
                                   : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
-  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
+  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path);
+      !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
   }
   {
@@ -344,12 +353,12 @@ Result<RunSummary> run_servo(const RunOptions& options) {
 std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   const RunReport& r = s.report;
   std::string text;
-  text += fmt::format("scene    {} ({}): {} surface(s), {} cliff(s); scalar {}\n", s.scene_name, o.scene_path, s.surfaces,
-                      s.cliffs, scalar_kind_name(o.scalar));
+  text += fmt::format("scene    {} ({}): {} surface(s), {} cliff(s); scalar {}\n", s.scene_name, o.scene_path,
+                      s.surfaces, s.cliffs, scalar_kind_name(o.scalar));
   text += fmt::format("device   {} ({})\n", o.device, s.device_name);
   std::string rt = r.setup.priority < 0 ? "the device's own servo thread (its scheduler sets the priority)"
-                   : r.setup.fifo     ? fmt::format("SCHED_FIFO {}", r.setup.priority)
-                                      : "NOT real-time (normal scheduling)";
+                   : r.setup.fifo       ? fmt::format("SCHED_FIFO {}", r.setup.priority)
+                                        : "NOT real-time (normal scheduling)";
   rt += r.setup.memory_locked ? ", memory locked" : ", memory not locked";
   rt += r.setup.cpu >= 0 ? fmt::format(", pinned to CPU {}", r.setup.cpu) : ", not pinned";
   text += fmt::format("realtime {}\n", rt);
@@ -390,8 +399,7 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
                         s.latched_at_end == 0 ? "none" : describe_faults(s.latched_at_end));
   }
   if (!o.trace_path.empty() && !s.trace_error.empty()) {
-    text += fmt::format("trace    {}: INCOMPLETE, {}\n", o.trace_path,
-                        s.trace_error);
+    text += fmt::format("trace    {}: INCOMPLETE, {}\n", o.trace_path, s.trace_error);
   } else if (!o.trace_path.empty()) {
     text += fmt::format("trace    {}: {} rows, {} frame(s) dropped (telemetry ring full)\n", o.trace_path,
                         s.frames_written, s.frames_dropped);
@@ -411,8 +419,8 @@ std::string stats_json(const RunSummary& s, const RunOptions& o) {
   out += fmt::format(
       "  \"realtime\": {{\"sched_fifo\": {}, \"priority\": {}, \"memory_locked\": {}, \"cpu\": {}, \"notes\": {}}},\n",
       r.setup.fifo, r.setup.priority, r.setup.memory_locked, r.setup.cpu, json_string(r.setup.notes));
-  out += fmt::format("  \"ticks\": {},\n  \"missed\": {},\n  \"watchdog_trips\": {},\n  \"stop_signal\": {},\n", r.ticks,
-                     r.missed, r.watchdog_trips, r.stop_signal);
+  out += fmt::format("  \"ticks\": {},\n  \"missed\": {},\n  \"watchdog_trips\": {},\n  \"stop_signal\": {},\n",
+                     r.ticks, r.missed, r.watchdog_trips, r.stop_signal);
   out += fmt::format("  \"frames_written\": {},\n  \"frames_dropped\": {},\n", s.frames_written, s.frames_dropped);
   out += fmt::format("  \"fault_ticks\": {},\n  \"fault_bits\": {},\n  \"latched_at_end\": {},\n  \"rearms\": {},\n",
                      s.fault_ticks, s.fault_bits, s.latched_at_end, s.rearms);
@@ -428,7 +436,8 @@ std::string stats_json(const RunSummary& s, const RunOptions& o) {
   const auto& bins = r.wake.counts();
   for (std::size_t i = 0; i < bins.size(); ++i) {
     if (bins[i] == 0) continue;
-    out += fmt::format("{}\"{}\": {}", first ? "" : ", ", static_cast<std::int64_t>(i) * r.wake.bin_ns() / 1000, bins[i]);
+    out +=
+        fmt::format("{}\"{}\": {}", first ? "" : ", ", static_cast<std::int64_t>(i) * r.wake.bin_ns() / 1000, bins[i]);
     first = false;
   }
   out += "}\n}\n";

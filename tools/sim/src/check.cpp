@@ -27,7 +27,8 @@ CheckReport check_scene(const CheckOptions& o) {
   sim.device = o.device;
   const SimConfig config = sim_config(sim);
 
-  auto scene = o.scene_text ? parse_scene(*o.scene_text, o.scene_path, o.scalar) : load_scene_file(o.scene_path, o.scalar);
+  auto scene =
+      o.scene_text ? parse_scene(*o.scene_text, o.scene_path, o.scalar) : load_scene_file(o.scene_path, o.scalar);
   if (!scene) out.errors.push_back(scene.error());
   // As run and sim refuse it: a rate Q16.16 cannot hold is a bad command-line value.
   if (scene) {
@@ -91,9 +92,9 @@ std::string format_check_report(const CheckReport& r, const CheckOptions& o) {
   // of reports would say "1 problem" above twenty of them.
   const bool with_script = !o.script_path.empty();
   if (r.ok) {
-    text += fmt::format("ok      {}{}{}: loads as run and sim would load it{}\n", o.scene_path, with_script ? " + " : "",
-                        o.script_path,
-                        r.warnings.empty() ? "" : ", with the warnings above (--strict makes them errors)");
+    text +=
+        fmt::format("ok      {}{}{}: loads as run and sim would load it{}\n", o.scene_path, with_script ? " + " : "",
+                    o.script_path, r.warnings.empty() ? "" : ", with the warnings above (--strict makes them errors)");
   } else {
     text += fmt::format("not ok  {}{}{}: does not load as run and sim would load it (the errors above)\n", o.scene_path,
                         with_script ? " + " : "", o.script_path);

@@ -14,8 +14,8 @@ namespace toonforce {
 namespace {
 
 /// The range of dot(direction, x - point) over the corners of the workspace box.
-std::pair<double, double> extent_along(const Vec3<double>& point, const Vec3<double>& direction,
-                                       const Vec3<double>& lo, const Vec3<double>& hi) {
+std::pair<double, double> extent_along(const Vec3<double>& point, const Vec3<double>& direction, const Vec3<double>& lo,
+                                       const Vec3<double>& hi) {
   double least = std::numeric_limits<double>::infinity();
   double most = -least;
   for (int corner = 0; corner < 8; ++corner) {
@@ -40,8 +40,8 @@ void check_plane(const Context& c, const std::string& who, const Vec3<double>& p
   const auto [least, most] = extent_along(point, normal, c.device.workspace_min_m, c.device.workspace_max_m);
   if (least > 0.0) {
     c.report.warnings.push_back(fmt::format(
-        "{}: its plane lies {:.3g} mm outside the device's workspace at the nearest: the handle can never touch it", who,
-        least * 1e3));
+        "{}: its plane lies {:.3g} mm outside the device's workspace at the nearest: the handle can never touch it",
+        who, least * 1e3));
   } else if (most < 0.0) {
     c.report.warnings.push_back(fmt::format(
         "{}: the whole workspace is inside it (its plane is {:.3g} mm beyond the workspace): the handle is pushed "
@@ -57,8 +57,8 @@ void check_wall(const Context& c, const std::string& who, double stiffness_n_per
   const double alone = stiffest_passive_wall_n_per_m(c.device.damping_n_s_per_m, c.period_s, d, damping_n_s_per_m);
   const double held = stiffest_passive_wall_n_per_m(c.device.damping_n_s_per_m + kHeldHandDampingNsPerM, c.period_s, d,
                                                     damping_n_s_per_m);
-  const std::string law =
-      damping_n_s_per_m > 0.0 ? fmt::format("K = {:g} N/m, B = {:g} N s/m", stiffness_n_per_m, damping_n_s_per_m)
+  const std::string law = damping_n_s_per_m > 0.0
+                              ? fmt::format("K = {:g} N/m, B = {:g} N s/m", stiffness_n_per_m, damping_n_s_per_m)
                               : fmt::format("K = {:g} N/m", stiffness_n_per_m);
   if (stiffness_n_per_m > held) {
     c.report.warnings.push_back(fmt::format(
@@ -113,12 +113,13 @@ PlausibilityReport check_plausibility(const SceneDescription& scene, const std::
       "of {:g} N s/m up to {:.4g} N/m (Colgate and Brown 1994, with the delay of Diolaiti et al. 2006; a sufficient "
       "bound, exact for a spring: with delay, a wall's damping B > 0 needs less than the |B| it adds)",
       c.stiffest_alone_n_per_m, kHeldHandDampingNsPerM,
-      stiffest_passive_wall_n_per_m(device.damping_n_s_per_m + kHeldHandDampingNsPerM, period_s, device.io_delay_ticks)));
+      stiffest_passive_wall_n_per_m(device.damping_n_s_per_m + kHeldHandDampingNsPerM, period_s,
+                                    device.io_delay_ticks)));
 
   if (scene.limits.has_max_force && device.max_force_n > 0.0 && scene.limits.max_force_n > device.max_force_n) {
     report.warnings.push_back(fmt::format(
-        "{}: [device] max_force = {:g} N is over the device's peak of {:g} N: the device gives at most that", scene_path,
-        scene.limits.max_force_n, device.max_force_n));
+        "{}: [device] max_force = {:g} N is over the device's peak of {:g} N: the device gives at most that",
+        scene_path, scene.limits.max_force_n, device.max_force_n));
   }
 
   const auto& surfaces = scene.of<RuntimeSurface>();
@@ -150,8 +151,8 @@ PlausibilityReport check_plausibility(const SceneDescription& scene, const std::
             "to another frequency",
             who, f, rate_hz / 2.0));
       } else if (f > rate_hz / 10.0) {
-        report.notes.push_back(fmt::format("{}: impact frequency {:g} Hz is sampled {:.3g} times a cycle", who, f,
-                                           rate_hz / f));
+        report.notes.push_back(
+            fmt::format("{}: impact frequency {:g} Hz is sampled {:.3g} times a cycle", who, f, rate_hz / f));
       }
     }
   }

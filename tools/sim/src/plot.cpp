@@ -37,7 +37,8 @@ Result<bool> plot_trace(const PlotRequest& request) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(script, ec)) {
     return Error{fmt::format("plot: the plotting script {} is missing (set TOONFORCE_PLOT_SCRIPT to "
-                             "tools/plot_trace.py of a toonforce source tree)", script)};
+                             "tools/plot_trace.py of a toonforce source tree)",
+                             script)};
   }
   if (!std::filesystem::exists(kPython, ec)) {
     return Error{fmt::format("plot: {} is missing; install python3-matplotlib (tools/setup-deps does)", kPython)};

@@ -82,11 +82,14 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
   // Outputs, before anything is opened for writing: never one of the inputs, and a plot in a
   // format the plotter writes (refused now, not after the run).
-  for (const auto& [output, flag] : {std::pair{options.trace_path, "--trace"}, std::pair{options.plot_path, "--plot"}}) {
-    for (const auto& [input, what] : {std::pair{options.scene_path, "the scene"}, std::pair{options.script_path, "the hand script"}}) {
+  for (const auto& [output, flag] :
+       {std::pair{options.trace_path, "--trace"}, std::pair{options.plot_path, "--plot"}}) {
+    for (const auto& [input, what] :
+         {std::pair{options.scene_path, "the scene"}, std::pair{options.script_path, "the hand script"}}) {
       std::error_code ec;
       if (!output.empty() && output != "-" && std::filesystem::equivalent(output, input, ec) && !ec) {
-        return Error{fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
+        return Error{
+            fmt::format("{} {} is {} ({}): it would be overwritten; choose another file", flag, output, what, input)};
       }
     }
   }
@@ -112,7 +115,8 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   auto scene = options.scene_text ? parse_scene(*options.scene_text, options.scene_path, options.scalar)
                                   : load_scene_file(options.scene_path, options.scalar);
   if (!scene) return Error{scene.error()};
-  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path); !empty.empty() && !options.allow_empty) {
+  if (std::string empty = empty_scene_problem(scene.value(), options.scene_path);
+      !empty.empty() && !options.allow_empty) {
     return Error{std::move(empty)};
   }
   {
@@ -190,7 +194,8 @@ Result<SimSummary> run_sim(const SimOptions& options) {
         trace->size_limit_reached()
             ? fmt::format("stopped at t = {:.6g} s: it reached --max-output {} (give a larger one, or 0 for no limit)",
                           record.frame.t_s, describe_bytes(options.max_output_bytes))
-            : fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s, std::strerror(errno != 0 ? errno : EIO));
+            : fmt::format("writing failed at t = {:.6g} s: {}", record.frame.t_s,
+                          std::strerror(errno != 0 ? errno : EIO));
     std::fputs(fmt::format("toonforce: {}: {}; nothing more is written, the simulation goes on\n", options.trace_path,
                            summary.trace_error)
                    .c_str(),
@@ -210,7 +215,8 @@ Result<SimSummary> run_sim(const SimOptions& options) {
         while (!stopped()) {
           const auto now = std::chrono::steady_clock::now();
           if (now >= due) break;
-          std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(due - now, std::chrono::milliseconds(20)));
+          std::this_thread::sleep_for(
+              std::min<std::chrono::steady_clock::duration>(due - now, std::chrono::milliseconds(20)));
         }
       }
     }
@@ -232,10 +238,12 @@ Result<SimSummary> run_sim(const SimOptions& options) {
   }
 
   if (!options.plot_path.empty() && summary.trace_error.empty() && summary.stop_signal == 0) {
-    PlotRequest request{options.trace_path, options.plot_path, options.plot_kind,
-                        options.plot_title.empty() ? fmt::format("{} / {}", scene->name, hand->script.name)
-                                                   : options.plot_title,
-                        {}};
+    PlotRequest request{
+        options.trace_path,
+        options.plot_path,
+        options.plot_kind,
+        options.plot_title.empty() ? fmt::format("{} / {}", scene->name, hand->script.name) : options.plot_title,
+        {}};
     // A cliff across x on a horizontal ground: the plot can draw its gap and threshold.
     if (!scene->of<CartoonCliff>().empty()) {
       const auto& c = scene->of<CartoonCliff>().front();

@@ -8,8 +8,8 @@
 namespace toonforce {
 
 namespace {
-constexpr std::array<const char*, 13> kSimColumns{"true_x", "true_y", "true_z", "true_vx", "true_vy",
-                                                  "true_vz", "hand_x", "hand_y", "hand_z", "device_fx",
+constexpr std::array<const char*, 13> kSimColumns{"true_x",    "true_y",    "true_z", "true_vx", "true_vy",
+                                                  "true_vz",   "hand_x",    "hand_y", "hand_z",  "device_fx",
                                                   "device_fy", "device_fz", "segment"};
 }  // namespace
 
@@ -24,8 +24,8 @@ bool sim_record_row(TraceRow& row, const SimRecord& r, std::size_t values) {
   const auto& tv = r.true_velocity_m_per_s;
   const auto& h = r.hand_target_m;
   const auto& df = r.device_force_n;
-  const std::array<double, kSimColumns.size()> more{tx.x, tx.y, tx.z, tv.x, tv.y, tv.z, h.x,
-                                                    h.y,  h.z,  df.x, df.y, df.z, static_cast<double>(r.segment)};
+  const std::array<double, kSimColumns.size()> more{
+      tx.x, tx.y, tx.z, tv.x, tv.y, tv.z, h.x, h.y, h.z, df.x, df.y, df.z, static_cast<double>(r.segment)};
   return frame_row(row, r.frame, values, false, more);
 }
 

@@ -7,8 +7,9 @@ namespace toonforce {
 
 namespace {
 constexpr std::array<const char*, 18> kLoopColumns{
-    "scene_fx", "scene_fy", "scene_fz", "damping_fx", "damping_fy", "damping_fz",   "faults",         "latched", "limits",
-    "state",    "contact",  "max_force", "temperature", "observed_energy", "episode_energy", "gain", "tick", nullptr};
+    "scene_fx",    "scene_fy",        "scene_fz",       "damping_fx", "damping_fy", "damping_fz",
+    "faults",      "latched",         "limits",         "state",      "contact",    "max_force",
+    "temperature", "observed_energy", "episode_energy", "gain",       "tick",       nullptr};
 constexpr std::size_t kLoopCount = kLoopColumns.size() - 1;
 constexpr std::array<const char*, 4> kTimingColumns{"wake_latency_us", "compute_us", "slack_us", "missed"};
 static_assert(kMaxTraceRowValues == kLoopCount + kMaxEffectValues + kTimingColumns.size() + 64,
@@ -32,11 +33,11 @@ bool frame_row(TraceRow& out, const TelemetryFrame& f, std::size_t effect_values
                std::span<const double> more) {
   std::array<double, kMaxTraceRowValues>& row = out.values;
   std::size_t n = 0;
-  for (const double v : {f.scene_force_n.x, f.scene_force_n.y, f.scene_force_n.z, f.damping_n.x, f.damping_n.y,
-                         f.damping_n.z, static_cast<double>(f.faults), static_cast<double>(f.latched),
-                         static_cast<double>(f.limits), static_cast<double>(f.state), f.in_contact ? 1.0 : 0.0,
-                         f.max_force_n, f.temperature, f.observed_energy_j, f.episode_energy_j, f.gain,
-                         static_cast<double>(f.tick)}) {
+  for (const double v :
+       {f.scene_force_n.x, f.scene_force_n.y, f.scene_force_n.z, f.damping_n.x, f.damping_n.y, f.damping_n.z,
+        static_cast<double>(f.faults), static_cast<double>(f.latched), static_cast<double>(f.limits),
+        static_cast<double>(f.state), f.in_contact ? 1.0 : 0.0, f.max_force_n, f.temperature, f.observed_energy_j,
+        f.episode_energy_j, f.gain, static_cast<double>(f.tick)}) {
     row[n++] = v;
   }
   // A frame carries at most kMaxEffectValues; the header was made for `effect_values`.
@@ -45,9 +46,9 @@ bool frame_row(TraceRow& out, const TelemetryFrame& f, std::size_t effect_values
     row[n++] = i < f.value_count ? f.values[i] : std::numeric_limits<double>::quiet_NaN();
   }
   if (with_timing) {
-    for (const double v : {static_cast<double>(f.timing.wake_latency_ns) / 1000.0,
-                           static_cast<double>(f.timing.compute_ns) / 1000.0,
-                           static_cast<double>(f.timing.slack_ns) / 1000.0, static_cast<double>(f.timing.missed_total)}) {
+    for (const double v :
+         {static_cast<double>(f.timing.wake_latency_ns) / 1000.0, static_cast<double>(f.timing.compute_ns) / 1000.0,
+          static_cast<double>(f.timing.slack_ns) / 1000.0, static_cast<double>(f.timing.missed_total)}) {
       row[n++] = v;
     }
   }

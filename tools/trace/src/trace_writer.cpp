@@ -38,9 +38,11 @@ char* put_value(char* out, double x) noexcept {
 }
 }  // namespace
 
-Result<std::unique_ptr<TraceWriter>> TraceWriter::open(const std::string& path, std::vector<std::string> extra_columns) {
+Result<std::unique_ptr<TraceWriter>> TraceWriter::open(const std::string& path,
+                                                       std::vector<std::string> extra_columns) {
   std::FILE* file = path == "-" ? stdout : std::fopen(path.c_str(), "wb");
-  if (file == nullptr) return Error{fmt::format("{}: cannot open the trace for writing: {}", path, std::strerror(errno))};
+  if (file == nullptr)
+    return Error{fmt::format("{}: cannot open the trace for writing: {}", path, std::strerror(errno))};
   // Unbuffered: the writer's own buffer holds whole rows, so a failed write leaves nothing in
   // stdio for fclose to try again, and the file can be cut back to its last whole row.
   if (file != stdout) std::setvbuf(file, nullptr, _IONBF, 0);

@@ -197,8 +197,8 @@ std::string check_fields(const json& m, const Message& spec) {
     if (!m.contains(key)) return fmt::format("'{}' needs the field '{}'", spec.type, key);
   }
   for (const auto& [key, value] : m.items()) {
-    const bool text = key == "token" || key == "effect" || key == "kind" || key == "toml" || key == "name" ||
-                      key == "event";
+    const bool text =
+        key == "token" || key == "effect" || key == "kind" || key == "toml" || key == "name" || key == "event";
     if (text && !value.is_string()) return fmt::format("'{}': '{}' must be a string", spec.type, key);
     if ((key == "value" || key == "version") && !value.is_number()) {
       return fmt::format("'{}': '{}' must be a number", spec.type, key);
@@ -262,7 +262,7 @@ std::string parse_message(std::string_view text, json& out) {
 }  // namespace
 
 ControlSession::Reply ControlSession::on_message(std::string_view text, double now_s) {
-  json id;               // echoed in the reply when the message has one (null too)
+  json id;  // echoed in the reply when the message has one (null too)
   bool has_id = false;
   const auto error = [&](std::string message, bool close = false) {
     ++refused_;
@@ -313,7 +313,8 @@ ControlSession::Reply ControlSession::on_message(std::string_view text, double n
     tokens_ -= 1.0;
     if (!m.contains("type") || !m["type"].is_string()) return error("a message needs a \"type\": " + type_list());
     const std::string type = m["type"].get<std::string>();
-    const auto spec = std::find_if(kMessages.begin(), kMessages.end(), [&](const Message& s) { return s.type == type; });
+    const auto spec =
+        std::find_if(kMessages.begin(), kMessages.end(), [&](const Message& s) { return s.type == type; });
     if (spec == kMessages.end()) {
       return error(fmt::format("unknown type '{}'; the types are {}", shown(type), type_list()));
     }

@@ -26,11 +26,13 @@ std::string make_hello(const HelloInfo& info) {
   }
   std::string faults;
   for (const Fault f : kAllFaults) {
-    faults += fmt::format("{}[{},{}]", faults.empty() ? "" : ",", static_cast<std::uint32_t>(f), json_string(fault_name(f)));
+    faults +=
+        fmt::format("{}[{},{}]", faults.empty() ? "" : ",", static_cast<std::uint32_t>(f), json_string(fault_name(f)));
   }
   const std::pair<Limit, std::string_view> limit_names[] = {
-      {Limit::kRateLimited, "rate-limited"}, {Limit::kClamped, "clamped"},       {Limit::kThermal, "thermal derating"},
-      {Limit::kPassivity, "passivity damping"}, {Limit::kSoftStart, "soft start"}, {Limit::kEngaging, "engaging"},
+      {Limit::kRateLimited, "rate-limited"},     {Limit::kClamped, "clamped"},
+      {Limit::kThermal, "thermal derating"},     {Limit::kPassivity, "passivity damping"},
+      {Limit::kSoftStart, "soft start"},         {Limit::kEngaging, "engaging"},
       {Limit::kDeviceLimited, "device envelope"}};
   std::string limits;
   for (const auto& [bit, name] : limit_names) {
@@ -47,8 +49,8 @@ std::string make_hello(const HelloInfo& info) {
   return fmt::format(
       R"({{"type":"hello","protocol":1,"source":{},"title":{},"rate_hz":{},"live":{},"pacing":{},"columns":[{}],)"
       R"("batch_header":4,"scene":{},"workspace":{},"faults":[{}],"limits":[{}],"states":[{}],"latched_mask":{}}})",
-      json_string(info.source), json_string(info.title), number(info.rate_hz), info.live, json_string(info.pacing), columns,
-      info.scene_json.empty() ? std::string("null") : info.scene_json, workspace, faults, limits, states,
+      json_string(info.source), json_string(info.title), number(info.rate_hz), info.live, json_string(info.pacing),
+      columns, info.scene_json.empty() ? std::string("null") : info.scene_json, workspace, faults, limits, states,
       kLatchedFaults);
 }
 

@@ -53,7 +53,9 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
   if (!text.empty() && text.back() != '\n') {
     const std::size_t last_nl = text.rfind('\n');
     if (last_nl != std::string_view::npos) {
-      cut_line = static_cast<std::size_t>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) + 2;
+      cut_line = static_cast<std::size_t>(
+                     std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) +
+                 2;
       text = text.substr(0, last_nl + 1);
     }
   }
@@ -80,15 +82,16 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
       for (const std::string& h : header) {
         std::size_t column = view_column(h);
         // An effect's value ("surface1.impact_t"): the next of the frame's effect columns.
-        if (column == kViewStride && h.find('.') != std::string::npos &&
-            rec.effect_values.size() < kViewEffectValues) {
+        if (column == kViewStride && h.find('.') != std::string::npos && rec.effect_values.size() < kViewEffectValues) {
           column = kFirstEffectValue + rec.effect_values.size();
           rec.effect_values.push_back(h);
         }
         map.push_back(column);
         if (h == "tick") has_tick = true;
       }
-      const auto has = [&header](std::string_view c) { return std::find(header.begin(), header.end(), c) != header.end(); };
+      const auto has = [&header](std::string_view c) {
+        return std::find(header.begin(), header.end(), c) != header.end();
+      };
       rec.has_loop = has("wake_latency_us");
       rec.source = rec.has_loop ? "run" : has("true_x") ? "sim" : "trace";
       continue;
@@ -119,9 +122,11 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
       start = comma + 1;
     }
     if (column + 1 < kTraceCoreColumns.size()) {
-      return Error{fmt::format("{}:{}: {} fields; a trace row has at least the ten core values", name, line_no, column + 1)};
+      return Error{
+          fmt::format("{}:{}: {} fields; a trace row has at least the ten core values", name, line_no, column + 1)};
     }
-    if (!std::isfinite(frame[kT])) return Error{fmt::format("{}:{}: column 't': the time must be a number", name, line_no)};
+    if (!std::isfinite(frame[kT]))
+      return Error{fmt::format("{}:{}: column 't': the time must be a number", name, line_no)};
     if (!rec.frames.empty()) {
       const double dt = frame[kT] - rec.frames.back()[kT];
       if (!(dt > 0.0)) {

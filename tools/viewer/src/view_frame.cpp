@@ -7,7 +7,8 @@ namespace toonforce::viewer {
 
 std::vector<std::string> view_columns(const std::vector<std::string>& effect_values) {
   std::vector<std::string> columns(kViewColumns.begin(), kViewColumns.end());
-  for (std::size_t i = 0; i < kViewEffectValues; ++i) columns.push_back(i < effect_values.size() ? effect_values[i] : "");
+  for (std::size_t i = 0; i < kViewEffectValues; ++i)
+    columns.push_back(i < effect_values.size() ? effect_values[i] : "");
   return columns;
 }
 

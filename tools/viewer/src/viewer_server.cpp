@@ -74,7 +74,8 @@ std::shared_ptr<const std::string> make_batch(double kind, std::uint64_t first_s
   std::memcpy(out->data(), header.data(), sizeof header);
   if (!frames.empty()) std::memcpy(out->data() + sizeof header, frames.data(), frames.size() * sizeof(ViewFrame));
   if (!more.empty()) {
-    std::memcpy(out->data() + sizeof header + frames.size() * sizeof(ViewFrame), more.data(), more.size() * sizeof(ViewFrame));
+    std::memcpy(out->data() + sizeof header + frames.size() * sizeof(ViewFrame), more.data(),
+                more.size() * sizeof(ViewFrame));
   }
   return out;
 }
@@ -84,7 +85,7 @@ struct Message {
   bool text = false;
   bool droppable = false;  ///< live batches: a slow page may lose them
   std::size_t frames = 0;
-  bool status = false;     ///< a newer status replaces a queued one (and drops no batch)
+  bool status = false;  ///< a newer status replaces a queued one (and drops no batch)
   std::size_t bytes() const noexcept { return data ? data->size() : 0; }
 };
 
@@ -102,16 +103,16 @@ struct ViewerServer::Impl {
   /// Pages that hold a slot: taken when the upgrade request is read, given back when the page
   /// session ends. pages_open counts finished handshakes only, too late to be the cap.
   std::atomic<std::size_t> page_slots{0};
-  std::atomic<std::size_t> connections{0};  ///< HTTP sessions alive (not yet, or never, pages)
-  std::atomic<std::size_t> control_slots{0};  ///< /control connections whose hello passed, alive
+  std::atomic<std::size_t> connections{0};      ///< HTTP sessions alive (not yet, or never, pages)
+  std::atomic<std::size_t> control_slots{0};    ///< /control connections whose hello passed, alive
   std::atomic<std::size_t> control_pending{0};  ///< /control connections not yet past their hello
   std::atomic<std::uint64_t> control_hello_late{0};
   std::atomic<std::size_t> control_bytes{0}, max_control_bytes{0};  ///< control replies held (being written)
-  std::atomic<std::uint64_t> requests_late{0};  ///< HTTP connections closed: no whole request in time
+  std::atomic<std::uint64_t> requests_late{0};     ///< HTTP connections closed: no whole request in time
   std::atomic<std::uint64_t> requests_evicted{0};  ///< HTTP connections closed to make room for a new one
   std::atomic<std::uint64_t> control_messages{0}, control_refused{0};
   std::atomic<std::uint64_t> controls_authenticated{0};  ///< control connections whose hello passed
-  bool stopping = false;                    ///< set on the server thread before the io_context stops
+  bool stopping = false;                                 ///< set on the server thread before the io_context stops
 
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
@@ -120,14 +121,14 @@ struct ViewerServer::Impl {
   std::chrono::duration<double> accept_delay{kAcceptRetryMinS};
   std::shared_ptr<const std::string> hello;  ///< one copy, shared by every page
   std::uint16_t port = 0;
-  std::set<std::string> hosts;      ///< lower-case Host values a request may give ("name:port")
+  std::set<std::string> hosts;  ///< lower-case Host values a request may give ("name:port")
   std::string url;
   std::unique_ptr<FrameRing> ring = std::make_unique<FrameRing>();
   std::atomic<bool> finish_requested{false};
   std::atomic<std::uint64_t> drained{0};
 
   // Server thread only.
-  std::vector<ViewFrame> history;   ///< circular, capacity history_frames; seq s at s % size
+  std::vector<ViewFrame> history;  ///< circular, capacity history_frames; seq s at s % size
   std::uint64_t next_seq = 0;
   bool ended = false;
   std::vector<ViewFrame> batch;
@@ -234,7 +235,7 @@ class PageSession : public std::enable_shared_from_this<PageSession> {
   void join(Message hello, std::uint64_t first, std::uint64_t end) {
     send(std::move(hello));  // nothing is in flight yet: the hello goes out first
     history_next_ = first;
-    history_end_ = end;      // from here on, history goes before anything queued
+    history_end_ = end;  // from here on, history goes before anything queued
   }
 
   void send(Message message) {
@@ -358,7 +359,9 @@ class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
  public:
   /// The caller took a pending control slot; the socket gives back whichever it holds.
   ControlSocket(tcp::socket socket, ViewerServer::Impl& server)
-      : ws_(std::move(socket)), server_(server), session_(*server.options.control, server.options.control_options),
+      : ws_(std::move(socket)),
+        server_(server),
+        session_(*server.options.control, server.options.control_options),
         deadline_(ws_.get_executor()) {}
   ~ControlSocket() {
     server_.free_control_bytes(reply_.size());
@@ -430,8 +433,8 @@ class ControlSocket : public std::enable_shared_from_this<ControlSocket> {
       if (server_.control_slots.fetch_add(1) >= server_.options.max_controls) {
         server_.control_slots.fetch_sub(1);
         server_.control_refused.fetch_add(1);
-        reply(R"({"type":"error","message":"too many control connections open"})", websocket::close_code::try_again_later,
-              "too many control connections");
+        reply(R"({"type":"error","message":"too many control connections open"})",
+              websocket::close_code::try_again_later, "too many control connections");
         return;
       }
       server_.control_pending.fetch_sub(1);
@@ -505,9 +508,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     // and then holds a connection slot no longer than this.
     stream_.expires_after(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
         std::chrono::duration<double>(server_.options.request_deadline_s)));
-    http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
-      self->on_read(ec);
-    });
+    http::async_read(stream_, buffer_, *parser_,
+                     [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
   }
 
  private:
@@ -723,9 +725,9 @@ void ViewerServer::Impl::scene_changed() {
 }
 
 std::shared_ptr<const std::string> ViewerServer::Impl::status_json(std::uint64_t page_dropped) const {
-  return std::make_shared<const std::string>(fmt::format(
-      R"({{"type":"status","ended":{},"frames":{},"dropped_ring":{},"dropped_page":{},"pages":{}}})", ended, next_seq,
-      ring->dropped(), page_dropped, pages_open.load()));
+  return std::make_shared<const std::string>(
+      fmt::format(R"({{"type":"status","ended":{},"frames":{},"dropped_ring":{},"dropped_page":{},"pages":{}}})", ended,
+                  next_seq, ring->dropped(), page_dropped, pages_open.load()));
 }
 
 void ViewerServer::Impl::add_page(const std::shared_ptr<PageSession>& page) {
@@ -827,8 +829,8 @@ Result<std::string> host_name(const std::string& given) {
   if (!ec) return host_literal(address);
   if (name.empty() || name.size() > 253) return bad("a DNS name has 1 to 253 characters");
   if (name.find(':') != std::string::npos) return bad("give the name without a port (the viewer's port is added)");
-  if (name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789.-_") != std::string::npos ||
-      name.front() == '.' || name.front() == '-') {
+  if (name.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789.-_") != std::string::npos || name.front() == '.' ||
+      name.front() == '-') {
     return bad("not a DNS name or an IP address (letters, digits, '.', '-')");
   }
   return name;
@@ -886,8 +888,9 @@ Result<std::unique_ptr<ViewerServer::Impl>> bind(const ViewerOptions& options, s
   if (!ec) impl->acceptor.listen(asio::socket_base::max_listen_connections, ec);
   if (ec) {
     return Error{fmt::format("viewer: cannot listen on {}:{}: {}{}", options.address, options.port, ec.message(),
-                             ec == asio::error::address_in_use ? " (another program uses the port: give another, or 0 for any free one)"
-                                                               : "")};
+                             ec == asio::error::address_in_use
+                                 ? " (another program uses the port: give another, or 0 for any free one)"
+                                 : "")};
   }
   impl->port = impl->acceptor.local_endpoint().port();
   const std::string p = std::to_string(impl->port);
@@ -921,7 +924,8 @@ Result<std::unique_ptr<ViewerServer>> ViewerServer::start(const ViewerOptions& o
   return start_recording(options, std::move(hello_json), std::nullopt);
 }
 
-Result<std::unique_ptr<ViewerServer>> ViewerServer::start_recording(const ViewerOptions& options, std::string hello_json,
+Result<std::unique_ptr<ViewerServer>> ViewerServer::start_recording(const ViewerOptions& options,
+                                                                    std::string hello_json,
                                                                     std::optional<std::vector<ViewFrame>> recording) {
   auto bound = bind(options, std::move(hello_json));
   if (!bound) return Error{bound.error()};
@@ -944,7 +948,9 @@ Result<std::unique_ptr<ViewerServer>> ViewerServer::start_recording(const Viewer
   return std::unique_ptr<ViewerServer>(new ViewerServer(std::move(impl)));
 }
 
-void ViewerServer::publish(const TelemetryFrame& frame) noexcept { publish(view_frame(frame, impl_->options.has_loop)); }
+void ViewerServer::publish(const TelemetryFrame& frame) noexcept {
+  publish(view_frame(frame, impl_->options.has_loop));
+}
 
 void ViewerServer::publish(const ViewFrame& frame) noexcept {
   static_cast<void>(impl_->ring->push(frame));  // full: dropped and counted, never waits

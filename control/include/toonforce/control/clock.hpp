@@ -13,10 +13,10 @@ namespace toonforce {
 
 /// One tick's time.
 struct TickTime {
-  Instant now;              ///< the tick (and its stamp)
-  std::int64_t gap = 1;     ///< periods since the previous tick (1 on the first)
-  double period_s = 0.0;    ///< [s] for TickInput: the fixed period, or 0 when times are stamps
-  double dt = 0.0;          ///< [s] true time since the previous tick (the period on the first); double-time clocks
+  Instant now;                 ///< the tick (and its stamp)
+  std::int64_t gap = 1;        ///< periods since the previous tick (1 on the first)
+  double period_s = 0.0;       ///< [s] for TickInput: the fixed period, or 0 when times are stamps
+  double dt = 0.0;             ///< [s] true time since the previous tick (the period on the first); double-time clocks
   std::int64_t period_ns = 0;  ///< [ns] integer-time clocks: period_s (0 when times are stamps)
   std::int64_t dt_ns = 0;      ///< [ns] integer-time clocks: dt
 

@@ -44,7 +44,8 @@ class Engage {
     if (state_ == LoopState::kEngaging) [[likely]] {
       // By the squares (exact in a Q format): no square root on the tick.
       // (The hint: the dearer side in line, for the bound.)
-      if (!norm_below(scene_force_n, engage_force_squared_)) [[unlikely]] return S{};
+      if (!norm_below(scene_force_n, engage_force_squared_)) [[unlikely]]
+        return S{};
       start(k);
     }
     constexpr S kOne = scalar_cast<S>(1.0);
@@ -63,8 +64,8 @@ class Engage {
       // 0.01 LSB for a 1 s ramp at 1 kHz); elapsed < soft_start keeps the product below 2^33,
       // and ticks < ramp_ticks_ <= 2^32 lets it be one 32x32 product.
       const auto product = std::uint64_t{static_cast<std::uint32_t>(ticks)} * static_cast<std::uint32_t>(ramp_step_);
-      const auto ramp = static_cast<typename S::Raw>((product + (std::uint64_t{1} << (31 - S::kFracBits))) >>
-                                                     (32 - S::kFracBits));
+      const auto ramp =
+          static_cast<typename S::Raw>((product + (std::uint64_t{1} << (31 - S::kFracBits))) >> (32 - S::kFracBits));
       // At most 1 (the loop scales by it without a saturation test, times_in_range): a ramp of
       // more than 2^16 ticks may round past it by the step's rounding.
       return ramp < kOne.raw() ? S::from_raw(ramp) : kOne;
@@ -97,7 +98,8 @@ class Engage {
     if (period_ns <= 0 || soft_start_ns <= period_ns) return 0;
     const auto t = static_cast<std::uint64_t>(period_ns);
     const auto d = static_cast<std::uint64_t>(soft_start_ns);
-    if (t >= (std::uint64_t{1} << 31)) return ((t << 1) / (d >> 31) + 1) >> 1;  // periods over 2 s: 2^32 t / d from d's top bits
+    if (t >= (std::uint64_t{1} << 31))
+      return ((t << 1) / (d >> 31) + 1) >> 1;  // periods over 2 s: 2^32 t / d from d's top bits
     return ((t << 32) + d / 2) / d;
   }
 

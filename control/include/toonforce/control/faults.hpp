@@ -15,9 +15,9 @@ namespace toonforce {
 
 enum class Fault : std::uint32_t {
   kNone = 0,
-  kNonFiniteInput = 1U << 0,    ///< NaN/Inf position or velocity: zero force this tick
-  kNonFiniteForce = 1U << 1,    ///< the scene's force was NaN/Inf: zero force this tick
-  kFixedSaturation = 1U << 2,   ///< a Q-format operation saturated during the tick
+  kNonFiniteInput = 1U << 0,   ///< NaN/Inf position or velocity: zero force this tick
+  kNonFiniteForce = 1U << 1,   ///< the scene's force was NaN/Inf: zero force this tick
+  kFixedSaturation = 1U << 2,  ///< a Q-format operation saturated during the tick
   // The servo loop's safety layer (control/servo_loop.hpp):
   kEstop = 1U << 3,             ///< emergency stop engaged (latched until released + re-armed)
   kWatchdog = 1U << 4,          ///< ticks missed beyond the watchdog's periods (latched)
@@ -80,10 +80,10 @@ enum class Limit : std::uint8_t {
   kRateLimited = 1U << 0,  ///< the force-rate limit shortened this tick's step
   kClamped = 1U << 1,      ///< the force clamp scaled this tick's force down
   // The servo loop's safety layer:
-  kThermal = 1U << 2,      ///< the clamp is derated below max_force by the thermal model
-  kPassivity = 1U << 3,    ///< the passivity controller added damping this tick
-  kSoftStart = 1U << 4,    ///< the soft-start ramp scaled the force down
-  kEngaging = 1U << 5,     ///< waiting for the scene force to drop below engage_force
+  kThermal = 1U << 2,    ///< the clamp is derated below max_force by the thermal model
+  kPassivity = 1U << 3,  ///< the passivity controller added damping this tick
+  kSoftStart = 1U << 4,  ///< the soft-start ramp scaled the force down
+  kEngaging = 1U << 5,   ///< waiting for the scene force to drop below engage_force
   // The device: its reading says the force written the tick before was more than it could
   // give (DeviceReading::force_limited; the Falcon's motor-word cap, docs/FALCON.md).
   kDeviceLimited = 1U << 6,

@@ -64,19 +64,19 @@ struct Verdict {
 
 /// The page the loop's process and its guardian share (a memfd, mapped before the fork).
 struct SharedPage {
-  std::atomic<std::int64_t> heartbeat{0};  ///< the runner's: the next tick's index; 0 before the first
-  std::atomic<std::uint32_t> phase{0};     ///< Phase
+  std::atomic<std::int64_t> heartbeat{0};    ///< the runner's: the next tick's index; 0 before the first
+  std::atomic<std::uint32_t> phase{0};       ///< Phase
   std::atomic<std::uint32_t> loop_ended{0};  ///< the runner's: 1 after the shut-down tick (RealtimeOptions::ended)
   /// The guardian's: 1 once it watches (the loop's process opens its device only then), 2 if it
   /// cannot (the loop's process ends without opening it).
   std::atomic<std::uint32_t> guardian_ready{0};
   pid_t guardian_pid = 0;
-  std::int64_t period_ns = 0;              ///< the loop's period, set before kDeviceOpen
-  ExternalZero zero;                       ///< set before kDeviceOpen
-  std::atomic<std::uint32_t> frame_seq{0}; ///< odd while `frame` is being written
-  TelemetryFrame frame{};                  ///< the last frame the writer thread took
-  std::atomic<std::uint64_t> frames{0};    ///< frames the writer took
-  Verdict verdict{};                       ///< the guardian's, after the loop's process ended
+  std::int64_t period_ns = 0;               ///< the loop's period, set before kDeviceOpen
+  ExternalZero zero;                        ///< set before kDeviceOpen
+  std::atomic<std::uint32_t> frame_seq{0};  ///< odd while `frame` is being written
+  TelemetryFrame frame{};                   ///< the last frame the writer thread took
+  std::atomic<std::uint64_t> frames{0};     ///< frames the writer took
+  Verdict verdict{};                        ///< the guardian's, after the loop's process ended
 };
 static_assert(std::atomic<std::int64_t>::is_always_lock_free && std::atomic<std::uint32_t>::is_always_lock_free,
               "the page is shared between processes: its atomics must be lock-free");
@@ -136,17 +136,17 @@ struct GuardOptions {
 
 /// What the guardian saw and did.
 struct GuardOutcome {
-  int wait_status = 0;          ///< waitpid's status of the loop's process
+  int wait_status = 0;            ///< waitpid's status of the loop's process
   bool device_seen_open = false;  ///< the page said kDeviceOpen at some time
-  bool loop_ended = false;      ///< the page said the loop's shut-down tick was done
-  bool loop_died = false;       ///< ended while the device was open and its loop had not ended, or by a signal
-  bool stalled = false;         ///< the guardian killed it for a stalled heartbeat
-  std::string cause;            ///< "killed by SIGKILL", "stalled: no tick for 512 ms, ...", ...
-  std::int64_t ticks = 0;       ///< the heartbeat at the end
-  std::int64_t death_ns = 0;    ///< CLOCK_MONOTONIC when the guardian saw the end
-  std::int64_t zero_ns = 0;     ///< when the zero command had been sent (0: none)
+  bool loop_ended = false;        ///< the page said the loop's shut-down tick was done
+  bool loop_died = false;         ///< ended while the device was open and its loop had not ended, or by a signal
+  bool stalled = false;           ///< the guardian killed it for a stalled heartbeat
+  std::string cause;              ///< "killed by SIGKILL", "stalled: no tick for 512 ms, ...", ...
+  std::int64_t ticks = 0;         ///< the heartbeat at the end
+  std::int64_t death_ns = 0;      ///< CLOCK_MONOTONIC when the guardian saw the end
+  std::int64_t zero_ns = 0;       ///< when the zero command had been sent (0: none)
   bool zero_sent = false;
-  std::string zero_detail;      ///< what was done to zero the force, or why nothing could be
+  std::string zero_detail;  ///< what was done to zero the force, or why nothing could be
   bool have_frame = false;
   TelemetryFrame last_frame{};  ///< the last frame the writer took
   double t_end_s = 0.0;         ///< the loop's time at the zero command (see guard())

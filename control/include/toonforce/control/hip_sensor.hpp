@@ -20,12 +20,12 @@ namespace toonforce {
 template <Scalar S>
 struct Hip {
   Vec3<S> position_m;
-  Vec3<S> velocity_m_per_s;       ///< zero when nothing needs a velocity
-  S rate_hz{};                    ///< 1/dt since the last tick that counted [Hz]
-  bool position_finite = false;   ///< the position can be used (the passivity observer needs only it)
-  bool finite = false;            ///< position and any given velocity finite: the tick can count
-  bool estimated = false;         ///< velocity_m_per_s is the estimator's, not yet committed
-  bool stepped = false;  ///< the sensor took the step since the last counted tick (HipSensor::step)
+  Vec3<S> velocity_m_per_s;      ///< zero when nothing needs a velocity
+  S rate_hz{};                   ///< 1/dt since the last tick that counted [Hz]
+  bool position_finite = false;  ///< the position can be used (the passivity observer needs only it)
+  bool finite = false;           ///< position and any given velocity finite: the tick can count
+  bool estimated = false;        ///< velocity_m_per_s is the estimator's, not yet committed
+  bool stepped = false;          ///< the sensor took the step since the last counted tick (HipSensor::step)
 };
 
 /// The rate 1e9 / (g T) of g >= 1 periods of T ns in a Q format, exactly as
@@ -107,8 +107,8 @@ class HipSensor {
       h.rate_hz = one_period ? period_rate_hz_ : periods_rate_.after(since);
     } else if constexpr (kIsFixed<S>) {  // integer time (control/clock.hpp): 1e9 / ns, no floating point
       one_period = since == 1 && time.period_ns > 0;
-      h.rate_hz = one_period ? period_rate_hz_
-                             : S::from_ratio(kNsPerS, has_commit_ ? time.ns_since(last_commit_) : time.dt_ns);
+      h.rate_hz =
+          one_period ? period_rate_hz_ : S::from_ratio(kNsPerS, has_commit_ ? time.ns_since(last_commit_) : time.dt_ns);
     } else {
       one_period = since == 1 && time.period_s > 0.0;
       h.rate_hz = one_period ? period_rate_hz_
@@ -181,8 +181,8 @@ class HipSensor {
  private:
   /// The velocity into `h`: the device's, else the estimator's from `step` when estimating.
   template <class T>
-  void estimate_into(Hip<S>& h, bool has_velocity, const Vec3<T>& device_velocity, const Vec3<S>& step,
-                     bool one_period, std::int64_t since) const noexcept {
+  void estimate_into(Hip<S>& h, bool has_velocity, const Vec3<T>& device_velocity, const Vec3<S>& step, bool one_period,
+                     std::int64_t since) const noexcept {
     if (has_velocity) {
       h.velocity_m_per_s = in_scalar(device_velocity);
     } else if constexpr (kMayEstimate) {
@@ -208,7 +208,7 @@ class HipSensor {
   /// over the gap itself; the exact gain is 0.91 at 33 periods of 1 ms with the default 50 Hz
   /// cutoff and nearer 1 after longer gaps, which the default watchdog has faulted the loop for).
   S gain_after([[maybe_unused]] std::int64_t since) const noexcept {
-    if constexpr (kGainTable) {  // (a body clang can check in every instantiation)
+    if constexpr (kGainTable) {                              // (a body clang can check in every instantiation)
       const auto k = static_cast<std::uint64_t>(since - 1);  // since >= 1: ticks only move on
       return k < gains_.size() ? gains_[static_cast<std::size_t>(k)] : scalar_cast<S>(1.0);
     } else {
@@ -231,7 +231,8 @@ class HipSensor {
   S period_gain_;     ///< the filter's gain at 1/T
   struct NoPeriodsRate {};
   [[no_unique_address]] std::conditional_t<kIsFixed<S> && !kMayStamp, PeriodsRate<S>, NoPeriodsRate> periods_rate_;
-  [[no_unique_address]] std::conditional_t<kGainTable, std::array<S, static_cast<std::size_t>(kTabulatedGaps)>, NoPeriodsRate>
+  [[no_unique_address]] std::conditional_t<kGainTable, std::array<S, static_cast<std::size_t>(kTabulatedGaps)>,
+                                           NoPeriodsRate>
       gains_{};
   bool has_commit_ = false;
   bool estimated_ = false;  ///< the last tick that counted was estimated: the estimator holds its velocity

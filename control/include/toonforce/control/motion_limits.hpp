@@ -14,7 +14,7 @@ struct MotionLimitsConfig {
   bool has_max_velocity = true;
   double max_velocity_m_per_s = 1.2;  ///< [m/s]
   bool has_workspace = false;
-  Vec3<double> workspace_min_m;       ///< [m] scene frame
+  Vec3<double> workspace_min_m;  ///< [m] scene frame
   Vec3<double> workspace_max_m;
 };
 

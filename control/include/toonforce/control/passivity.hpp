@@ -115,8 +115,8 @@ class PassivityController {
     return update(forces, slots, velocity_m_per_s, rate_hz, episodes);
   }
   /// The same, saying in `episodes` whether any slot is in an episode.
-  constexpr Vec3<S> update(const ActiveForce<S>* forces, std::size_t slots, const Vec3<S>& velocity_m_per_s,
-                           S rate_hz, bool& episodes) noexcept {
+  constexpr Vec3<S> update(const ActiveForce<S>* forces, std::size_t slots, const Vec3<S>& velocity_m_per_s, S rate_hz,
+                           bool& episodes) noexcept {
     episodes = false;
     damped_ = false;
     if constexpr (kSlots == 0) return Vec3<S>{};  // a scene without an active part: no loop to bound
@@ -130,7 +130,7 @@ class PassivityController {
     [[maybe_unused]] S alpha_cap{};      // [N s/m] (Q formats) min(max_damping, max_force / |v|)
     Vec3<S> total{};
     for (std::size_t i = 0; i < (kUnrolled ? kSlots : slots); ++i) {  // as account()'s
-      TOONFORCE_LOOP_BOUND(kSlots);  // slots <= kSlots: it indexes slots_
+      TOONFORCE_LOOP_BOUND(kSlots);                                   // slots <= kSlots: it indexes slots_
       if (kUnrolled && i >= slots) break;
       Slot& s = slots_[i];
       const ActiveForce<S>& f = forces[i];
@@ -182,8 +182,8 @@ class PassivityController {
         // is rounded, so neither saturates: a force X rate / |v| past the format's range is past
         // max_force, and then alpha is alpha_cap.
         const std::int64_t force = raw_product(power, inverse_speed);
-        alpha = force >= scaled_up(S::max()) ? alpha_cap
-                                                       : at_most(raw_product(rounded(force), inverse_speed), alpha_cap);
+        alpha =
+            force >= scaled_up(S::max()) ? alpha_cap : at_most(raw_product(rounded(force), inverse_speed), alpha_cap);
       } else {  // as it was (the figures' double runs unchanged)
         const S excess = min((s.energy - budget_).to_scalar(), max_excess_);
         const S power = excess * rate_hz;  // [W] > 0
@@ -319,7 +319,8 @@ class Passivity {
     if (!stepped) return;
     observer_.observe(held_force_n, step_m);
     // (The hint: the dearer side in line, for the bound.)
-    if (episodes_) [[likely]] controller_.account(step_m, applied_, slots_);  // only a running episode books work
+    if (episodes_) [[likely]]
+      controller_.account(step_m, applied_, slots_);  // only a running episode books work
   }
   /// After a tick that counted: the damping for this tick's active parts into `damping_n`
   /// (zero when none exceeds its budget or the controller is off); true if there is some.
@@ -352,8 +353,9 @@ class Passivity {
         return;
       }
       const auto p = static_cast<std::uint64_t>(projection);
-      applied_ = p >= wanted_squared ? kOne
-                                     : S::from_raw(static_cast<typename S::Raw>(detail::fraction_q16(p, wanted_squared)));
+      applied_ = p >= wanted_squared
+                     ? kOne
+                     : S::from_raw(static_cast<typename S::Raw>(detail::fraction_q16(p, wanted_squared)));
     } else {
       const S wanted_squared = dot(wanted_n, wanted_n);
       applied_ = wanted_squared > S{} ? max(S{}, min(kOne, dot(out_n, wanted_n) / wanted_squared)) : S{};

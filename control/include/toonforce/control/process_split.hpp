@@ -24,8 +24,8 @@ struct GuardianStart {
   std::string program;                ///< the guardian's path (guardian_program_path())
   std::vector<std::string> epilogue;  ///< what it execs after a death ("--page-fd N" appended)
   double stall_limit_ms = 500.0;
-  int priority = 0;                   ///< SCHED_FIFO priority of the guardian (0: normal)
-  std::string enable_chip;            ///< the amplifier-enable line, if any: /dev/gpiochipN
+  int priority = 0;         ///< SCHED_FIFO priority of the guardian (0: normal)
+  std::string enable_chip;  ///< the amplifier-enable line, if any: /dev/gpiochipN
   unsigned enable_offset = 0;
   bool enable_active_low = false;
 };

@@ -86,9 +86,9 @@ struct RunReport {
   std::int64_t watchdog_trips = 0;  ///< heartbeat watchdog commanded zero force
   int stop_signal = 0;              ///< the signal that stopped the run, 0 if none
   double elapsed_s = 0.0;
-  LatencyHistogram wake{1000, 20000};     ///< 1 us bins to 20 ms
-  LatencyHistogram compute{100, 20000};   ///< 0.1 us bins to 2 ms
-  LatencyHistogram slack{1000, 10000};    ///< 1 us bins to 10 ms; < 0 counted apart
+  LatencyHistogram wake{1000, 20000};    ///< 1 us bins to 20 ms
+  LatencyHistogram compute{100, 20000};  ///< 0.1 us bins to 2 ms
+  LatencyHistogram slack{1000, 10000};   ///< 1 us bins to 10 ms; < 0 counted apart
 };
 
 /// Runs `task` until `options.deadlines` periods have passed or `stop` is non-zero (its value

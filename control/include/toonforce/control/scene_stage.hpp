@@ -27,8 +27,8 @@ namespace toonforce {
 
 template <Scalar S>
 struct SceneForce {
-  Vec3<S> force_n;     ///< the scene's force (zero when the tick does not count)
-  bool counts = false; ///< finite inputs and force: the effects' new states are committed
+  Vec3<S> force_n;      ///< the scene's force (zero when the tick does not count)
+  bool counts = false;  ///< finite inputs and force: the effects' new states are committed
 };
 
 template <SceneType SceneT, bool kLive = false>

@@ -22,15 +22,15 @@ struct ServerChannel {
   /// As large as the run's own telemetry ring (servo_session.hpp): 16 s at 1 kHz before a
   /// starved server process loses frames (2048 lost the frames of a fall on a loaded CI host).
   SpscRing<TelemetryFrame, 16384> frames;
-  std::atomic<int> state{0};               ///< 0 starting, 1 listening, 2 failed
-  std::atomic<int> control_ready{0};       ///< a control client's hello passed
-  std::atomic<int> run_over{0};            ///< 1: keep serving the recording, 2: close now
-  alignas(64) unsigned char mailbox[1];    ///< the live-scene mailbox (mapped with room for it)
+  std::atomic<int> state{0};             ///< 0 starting, 1 listening, 2 failed
+  std::atomic<int> control_ready{0};     ///< a control client's hello passed
+  std::atomic<int> run_over{0};          ///< 1: keep serving the recording, 2: close now
+  alignas(64) unsigned char mailbox[1];  ///< the live-scene mailbox (mapped with room for it)
 
   /// Room for the largest mailbox of the three scalars (only the run's is placed there).
-  static constexpr std::size_t kMailboxBytes = std::max({sizeof(SceneMailbox<RuntimeScene<double>>),
-                                                         sizeof(SceneMailbox<RuntimeScene<float>>),
-                                                         sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
+  static constexpr std::size_t kMailboxBytes =
+      std::max({sizeof(SceneMailbox<RuntimeScene<double>>), sizeof(SceneMailbox<RuntimeScene<float>>),
+                sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
 };
 /// The bytes to map: the channel and its mailbox.
 inline constexpr std::size_t kServerChannelBytes = sizeof(ServerChannel) + ServerChannel::kMailboxBytes;

@@ -81,7 +81,9 @@ struct ServoConfig {
   double velocity_cutoff_hz = VelocityEstimator<double>::kDefaultCutoffHz;
   SafetyConfig safety;
 
-  constexpr SupervisorConfig supervisor() const noexcept { return {safety.watchdog_periods, safety.device_timeout_periods}; }
+  constexpr SupervisorConfig supervisor() const noexcept {
+    return {safety.watchdog_periods, safety.device_timeout_periods};
+  }
   constexpr EngageConfig engage() const noexcept { return {safety.engage_force_n, safety.soft_start_s, period_s}; }
   constexpr MotionLimitsConfig motion_limits() const noexcept {
     return {safety.has_max_velocity, safety.max_velocity_m_per_s, safety.has_workspace, safety.workspace_min_m,

@@ -74,9 +74,7 @@ struct TickStatus {
   DeviceStatus read = DeviceStatus::kOk;
   DeviceStatus write = DeviceStatus::kOk;
   bool rearm_refused = false;  ///< a re-arm was asked for while a latched cause persists
-  constexpr bool ok() const noexcept {
-    return !faults && read == DeviceStatus::kOk && write == DeviceStatus::kOk;
-  }
+  constexpr bool ok() const noexcept { return !faults && read == DeviceStatus::kOk && write == DeviceStatus::kOk; }
 };
 
 template <ServoDevice Device, SceneType SceneT, class PinsT = NullPins, LoopStages kStages = kEveryStage>
@@ -87,8 +85,8 @@ class ServoLoop {
   using Stage = SceneStage<SceneT, kStages.live>;
   static constexpr std::size_t kSlots = Stage::kActiveCapacity;
   /// Whether anything in this loop can need a velocity estimate (else the estimator is compiled out).
-  static constexpr bool kMayEstimate = has(SceneT::kNeeds, Needs::kVelocity) || kStages.motion_limits ||
-                                       (kStages.passivity && kSlots > 0);
+  static constexpr bool kMayEstimate =
+      has(SceneT::kNeeds, Needs::kVelocity) || kStages.motion_limits || (kStages.passivity && kSlots > 0);
   /// What a live loop's updates come through (scene_updates.hpp; void unless live).
   using Mailbox = typename detail::MailboxOf<SceneT, kStages.live>::type;
   /// What the device reads and is written in: double, or the loop's own scalar (hal/device.hpp).
@@ -295,10 +293,10 @@ class ServoLoop {
  private:
   /// What the scene and the safety chain made of one tick.
   struct Outcome {
-    Vec3<S> force_n;           ///< to command
-    Vec3<S> scene_n;           ///< the scene's force (zero on a tick that did not count)
-    Vec3<S> damping_n;         ///< the passivity controller's
-    S gain{};                  ///< soft start
+    Vec3<S> force_n;    ///< to command
+    Vec3<S> scene_n;    ///< the scene's force (zero on a tick that did not count)
+    Vec3<S> damping_n;  ///< the passivity controller's
+    S gain{};           ///< soft start
     FaultSet faults;
     std::uint8_t limits = 0;
   };
@@ -310,7 +308,8 @@ class ServoLoop {
     // The [[likely]]/[[unlikely]] hints here lay the dearer side in line: it is the tick's static
     // bound's path, where a taken branch costs 1 + 3 cycles and one not taken 1 (Cortex-M3 TRM r2p1
     // table 3-1); no value changes.
-    if (hip.finite) [[likely]] scene = scene_.force(Stage::input(hip, time));
+    if (hip.finite) [[likely]]
+      scene = scene_.force(Stage::input(hip, time));
     o.scene_n = scene.force_n;
     if (!scene.counts) {  // spec §6.1: zero now, bypassing the rate limit; states kept
       o.faults.set(hip.finite ? Fault::kNonFiniteForce : Fault::kNonFiniteInput);
@@ -323,7 +322,8 @@ class ServoLoop {
     const bool damping = passivity_.damping(scene_.active(), hip.velocity_m_per_s, o.damping_n);
     o.faults |= motion_.check(hip.position_m, hip.velocity_m_per_s);
     // (The hint: the dearer side in line, for the bound.)
-    if (!gate.open || o.faults) [[unlikely]] return cut(o, gate.open ? k : -1);
+    if (!gate.open || o.faults) [[unlikely]]
+      return cut(o, gate.open ? k : -1);
     o.gain = engage_.gain(scene.force_n, k);
     if (engage_.engaging()) {
       o.limits = o.limits | Limit::kEngaging;
@@ -374,9 +374,9 @@ class ServoLoop {
   }
 
   TickStatus finish(const Outcome& out, const Gate& gate, DeviceStatus read, DeviceStatus write) noexcept {
-    state_ = supervisor_.latched() ? LoopState::kFaulted
+    state_ = supervisor_.latched()             ? LoopState::kFaulted
              : gate.mode != LoopState::kActive ? gate.mode
-                                                : engage_.state();
+                                               : engage_.state();
     show_lights();
     TickStatus status;
     status.state = state_;
@@ -440,7 +440,6 @@ class ServoLoop {
     }
   }
 
-
   void show_lights() noexcept {
     if (state_ == shown_) return;
     shown_ = state_;
@@ -456,7 +455,9 @@ class ServoLoop {
 
   /// Without a configured max force, the thermal model and the damping cap use this [N].
   static constexpr double kUnlimitedForceN = 1000.0;
-  static constexpr double unlimited_or(const ForceLimits& l) noexcept { return l.has_max_force ? l.max_force_n : kUnlimitedForceN; }
+  static constexpr double unlimited_or(const ForceLimits& l) noexcept {
+    return l.has_max_force ? l.max_force_n : kUnlimitedForceN;
+  }
 
   template <bool kOn, template <class> class On, template <class> class Off>
   using StageOf = std::conditional_t<kOn, On<S>, Off<S>>;

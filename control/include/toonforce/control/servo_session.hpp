@@ -36,9 +36,9 @@ class FrameConsumer {
 
 struct SessionOptions {
   RealtimeOptions realtime;
-  bool handle_signals = true;   ///< SIGINT/SIGTERM stop the run; fatal signals zero the force
-  bool interactive = true;      ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
-  std::FILE* messages = stderr; ///< where "type q and Enter" goes
+  bool handle_signals = true;    ///< SIGINT/SIGTERM stop the run; fatal signals zero the force
+  bool interactive = true;       ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
+  std::FILE* messages = stderr;  ///< where "type q and Enter" goes
   /// A stop that came before the session's handlers were in place (the command's own stop
   /// flag, tools/run/command_stop.hpp): if set, the run stops at its first tick, with zero force.
   const std::atomic<int>* pending_stop = nullptr;

@@ -23,12 +23,12 @@ namespace toonforce {
 
 /// What the loop is doing (the supervisor's modes, then the engage stage's).
 enum class LoopState : std::uint8_t {
-  kIdle = 0,      ///< enable released (or shut down): no force
-  kHoming,        ///< the device is not ready yet (homing, calibrating): no force
-  kEngaging,      ///< waiting for the scene force to drop below engage_force
-  kRamping,       ///< soft start
-  kActive,        ///< full force
-  kFaulted,       ///< a latched fault: no force until re-armed
+  kIdle = 0,  ///< enable released (or shut down): no force
+  kHoming,    ///< the device is not ready yet (homing, calibrating): no force
+  kEngaging,  ///< waiting for the scene force to drop below engage_force
+  kRamping,   ///< soft start
+  kActive,    ///< full force
+  kFaulted,   ///< a latched fault: no force until re-armed
 };
 
 constexpr const char* to_string(LoopState s) noexcept {
@@ -48,17 +48,17 @@ struct Gate {
   /// kIdle, kHoming or kFaulted when closed by that; kActive when armed (the engage stage
   /// then says whether the loop is engaging, ramping or active).
   LoopState mode = LoopState::kActive;
-  bool open = true;           ///< force may flow (armed and the device read succeeded)
-  bool position = true;       ///< the read succeeded: there is a position to compute with
-  bool reopened = false;      ///< armed again after idle, homing or a fault: engage afresh
+  bool open = true;              ///< force may flow (armed and the device read succeeded)
+  bool position = true;          ///< the read succeeded: there is a position to compute with
+  bool reopened = false;         ///< armed again after idle, homing or a fault: engage afresh
   bool ramp_again_next = false;  ///< this tick's read failed: the soft start ramps again from the next tick
   bool ramp_again_now = false;   ///< the last tick's write failed: it ramps again from this tick
-  FaultSet faults;            ///< this tick's (a device error), latched ones included
-  bool rearm_refused = false; ///< a re-arm was asked for while a latched cause persists
+  FaultSet faults;               ///< this tick's (a device error), latched ones included
+  bool rearm_refused = false;    ///< a re-arm was asked for while a latched cause persists
 };
 
 struct SupervisorConfig {
-  std::int64_t watchdog_periods = 30;      ///< a larger gap between ticks latches kWatchdog
+  std::int64_t watchdog_periods = 30;        ///< a larger gap between ticks latches kWatchdog
   std::int64_t device_timeout_periods = 10;  ///< this many failed exchanges in a row latch kDeviceSilent
 };
 
@@ -115,7 +115,8 @@ class Supervisor {
       }
     }
     if (estop != PinLevel::kInactive) latched_.set(Fault::kEstop);
-    if (started_ && gap > config_.watchdog_periods) [[likely]] latched_.set(Fault::kWatchdog);
+    if (started_ && gap > config_.watchdog_periods) [[likely]]
+      latched_.set(Fault::kWatchdog);
     started_ = true;
     if (read_ok || homing) {
       failed_reads_ = 0;

@@ -31,23 +31,23 @@ inline constexpr std::size_t kMaxEffectValues = 64;
 
 /// One tick of the servo loop, scene frame, SI units.
 struct TelemetryFrame {
-  double t_s = 0.0;           ///< tick * period
+  double t_s = 0.0;  ///< tick * period
   std::int64_t tick = 0;
-  Vec3<double> position_m;    ///< HIP as the controller saw it
+  Vec3<double> position_m;  ///< HIP as the controller saw it
   Vec3<double> velocity_m_per_s;
-  Vec3<double> force_n;       ///< commanded, after the whole safety layer
-  Vec3<double> scene_force_n; ///< the scene's force before it
-  Vec3<double> damping_n;     ///< the passivity controller's damping (before ramp and limits)
-  std::uint32_t faults = 0;   ///< Fault bits of this tick (latched ones included)
-  std::uint32_t latched = 0;  ///< latched Fault bits
-  std::uint8_t limits = 0;    ///< Limit bits
-  std::uint8_t state = 0;     ///< LoopState
-  bool in_contact = false;    ///< the HIP touches some effect's geometry
-  double max_force_n = 0.0;   ///< the clamp in force (thermal derating included)
-  double temperature = 0.0;   ///< thermal model, 0 cold, 1 rated
+  Vec3<double> force_n;            ///< commanded, after the whole safety layer
+  Vec3<double> scene_force_n;      ///< the scene's force before it
+  Vec3<double> damping_n;          ///< the passivity controller's damping (before ramp and limits)
+  std::uint32_t faults = 0;        ///< Fault bits of this tick (latched ones included)
+  std::uint32_t latched = 0;       ///< latched Fault bits
+  std::uint8_t limits = 0;         ///< Limit bits
+  std::uint8_t state = 0;          ///< LoopState
+  bool in_contact = false;         ///< the HIP touches some effect's geometry
+  double max_force_n = 0.0;        ///< the clamp in force (thermal derating included)
+  double temperature = 0.0;        ///< thermal model, 0 cold, 1 rated
   double observed_energy_j = 0.0;  ///< Hannaford-Ryu E_obs (>= 0 passive)
   double episode_energy_j = 0.0;   ///< largest active-effect episode energy
-  double gain = 0.0;          ///< soft-start gain 0..1
+  double gain = 0.0;               ///< soft-start gain 0..1
   TickTiming timing;
   std::uint16_t value_count = 0;  ///< of `values` in use
   /// The effects' values (effects/effect.hpp kValues: "surface1.impact_t", "cliff1.state", ...).
@@ -91,9 +91,9 @@ class SpscRing {
   /// share). Kept in the producer's memory, never in the ring; push(item, producer) reads only
   /// tail_ from the ring, as a hint.
   struct Producer {
-    std::size_t head = 0;         ///< the next item's number
-    std::size_t tail_cache = 0;   ///< the consumer's index as last read
-    std::uint64_t dropped = 0;    ///< items dropped because the ring was (or said it was) full
+    std::size_t head = 0;        ///< the next item's number
+    std::size_t tail_cache = 0;  ///< the consumer's index as last read
+    std::uint64_t dropped = 0;   ///< items dropped because the ring was (or said it was) full
   };
   /// Producer: push() with the producer's indices in `p`. The slot written is `p.head` modulo
   /// the capacity whatever the ring's bytes say; a consumer index the producer has not reached
@@ -134,10 +134,10 @@ class SpscRing {
   // Producer and consumer indices on their own cache lines, so they do not false-share.
   static constexpr std::size_t kLine = 64;
   alignas(kLine) std::atomic<std::size_t> head_{0};  ///< next slot to write (producer)
-  std::size_t tail_cache_ = 0;                        ///< producer's last view of tail_
+  std::size_t tail_cache_ = 0;                       ///< producer's last view of tail_
   std::atomic<std::uint64_t> dropped_{0};
   alignas(kLine) std::atomic<std::size_t> tail_{0};  ///< next slot to read (consumer)
-  std::size_t head_cache_ = 0;                        ///< consumer's last view of head_
+  std::size_t head_cache_ = 0;                       ///< consumer's last view of head_
   alignas(kLine) std::array<T, Capacity> slots_{};
 };
 

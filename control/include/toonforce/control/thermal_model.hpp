@@ -127,7 +127,7 @@ class ThermalModel {
     }
   }
 
- /// Gaps [periods] whose r^n the fixed-point build tabulates: the supervisor's default
+  /// Gaps [periods] whose r^n the fixed-point build tabulates: the supervisor's default
   /// watchdog (30) and a little more.
   static constexpr std::int64_t kTabulatedGaps = 32;
 
@@ -159,7 +159,7 @@ class ThermalModel {
       HeatScale h;
       if constexpr (kIsFixed<S>) {  // (a body clang can check for a floating-point S too)
         double m = 1.0 / (continuous_force_n * continuous_force_n);  // then into [1/2, 1)
-        double top = 0x1p63;  // 2^(63 - left): the Wide's range before the shift up
+        double top = 0x1p63;               // 2^(63 - left): the Wide's range before the shift up
         while (m >= 1.0 && h.left < 62) {  // 32 halvings at most for a Q16.16 F_c (>= 2^-16 N)
           m *= 0.5;
           top *= 0.5;
@@ -222,7 +222,8 @@ class ThermalModel {
     }
   };
 
-  using GapTable = std::conditional_t<kIsFixed<S>, std::array<Decay<S>, static_cast<std::size_t>(kTabulatedGaps)>, Unused>;
+  using GapTable =
+      std::conditional_t<kIsFixed<S>, std::array<Decay<S>, static_cast<std::size_t>(kTabulatedGaps)>, Unused>;
 
   /// The floating-point builds' scaling and derating (as they were: their results unchanged).
   struct FloatForm {
@@ -246,7 +247,8 @@ class ThermalModel {
 template <Scalar S>
 class NoThermal {
  public:
-  constexpr NoThermal(const ThermalConfig&, double, double max_force_n) noexcept : max_force_n_(scalar_cast<S>(max_force_n)) {}
+  constexpr NoThermal(const ThermalConfig&, double, double max_force_n) noexcept
+      : max_force_n_(scalar_cast<S>(max_force_n)) {}
   constexpr void advance(const Vec3<S>&, std::int64_t) noexcept {}
   constexpr S allowed_force() const noexcept { return max_force_n_; }
   constexpr bool enabled() const noexcept { return false; }

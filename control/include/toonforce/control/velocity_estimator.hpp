@@ -29,7 +29,8 @@ class VelocityEstimator {
     // The [[likely]]/[[unlikely]] hints here lay the dearer side in line: it is the tick's static
     // bound's path, where a taken branch costs 1 + 3 cycles and one not taken 1 (Cortex-M3 TRM r2p1
     // table 3-1); no value changes.
-    if (!started_) [[unlikely]] return velocity_;
+    if (!started_) [[unlikely]]
+      return velocity_;
     if constexpr (kIsFixed<S>) {
       return filtered(position_m - previous_m_, rate_hz, a);
     } else {
@@ -42,7 +43,8 @@ class VelocityEstimator {
   /// alone (commit_velocity).
   constexpr Vec3<S> estimate_step(const Vec3<S>& dx, S rate_hz, S a) const noexcept {
     // (The hint: the dearer side in line, for the bound.)
-    if (!started_) [[unlikely]] return velocity_;
+    if (!started_) [[unlikely]]
+      return velocity_;
     if constexpr (kIsFixed<S>) {
       return filtered(dx, rate_hz, a);
     } else {
@@ -91,7 +93,9 @@ class VelocityEstimator {
       constexpr S kOne = scalar_cast<S>(1.0);
       const S keep = S::from_raw(kOne.raw() - a.raw());
       const S gain = S::from_product_in_range(W{rate_hz.raw()} * a.raw());
-      const auto one = [keep, gain](S d, S v) { return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw()); };
+      const auto one = [keep, gain](S d, S v) {
+        return S::from_product(W{d.raw()} * gain.raw() + W{v.raw()} * keep.raw());
+      };
       return {one(dx.x, velocity_.x), one(dx.y, velocity_.y), one(dx.z, velocity_.z)};
     } else {
       return velocity_;

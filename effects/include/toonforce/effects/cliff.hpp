@@ -27,22 +27,22 @@ struct CartoonCliff {
   static constexpr std::size_t kMaxPerScene = 8;
   struct Params {
     Plane<S> ground;
-    Vec3<S> axis;                       ///< a, unit, perpendicular to the ground normal
-    S gap_min_m{};                      ///< [m] along a from p0 (required, < gap_max)
-    S gap_max_m{};                      ///< [m] (required)
+    Vec3<S> axis;                            ///< a, unit, perpendicular to the ground normal
+    S gap_min_m{};                           ///< [m] along a from p0 (required, < gap_max)
+    S gap_max_m{};                           ///< [m] (required)
     typename PenaltyWall<S>::Params wall{};  ///< `stiffness` (required), `damping` (default 0)
-    S speed_threshold_m_per_s{};        ///< [m/s], > 0 (required)
-    S tau_s{};                          ///< filter time constant [s], >= 0 (default 0.02)
-    S rearm_height_m{};                 ///< [m], >= 0 (default 0.001)
-    S fall_force_n{};                   ///< [N], >= 0 (default 0)
+    S speed_threshold_m_per_s{};             ///< [m/s], > 0 (required)
+    S tau_s{};                               ///< filter time constant [s], >= 0 (default 0.02)
+    S rearm_height_m{};                      ///< [m], >= 0 (default 0.001)
+    S fall_force_n{};                        ///< [N], >= 0 (default 0)
   };
   struct State {
     S filtered_speed_m_per_s{};  ///< s_f
     bool fallen = false;
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
-  static constexpr std::array<ValueInfo, 2> kValues{{{"state", "", "0 supported, 1 fallen"},
-                                                     {"speed", "m/s", "filtered lateral speed s_f"}}};
+  static constexpr std::array<ValueInfo, 2> kValues{
+      {{"state", "", "0 supported, 1 fallen"}, {"speed", "m/s", "filtered lateral speed s_f"}}};
 
   /// Scene-file keys of `[[cliff]]` (spec effects.md §5, interfaces.md).
   static constexpr auto schema() {
@@ -63,7 +63,8 @@ struct CartoonCliff {
   static void check(const Params& p, schema::Problems& problems, ScalarKind) {
     constexpr double kTolerance = kIsFixed<S> ? 1e-4 : 1e-6;
     const double across = std::fabs(to_double(dot(p.ground.normal, p.axis)));
-    if (!(across <= kTolerance)) problems.add("axis", "must be perpendicular to the normal; |axis.normal| after normalising is", across);
+    if (!(across <= kTolerance))
+      problems.add("axis", "must be perpendicular to the normal; |axis.normal| after normalising is", across);
     if (!(p.gap_min_m < p.gap_max_m)) problems.add("gap_max", "must be greater than gap_min");
   }
   static constexpr Needs needs(const Params&) noexcept { return kNeeds; }

@@ -33,9 +33,9 @@ struct NoTangential {
 template <Scalar S>
 struct RealisticFriction {
   struct Params {
-    S viscous_n_s_per_m{};                 ///< mu_v [N s/m], <= 0 (default 0)
-    S coulomb{};                           ///< mu_c [-], >= 0 (default 0)
-    S regularization_speed_m_per_s{};      ///< v_reg [m/s], > 0 (default 0.02)
+    S viscous_n_s_per_m{};             ///< mu_v [N s/m], <= 0 (default 0)
+    S coulomb{};                       ///< mu_c [-], >= 0 (default 0)
+    S regularization_speed_m_per_s{};  ///< v_reg [m/s], > 0 (default 0.02)
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
   static constexpr bool kPresent = true;
@@ -46,17 +46,17 @@ struct RealisticFriction {
   /// >= 0], `regularization_speed` [m/s, default 0.02, > 0].
   static constexpr auto schema() {
     using namespace schema;
-    return fields(number("viscous", &Params::viscous_n_s_per_m, "N s/m", Range::kNonPositive, 0.0,
-                         "realistic viscous friction opposes motion; for mu > 0 use a [surface.slippery] table instead"),
-                  number("coulomb", &Params::coulomb, "", Range::kNonNegative, 0.0),
-                  number("regularization_speed", &Params::regularization_speed_m_per_s, "m/s", Range::kPositive, 0.02));
+    return fields(
+        number("viscous", &Params::viscous_n_s_per_m, "N s/m", Range::kNonPositive, 0.0,
+               "realistic viscous friction opposes motion; for mu > 0 use a [surface.slippery] table instead"),
+        number("coulomb", &Params::coulomb, "", Range::kNonNegative, 0.0),
+        number("regularization_speed", &Params::regularization_speed_m_per_s, "m/s", Range::kPositive, 0.02));
   }
   static constexpr Needs needs(const Params&) noexcept { return Needs::kVelocity; }
   static constexpr bool injects(const Params&) noexcept { return false; }
   static constexpr bool present(const Params&) noexcept { return true; }
 
-  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
-                                 S normal_force_n) noexcept {
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity, S normal_force_n) noexcept {
     if constexpr (kIsFixed<S>) {
       // mu_c N / max(|v_t|, v_reg) from the inverse root of the larger exact square: no root
       // and no division (they were about 140 instructions and four UDIVs of the
@@ -69,8 +69,8 @@ struct RealisticFriction {
       if (squares != 0) {
         const auto magnitude = static_cast<std::uint32_t>(push.raw() < 0 ? 0U - static_cast<std::uint32_t>(push.raw())
                                                                          : static_cast<std::uint32_t>(push.raw()));
-        const auto gain = static_cast<typename S::Wide>(
-            detail::over_root<S::kFracBits>(magnitude, detail::inverse_root(squares)));
+        const auto gain =
+            static_cast<typename S::Wide>(detail::over_root<S::kFracBits>(magnitude, detail::inverse_root(squares)));
         coulomb_gain = S::from_wide(push.raw() < 0 ? -gain : gain);
       }
       return tangential_velocity * (p.viscous_n_s_per_m - coulomb_gain);
@@ -88,8 +88,8 @@ struct RealisticFriction {
 template <Scalar S>
 struct SuperSlippery {
   struct Params {
-    S mu_n_s_per_m{};               ///< mu [N s/m], > 0 (scene key `mu`, required)
-    S max_tangential_force_n{};     ///< [N], > 0 (default 2)
+    S mu_n_s_per_m{};            ///< mu [N s/m], > 0 (scene key `mu`, required)
+    S max_tangential_force_n{};  ///< [N], > 0 (default 2)
   };
   static constexpr Needs kNeeds = Needs::kVelocity;
   static constexpr bool kPresent = true;
@@ -107,8 +107,7 @@ struct SuperSlippery {
   static constexpr bool injects(const Params&) noexcept { return true; }
   static constexpr bool present(const Params&) noexcept { return true; }
 
-  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
-                                 S /*normal_force_n*/) noexcept {
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity, S /*normal_force_n*/) noexcept {
     return limit_magnitude(tangential_velocity * p.mu_n_s_per_m, p.max_tangential_force_n);
   }
 };
@@ -132,13 +131,12 @@ struct AnyTangential {
   /// Scene-file tables `friction` or `slippery`, at most one of them (spec interfaces.md).
   static constexpr auto schema() {
     using namespace schema;
-    return fields(one_of(&Params::kind,
-                         "they contradict each other (friction opposes motion, the slippery surface pushes along "
-                         "it); keep one",
-                         option(RealisticFriction<S>::kTableKey, Kind::kFriction, &Params::friction,
-                                RealisticFriction<S>::schema()),
-                         option(SuperSlippery<S>::kTableKey, Kind::kSlippery, &Params::slippery,
-                                SuperSlippery<S>::schema())));
+    return fields(one_of(
+        &Params::kind,
+        "they contradict each other (friction opposes motion, the slippery surface pushes along "
+        "it); keep one",
+        option(RealisticFriction<S>::kTableKey, Kind::kFriction, &Params::friction, RealisticFriction<S>::schema()),
+        option(SuperSlippery<S>::kTableKey, Kind::kSlippery, &Params::slippery, SuperSlippery<S>::schema())));
   }
   static constexpr Needs needs(const Params& p) noexcept {
     return p.kind == Kind::kNone ? Needs::kNone : Needs::kVelocity;
@@ -146,15 +144,11 @@ struct AnyTangential {
   static constexpr bool injects(const Params& p) noexcept { return p.kind == Kind::kSlippery; }
   static constexpr bool present(const Params& p) noexcept { return p.kind != Kind::kNone; }
 
-  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity,
-                                 S normal_force_n) noexcept {
+  static constexpr Vec3<S> force(const Params& p, const Vec3<S>& tangential_velocity, S normal_force_n) noexcept {
     switch (p.kind) {
-      case Kind::kFriction:
-        return RealisticFriction<S>::force(p.friction, tangential_velocity, normal_force_n);
-      case Kind::kSlippery:
-        return SuperSlippery<S>::force(p.slippery, tangential_velocity, normal_force_n);
-      case Kind::kNone:
-        break;
+      case Kind::kFriction: return RealisticFriction<S>::force(p.friction, tangential_velocity, normal_force_n);
+      case Kind::kSlippery: return SuperSlippery<S>::force(p.slippery, tangential_velocity, normal_force_n);
+      case Kind::kNone: break;
     }
     return {};
   }

@@ -45,17 +45,17 @@ struct NoImpact {
 template <Scalar S>
 struct ImpactTransient {
   struct Params {
-    S recoil_gain_n_per_m{};         ///< k_r [N/m] (required)
-    S oscillation_gain_n_per_m{};    ///< k_osc [N/m] (required)
-    S duration_s{};                  ///< d [s], > 0 (required)
-    S frequency_hz{};                ///< f [Hz], > 0 (required)
-    S min_impact_speed_m_per_s{};    ///< [m/s], >= 0 (default 0.05)
-    S rearm_distance_m{};            ///< [m], >= 0 (default 0.001)
+    S recoil_gain_n_per_m{};              ///< k_r [N/m] (required)
+    S oscillation_gain_n_per_m{};         ///< k_osc [N/m] (required)
+    S duration_s{};                       ///< d [s], > 0 (required)
+    S frequency_hz{};                     ///< f [Hz], > 0 (required)
+    S min_impact_speed_m_per_s{};         ///< [m/s], >= 0 (default 0.05)
+    S rearm_distance_m{};                 ///< [m], >= 0 (default 0.001)
     SineMethod sine = SineMethod::kAuto;  ///< kAuto: the scalar type's own default
   };
   struct State {
-    Instant trigger{};                 ///< tick of the running transient's trigger
-    S impact_speed_m_per_s{};          ///< v_i of the running transient
+    Instant trigger{};         ///< tick of the running transient's trigger
+    S impact_speed_m_per_s{};  ///< v_i of the running transient
     /// delta of the previous tick; before the first, a depth inside (1 m), so that the first
     /// tick is no entry whatever its delta (a flag for "no previous tick" was a branch the
     /// Cortex-M3 bound took out of line and back)
@@ -153,8 +153,7 @@ struct ImpactTransient {
     const S oscillation = sin_turns(phase, p.sine);
     if constexpr (!kIsFixed<S>) left = p.duration_s - t;
     out.running = true;
-    out.force_n = s.impact_speed_m_per_s * left *
-                  (p.recoil_gain_n_per_m + p.oscillation_gain_n_per_m * oscillation);
+    out.force_n = s.impact_speed_m_per_s * left * (p.recoil_gain_n_per_m + p.oscillation_gain_n_per_m * oscillation);
     return out;
   }
 

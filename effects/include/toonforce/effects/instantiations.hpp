@@ -14,15 +14,15 @@
 
 // PREFIX is `extern` or nothing and S a template argument: parentheses would not compile.
 // NOLINTBEGIN(bugprone-macro-parentheses)
-#define TOONFORCE_EFFECT_TEMPLATES(PREFIX, S)                 \
-  PREFIX template struct ::toonforce::PenaltyWall<S>;         \
-  PREFIX template struct ::toonforce::PenaltyWall<S, false>;  \
-  PREFIX template struct ::toonforce::RealisticFriction<S>;   \
-  PREFIX template struct ::toonforce::SuperSlippery<S>;       \
-  PREFIX template struct ::toonforce::AnyTangential<S>;       \
-  PREFIX template struct ::toonforce::ImpactTransient<S>;     \
-  PREFIX template struct ::toonforce::MaybeImpact<S>;         \
-  PREFIX template struct ::toonforce::CartoonCliff<S>;        \
+#define TOONFORCE_EFFECT_TEMPLATES(PREFIX, S)                \
+  PREFIX template struct ::toonforce::PenaltyWall<S>;        \
+  PREFIX template struct ::toonforce::PenaltyWall<S, false>; \
+  PREFIX template struct ::toonforce::RealisticFriction<S>;  \
+  PREFIX template struct ::toonforce::SuperSlippery<S>;      \
+  PREFIX template struct ::toonforce::AnyTangential<S>;      \
+  PREFIX template struct ::toonforce::ImpactTransient<S>;    \
+  PREFIX template struct ::toonforce::MaybeImpact<S>;        \
+  PREFIX template struct ::toonforce::CartoonCliff<S>;       \
   PREFIX template class ::toonforce::RuntimeSceneOf<S, TOONFORCE_BUILTIN_EFFECTS>;
 // NOLINTEND(bugprone-macro-parentheses)
 

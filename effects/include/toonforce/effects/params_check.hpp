@@ -109,9 +109,9 @@ bool field_ok(const P& p, const OneOf<P, K, O...>& d) noexcept {
   bool ok = false;
   std::apply(
       [&](const auto&... option) {
-        static_cast<void>(((same_bytes(p.*d.kind, option.value) ? (ok = fields_ok(p.*option.member, option.fields), true)
-                                                                  : false) ||
-                           ...));
+        static_cast<void>(
+            ((same_bytes(p.*d.kind, option.value) ? (ok = fields_ok(p.*option.member, option.fields), true) : false) ||
+             ...));
       },
       d.options);
   return ok;

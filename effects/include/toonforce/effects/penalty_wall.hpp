@@ -14,8 +14,8 @@ template <Scalar S, bool kDamped = true>
 struct PenaltyWall {
   using Scalar = S;
   struct Params {
-    S stiffness_n_per_m{};   ///< k [N/m], > 0 (scene key `stiffness`, required)
-    S damping_n_s_per_m{};   ///< b [N s/m], >= 0 (scene key `damping`, default 0)
+    S stiffness_n_per_m{};  ///< k [N/m], > 0 (scene key `stiffness`, required)
+    S damping_n_s_per_m{};  ///< b [N s/m], >= 0 (scene key `damping`, default 0)
   };
   static constexpr Needs kNeeds = kDamped ? Needs::kVelocity : Needs::kNone;
 

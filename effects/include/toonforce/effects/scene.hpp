@@ -185,8 +185,8 @@ class RuntimeSceneOf {
   static constexpr Needs kNeeds = (Kinds<S>::kNeeds | ...);
   static constexpr std::size_t kMaxEffects = (effect::kMaxPerScene<Kinds<S>> + ...);
   static constexpr std::size_t kActiveCapacity =
-      ((effect::kMaxPerScene<Kinds<S>> * effect::kActiveSlots<Kinds<S>>) + ...);
-  static constexpr std::size_t kValueCapacity = ((effect::kMaxPerScene<Kinds<S>> * effect::kValueCount<Kinds<S>>) + ...);
+      ((effect::kMaxPerScene<Kinds<S>> * effect::kActiveSlots<Kinds<S>>)+...);
+  static constexpr std::size_t kValueCapacity = ((effect::kMaxPerScene<Kinds<S>> * effect::kValueCount<Kinds<S>>)+...);
 
   struct State {
     std::tuple<std::array<typename Kinds<S>::State, effect::kMaxPerScene<Kinds<S>>>...> effects{};
@@ -209,9 +209,9 @@ class RuntimeSceneOf {
     std::size_t& n = counts_[I];
     if (n == effect::kMaxPerScene<E>) return false;
     std::get<I>(params_)[n] = p;
-    order_[effect_count_++] = Entry{static_cast<std::uint8_t>(I), static_cast<std::uint8_t>(n),
-                                    static_cast<std::uint16_t>(active_slots_),
-                                    static_cast<std::uint16_t>(value_count_), effect::stateful<E>(p)};
+    order_[effect_count_++] =
+        Entry{static_cast<std::uint8_t>(I), static_cast<std::uint8_t>(n), static_cast<std::uint16_t>(active_slots_),
+              static_cast<std::uint16_t>(value_count_), effect::stateful<E>(p)};
     ++n;
     active_slots_ += effect::active_slots<E>(p);
     value_count_ += effect::kValueCount<E>;
@@ -309,8 +309,8 @@ class RuntimeSceneOf {
     bool fired = false;
     if (i >= effect_count_) return fired;
     dispatch(order_[i], [&]<std::size_t I>(const Entry& e) {
-      fired = effect::fire<Kind<I>>(std::get<I>(params_)[e.index], std::get<I>(state.effects)[e.index], event, value,
-                                    now);
+      fired =
+          effect::fire<Kind<I>>(std::get<I>(params_)[e.index], std::get<I>(state.effects)[e.index], event, value, now);
     });
     return fired;
   }
@@ -333,7 +333,7 @@ class RuntimeSceneOf {
     const std::size_t n = untrusted.effect_count_ < kMaxEffects ? untrusted.effect_count_ : kMaxEffects;
     for (std::size_t i = 0; i < n; ++i) {
       const Entry& e = untrusted.order_[i];  // its integers only: `stateful` is not loaded
-      if (e.kind >= kKinds) return false;  // (dispatch would find no kind either)
+      if (e.kind >= kKinds) return false;    // (dispatch would find no kind either)
       bool added = false;
       dispatch(e, [&]<std::size_t I>(const Entry&) {
         const std::size_t index = e.index;

@@ -126,8 +126,8 @@ constexpr Number<P, T> number(std::string_view key, T P::*member, std::string_vi
   return {key, member, unit, range, true, 0.0, {}};
 }
 template <class P, class T>
-constexpr Number<P, T> number(std::string_view key, T P::*member, std::string_view unit, Range range,
-                              double fallback, std::string_view hint = {}) noexcept {
+constexpr Number<P, T> number(std::string_view key, T P::*member, std::string_view unit, Range range, double fallback,
+                              std::string_view hint = {}) noexcept {
   return {key, member, unit, range, false, fallback, hint};
 }
 template <class P, class T>

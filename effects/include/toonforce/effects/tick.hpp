@@ -82,8 +82,8 @@ struct TickInput {
 /// The HIP against one plane on one tick.
 template <Scalar S>
 struct Contact {
-  S penetration_m;          ///< delta = -n.(x - p0); in contact when > 0
-  S normal_speed_m_per_s;   ///< n.v (negative while moving into the solid)
+  S penetration_m;         ///< delta = -n.(x - p0); in contact when > 0
+  S normal_speed_m_per_s;  ///< n.v (negative while moving into the solid)
 };
 
 /// A plane with a point and a unit normal pointing out of the solid (spec §0).
@@ -100,7 +100,9 @@ struct Plane {
   /// n k for any k (times_unit).
   constexpr Vec3<S> along(S k) const noexcept { return times_unit(normal, k); }
   /// v's part in the plane, v - (n.v) n, with n.v known (tangential_part).
-  constexpr Vec3<S> tangential(const Vec3<S>& v, S n_dot_v) const noexcept { return tangential_part(v, normal, n_dot_v); }
+  constexpr Vec3<S> tangential(const Vec3<S>& v, S n_dot_v) const noexcept {
+    return tangential_part(v, normal, n_dot_v);
+  }
 
   /// Scene-file keys `point` [m] and `normal` (normalised on load; zero is an error).
   static constexpr auto schema() {

@@ -109,22 +109,21 @@ inline void reset_saturation_flag() noexcept {
 /// toward high's sign, with the flag.
 [[gnu::always_inline]] inline std::int32_t saturate_words(std::int32_t low, std::int32_t high) noexcept {
   std::int32_t ignored;
-  asm volatile(
-      "cmp %[high], %[low], asr #31\n\t"
-      "ittt ne\n\t"
-      "mvnne %[low], #0x80000000\n\t"
-      "eorne %[low], %[low], %[high], asr #31\n\t"
-      "ssatne %[ignored], #1, %[low]"
-      : [low] "+r"(low), [ignored] "=&r"(ignored)
-      : [high] "r"(high)
-      : "cc");
+  asm volatile("cmp %[high], %[low], asr #31\n\t"
+               "ittt ne\n\t"
+               "mvnne %[low], #0x80000000\n\t"
+               "eorne %[low], %[low], %[high], asr #31\n\t"
+               "ssatne %[ignored], #1, %[low]"
+               : [low] "+r"(low), [ignored] "=&r"(ignored)
+               : [high] "r"(high)
+               : "cc");
   return low;
 }
 // After a flag-setting ADDS or SUBS into %[result] from %[a]: on overflow (V) the limit toward
 // a's sign, which is the true result's, in its place, and the flag.
 #define TOONFORCE_FIXED_LIMIT_ON_OVERFLOW         \
-  "ittt vs\n\t"                                    \
-  "mvnvs %[result], #0x80000000\n\t"               \
+  "ittt vs\n\t"                                   \
+  "mvnvs %[result], #0x80000000\n\t"              \
   "eorvs %[result], %[result], %[a], asr #31\n\t" \
   "ssatvs %[ignored], #1, %[result]"
 /// a + b (a - b with kSubtract), or the limit toward a's sign when it overflows, with the flag.
@@ -133,10 +132,14 @@ template <bool kSubtract>
   std::int32_t result, ignored;
   if constexpr (kSubtract) {
     asm volatile("subs %[result], %[a], %[b]\n\t" TOONFORCE_FIXED_LIMIT_ON_OVERFLOW
-                 : [result] "=&r"(result), [ignored] "=&r"(ignored) : [a] "r"(a), [b] "r"(b) : "cc");
+                 : [result] "=&r"(result), [ignored] "=&r"(ignored)
+                 : [a] "r"(a), [b] "r"(b)
+                 : "cc");
   } else {
     asm volatile("adds %[result], %[a], %[b]\n\t" TOONFORCE_FIXED_LIMIT_ON_OVERFLOW
-                 : [result] "=&r"(result), [ignored] "=&r"(ignored) : [a] "r"(a), [b] "r"(b) : "cc");
+                 : [result] "=&r"(result), [ignored] "=&r"(ignored)
+                 : [a] "r"(a), [b] "r"(b)
+                 : "cc");
   }
   return result;
 }
@@ -149,19 +152,18 @@ template <bool kSubtract>
   const auto b_low = static_cast<std::uint32_t>(b);
   const auto b_high = static_cast<std::uint32_t>(static_cast<std::uint64_t>(b) >> 32);
   std::int32_t ignored;
-  asm volatile(
-      "adds %[low], %[low], %[b_low]\n\t"
-      "adcs %[high], %[high], %[b_high]\n\t"
-      "itttt vs\n\t"
-      "mvnvs %[low], %[b_high], asr #31\n\t"  // all ones, or 0 toward a negative b
-      "orrvs %[low], %[low], #1\n\t"          // low word of 2^63 - 1, or of -(2^63 - 1)
-      "mvnvs %[high], #0x80000000\n\t"
-      "eorvs %[high], %[high], %[b_high], asr #31\n\t"
-      "it vs\n\t"
-      "ssatvs %[ignored], #1, %[high]"
-      : [low] "+&r"(low), [high] "+&r"(high), [ignored] "=&r"(ignored)
-      : [b_low] "r"(b_low), [b_high] "r"(b_high)
-      : "cc");
+  asm volatile("adds %[low], %[low], %[b_low]\n\t"
+               "adcs %[high], %[high], %[b_high]\n\t"
+               "itttt vs\n\t"
+               "mvnvs %[low], %[b_high], asr #31\n\t"  // all ones, or 0 toward a negative b
+               "orrvs %[low], %[low], #1\n\t"          // low word of 2^63 - 1, or of -(2^63 - 1)
+               "mvnvs %[high], #0x80000000\n\t"
+               "eorvs %[high], %[high], %[b_high], asr #31\n\t"
+               "it vs\n\t"
+               "ssatvs %[ignored], #1, %[high]"
+               : [low] "+&r"(low), [high] "+&r"(high), [ignored] "=&r"(ignored)
+               : [b_low] "r"(b_low), [b_high] "r"(b_high)
+               : "cc");
   return static_cast<std::int64_t>((std::uint64_t{high} << 32) | low);
 }
 #else
@@ -202,7 +204,8 @@ constexpr std::uint64_t div_u64_u32_digits(std::uint64_t n, std::uint32_t d) noe
   const auto digit = [v, vn1](std::uint32_t un, std::uint32_t next, std::uint32_t& remainder) {
     std::uint32_t q = un / vn1;
     // (un 2^16 + next) - q v, in (-2v, v): each negative remainder takes one off q, adds v back.
-    auto r = static_cast<std::int64_t>((std::uint64_t{un} << 16) | next) - static_cast<std::int64_t>(std::uint64_t{q} * v);
+    auto r =
+        static_cast<std::int64_t>((std::uint64_t{un} << 16) | next) - static_cast<std::int64_t>(std::uint64_t{q} * v);
     const auto correct = [&] {
       const auto negative = static_cast<std::uint32_t>(static_cast<std::uint64_t>(r) >> 63);
       q -= negative;
@@ -249,9 +252,9 @@ constexpr int countl_zero_words(std::uint64_t v) noexcept {
 /// as much.
 constexpr std::uint32_t fraction_q16(std::uint64_t n, std::uint64_t d) noexcept {
   const int s = countl_zero_words(d);
-  const auto divisor = static_cast<std::uint32_t>((d << s) >> 48);    // in [2^15, 2^16)
-  const auto dividend = static_cast<std::uint32_t>((n << s) >> 32);   // n <= d: below 2^32
-  const std::uint32_t q = dividend / divisor;                          // at most 2^16 + 2
+  const auto divisor = static_cast<std::uint32_t>((d << s) >> 48);   // in [2^15, 2^16)
+  const auto dividend = static_cast<std::uint32_t>((n << s) >> 32);  // n <= d: below 2^32
+  const std::uint32_t q = dividend / divisor;                        // at most 2^16 + 2
   return q < (1U << 16) ? q : 1U << 16;
 }
 
@@ -264,7 +267,7 @@ constexpr std::uint64_t div_u64_digits(std::uint64_t u, std::uint64_t v) noexcep
   if (vh == 0) return div_u64_u32_digits(u, static_cast<std::uint32_t>(v));
   const int s = std::countl_zero(vh);
   const auto vl = static_cast<std::uint32_t>(v);
-  const std::uint32_t v1 = (vh << s) | (s == 0 ? 0U : vl >> (32 - s));  // v's top 32 bits
+  const std::uint32_t v1 = (vh << s) | (s == 0 ? 0U : vl >> (32 - s));         // v's top 32 bits
   const auto q1 = static_cast<std::uint32_t>(div_u64_u32_digits(u >> 1, v1));  // (u / 2) >> 32 < v1
   std::uint64_t q = q1 >> (31 - s);
   if (q != 0) --q;
@@ -345,9 +348,7 @@ constexpr std::uint64_t div_u64_by(std::uint64_t n, const Divisor& d) noexcept {
   }
 }
 /// (n + d / 2) / d, rounded half up as div_round_u32, by a prepared divisor.
-constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept {
-  return div_u64_by(n + d.d / 2, d);
-}
+constexpr std::uint64_t div_round_by(std::uint64_t n, const Divisor& d) noexcept { return div_u64_by(n + d.d / 2, d); }
 }  // namespace detail
 
 /// True if any fixed-point operation on this thread saturated since the last clear.
@@ -405,9 +406,7 @@ class Fixed {
   static constexpr Fixed epsilon() noexcept { return from_raw(1); }
 
   constexpr Raw raw() const noexcept { return raw_; }
-  constexpr double to_double() const noexcept {
-    return static_cast<double>(raw_) / static_cast<double>(kOneRaw);
-  }
+  constexpr double to_double() const noexcept { return static_cast<double>(raw_) / static_cast<double>(kOneRaw); }
 
   /// num / den in this format, rounded to nearest (half away from zero), saturating with the
   /// flag; den <= 0 saturates toward num's sign. Integers only: a fixed-point loop takes its
@@ -446,15 +445,13 @@ class Fixed {
     const auto magnitude = static_cast<std::uint64_t>(raw_ < 0 ? -Wide{raw_} : Wide{raw_});  // <= 2^31
     if (magnitude == 0) return Fixed{};
     if (seconds >= (std::uint64_t{1} << 31)) return saturated(raw_ > 0);  // past any raw value
-    const std::uint64_t rest_ns = ns_u - seconds * kNsPerSecond;  // < 1e9 < 2^30
+    const std::uint64_t rest_ns = ns_u - seconds * kNsPerSecond;          // < 1e9 < 2^30
     // magnitude * seconds < 2^62, magnitude * rest_ns < 2^61: neither overflows.
     const std::uint64_t whole = magnitude * seconds + detail::div_u64_by(magnitude * rest_ns, kSecond);
     return from_wide(sign * static_cast<Wide>(whole));
   }
   /// Whether num / den <= this value, exactly (den > 0, |num| < 2^(62 - FracBits), den < 2^31).
-  constexpr bool ratio_at_most(Wide num, Wide den) const noexcept {
-    return num * kOneRaw <= Wide{raw_} * den;
-  }
+  constexpr bool ratio_at_most(Wide num, Wide den) const noexcept { return num * kOneRaw <= Wide{raw_} * den; }
 
   /// Saturates a wide intermediate into range, setting the flag when it had to.
   /// (Every operation of the tick ends here, so its worst path is what the tick's static bound
@@ -484,7 +481,8 @@ class Fixed {
   /// A product of two raw values rounded to this format's units, half away from zero (below).
   [[gnu::always_inline]] static constexpr Wide rounded_product(Wide product) noexcept {
     static_assert(FracBits >= 1 && FracBits <= 31);
-    const auto half = static_cast<std::uint32_t>((std::int32_t{1} << (FracBits - 1)) + static_cast<std::int32_t>(product >> 63));
+    const auto half =
+        static_cast<std::uint32_t>((std::int32_t{1} << (FracBits - 1)) + static_cast<std::int32_t>(product >> 63));
     return (product + Wide{half}) >> FracBits;
   }
   /// A product of two raw values, or a sum of such (|product| <= 2^62), back to this format: round_shift by
@@ -544,7 +542,9 @@ class Fixed {
     if (__builtin_sub_overflow(Raw{0}, a.raw_, &negated)) return saturated_toward(0);  // -lowest()
     return from_raw(negated);
   }
-  [[gnu::always_inline]] friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept { return from_product(Wide{a.raw_} * b.raw_); }
+  [[gnu::always_inline]] friend constexpr Fixed operator*(Fixed a, Fixed b) noexcept {
+    return from_product(Wide{a.raw_} * b.raw_);
+  }
   /// Division by zero saturates toward the sign of the dividend (0/0 gives 0), with the flag.
   friend constexpr Fixed operator/(Fixed a, Fixed b) noexcept {
     if (b.raw_ == 0) {
@@ -608,11 +608,14 @@ class Fixed {
   /// keeps the dividend below 2^32, one 32-bit division.
   static constexpr Wide rounded_reciprocal_raw(Fixed d) noexcept {
     const auto divisor = static_cast<std::uint32_t>(d.raw_);
-    const std::uint32_t below = static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - divisor) + divisor / 2;
+    const std::uint32_t below =
+        static_cast<std::uint32_t>((std::uint64_t{1} << (2 * FracBits)) - divisor) + divisor / 2;
     return static_cast<Wide>(below / divisor) + 1;
   }
   /// `raw` is 0 and the compiler knows it (after inlining: a component set to 0).
-  [[gnu::always_inline]] static constexpr bool known_zero(Raw raw) noexcept { return __builtin_constant_p(raw) && raw == 0; }
+  [[gnu::always_inline]] static constexpr bool known_zero(Raw raw) noexcept {
+    return __builtin_constant_p(raw) && raw == 0;
+  }
   /// max() when `sign` >= 0, lowest() when it is negative, with the flag: no branch.
   static constexpr Fixed saturated_toward(Raw sign) noexcept {
     const Raw limit = (sign >> 31) ^ std::numeric_limits<Raw>::max();
@@ -759,15 +762,15 @@ constexpr std::uint64_t isqrt_round_divided(std::uint64_t v) noexcept {
   k += static_cast<std::uint32_t>(c) / 2;
   // 1. s1 = floor(sqrt(H)), e = H - s1^2 <= 2 s1.
   const std::uint32_t seed = kRootSeeds[(high >> 24) - 64];  // >= 2^15: no quotient passes 2^17
-  std::uint32_t s1 = (seed + high / seed) >> 1;               // floor(sqrt(H)) or one more
-  s1 -= std::uint64_t{s1} * s1 > high ? 1U : 0U;               // s1 <= 2^16 before this
+  std::uint32_t s1 = (seed + high / seed) >> 1;              // floor(sqrt(H)) or one more
+  s1 -= std::uint64_t{s1} * s1 > high ? 1U : 0U;             // s1 <= 2^16 before this
   const std::uint32_t e = high - s1 * s1;
   // 2. m = H 2^32 + a1 2^16 + a0. (q, u) = divmod(e 2^16 + a1, 2 s1), a 33-bit dividend: halved
   // with the divisor (floor((x + 1/2) / s1) = floor(x / s1) for integers x, s1).
   const std::uint32_t a1 = low >> 16;
   const std::uint32_t a0 = low & 0xFFFFU;
   const std::uint32_t x = (e << 15) | (a1 >> 1);  // e < 2^17: fits
-  const std::uint32_t q = x / s1;                  // <= 2^16
+  const std::uint32_t q = x / s1;                 // <= 2^16
   const std::uint32_t u = ((x - q * s1) << 1) | (a1 & 1U);
   std::uint64_t s = (std::uint64_t{s1} << 16) + q;
   std::int64_t r = (std::int64_t{u} << 16) + a0 - static_cast<std::int64_t>(std::uint64_t{q} * q);
@@ -835,7 +838,7 @@ inline constexpr auto kInverseRootLines = [] {
     const double f0 = inverse_root_of(x0);
     const double f1 = inverse_root_of(x0 + 1.0 / 256.0);
     const double bulge = (f0 + f1) / 2.0 - inverse_root_of(x0 + 0.5 / 256.0);  // > 0
-    const double drop_units = (f0 - f1) * 0x1p22;                                // < 2^16
+    const double drop_units = (f0 - f1) * 0x1p22;                              // < 2^16
     // Both are > 0, so adding 1/2 and truncating rounds to nearest (and std::lround is not
     // constexpr in C++20): the check's concern, negative values, cannot arise.
     // NOLINTBEGIN(bugprone-incorrect-roundings)
@@ -873,7 +876,7 @@ constexpr InverseRoot inverse_root(std::uint64_t v) noexcept {
 /// units of 2^-32 when v is |x|^2 in raw units; 1 / |x| in Q16.16 for n = 1), from its inverse
 /// root r: n y 2^(shift - 30), capped at 2^32 - 1.
 constexpr std::uint32_t times_inverse_root(std::uint32_t n, InverseRoot r) noexcept {
-  make_opaque(n);  // cast from a signed raw value: GCC would multiply its sign word too
+  make_opaque(n);                                  // cast from a signed raw value: GCC would multiply its sign word too
   const std::uint64_t p = std::uint64_t{n} * r.y;  // < 2^62
   const auto p_high = static_cast<std::uint32_t>(p >> 32);
   const auto p_low = static_cast<std::uint32_t>(p);

@@ -15,18 +15,18 @@
 #include <type_traits>
 
 #if defined(__arm__) && defined(__GNUC__)
-#define TOONFORCE_LOOP_BOUND(n)                                                              \
-  do {                                                                                       \
-    if (!std::is_constant_evaluated()) {                                                     \
-      asm volatile(".Ltoonforce_loop%=:\n\t"                                                  \
-                   ".pushsection .toonforce.loop_bounds,\"o\",%%progbits,.Ltoonforce_loop%=\n\t" \
-                   ".word .Ltoonforce_loop%=, %c0\n\t.popsection" ::"i"(                     \
+#define TOONFORCE_LOOP_BOUND(n)                                                                       \
+  do {                                                                                                \
+    if (!std::is_constant_evaluated()) {                                                              \
+      asm volatile(".Ltoonforce_loop%=:\n\t"                                                          \
+                   ".pushsection .toonforce.loop_bounds,\"o\",%%progbits,.Ltoonforce_loop%=\n\t"      \
+                   ".word .Ltoonforce_loop%=, %c0\n\t.popsection" ::"i"(                              \
                        std::integral_constant<std::uint32_t, static_cast<std::uint32_t>(n)>::value)); \
-    }                                                                                        \
+    }                                                                                                 \
   } while (false)
 #else
-#define TOONFORCE_LOOP_BOUND(n) \
-  do {                          \
+#define TOONFORCE_LOOP_BOUND(n)                                                                     \
+  do {                                                                                              \
     static_cast<void>(std::integral_constant<std::uint32_t, static_cast<std::uint32_t>(n)>::value); \
   } while (false)
 #endif

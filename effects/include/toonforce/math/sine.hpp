@@ -93,8 +93,7 @@ struct SineTable {
   static constexpr std::array<S, kSineTableSegments + 1> kValues = [] {
     std::array<S, kSineTableSegments + 1> values{};
     for (int i = 0; i <= kSineTableSegments; ++i) {
-      values[static_cast<std::size_t>(i)] =
-          scalar_cast<S>(taylor_sin_turns(0.25 * i / kSineTableSegments));
+      values[static_cast<std::size_t>(i)] = scalar_cast<S>(taylor_sin_turns(0.25 * i / kSineTableSegments));
     }
     return values;
   }();
@@ -136,8 +135,8 @@ constexpr std::int32_t fixed_polynomial_q16(std::int32_t q_raw) noexcept {
   constexpr auto kHigh = [](std::int32_t a, std::int32_t b) {  // floor(a b / 2^32): SMULL's high word
     return static_cast<std::int32_t>((std::int64_t{a} * b) >> 32);
   };
-  const std::uint32_t q33 = static_cast<std::uint32_t>(q_raw) << 17;                // <= 2^31
-  const auto q2 = static_cast<std::int32_t>((std::uint64_t{q33} * q33) >> 32);     // <= 2^30
+  const std::uint32_t q33 = static_cast<std::uint32_t>(q_raw) << 17;            // <= 2^31
+  const auto q2 = static_cast<std::int32_t>((std::uint64_t{q33} * q33) >> 32);  // <= 2^30
   std::int32_t acc = kC5 + kHigh(kC7, q2);
   acc = kC3 + kHigh(acc, q2);
   acc = kC1 + kHigh(acc, q2);

@@ -18,12 +18,8 @@ struct Vec3 {
   S y{};
   S z{};
 
-  friend constexpr Vec3 operator+(const Vec3& a, const Vec3& b) noexcept {
-    return {a.x + b.x, a.y + b.y, a.z + b.z};
-  }
-  friend constexpr Vec3 operator-(const Vec3& a, const Vec3& b) noexcept {
-    return {a.x - b.x, a.y - b.y, a.z - b.z};
-  }
+  friend constexpr Vec3 operator+(const Vec3& a, const Vec3& b) noexcept { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+  friend constexpr Vec3 operator-(const Vec3& a, const Vec3& b) noexcept { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
   friend constexpr Vec3 operator-(const Vec3& a) noexcept { return {-a.x, -a.y, -a.z}; }
   friend constexpr Vec3 operator*(const Vec3& a, S k) noexcept { return {a.x * k, a.y * k, a.z * k}; }
   friend constexpr Vec3 operator*(S k, const Vec3& a) noexcept { return {k * a.x, k * a.y, k * a.z}; }
@@ -221,7 +217,7 @@ constexpr Vec3<S> scaled_by_fraction(const Vec3<S>& v, std::uint32_t factor) noe
   using Raw = typename S::Raw;
   make_opaque(factor);  // capped from a 64-bit quotient: GCC would multiply its high word too
   const auto scale = [factor](S c) {
-    const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);  // all ones when negative
+    const auto sign = static_cast<std::uint32_t>(c.raw() >> 31);                  // all ones when negative
     const std::uint32_t m = (static_cast<std::uint32_t>(c.raw()) ^ sign) - sign;  // |c| <= 2^31
     // (p + 2^31) >> 32 without a 64-bit sum: the high word plus the low word's top bit.
     const std::uint64_t p = std::uint64_t{m} * factor;

@@ -87,8 +87,8 @@ class Wide {
       w.rep_ = saturating_add(saturating_add(product(a.x, b.x), product(a.y, b.y)), product(a.z, b.z));
     } else {
       w.rep_ = static_cast<double>(a.x) * static_cast<double>(b.x) +
-                 static_cast<double>(a.y) * static_cast<double>(b.y) +
-                 static_cast<double>(a.z) * static_cast<double>(b.z);
+               static_cast<double>(a.y) * static_cast<double>(b.y) +
+               static_cast<double>(a.z) * static_cast<double>(b.z);
     }
     return w;
   }
@@ -243,7 +243,8 @@ class Decay {
       // The [[likely]]/[[unlikely]] hints here lay the dearer side in line: it is the tick's static
       // bound's path, where a taken branch costs 1 + 3 cycles and one not taken 1 (Cortex-M3 TRM
       // r2p1 table 3-1); no value changes.
-      if (is_one_) [[unlikely]] return w;
+      if (is_one_) [[unlikely]]
+        return w;
       // (d * q) / 2^32 rounded, with d = dh 2^32 + dl: dh q + (dl q + 2^31) / 2^32. Neither
       // part overflows: |dh q| < 2^63 and dl q + 2^31 < 2^64.
       const std::int64_t d = w.rep_;

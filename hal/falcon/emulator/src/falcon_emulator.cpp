@@ -10,7 +10,7 @@
 namespace toonforce::falcon::emulator {
 namespace {
 
-constexpr std::size_t kBootHeaderWords = 11;  // key, 8 reserved, 2 entry-point words
+constexpr std::size_t kBootHeaderWords = 11;                     // key, 8 reserved, 2 entry-point words
 constexpr std::array<std::uint8_t, 2> kModemStatus{0x31, 0x60};  // typical idle (FALCON.md §1)
 
 std::uint16_t word_at(const std::vector<std::uint8_t>& image, std::size_t word) {
@@ -98,7 +98,9 @@ bool FalconEmulator::vendor_request(std::uint8_t request, std::uint16_t value) {
   }
 }
 
-void FalconEmulator::send(std::span<const std::uint8_t> bytes) { to_host_.insert(to_host_.end(), bytes.begin(), bytes.end()); }
+void FalconEmulator::send(std::span<const std::uint8_t> bytes) {
+  to_host_.insert(to_host_.end(), bytes.begin(), bytes.end());
+}
 
 void FalconEmulator::bulk_out(std::span<const std::uint8_t> bytes) {
   if (!connected_) return;
@@ -328,9 +330,9 @@ std::size_t FalconEmulator::bulk_in(std::span<std::uint8_t> transfer) {
     transfer[pos] = kModemStatus[0];
     transfer[pos + 1] = kModemStatus[1];
     pos += kFtdiStatusBytes;
-    const std::size_t n =
-        std::min({kFtdiPayloadPerPacket, transfer.size() - pos, to_host_.size() - taken, budget});
-    std::copy_n(to_host_.begin() + static_cast<std::ptrdiff_t>(taken), n, transfer.begin() + static_cast<std::ptrdiff_t>(pos));
+    const std::size_t n = std::min({kFtdiPayloadPerPacket, transfer.size() - pos, to_host_.size() - taken, budget});
+    std::copy_n(to_host_.begin() + static_cast<std::ptrdiff_t>(taken), n,
+                transfer.begin() + static_cast<std::ptrdiff_t>(pos));
     taken += n;
     pos += n;
     budget -= n;

@@ -22,11 +22,15 @@ namespace {
 
 // Device (18) + configuration (9) + interface (9, vendor class as an FTDI's) + bulk OUT 0x02
 // and bulk IN 0x81, 64-byte packets (FALCON.md §1). Strings: 1 manufacturer, 2 product, 3 serial.
-constexpr const char* kDescriptors =
-    "12010002000000400304" "48CB" "0001" "010203" "01"
-    "09022000010100803209040000" "02FFFFFF00"
-    "07050202400000"
-    "07058102400000";
+constexpr const char* kDescriptors = "12010002000000400304"
+                                     "48CB"
+                                     "0001"
+                                     "010203"
+                                     "01"
+                                     "09022000010100803209040000"
+                                     "02FFFFFF00"
+                                     "07050202400000"
+                                     "07058102400000";
 constexpr const char* kManufacturer = "Novint (emulated)";
 constexpr const char* kProduct = "FALCON HAPTIC";  // the FTDI description string (FALCON.md §1)
 
@@ -278,9 +282,7 @@ struct UsbfsEmulator::Device {
       case USBDEVFS_IOCTL:  // driver queries: no kernel driver is bound
         umockdev_ioctl_client_complete(client, -1, ENODATA);
         return;
-      default:
-        umockdev_ioctl_client_complete(client, -1, ENOTTY);
-        return;
+      default: umockdev_ioctl_client_complete(client, -1, ENOTTY); return;
     }
     if (error != nullptr) g_error_free(error);
     umockdev_ioctl_client_complete(client, -1, EFAULT);

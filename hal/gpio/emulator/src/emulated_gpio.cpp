@@ -31,8 +31,8 @@ constexpr const char* kHandleNode = "/dev/gpio-line-handle";
 struct Line {
   LineState state;
   std::string name;
-  bool claimed = false;   // held by "another program"
-  bool driven = false;    // something outside drives the (input) pin
+  bool claimed = false;  // held by "another program"
+  bool driven = false;   // something outside drives the (input) pin
   int request_error = 0;
   int value_error = 0;
 };
@@ -89,8 +89,8 @@ struct EmulatedGpio::Impl {
 
   static UMockdevIoctlData* argument(UMockdevIoctlClient* client, gulong request) {
     GError* error = nullptr;
-    UMockdevIoctlData* data = umockdev_ioctl_data_resolve(umockdev_ioctl_client_get_arg(client), 0,
-                                                          _IOC_SIZE(request), &error);
+    UMockdevIoctlData* data =
+        umockdev_ioctl_data_resolve(umockdev_ioctl_client_get_arg(client), 0, _IOC_SIZE(request), &error);
     if (error != nullptr) g_error_free(error);
     return data;
   }
@@ -181,8 +181,7 @@ struct EmulatedGpio::Impl {
         l.state.output = output;
         l.state.active_low = active_low;
         l.state.bias = bias;
-        l.state.consumer = std::string(req->consumer_label,
-                                       strnlen(req->consumer_label, sizeof req->consumer_label));
+        l.state.consumer = std::string(req->consumer_label, strnlen(req->consumer_label, sizeof req->consumer_label));
         if (output) l.state.physical = (req->default_values[i] != 0 ? 1 : 0) ^ (active_low ? 1 : 0);
         settle(l);
       }
@@ -233,8 +232,7 @@ struct EmulatedGpio::Impl {
   static gboolean on_handle_ioctl(UMockdevIoctlBase*, UMockdevIoctlClient* client, gpointer user) {
     Impl& self = *static_cast<Impl*>(user);
     const gulong request = umockdev_ioctl_client_get_request(client);
-    const auto* handle =
-        static_cast<const Handle*>(g_object_get_data(as_object(client), "toonforce-handle"));
+    const auto* handle = static_cast<const Handle*>(g_object_get_data(as_object(client), "toonforce-handle"));
     std::lock_guard lock(self.mu);
     ++self.ioctls;
     if (handle == nullptr ||
@@ -303,15 +301,13 @@ EmulatedGpio::EmulatedGpio(const std::vector<ChipSpec>& chips) : impl_(std::make
     self.chips.push_back(std::move(chip));
     // libgpiod checks that /dev/gpiochipN is a char device whose major:minor matches
     // /sys/bus/gpio/devices/gpiochipN/dev; umockdev fakes stat() and the bus link from this.
-    description += fmt::format(
-        "P: /devices/platform/toonforce-gpio.0/gpiochip{0}\nN: gpiochip{0}\n"
-        "E: DEVNAME=/dev/gpiochip{0}\nE: MAJOR=254\nE: MINOR={0}\nE: SUBSYSTEM=gpio\n"
-        "A: dev=254:{0}\\n\n\n",
-        i);
+    description += fmt::format("P: /devices/platform/toonforce-gpio.0/gpiochip{0}\nN: gpiochip{0}\n"
+                               "E: DEVNAME=/dev/gpiochip{0}\nE: MAJOR=254\nE: MINOR={0}\nE: SUBSYSTEM=gpio\n"
+                               "A: dev=254:{0}\\n\n\n",
+                               i);
   }
-  description +=
-      "P: /devices/platform/toonforce-gpio.0/gpio-line-handle\nN: gpio-line-handle\n"
-      "E: SUBSYSTEM=gpiohandle\n";
+  description += "P: /devices/platform/toonforce-gpio.0/gpio-line-handle\nN: gpio-line-handle\n"
+                 "E: SUBSYSTEM=gpiohandle\n";
   GError* error = nullptr;
   if (umockdev_testbed_add_from_string(self.testbed, description.c_str(), &error) == FALSE) {
     const std::string message = error != nullptr ? error->message : "unknown error";
@@ -337,10 +333,8 @@ EmulatedGpio::EmulatedGpio(const std::vector<ChipSpec>& chips) : impl_(std::make
     attach(fmt::format("/dev/gpiochip{}", i), handler);
   }
   UMockdevIoctlBase* handle_handler = umockdev_ioctl_base_new();
-  g_signal_connect(handle_handler, "handle-ioctl", reinterpret_cast<GCallback>(&Impl::on_handle_ioctl),
-                   &self);
-  g_signal_connect(handle_handler, "client-connected",
-                   reinterpret_cast<GCallback>(&Impl::on_handle_connected), &self);
+  g_signal_connect(handle_handler, "handle-ioctl", reinterpret_cast<GCallback>(&Impl::on_handle_ioctl), &self);
+  g_signal_connect(handle_handler, "client-connected", reinterpret_cast<GCallback>(&Impl::on_handle_connected), &self);
   attach(kHandleNode, handle_handler);
 }
 

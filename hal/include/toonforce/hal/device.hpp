@@ -49,10 +49,10 @@ constexpr std::string_view to_string(DeviceStatus s) noexcept {
 /// fixed-point target reads in the loop's own scalar instead (see `device_scalar_t`).
 template <class T>
 struct BasicDeviceReading {
-  Vec3<T> position_m;        ///< HIP position, scene frame [m]
-  Vec3<T> velocity_m_per_s;  ///< valid when has_velocity
-  bool has_velocity = false;      ///< the device measures velocity itself: no estimator runs
-  std::uint32_t buttons = 0;      ///< bit i = button i pressed
+  Vec3<T> position_m;         ///< HIP position, scene frame [m]
+  Vec3<T> velocity_m_per_s;   ///< valid when has_velocity
+  bool has_velocity = false;  ///< the device measures velocity itself: no estimator runs
+  std::uint32_t buttons = 0;  ///< bit i = button i pressed
   /// The device scaled the last force written before this reading down to what it can give
   /// (the Falcon: its +-4095 motor words saturated; the force kept its direction). Not a
   /// fault and not a reason to cut force: the loop may report it (telemetry, run summary,
@@ -107,12 +107,12 @@ struct ClockedEnd {
 
 /// What a device is and can do, known once it is open.
 struct DeviceInfo {
-  std::string name;                        ///< for messages: "Novint Falcon (serial ...)"
+  std::string name;  ///< for messages: "Novint Falcon (serial ...)"
   /// The largest force the backend commands [N]; each backend says what it is (the Falcon: what
   /// its motor words give in every direction at the workspace centre; the Omni: its cap).
   double max_force_n = 0.0;
-  double max_continuous_force_n = 0.0;     ///< what the motors sustain (thermal model input)
-  Vec3<double> workspace_min_m;            ///< scene frame
+  double max_continuous_force_n = 0.0;  ///< what the motors sustain (thermal model input)
+  Vec3<double> workspace_min_m;         ///< scene frame
   Vec3<double> workspace_max_m;
   double nominal_rate_hz = 1000.0;
   Clocking clocking = Clocking::kHostTimer;

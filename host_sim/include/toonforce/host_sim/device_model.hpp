@@ -21,20 +21,20 @@ namespace toonforce::host_sim {
 
 struct DeviceParams {
   std::string_view name = "device";
-  double mass_kg = 0.1;                 ///< effective mass at the handle
-  double damping_n_s_per_m = 0.0;       ///< viscous friction
-  double coulomb_n = 0.0;               ///< Coulomb (dry) friction magnitude
+  double mass_kg = 0.1;            ///< effective mass at the handle
+  double damping_n_s_per_m = 0.0;  ///< viscous friction
+  double coulomb_n = 0.0;          ///< Coulomb (dry) friction magnitude
   /// [m/s] Coulomb friction is smoothed below this speed, F = -f_c v / sqrt(|v|^2 + v_s^2),
   /// so the integrators see a smooth force (a step would cost RK4 its order). 2 mm/s is a
   /// tenth of the Falcon's one-count-per-tick speed (20 um per 1 ms): slower than anything
   /// its controller can resolve, yet its damping (f_c / v_s, 100 N s/m) stays integrable
   /// with a 0.25 ms step.
   double coulomb_smoothing_m_per_s = 0.002;
-  double max_force_n = 0.0;             ///< force saturation (magnitude); 0: none
-  double encoder_step_m = 0.0;          ///< position quantisation per axis; 0: none
-  double force_step_n = 0.0;            ///< force DAC quantisation per axis; 0: none
-  int io_delay_ticks = 1;               ///< a reading reports the state this many ticks ago
-  double sensor_noise_m = 0.0;          ///< std. dev. of Gaussian noise added before quantising
+  double max_force_n = 0.0;     ///< force saturation (magnitude); 0: none
+  double encoder_step_m = 0.0;  ///< position quantisation per axis; 0: none
+  double force_step_n = 0.0;    ///< force DAC quantisation per axis; 0: none
+  int io_delay_ticks = 1;       ///< a reading reports the state this many ticks ago
+  double sensor_noise_m = 0.0;  ///< std. dev. of Gaussian noise added before quantising
   double nominal_rate_hz = 1000.0;
   Vec3<double> workspace_min_m{-0.05, -0.05, -0.05};  ///< scene frame (informative)
   Vec3<double> workspace_max_m{0.05, 0.05, 0.05};

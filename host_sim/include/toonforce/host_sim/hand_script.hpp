@@ -57,22 +57,22 @@ std::optional<SegmentKind> parse_segment_kind(std::string_view name) noexcept;
 /// One segment as written. Which fields apply depends on the kind (docs/HAND_SCRIPTS.md).
 struct HandSegment {
   SegmentKind kind = SegmentKind::kHold;
-  Vec3<double> to_m;                  ///< move, stroke, strike, cross: end point of the intent
+  Vec3<double> to_m;                    ///< move, stroke, strike, cross: end point of the intent
   std::optional<double> speed_m_per_s;  ///< cruise speed (move: mean speed, if no duration)
   std::optional<double> duration_s;     ///< move (if no speed), hold, release
-  double ramp_s = 0.1;                ///< [s] length of each speed change (stroke, strike, cross)
-  bool stop = true;                   ///< the intent comes to rest at `to` (stroke/strike/cross)
-  std::optional<double> force_n;      ///< press force along -normal (stroke, cross, hold)
-  Vec3<double> normal{0.0, 0.0, 1.0};  ///< unit; out of the surface pressed on
-  double force_ramp_s = 0.05;         ///< [s] how long the press force takes to change
-  std::string label;                  ///< optional name for the reader; quoted in plan errors
-  std::uint32_t line = 0;             ///< where it was written (for messages)
+  double ramp_s = 0.1;                  ///< [s] length of each speed change (stroke, strike, cross)
+  bool stop = true;                     ///< the intent comes to rest at `to` (stroke/strike/cross)
+  std::optional<double> force_n;        ///< press force along -normal (stroke, cross, hold)
+  Vec3<double> normal{0.0, 0.0, 1.0};   ///< unit; out of the surface pressed on
+  double force_ramp_s = 0.05;           ///< [s] how long the press force takes to change
+  std::string label;                    ///< optional name for the reader; quoted in plan errors
+  std::uint32_t line = 0;               ///< where it was written (for messages)
 };
 
 struct HandScript {
   std::string name;
-  std::string source;            ///< file it came from (messages)
-  Vec3<double> start_m;          ///< where the hand holds the handle at t = 0 (at rest)
+  std::string source;    ///< file it came from (messages)
+  Vec3<double> start_m;  ///< where the hand holds the handle at t = 0 (at rest)
   HandImpedance impedance;
   std::vector<HandSegment> segments;
 };

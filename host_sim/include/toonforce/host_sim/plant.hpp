@@ -23,8 +23,8 @@ namespace toonforce::host_sim {
 
 struct PlantOptions {
   Integrator integrator = Integrator::kRk4;
-  int substeps = 4;         ///< sub-steps per servo period, >= 1
-  double period_s = 1e-3;   ///< servo period [s]
+  int substeps = 4;        ///< sub-steps per servo period, >= 1
+  double period_s = 1e-3;  ///< servo period [s]
 };
 
 class Plant {

@@ -21,10 +21,11 @@ Result<FalconCalibration> describe(const toml::table& root, ErrorList& errors) {
   c.serial = r.optional_string("serial").value_or("");
   if (const auto k = r.required_number("words_per_newton_metre", Range::kPositive, "[word / (N m)]")) {
     if (*k < kMinWordsPerNewtonMetre || *k > kMaxWordsPerNewtonMetre) {
-      r.error("words_per_newton_metre",
-              fmt::format("{} is outside {:.0f}..{:.0f} (libnifalcon uses {:.0f}; Novint's own driver about 2500-5000): "
-                          "measure it again (docs/FALCON.md, \"Calibration\")",
-                          *k, kMinWordsPerNewtonMetre, kMaxWordsPerNewtonMetre, kUncalibratedWordsPerNewtonMetre));
+      r.error(
+          "words_per_newton_metre",
+          fmt::format("{} is outside {:.0f}..{:.0f} (libnifalcon uses {:.0f}; Novint's own driver about 2500-5000): "
+                      "measure it again (docs/FALCON.md, \"Calibration\")",
+                      *k, kMinWordsPerNewtonMetre, kMaxWordsPerNewtonMetre, kUncalibratedWordsPerNewtonMetre));
     } else {
       c.words_per_n_m = *k;
     }
@@ -91,9 +92,8 @@ Result<FalconCalibration> read_falcon_calibration(const std::string& path) {
 }
 
 std::string format_falcon_calibration(const FalconCalibration& c) {
-  std::string out =
-      "# toonforce Falcon calibration: the motor words per newton-metre of joint torque measured on\n"
-      "# this Falcon (docs/FALCON.md, \"Calibration\"). Written by `toonforce bringup falcon`.\n";
+  std::string out = "# toonforce Falcon calibration: the motor words per newton-metre of joint torque measured on\n"
+                    "# this Falcon (docs/FALCON.md, \"Calibration\"). Written by `toonforce bringup falcon`.\n";
   if (!c.serial.empty()) out += fmt::format("serial = {}\n", toml_string(c.serial));
   // Enough digits to read back the same double.
   out += fmt::format("words_per_newton_metre = {:.17g}\n", c.words_per_n_m);

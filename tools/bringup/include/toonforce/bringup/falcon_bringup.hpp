@@ -29,15 +29,15 @@
 
 namespace toonforce::bringup {
 
-inline constexpr const char* kFalconSteps[] = {"found",  "firmware", "homing",  "encoders", "motors",
-                                               "force",  "timing",   "buttons", "leds"};
+inline constexpr const char* kFalconSteps[] = {"found", "firmware", "homing",  "encoders", "motors",
+                                               "force", "timing",   "buttons", "leds"};
 
 struct FalconBringupOptions {
-  FalconOptions falcon;            ///< which Falcon, a firmware file, the calibration file in use
-  std::vector<std::string> only;   ///< steps to run (empty: all); named steps run unattended too
-  std::vector<std::string> skip;   ///< steps not to run
-  bool paced = true;               ///< 1 kHz in real time; false: as fast as the device answers
-  std::string calibration_out;     ///< where the force step writes; empty: the default for the serial
+  FalconOptions falcon;           ///< which Falcon, a firmware file, the calibration file in use
+  std::vector<std::string> only;  ///< steps to run (empty: all); named steps run unattended too
+  std::vector<std::string> skip;  ///< steps not to run
+  bool paced = true;              ///< 1 kHz in real time; false: as fast as the device answers
+  std::string calibration_out;    ///< where the force step writes; empty: the default for the serial
   double homing_timeout_s = 60.0;
   double sweep_timeout_s = 90.0;
   double person_timeout_s = 120.0;  ///< waits for a person's Enter
@@ -45,8 +45,8 @@ struct FalconBringupOptions {
   int timing_ticks = 2000;
   double pulse_torque_n_m = 0.04;  ///< one motor's torque in a pulse (about 1 N at the grip)
   double pulse_s = 0.15;
-  int min_motion_counts = 3;       ///< a pulse must turn its arm at least this far
-  double hold_s = 2.0;             ///< how long the force step holds before averaging
+  int min_motion_counts = 3;  ///< a pulse must turn its arm at least this far
+  double hold_s = 2.0;        ///< how long the force step holds before averaging
   std::string toonforce_version;
 };
 

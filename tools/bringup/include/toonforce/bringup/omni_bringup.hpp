@@ -20,7 +20,8 @@
 
 namespace toonforce::bringup {
 
-inline constexpr const char* kOmniSteps[] = {"found", "driver", "calibration", "workspace", "motors", "timing", "buttons"};
+inline constexpr const char* kOmniSteps[] = {"found",  "driver", "calibration", "workspace",
+                                             "motors", "timing", "buttons"};
 
 struct OmniBringupOptions {
   OmniOptions omni;
@@ -31,7 +32,7 @@ struct OmniBringupOptions {
   double person_timeout_s = 120.0;
   double button_timeout_s = 20.0;
   int timing_ticks = 2000;
-  double pulse_force_n = 0.5;      ///< below the Omni's 0.88 N continuous force
+  double pulse_force_n = 0.5;  ///< below the Omni's 0.88 N continuous force
   double pulse_s = 0.15;
   double min_motion_m = 0.0005;    ///< a pulse must move the stylus at least this far its way
   double poll_interval_s = 0.001;  ///< between polls of the person (0 for tests whose person steps the device)

@@ -53,8 +53,8 @@ struct Measurement {
 };
 
 struct StepReport {
-  std::string id;       ///< "homing": what --only and --skip name
-  std::string title;    ///< "Homing"
+  std::string id;     ///< "homing": what --only and --skip name
+  std::string title;  ///< "Homing"
   Outcome outcome = Outcome::kSkipped;
   std::string finding;  ///< what was found, one or two sentences
   std::string next;     ///< what to do next (empty when it passed)
@@ -63,9 +63,9 @@ struct StepReport {
 };
 
 struct Report {
-  std::string device;          ///< "Novint Falcon"
-  std::string target;          ///< which one: "serial A123, usb 001/005"
-  std::string started_utc;     ///< ISO 8601
+  std::string device;       ///< "Novint Falcon"
+  std::string target;       ///< which one: "serial A123, usb 001/005"
+  std::string started_utc;  ///< ISO 8601
   std::string toonforce_version;
   std::vector<StepReport> steps;
   /// No step failed.

@@ -33,11 +33,11 @@ struct DeviceKey {
   Range range = Range::kAny;
   double below = 0.0;  ///< kNumber: an exclusive upper bound when `has_below`
   bool has_below = false;
-  std::string_view below_why = {};  ///< the reason a range error gives for `below`
-  std::int64_t min_whole = 0;  ///< kWholeNumber: the least value
-  std::string_view upper_key = {};  ///< kBox: the upper corner's key
+  std::string_view below_why = {};     ///< the reason a range error gives for `below`
+  std::int64_t min_whole = 0;          ///< kWholeNumber: the least value
+  std::string_view upper_key = {};     ///< kBox: the upper corner's key
   std::string_view default_text = {};  ///< the default in words, when it is not a value
-  std::string_view doc = {};  ///< what it does (effects.md §6 says more)
+  std::string_view doc = {};           ///< what it does (effects.md §6 says more)
   // Where the value goes in the settings (one of them, by type). `present`, if set, is raised
   // when the file gives the key: the default is then "unset" (default_text says what holds).
   double* (*number)(SceneSettings&) = nullptr;

@@ -38,7 +38,7 @@ namespace toonforce {
 
 /// A checked change of the scene, before it becomes an update for a scalar type.
 struct SceneChange {
-  SceneDescription scene;             ///< the whole scene after the change
+  SceneDescription scene;               ///< the whole scene after the change
   std::vector<std::int16_t> continues;  ///< per effect of `scene.order` (SceneUpdate::continues)
   struct Event {
     std::size_t effect = 0;  ///< place in scene.order
@@ -46,7 +46,7 @@ struct SceneChange {
     double value = 0.0;
   };
   std::vector<Event> events;
-  std::string what;  ///< "set surface1", for messages
+  std::string what;                ///< "set surface1", for messages
   std::shared_ptr<void> document;  ///< the edited TOML document, for SceneDocument::commit
 };
 
@@ -54,7 +54,8 @@ struct SceneChange {
 /// editor that parses and checks.
 class SceneDocument {
  public:
-  static Result<SceneDocument> parse(std::string_view text, std::string source, ScalarKind scalar = ScalarKind::kDouble);
+  static Result<SceneDocument> parse(std::string_view text, std::string source,
+                                     ScalarKind scalar = ScalarKind::kDouble);
   SceneDocument(SceneDocument&&) noexcept;
   SceneDocument& operator=(SceneDocument&&) noexcept;
   ~SceneDocument();

@@ -112,11 +112,12 @@ RuntimeSceneOf<S, Kinds...> make_runtime_scene(const SceneFileOf<Kinds...>& file
   RuntimeSceneOf<S, Kinds...> scene;
   for (const SceneEntry& e : file.order) {
     [&]<std::size_t... I>(std::index_sequence<I...>) {
-      ((e.kind == I ? void(scene.template add<I>(schema::convert_params<Kinds<double>, Kinds<S>>(
-                          std::get<I>(file.params)[e.index])))
+      ((e.kind == I ? void(scene.template add<I>(
+                          schema::convert_params<Kinds<double>, Kinds<S>>(std::get<I>(file.params)[e.index])))
                     : void()),
        ...);
-    }(std::make_index_sequence<sizeof...(Kinds)>{});
+    }
+    (std::make_index_sequence<sizeof...(Kinds)>{});
   }
   return scene;
 }

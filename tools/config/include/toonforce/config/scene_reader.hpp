@@ -136,8 +136,8 @@ void read_field(TableReader& r, P& p, const schema::OneOf<P, K, O...>& d) {
               if (table == nullptr) return;
               if (!chosen.empty()) {
                 r.errors().add(table->source().begin.line, r.path(),
-                               fmt::format("has both [{0}.{1}] and [{0}.{2}]: {3}", r.path().substr(0, r.path().find('[')),
-                                           chosen, option.key, d.conflict));
+                               fmt::format("has both [{0}.{1}] and [{0}.{2}]: {3}",
+                                           r.path().substr(0, r.path().find('[')), chosen, option.key, d.conflict));
                 return;
               }
               chosen = option.key;
@@ -197,7 +197,8 @@ Result<SceneFileOf<Kinds...>> describe(const toml::table& root, ErrorList& error
           }
         }(),
         ...);
-  }(std::make_index_sequence<File::kKinds>{});
+  }
+  (std::make_index_sequence<File::kKinds>{});
   std::string kinds;
   ((kinds += fmt::format("{}[[{}]]", kinds.empty() ? "" : ", ", Kinds<double>::kKey)), ...);
   r.finish("effect", fmt::format("the effects this program reads: {}", kinds));
@@ -220,7 +221,8 @@ Result<SceneFileOf<Kinds...>> describe(const toml::table& root, ErrorList& error
             }
           }(),
           ...);
-    }(std::make_index_sequence<File::kKinds>{});
+    }
+    (std::make_index_sequence<File::kKinds>{});
   }
   if (!errors.empty()) return Error{errors.text()};
   // File order across kinds: their forces add in this order (spec §0).

@@ -32,8 +32,8 @@ inline constexpr double kMaxMagnitude = 1e12;
 /// seconds. Every error is counted.
 class ErrorList {
  public:
-  static constexpr std::size_t kShown = 20;     ///< errors text() shows
-  static constexpr std::size_t kKept = 1000;    ///< errors kept for sorting; the rest only counted
+  static constexpr std::size_t kShown = 20;   ///< errors text() shows
+  static constexpr std::size_t kKept = 1000;  ///< errors kept for sorting; the rest only counted
 
   explicit ErrorList(std::string file) : file_(std::move(file)) {}
   void add(const toml::source_region& where, std::string_view path, std::string_view problem);

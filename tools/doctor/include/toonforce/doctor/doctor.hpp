@@ -16,16 +16,16 @@ namespace toonforce {
 enum class Verdict { kOk, kInfo, kWarn, kFail };
 
 struct Finding {
-  std::string check;    ///< "kernel", "SCHED_FIFO", ...
+  std::string check;  ///< "kernel", "SCHED_FIFO", ...
   Verdict verdict = Verdict::kOk;
   std::string finding;  ///< what was found
   std::string fix;      ///< what to do (empty when nothing)
 };
 
 struct DoctorOptions {
-  std::string root = "/";       ///< where sys/, proc/ and dev/ are
-  int priority = 80;            ///< the SCHED_FIFO priority `toonforce run` asks for
-  bool check_clock = true;      ///< clock_getres of this host (not part of the root tree)
+  std::string root = "/";   ///< where sys/, proc/ and dev/ are
+  int priority = 80;        ///< the SCHED_FIFO priority `toonforce run` asks for
+  bool check_clock = true;  ///< clock_getres of this host (not part of the root tree)
   /// $GTDD_HOME of the environment the loop will run in (the Touch driver's configuration);
   /// nullopt: unset. The command passes its own.
   std::optional<std::string> gtdd_home;

@@ -35,8 +35,8 @@ struct ReplayOptions {
   bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
   std::string input_path;
   std::optional<std::string> input_text;  ///< set: the motion is this CSV text (as scene_text)
-  std::string output_path;  ///< "-" writes to standard output; empty: no file (with `rows`)
-  ReplayRowSink* rows = nullptr;  ///< also (or, without output_path, only) every row as numbers
+  std::string output_path;                ///< "-" writes to standard output; empty: no file (with `rows`)
+  ReplayRowSink* rows = nullptr;          ///< also (or, without output_path, only) every row as numbers
   ScalarKind scalar = ScalarKind::kDouble;
   std::optional<SineMethod> sine;  ///< overrides the scene's sine method
   /// Non-null and set (to a signal's number): stop after the row under way; the output ends on
@@ -67,9 +67,9 @@ struct ReplaySummary {
   /// Non-empty: writing the output failed (the message, said at once on standard error); the
   /// output stops there (nothing more is written) and the exit status is 1.
   std::string output_error;
-  std::string input_note;      ///< the motion reader's warning (a cut last row left out), if any
-  int stop_signal = 0;         ///< non-zero: `stop` ended the replay early
-  std::size_t rows_done = 0;   ///< rows replayed (and written, unless the output failed)
+  std::string input_note;     ///< the motion reader's warning (a cut last row left out), if any
+  int stop_signal = 0;        ///< non-zero: `stop` ended the replay early
+  std::size_t rows_done = 0;  ///< rows replayed (and written, unless the output failed)
 };
 
 Result<ReplaySummary> run_replay(const ReplayOptions& options);

@@ -16,9 +16,9 @@
 namespace toonforce::report {
 
 struct CountedCase {
-  std::size_t index = 0;   ///< in make_cases() order
+  std::size_t index = 0;  ///< in make_cases() order
   std::string id;
-  bool per_tick = false;   ///< a scenario: one count per tick of one pass
+  bool per_tick = false;  ///< a scenario: one count per tick of one pass
   std::uint64_t ticks = 0;
   std::vector<std::uint64_t> per_tick_counts;  ///< per_tick: instructions of each tick
   std::uint64_t total = 0;                     ///< instructions over all `ticks`
@@ -30,15 +30,15 @@ struct CountedCase {
 
 struct CallgrindOptions {
   std::string valgrind = "valgrind";
-  std::string tick_count;          ///< path of toonforce_tick_count
-  std::string root;                ///< source tree with scenes/
-  std::string filter;              ///< workloads.hpp selected()
+  std::string tick_count;  ///< path of toonforce_tick_count
+  std::string root;        ///< source tree with scenes/
+  std::string filter;      ///< workloads.hpp selected()
   std::uint64_t branch_ticks = 1024;
 };
 
 struct CallgrindResult {
   std::vector<CountedCase> cases;
-  std::string command;             ///< the command that was run, for reports
+  std::string command;  ///< the command that was run, for reports
 };
 
 Result<CallgrindResult> count_instructions(const CallgrindOptions& options);

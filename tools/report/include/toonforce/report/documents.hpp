@@ -35,7 +35,7 @@ inline constexpr std::string_view kPrecisionEndMarker = "<!-- toonforce-lab repo
 
 struct DocumentsOptions {
   std::string out_dir = "docs";
-  std::string root;          ///< source tree (scenes/)
+  std::string root;  ///< source tree (scenes/)
   LatencyOptions latency;
   PrecisionOptions precision;
   StabilityOptions stability;

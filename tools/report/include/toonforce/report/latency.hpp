@@ -30,13 +30,13 @@ inline constexpr double kTargetLoopInstructionsPerTick = 600.0;
 inline constexpr double kTargetMedianNsPerTick = 100.0;
 
 struct LatencyOptions {
-  std::string root;                    ///< source tree with scenes/
-  std::uint64_t ticks = 10'000'000;    ///< timed ticks per case
-  std::string filter;                  ///< workloads.hpp selected()
+  std::string root;                  ///< source tree with scenes/
+  std::uint64_t ticks = 10'000'000;  ///< timed ticks per case
+  std::string filter;                ///< workloads.hpp selected()
   bool callgrind = true;
   std::string valgrind = "valgrind";
-  std::string tick_count;              ///< empty: beside this executable
-  int cpu = -1;                        ///< pin the timing thread to this CPU (-1: no)
+  std::string tick_count;  ///< empty: beside this executable
+  int cpu = -1;            ///< pin the timing thread to this CPU (-1: no)
   /// Scene and loop rows: ticks timed with the data caches cold (0: none). Before each, a
   /// buffer larger than the last-level cache is written, outside the timed region.
   std::uint64_t cold_ticks = 1000;
@@ -45,7 +45,7 @@ struct LatencyOptions {
 struct LatencyRow {
   CaseInfo info;
   std::uint64_t ticks = 0;
-  double mean_ns = 0.0;     ///< of the ticks under 50 us (averages out the counter's steps)
+  double mean_ns = 0.0;  ///< of the ticks under 50 us (averages out the counter's steps)
   double median_ns = 0.0;
   double p999_ns = 0.0;
   double max_ns = 0.0;

@@ -8,11 +8,11 @@
 namespace toonforce::report {
 
 struct MachineInfo {
-  std::string cpu;        ///< /proc/cpuinfo model name
-  int cpus = 0;           ///< online CPUs
-  std::string kernel;     ///< uname -r
-  std::string compiler;   ///< of this build
-  std::string date_utc;   ///< when measured, YYYY-MM-DD HH:MM
+  std::string cpu;       ///< /proc/cpuinfo model name
+  int cpus = 0;          ///< online CPUs
+  std::string kernel;    ///< uname -r
+  std::string compiler;  ///< of this build
+  std::string date_utc;  ///< when measured, YYYY-MM-DD HH:MM
 };
 
 MachineInfo machine_info();

@@ -52,8 +52,8 @@ struct McuCore {
   std::string cpu;      ///< QEMU's -cpu
   std::string dir;      ///< the images, as shown in the document
   bool present = false;
-  std::string absent;   ///< when not present: the sentence the section prints instead
-  std::string opt;      ///< the images' optimisation (their CMakeCache's TOONFORCE_MCU_OPT), "" if unknown
+  std::string absent;  ///< when not present: the sentence the section prints instead
+  std::string opt;     ///< the images' optimisation (their CMakeCache's TOONFORCE_MCU_OPT), "" if unknown
   std::string size_table;
   std::string run_table;
 };

@@ -62,7 +62,7 @@ struct PrecisionOptions {
   std::uint64_t timing_ticks = 1'000'000;  ///< timed ticks per configuration
   double drift_hours = 1.0;                ///< closed-loop simulated hours per scene; 0: no drift run
   double drift_rate_hz = 1000.0;
-  std::uint64_t drift_seed = 15;           ///< the hand's motion
+  std::uint64_t drift_seed = 15;  ///< the hand's motion
   /// The closed-loop comparison: seconds of the seeded hand (0: none), and its double ladder
   /// (each twice the last; the last is the reference; each rate above divides it).
   double closed_loop_s = 3.0;
@@ -70,7 +70,7 @@ struct PrecisionOptions {
   /// Times each closed-loop configuration runs (bit-identical runs) to time its loop: a
   /// shared VM's noise moved one run's mean by up to 2x; the least disturbed run is reported.
   int closed_loop_timing_runs = 7;
-  std::string filter;                      ///< only scenes whose name contains one of these
+  std::string filter;  ///< only scenes whose name contains one of these
   /// The Cortex-M3's every-stage Q16.16 loop tick per scene, mean instructions over its 1 kHz
   /// motions (report mcu's table, mcu_loop_mean_instructions); empty when not built.
   std::vector<std::pair<std::string, double>> m3_loop_instructions_per_tick;
@@ -99,20 +99,20 @@ struct PrecisionRow {
   /// Sampled, against double with the library sine at the same rate: the scalar type's and
   /// the sine method's own share of the error (0 for that configuration itself).
   double same_rate_max_error_n = 0.0;
-  double held_max_error_n = 0.0;   ///< zero-order hold, at every reference tick
+  double held_max_error_n = 0.0;  ///< zero-order hold, at every reference tick
   double held_rms_error_n = 0.0;
   double held_away_rms_error_n = 0.0;  ///< the same, away from events
   double mean_ns = 0.0;
   double median_ns = 0.0;
-  std::uint64_t fault_ticks = 0;   ///< ticks with a fault (Q16.16 saturation) in the compared pass
-  std::vector<EventTiming> events; ///< lateness per kind of event
+  std::uint64_t fault_ticks = 0;    ///< ticks with a fault (Q16.16 saturation) in the compared pass
+  std::vector<EventTiming> events;  ///< lateness per kind of event
   /// Events this configuration saw on another tick than double (library sine) at the same rate:
   /// what makes a "max vs double, same rate" figure large.
   struct EventShift {
     EventKind kind = EventKind::kContactOnset;
-    double double_t_s = 0.0;     ///< when double saw it
-    double shift_s = 0.0;        ///< this configuration's time minus double's
-    Vec3<double> position_m;     ///< the scenario's position at this configuration's tick of it
+    double double_t_s = 0.0;  ///< when double saw it
+    double shift_s = 0.0;     ///< this configuration's time minus double's
+    Vec3<double> position_m;  ///< the scenario's position at this configuration's tick of it
   };
   std::vector<EventShift> same_rate_event_shifts;
 };
@@ -127,7 +127,7 @@ struct ConvergenceStep {
   double away_rms_diff_n = 0.0;
   double away_rms_order = 0.0;  ///< observed order against the previous step (NaN for the first)
   double away_max_order = 0.0;
-  double rms_order = 0.0;       ///< every tick
+  double rms_order = 0.0;  ///< every tick
 };
 
 struct SceneConvergence {
@@ -175,26 +175,26 @@ struct AnalyticRow {
   double sampled_max_error_n = 0.0;  ///< at its own ticks: the arithmetic only
   double held_max_error_n = 0.0;     ///< zero-order hold against F(t), 64 points per tick
   double held_rms_error_n = 0.0;
-  double held_rms_theory_n = 0.0;    ///< T rms(dF/dt) / sqrt(3): the hold's first-order error
-  double held_rms_order = 0.0;       ///< observed, against the previous rate (NaN for the first)
+  double held_rms_theory_n = 0.0;  ///< T rms(dF/dt) / sqrt(3): the hold's first-order error
+  double held_rms_order = 0.0;     ///< observed, against the previous rate (NaN for the first)
 };
 
 /// One difference tracked over a closed-loop drift run.
 struct DriftSeries {
   std::string scene;
   ScalarKind scalar = ScalarKind::kDouble;
-  std::string quantity;             ///< what is compared (see precision_markdown)
+  std::string quantity;  ///< what is compared (see precision_markdown)
   std::string unit;
-  std::vector<double> bucket_end_h; ///< simulated time at the end of each bucket
-  std::vector<double> max_abs;      ///< the largest |difference| in each bucket
-  double slope_per_h = 0.0;         ///< least-squares slope of |difference| against time
+  std::vector<double> bucket_end_h;  ///< simulated time at the end of each bucket
+  std::vector<double> max_abs;       ///< the largest |difference| in each bucket
+  double slope_per_h = 0.0;          ///< least-squares slope of |difference| against time
   double intercept = 0.0;
   double r_squared = 0.0;
-  double final_abs = 0.0;           ///< |difference| at the last tick
-  double final_signed = 0.0;        ///< the difference itself at the last tick (its sign)
-  double exchanged_j = 0.0;         ///< sum |F . dx| of the double run: the energy that went through the port
+  double final_abs = 0.0;     ///< |difference| at the last tick
+  double final_signed = 0.0;  ///< the difference itself at the last tick (its sign)
+  double exchanged_j = 0.0;   ///< sum |F . dx| of the double run: the energy that went through the port
   std::uint64_t ticks = 0;
-  double cpu_s = 0.0;               ///< CPU time of the whole scene's run (all scalars)
+  double cpu_s = 0.0;  ///< CPU time of the whole scene's run (all scalars)
 };
 
 /// The closed loop: one scalar type and rate against the converged double
@@ -203,23 +203,23 @@ struct ClosedLoopRow {
   std::string scene;
   ScalarKind scalar = ScalarKind::kDouble;
   double rate_hz = 0.0;
-  std::string refused;              ///< why the loop refused this configuration (else empty)
-  double force_rms_error_n = 0.0;   ///< rendered force, held, at every reference tick
+  std::string refused;             ///< why the loop refused this configuration (else empty)
+  double force_rms_error_n = 0.0;  ///< rendered force, held, at every reference tick
   double force_max_error_n = 0.0;
   double position_rms_error_m = 0.0;  ///< the handle's true position, at the configuration's ticks
   double position_max_error_m = 0.0;
   /// The servo loop's tick timed inside this run (ServoLoop::tick only: the plant, hand and
   /// the records step outside the counter reads), the empty measurement's cost subtracted.
-  std::uint64_t loop_ticks = 0;       ///< ticks timed in one run: rate x duration
-  int loop_runs = 0;                  ///< runs timed; the figures below are the least disturbed one's (smallest mean)
-  double loop_mean_min_ns = 0.0;      ///< the smallest and largest mean of the runs (the noise)
+  std::uint64_t loop_ticks = 0;   ///< ticks timed in one run: rate x duration
+  int loop_runs = 0;              ///< runs timed; the figures below are the least disturbed one's (smallest mean)
+  double loop_mean_min_ns = 0.0;  ///< the smallest and largest mean of the runs (the noise)
   double loop_mean_max_ns = 0.0;
   std::uint64_t loop_ticks_left_out = 0;  ///< of them, 2^17 cycles and more (preemptions): not in the mean
   double loop_mean_ns = 0.0;
   double loop_median_ns = 0.0;
   double loop_p99_ns = 0.0;
-  double loop_cpu_us_per_s = 0.0;   ///< loop CPU per simulated second: mean x ticks / duration
-  double scripted_mean_ns = 0.0;    ///< for comparison: the same loop's tick on the scripted scenario (timed alone)
+  double loop_cpu_us_per_s = 0.0;  ///< loop CPU per simulated second: mean x ticks / duration
+  double scripted_mean_ns = 0.0;   ///< for comparison: the same loop's tick on the scripted scenario (timed alone)
   /// Q16.16 rows: the Cortex-M3's every-stage loop tick (report mcu, mean over the scene's
   /// 1 kHz motions) x the rate; NaN when the images were not built or for other scalars.
   double m3_instructions_per_s = std::nan("");
@@ -230,14 +230,14 @@ struct ClosedLoopStep {
   double rate_hz = 0.0;
   double force_rms_diff_n = 0.0;
   double position_rms_diff_m = 0.0;
-  double force_order = 0.0;     ///< observed, against the previous step (NaN for the first)
+  double force_order = 0.0;  ///< observed, against the previous step (NaN for the first)
   double position_order = 0.0;
 };
 
 struct ClosedLoopConvergence {
   std::string scene;
   std::vector<ClosedLoopStep> steps;
-  double reference_force_rms_error_n = 0.0;     ///< Richardson, from the last step
+  double reference_force_rms_error_n = 0.0;  ///< Richardson, from the last step
   double reference_position_rms_error_m = 0.0;
 };
 

@@ -28,9 +28,9 @@ namespace toonforce::report {
 /// clamp and K A 2 pi f < the force-rate limit (the report checks both).
 struct AnalyticWall {
   double stiffness_n_per_m = 1500.0;
-  double offset_m = 0.001;      ///< z0: starts 1 mm above the surface
-  double amplitude_m = 0.003;   ///< A: 2 mm deepest penetration, 3 N at 1500 N/m
-  double frequency_hz = 2.0;    ///< f: at most 57 N/s, far below the scenes' 2000 N/s
+  double offset_m = 0.001;     ///< z0: starts 1 mm above the surface
+  double amplitude_m = 0.003;  ///< A: 2 mm deepest penetration, 3 N at 1500 N/m
+  double frequency_hz = 2.0;   ///< f: at most 57 N/s, far below the scenes' 2000 N/s
 
   double period_s() const noexcept { return 1.0 / frequency_hz; }
   double height_m(double t_s) const noexcept { return offset_m - amplitude_m * std::sin(kTwoPi * frequency_hz * t_s); }
@@ -58,7 +58,8 @@ struct HeldError {
   double rms_n = 0.0;
 };
 template <class Exact>
-HeldError held_error(const std::vector<double>& force_n, double t0_s, double rate_hz, const Exact& exact, int sub = 64) {
+HeldError held_error(const std::vector<double>& force_n, double t0_s, double rate_hz, const Exact& exact,
+                     int sub = 64) {
   HeldError e;
   double sum = 0.0;
   std::size_t n = 0;

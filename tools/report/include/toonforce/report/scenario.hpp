@@ -22,7 +22,7 @@ namespace toonforce::report {
 
 /// The five bundled scenes of the paper's figures (scenes/NAME.toml).
 inline constexpr std::array<std::string_view, 5> kPaperScenes{"wall", "realistic_friction", "slippery", "cartoon_wall",
-                                                               "cliff"};
+                                                              "cliff"};
 
 struct PathPoint {
   Vec3<double> position_m;

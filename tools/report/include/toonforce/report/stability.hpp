@@ -68,12 +68,12 @@ struct Experiment {
   Vec3<double> start_velocity_m_per_s;
   double period_s = 1e-3;
   double duration_s = 4.0;
-  std::string scene_toml;                 ///< the scene, as a scene file
-  double velocity_cutoff_hz = 0.0;        ///< > 0 overrides the scene's
-  double wall_stiffness_n_per_m = 0.0;    ///< K of the plane z = 0 (energy)
-  double wall_max_force_n = 0.0;          ///< the clamp on the wall's force (energy); 0: none
-  double settle_s = 0.0;                  ///< energy the scene adds by design ends by then
-  Vec3<double> equilibrium_m;             ///< where V is 0
+  std::string scene_toml;               ///< the scene, as a scene file
+  double velocity_cutoff_hz = 0.0;      ///< > 0 overrides the scene's
+  double wall_stiffness_n_per_m = 0.0;  ///< K of the plane z = 0 (energy)
+  double wall_max_force_n = 0.0;        ///< the clamp on the wall's force (energy); 0: none
+  double settle_s = 0.0;                ///< energy the scene adds by design ends by then
+  Vec3<double> equilibrium_m;           ///< where V is 0
   host_sim::Integrator integrator = host_sim::Integrator::kExact;
   int substeps = 1;
 };
@@ -81,9 +81,9 @@ struct Experiment {
 struct Outcome {
   Stability stability = Stability::kDecaying;
   double initial_energy_j = 0.0;
-  double peak_ratio = 0.0;      ///< max V / V0
-  double growth = 0.0;          ///< peak over the last quarter / peak over the first quarter
-  double max_force_n = 0.0;     ///< largest commanded force
+  double peak_ratio = 0.0;   ///< max V / V0
+  double growth = 0.0;       ///< peak over the last quarter / peak over the first quarter
+  double max_force_n = 0.0;  ///< largest commanded force
   bool finite = true;
 };
 
@@ -157,8 +157,8 @@ struct PortDrive {
 /// One forcing frequency, over whole periods after the estimator's transient. Energies are
 /// per cycle and per A^2; the law is linear, so they do not depend on A.
 struct PortCycle {
-  double frequency_hz = 0.0;  ///< p / (q T): p whole periods in q whole ticks
-  double theta_rad = 0.0;     ///< w T
+  double frequency_hz = 0.0;       ///< p / (q T): p whole periods in q whole ticks
+  double theta_rad = 0.0;          ///< w T
   double damping_n_s_per_m = 0.0;  ///< b
   /// Work the loop's held forces do on the handle [J/m^2]: the sum over hold intervals of
   /// F . dx (exact, F being constant over each); > 0 is energy the controller gives out.
@@ -170,8 +170,12 @@ struct PortCycle {
   double ramp_v2_per_m2 = 0.0;
   /// Net energy the device and controller absorb per cycle [J/m^2]; >= 0 at every
   /// frequency: passive.
-  double absorbed_sine_j_per_m2() const noexcept { return damping_n_s_per_m * sine_v2_per_m2 - controller_work_j_per_m2; }
-  double absorbed_ramp_j_per_m2() const noexcept { return damping_n_s_per_m * ramp_v2_per_m2 - controller_work_j_per_m2; }
+  double absorbed_sine_j_per_m2() const noexcept {
+    return damping_n_s_per_m * sine_v2_per_m2 - controller_work_j_per_m2;
+  }
+  double absorbed_ramp_j_per_m2() const noexcept {
+    return damping_n_s_per_m * ramp_v2_per_m2 - controller_work_j_per_m2;
+  }
   /// The damping b that would absorb exactly what the controller gives [N s/m] (the ramp's
   /// is Colgate and Schenkel's integrand at theta, measured).
   double required_sine_n_s_per_m() const noexcept { return controller_work_j_per_m2 / sine_v2_per_m2; }
@@ -217,8 +221,8 @@ struct SweepPoint {
   bool inside_bound = false;  ///< the bound predicts passivity here
   bool has_spectrum = false;  ///< the map has a linear model of the loop
   double spectral_radius = 0.0;
-  double efold_s = 0.0;       ///< T / ln rho when rho > 1 (the amplitude's e-folding time), else 0
-  double run_s = 0.0;         ///< simulated seconds of this point's run
+  double efold_s = 0.0;  ///< T / ln rho when rho > 1 (the amplitude's e-folding time), else 0
+  double run_s = 0.0;    ///< simulated seconds of this point's run
   /// The largest Colgate-Schenkel b_req minus the damping it is compared with, over the map's
   /// loops: < 0 passive (the port, under any input), > 0 not. Meaningful when has_spectrum.
   double passivity_margin_n_s_per_m = 0.0;
@@ -228,26 +232,26 @@ struct SweepPoint {
 };
 
 struct StabilityMap {
-  std::string name;      ///< file stem
+  std::string name;  ///< file stem
   std::string title;
   std::string x_label;
   std::string y_label;
   bool log_x = true;
   bool log_y = true;
-  std::string setup;     ///< what was simulated, for the document
-  std::string bound;     ///< the bound drawn, in words
+  std::string setup;         ///< what was simulated, for the document
+  std::string bound;         ///< the bound drawn, in words
   std::string linear_model;  ///< what the spectral radius is of, in words (empty: none)
   std::vector<std::pair<double, double>> bound_curve;
   std::vector<SweepPoint> points;
 };
 
 struct StabilityOptions {
-  int resolution = 24;       ///< points per axis
-  double duration_s = 4.0;   ///< simulated time per point (the impact maps: 1 s)
+  int resolution = 24;      ///< points per axis
+  double duration_s = 4.0;  ///< simulated time per point (the impact maps: 1 s)
   /// A linear-map point whose rho > 1 runs for max(duration_s, min(this, 3 e-folding times)),
   /// so the growth the eigenvalue predicts shows in the run (or the point says it could not).
   double longest_run_s = 300.0;
-  std::string filter;        ///< only maps whose name contains one of these
+  std::string filter;  ///< only maps whose name contains one of these
   /// Forcing frequencies of the port-energy check on every linear-map point; 0: no check.
   int port_frequencies = 40;
 };

@@ -39,8 +39,8 @@ inline void keep(const T& value) noexcept {
 }
 
 struct TscCalibration {
-  double cycles_per_ns = 0.0;       ///< TSC rate, measured against CLOCK_MONOTONIC
-  double calibration_ms = 0.0;      ///< over how long
+  double cycles_per_ns = 0.0;         ///< TSC rate, measured against CLOCK_MONOTONIC
+  double calibration_ms = 0.0;        ///< over how long
   std::uint64_t overhead_cycles = 0;  ///< median cost of an empty begin/end pair (subtracted)
   double overhead_mean_cycles = 0.0;  ///< its mean (subtracted from mean times)
   std::uint64_t overhead_min_cycles = 0;
@@ -48,7 +48,7 @@ struct TscCalibration {
   /// The counter's step: the most frequent non-zero difference of two back-to-back reads
   /// (1 on bare metal; a VM may advance it in coarser steps, which then quantise every time).
   std::uint64_t step_cycles = 1;
-  bool invariant = false;           ///< /proc/cpuinfo says constant_tsc and nonstop_tsc
+  bool invariant = false;  ///< /proc/cpuinfo says constant_tsc and nonstop_tsc
 };
 
 /// Measures the TSC rate over `window_ms` of busy waiting on CLOCK_MONOTONIC, and the

@@ -33,22 +33,22 @@
 namespace toonforce::report {
 
 enum class Level : std::uint8_t {
-  kHarness,     ///< an empty tick: what the measurement itself costs
-  kEffect,      ///< one law, one branch, its state restored before every tick
-  kSafety,      ///< the safety stage (ForceSafety::limit) alone
-  kScene,       ///< a paper scene's tick: scene.force() then ForceSafety::limit(), scenario inputs
-  kSpecLoop,    ///< ServoLoop::tick() with effects.md §6's stages only (replay's loop), scenario positions
-  kLoop,        ///< ServoLoop::tick(): the whole loop tick, every safety stage on, scripted device
+  kHarness,   ///< an empty tick: what the measurement itself costs
+  kEffect,    ///< one law, one branch, its state restored before every tick
+  kSafety,    ///< the safety stage (ForceSafety::limit) alone
+  kScene,     ///< a paper scene's tick: scene.force() then ForceSafety::limit(), scenario inputs
+  kSpecLoop,  ///< ServoLoop::tick() with effects.md §6's stages only (replay's loop), scenario positions
+  kLoop,      ///< ServoLoop::tick(): the whole loop tick, every safety stage on, scripted device
 };
 std::string_view level_name(Level level) noexcept;
 
 struct CaseInfo {
-  std::string id;       ///< unique and stable, e.g. "scene/cartoon_wall/double/runtime"
+  std::string id;  ///< unique and stable, e.g. "scene/cartoon_wall/double/runtime"
   Level level = Level::kEffect;
   std::string subject;  ///< the effect or the scene
   std::string branch;   ///< the branch driven, or "scenario"
   ScalarKind scalar = ScalarKind::kDouble;
-  std::string form;     ///< scenes: "compile-time" (Scene<...>) or "runtime" (RuntimeScene); else ""
+  std::string form;                  ///< scenes: "compile-time" (Scene<...>) or "runtime" (RuntimeScene); else ""
   std::uint64_t ticks_per_pass = 0;  ///< inputs in one pass (a scenario's period in ticks)
 };
 

@@ -31,7 +31,6 @@ namespace guardian {
 struct SharedPage;
 }  // namespace guardian
 
-
 /// Live scenes (`--control`): the mailbox the run's loop takes scene updates from,
 /// for the run's scalar type (the others stay null). The application's side (the control
 /// protocol's SceneEditor) pushes into it; it outlives the run.
@@ -55,9 +54,9 @@ struct LiveMailboxes {
 inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
 
 struct RunOptions {
-  std::string device;               ///< sim | falcon | omni
-  bool allow_empty = false;         ///< a scene without effects is not an error (--allow-empty)
-  bool strict = false;              ///< a plausibility warning refuses the start (--strict)
+  std::string device;        ///< sim | falcon | omni
+  bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
+  bool strict = false;       ///< a plausibility warning refuses the start (--strict)
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   /// --device sim: the simulated hand follows this script (docs/HAND_SCRIPTS.md) and then holds
   /// its last point; empty: it holds still 1 cm above the workspace centre.
@@ -71,18 +70,18 @@ struct RunOptions {
   /// Set: the scene is this TOML text, not the file's; scene_path names it in messages (the
   /// Python module's runs of a scene given as a string or a dict).
   std::optional<std::string> scene_text;
-  double rate_hz = 1000.0;          ///< 500 .. 10000
-  double duration_s = 0.0;          ///< 0: until SIGINT/SIGTERM (or 'q' on a terminal)
-  std::string trace_path;           ///< empty: no trace
-  std::string stats_json_path;      ///< empty: none
+  double rate_hz = 1000.0;      ///< 500 .. 10000
+  double duration_s = 0.0;      ///< 0: until SIGINT/SIGTERM (or 'q' on a terminal)
+  std::string trace_path;       ///< empty: no trace
+  std::string stats_json_path;  ///< empty: none
   int cpu = -1;
   int priority = 80;
   bool allow_non_realtime = false;
   bool lock_memory = true;
   ScalarKind scalar = default_run_scalar();
-  bool handle_signals = true;       ///< install the SIGINT/SIGTERM/fatal-signal handlers
-  bool interactive = true;          ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
-  std::FILE* messages = stderr;     ///< fault messages during the run
+  bool handle_signals = true;    ///< install the SIGINT/SIGTERM/fatal-signal handlers
+  bool interactive = true;       ///< read 'r' (re-arm) and 'q' (stop) from stdin if it is a terminal
+  std::FILE* messages = stderr;  ///< fault messages during the run
   /// Also sends every frame to this sink (the live viewer), from the writer thread that
   /// consumes the telemetry ring: the servo thread does no work for it.
   TelemetrySink* sink = nullptr;
@@ -111,8 +110,8 @@ struct RunSummary {
   std::int64_t fault_ticks = 0;      ///< frames with any fault bit
   std::uint32_t fault_bits = 0;      ///< union over the run
   std::uint32_t latched_at_end = 0;
-  std::int64_t rearms = 0;           ///< latched faults cleared during the run
-  std::string trace_error;           ///< non-empty: the trace could not be written (the run went on)
+  std::int64_t rearms = 0;  ///< latched faults cleared during the run
+  std::string trace_error;  ///< non-empty: the trace could not be written (the run went on)
   double peak_force_n = 0.0;
   /// Ticks whose reading said the force written before was more than the device could give
   /// (Limit::kDeviceLimited): the user felt less than the scene asked.

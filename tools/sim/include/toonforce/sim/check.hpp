@@ -15,9 +15,9 @@ namespace toonforce {
 
 struct CheckOptions {
   std::string scene_path;
-  std::optional<std::string> scene_text;  ///< set: the scene is this text; scene_path names it in messages
-  std::string script_path;                ///< empty: no hand script
-  std::optional<std::string> script_text; ///< set: the hand script is this text (as scene_text)
+  std::optional<std::string> scene_text;   ///< set: the scene is this text; scene_path names it in messages
+  std::string script_path;                 ///< empty: no hand script
+  std::optional<std::string> script_text;  ///< set: the hand script is this text (as scene_text)
   host_sim::DevicePreset device = host_sim::DevicePreset::kFalcon;
   double rate_hz = 1000.0;  ///< servo rate [Hz]
   ScalarKind scalar = ScalarKind::kDouble;

@@ -35,12 +35,12 @@ struct SimConfig {
 /// One servo tick: the loop's telemetry frame (what `run` reports), and what only a
 /// simulation knows.
 struct SimRecord {
-  TelemetryFrame frame;                    ///< the servo loop's, after the tick
-  Vec3<double> true_position_m;            ///< the handle at t (not delayed, not quantised)
+  TelemetryFrame frame;          ///< the servo loop's, after the tick
+  Vec3<double> true_position_m;  ///< the handle at t (not delayed, not quantised)
   Vec3<double> true_velocity_m_per_s;
-  Vec3<double> hand_target_m;              ///< the hand's reference r at t
-  Vec3<double> device_force_n;             ///< what the device applied over [t, t + period)
-  std::size_t segment = 0;                 ///< hand script segment (== count after the script)
+  Vec3<double> hand_target_m;   ///< the hand's reference r at t
+  Vec3<double> device_force_n;  ///< what the device applied over [t, t + period)
+  std::size_t segment = 0;      ///< hand script segment (== count after the script)
   bool grasping = true;
 };
 

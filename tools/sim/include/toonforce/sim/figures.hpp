@@ -55,7 +55,7 @@ Result<FigureRun> run_figure(const FigureSpec& spec, const std::string& root);
 
 struct FiguresOptions {
   std::string out_dir = "docs/figures";
-  std::string root;          ///< empty: figures_root()
+  std::string root;            ///< empty: figures_root()
   std::string format = "png";  ///< png or svg
   bool plot = true;
 };

@@ -14,8 +14,8 @@
 namespace toonforce {
 
 struct PlotRequest {
-  std::string trace_path;  ///< a sim trace (sim_trace.hpp columns)
-  std::string out_path;    ///< .png or .svg
+  std::string trace_path;     ///< a sim trace (sim_trace.hpp columns)
+  std::string out_path;       ///< .png or .svg
   std::string kind = "auto";  ///< auto, stroke, wall, cliff or overview (see the script)
   std::string title;
   std::vector<std::string> extra_args;  ///< e.g. --gap XMIN XMAX --threshold V

@@ -41,13 +41,13 @@ struct SimOptions {
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
   std::string script_path;
   std::optional<std::string> script_text;  ///< set: the hand script is this text (as scene_text)
-  std::optional<double> duration_s;  ///< default: the hand script's length
-  std::string trace_path;            ///< "-" writes to standard output; empty: no file (with `rows`)
-  SimRowSink* rows = nullptr;        ///< also (or, without trace_path, only) every row as numbers
+  std::optional<double> duration_s;        ///< default: the hand script's length
+  std::string trace_path;                  ///< "-" writes to standard output; empty: no file (with `rows`)
+  SimRowSink* rows = nullptr;              ///< also (or, without trace_path, only) every row as numbers
   /// Non-null: the warnings run_sim would print on standard error (the plausibility report's,
   /// the trace's room) go here instead, one message each, for a caller that shows them its own way.
   std::vector<std::string>* warnings = nullptr;
-  std::string plot_path;             ///< empty: no plot; .png or .svg
+  std::string plot_path;  ///< empty: no plot; .png or .svg
   std::string plot_kind = "auto";
   std::string plot_title;
   host_sim::DevicePreset device = host_sim::DevicePreset::kFalcon;
@@ -86,9 +86,9 @@ struct SimSummary {
   std::uint32_t fault_bits = 0;
   Vec3<double> final_position_m;
   double device_work_j = 0.0;
-  std::vector<double> last_cliff_states;  ///< to count SUPPORTED -> FALLEN transitions
+  std::vector<double> last_cliff_states;     ///< to count SUPPORTED -> FALLEN transitions
   std::int64_t ticks_outside_workspace = 0;  ///< the handle beyond the device's workspace
-  std::int64_t engaging_ticks = 0;  ///< the loop waited for the scene force to fall below engage_force
+  std::int64_t engaging_ticks = 0;           ///< the loop waited for the scene force to fall below engage_force
   std::int64_t soft_start_ticks = 0;
   std::int64_t passivity_ticks = 0;  ///< the passivity controller damped
   std::uint32_t last_state = 0;      ///< LoopState at the end

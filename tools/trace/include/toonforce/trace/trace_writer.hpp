@@ -27,8 +27,8 @@
 namespace toonforce {
 
 /// The ten columns every trace starts with.
-inline constexpr std::array<std::string_view, 10> kTraceCoreColumns{"t", "x", "y", "z", "vx", "vy", "vz",
-                                                                    "fx", "fy", "fz"};
+inline constexpr std::array<std::string_view, 10> kTraceCoreColumns{"t",  "x",  "y",  "z",  "vx",
+                                                                    "vy", "vz", "fx", "fy", "fz"};
 
 /// The largest trace `run` and `sim` write unless told otherwise (--max-output): 1 GiB, about
 /// one to two and a half hours of a 1 kHz `run` trace (120-350 bytes a row). Reaching it warns and stops the trace, never the run.
@@ -57,7 +57,8 @@ class TraceWriter {
   /// Goes on writing rows at the end of an existing trace (its header already there), after
   /// cutting it back to its last whole row: `toonforce run`'s guardian ends the trace of a
   /// loop process that died in the middle of a row (tools/run/guardian.hpp).
-  static Result<std::unique_ptr<TraceWriter>> append_to(const std::string& path, std::vector<std::string> extra_columns);
+  static Result<std::unique_ptr<TraceWriter>> append_to(const std::string& path,
+                                                        std::vector<std::string> extra_columns);
   /// A writer into memory (tests, benchmarks); text() returns what it wrote.
   static std::unique_ptr<TraceWriter> in_memory(std::vector<std::string> extra_columns);
   ~TraceWriter();

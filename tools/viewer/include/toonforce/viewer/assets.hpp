@@ -10,7 +10,7 @@
 namespace toonforce::viewer {
 
 struct Asset {
-  std::string_view path;          ///< URL path, "/index.html", "/assets/index-1a2b.js"
+  std::string_view path;  ///< URL path, "/index.html", "/assets/index-1a2b.js"
   std::string_view content_type;
   std::string_view body;
 };

@@ -54,7 +54,9 @@ template <Scalar S>
 class EditorControl final : public SceneControl {
  public:
   explicit EditorControl(SceneEditor<S> editor) : editor_(std::move(editor)) {}
-  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override { return editor_.set(effect, keys); }
+  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override {
+    return editor_.set(effect, keys);
+  }
   Result<std::uint64_t> add(std::string_view kind, std::string_view keys) override { return editor_.add(kind, keys); }
   Result<std::uint64_t> remove(std::string_view effect) override { return editor_.remove(effect); }
   Result<std::uint64_t> load(std::string_view text, std::string name) override {
@@ -71,9 +73,9 @@ class EditorControl final : public SceneControl {
 };
 
 struct ControlOptions {
-  std::string token;                    ///< required in the hello; never empty
-  double max_messages_per_s = 200.0;    ///< sustained, per connection (a token bucket)
-  double burst_messages = 50.0;         ///< the bucket's size
+  std::string token;                         ///< required in the hello; never empty
+  double max_messages_per_s = 200.0;         ///< sustained, per connection (a token bucket)
+  double burst_messages = 50.0;              ///< the bucket's size
   std::size_t max_message_bytes = 1U << 16;  ///< larger messages are refused (the socket's limit too)
 };
 

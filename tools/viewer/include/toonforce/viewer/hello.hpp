@@ -15,12 +15,12 @@
 namespace toonforce::viewer {
 
 struct HelloInfo {
-  std::string source;        ///< "run", "sim" or "trace"
-  std::string title;         ///< shown in the page's header
-  double rate_hz = 0.0;      ///< servo rate (0: unknown)
-  bool live = true;          ///< frames arrive as the run goes (false: a recording)
-  std::string pacing;        ///< how sim time relates to wall time (sim only), for the page
-  std::string scene_json;    ///< scene_json(); empty: none, the page shows the HIP only
+  std::string source;                      ///< "run", "sim" or "trace"
+  std::string title;                       ///< shown in the page's header
+  double rate_hz = 0.0;                    ///< servo rate (0: unknown)
+  bool live = true;                        ///< frames arrive as the run goes (false: a recording)
+  std::string pacing;                      ///< how sim time relates to wall time (sim only), for the page
+  std::string scene_json;                  ///< scene_json(); empty: none, the page shows the HIP only
   std::vector<std::string> effect_values;  ///< the names of the frames' effect value columns
   std::optional<Vec3<double>> workspace_min_m, workspace_max_m;  ///< the device's, if known
 };

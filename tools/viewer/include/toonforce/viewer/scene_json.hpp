@@ -115,14 +115,16 @@ std::string scene_json(const SceneFileOf<Kinds...>& scene) {
             std::string values;
             std::string units;
             for (const ValueInfo& v : effect::kValues<E>) {
-              values += fmt::format("{}{}", values.empty() ? "" : ",", json_string(fmt::format("{}{}.{}", E::kKey, n, v.name)));
+              values += fmt::format("{}{}", values.empty() ? "" : ",",
+                                    json_string(fmt::format("{}{}.{}", E::kKey, n, v.name)));
               units += fmt::format("{}{}", units.empty() ? "" : ",", json_string(v.unit));
             }
             effects += fmt::format(R"({}{{"key":{},"number":{},"line":{},"params":{},"values":[{}],"units":[{}]}})",
                                    effects.empty() ? "" : ",", json_string(E::kKey), n, e.line, params, values, units);
           }(),
           ...);
-    }(std::make_index_sequence<File::kKinds>{});
+    }
+    (std::make_index_sequence<File::kKinds>{});
   }
   return fmt::format(R"({{"name":{},"file":{},"max_force":{},"effects":[{}]}})", json_string(scene.name),
                      json_string(scene.source), scene.limits.has_max_force ? number(scene.limits.max_force_n) : "null",

@@ -21,9 +21,9 @@ inline constexpr std::size_t kMaxTraceRows = std::size_t{1} << 20;
 
 struct TraceRecording {
   std::vector<ViewFrame> frames;
-  std::string source;      ///< "run" (telemetry columns), "sim" (sim columns) or "trace"
-  double rate_hz = 0.0;    ///< from the median time step (0: fewer than two rows)
-  bool has_loop = false;   ///< the trace has the servo loop's timing columns
+  std::string source;                      ///< "run" (telemetry columns), "sim" (sim columns) or "trace"
+  double rate_hz = 0.0;                    ///< from the median time step (0: fewer than two rows)
+  bool has_loop = false;                   ///< the trace has the servo loop's timing columns
   std::vector<std::string> effect_values;  ///< the effects' value columns, in the frame's order
   /// Non-empty: the last row was cut (no end of line: a killed run, a full disk); it is left
   /// out and this says so, with its line.

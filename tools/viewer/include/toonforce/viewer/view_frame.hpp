@@ -15,11 +15,19 @@
 
 namespace toonforce::viewer {
 
-inline constexpr std::array<std::string_view, 25> kViewColumns{
-    "t",       "tick",     "x",      "y",           "z",           "vx",        "vy",
-    "vz",      "fx",       "fy",     "fz",          "scene_fx",    "scene_fy",  "scene_fz",
-    "faults",  "latched",  "limits", "state",       "contact",     "max_force", "gain",
-    "wake_latency_us", "compute_us", "slack_us", "missed"};
+inline constexpr std::array<std::string_view, 25> kViewColumns{"t",          "tick",
+                                                               "x",          "y",
+                                                               "z",          "vx",
+                                                               "vy",         "vz",
+                                                               "fx",         "fy",
+                                                               "fz",         "scene_fx",
+                                                               "scene_fy",   "scene_fz",
+                                                               "faults",     "latched",
+                                                               "limits",     "state",
+                                                               "contact",    "max_force",
+                                                               "gain",       "wake_latency_us",
+                                                               "compute_us", "slack_us",
+                                                               "missed"};
 inline constexpr std::size_t kViewFixed = kViewColumns.size();
 /// After the fixed columns, the first of the scene's effect values ("surface1.impact_t", named
 /// by the hello message; NaN where the scene has fewer).
@@ -28,9 +36,32 @@ inline constexpr std::size_t kViewStride = kViewFixed + kViewEffectValues;
 
 /// Column indices (kViewColumns[kT] == "t", ...).
 enum ViewColumn : std::size_t {
-  kT, kTick, kX, kY, kZ, kVx, kVy, kVz, kFx, kFy, kFz, kSceneFx, kSceneFy, kSceneFz,
-  kFaults, kLatched, kLimits, kState, kContact, kMaxForce, kGain,
-  kWakeLatencyUs, kComputeUs, kSlackUs, kMissed, kFirstEffectValue
+  kT,
+  kTick,
+  kX,
+  kY,
+  kZ,
+  kVx,
+  kVy,
+  kVz,
+  kFx,
+  kFy,
+  kFz,
+  kSceneFx,
+  kSceneFy,
+  kSceneFz,
+  kFaults,
+  kLatched,
+  kLimits,
+  kState,
+  kContact,
+  kMaxForce,
+  kGain,
+  kWakeLatencyUs,
+  kComputeUs,
+  kSlackUs,
+  kMissed,
+  kFirstEffectValue
 };
 static_assert(kFirstEffectValue == kViewFixed);
 

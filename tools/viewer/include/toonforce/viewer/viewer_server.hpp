@@ -58,18 +58,18 @@ struct ViewerOptions {
   /// More names the Host header may give (`--view-host`): DNS names or IP addresses, no port;
   /// e.g. the name other hosts know this one by when it listens on another address.
   std::vector<std::string> hosts;
-  std::uint16_t port = kDefaultPort;   ///< 0: a free port (see ViewerServer::port())
+  std::uint16_t port = kDefaultPort;      ///< 0: a free port (see ViewerServer::port())
   std::size_t history_frames = 1U << 17;  ///< kept for pages that connect late (131 s at 1 kHz)
-  double batch_interval_s = 0.02;      ///< frames go out in batches this often (50 Hz)
-  std::size_t max_queued_batches = 16; ///< per page, beyond the one being written
-  std::size_t max_pages = 16;          ///< WebSocket pages open at once; more upgrades get 503
+  double batch_interval_s = 0.02;         ///< frames go out in batches this often (50 Hz)
+  std::size_t max_queued_batches = 16;    ///< per page, beyond the one being written
+  std::size_t max_pages = 16;             ///< WebSocket pages open at once; more upgrades get 503
   /// HTTP connections (not yet pages) open at once. One more: the connection reading its
   /// request longest is closed to make room if it has been reading for evict_reading_after_s;
   /// else the new one is closed at once.
   std::size_t max_connections = 32;
   double evict_reading_after_s = 1.0;
-  int send_buffer_bytes = 0;           ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
-  bool has_loop = true;                ///< the frames come from the servo loop (false: sim)
+  int send_buffer_bytes = 0;  ///< SO_SNDBUF of page sockets; 0: the system's (tests set it)
+  bool has_loop = true;       ///< the frames come from the servo loop (false: sim)
   /// The option that gave `address`, for messages (`toonforce view` calls it --address).
   std::string address_option = "--view-address";
   /// Live scenes: when set, /control takes the control protocol's messages
@@ -90,30 +90,30 @@ struct ViewerOptions {
 
 /// Counters for the summary and the tests (any thread).
 struct ViewerStats {
-  std::uint64_t frames_in = 0;            ///< frames published
-  std::uint64_t frames_dropped_ring = 0;  ///< published while the hand-over ring was full
-  std::uint64_t frames_dropped_pages = 0; ///< queued for a page, dropped before it took them
-  std::uint64_t pages_connected = 0;      ///< WebSocket connections accepted so far
-  std::uint64_t pages_refused = 0;        ///< upgrades refused (origin or host)
-  std::uint64_t messages_refused = 0;     ///< pages closed for sending a message
-  std::uint64_t control_messages = 0;     ///< control protocol messages received
-  std::uint64_t control_refused = 0;      ///< of those, answered with an error
+  std::uint64_t frames_in = 0;               ///< frames published
+  std::uint64_t frames_dropped_ring = 0;     ///< published while the hand-over ring was full
+  std::uint64_t frames_dropped_pages = 0;    ///< queued for a page, dropped before it took them
+  std::uint64_t pages_connected = 0;         ///< WebSocket connections accepted so far
+  std::uint64_t pages_refused = 0;           ///< upgrades refused (origin or host)
+  std::uint64_t messages_refused = 0;        ///< pages closed for sending a message
+  std::uint64_t control_messages = 0;        ///< control protocol messages received
+  std::uint64_t control_refused = 0;         ///< of those, answered with an error
   std::uint64_t controls_authenticated = 0;  ///< control connections whose hello passed
-  std::size_t controls_pending = 0;       ///< control connections open now, before their hello
-  std::size_t controls_open = 0;          ///< control connections open now, past their hello
-  std::uint64_t control_hello_late = 0;   ///< control connections closed for no hello in time
-  std::size_t control_bytes = 0;          ///< control replies held now (each being written)
-  std::size_t max_control_bytes = 0;      ///< the most control_bytes has been
-  std::uint64_t requests_late = 0;        ///< HTTP connections closed for no whole request in time
-  std::size_t connections_open = 0;       ///< HTTP connections open now (not pages or control connections)
-  std::uint64_t requests_evicted = 0;     ///< HTTP connections still reading, closed to make room for a new one
-  std::uint64_t http_refused = 0;         ///< HTTP requests answered 4xx
-  std::uint64_t connections_refused = 0;  ///< connections closed on accept: max_connections were open
-  std::uint64_t accept_failures = 0;      ///< accepts that failed (no descriptors, no memory), each followed by a wait
-  std::size_t max_queued = 0;             ///< the longest live queue any page had
-  std::size_t pages_open = 0;             ///< WebSocket connections open now
-  std::size_t queued_bytes = 0;           ///< bytes held for pages now (a message shared by pages counts for each)
-  std::size_t max_queued_bytes = 0;       ///< the most queued_bytes has been
+  std::size_t controls_pending = 0;          ///< control connections open now, before their hello
+  std::size_t controls_open = 0;             ///< control connections open now, past their hello
+  std::uint64_t control_hello_late = 0;      ///< control connections closed for no hello in time
+  std::size_t control_bytes = 0;             ///< control replies held now (each being written)
+  std::size_t max_control_bytes = 0;         ///< the most control_bytes has been
+  std::uint64_t requests_late = 0;           ///< HTTP connections closed for no whole request in time
+  std::size_t connections_open = 0;          ///< HTTP connections open now (not pages or control connections)
+  std::uint64_t requests_evicted = 0;        ///< HTTP connections still reading, closed to make room for a new one
+  std::uint64_t http_refused = 0;            ///< HTTP requests answered 4xx
+  std::uint64_t connections_refused = 0;     ///< connections closed on accept: max_connections were open
+  std::uint64_t accept_failures = 0;  ///< accepts that failed (no descriptors, no memory), each followed by a wait
+  std::size_t max_queued = 0;         ///< the longest live queue any page had
+  std::size_t pages_open = 0;         ///< WebSocket connections open now
+  std::size_t queued_bytes = 0;       ///< bytes held for pages now (a message shared by pages counts for each)
+  std::size_t max_queued_bytes = 0;   ///< the most queued_bytes has been
 };
 
 class ViewerServer final : public TelemetrySink {

@@ -28,15 +28,15 @@ namespace toonforce::falcon {
 
 /// What the driver counts (for diagnostics and tests).
 struct FalconStats {
-  std::uint64_t ticks = 0;            ///< read() calls
+  std::uint64_t ticks = 0;  ///< read() calls
   std::uint64_t commands_sent = 0;
   std::uint64_t replies = 0;          ///< valid status frames received
   std::uint64_t usb_reads = 0;        ///< bulk-IN transfers
   std::uint64_t timeouts = 0;         ///< ticks without a reply
   std::uint64_t protocol_errors = 0;  ///< ticks with garbled bytes and no valid reply
   std::uint64_t garbled_bytes = 0;
-  std::uint64_t deferred_writes = 0;  ///< write() while a command was still outstanding
-  std::uint64_t saturated_writes = 0; ///< forces scaled down to the command range
+  std::uint64_t deferred_writes = 0;   ///< write() while a command was still outstanding
+  std::uint64_t saturated_writes = 0;  ///< forces scaled down to the command range
   std::uint64_t emergency_zeros = 0;
   int max_fk_iterations = 0;
 };
@@ -46,11 +46,11 @@ enum class FalconFault : std::uint8_t {
   kNone,
   kNotHomed,
   kPoseNotConverged,
-  kNoReply,        ///< reads returned no whole frame
-  kUsbTimeout,     ///< a USB transfer itself timed out (the FTDI stopped answering)
-  kGarbled,        ///< bytes that did not form a valid frame, and no valid reply
-  kUnplugged,      ///< LIBUSB_ERROR_NO_DEVICE
-  kUsbError,       ///< any other USB error
+  kNoReply,     ///< reads returned no whole frame
+  kUsbTimeout,  ///< a USB transfer itself timed out (the FTDI stopped answering)
+  kGarbled,     ///< bytes that did not form a valid frame, and no valid reply
+  kUnplugged,   ///< LIBUSB_ERROR_NO_DEVICE
+  kUsbError,    ///< any other USB error
 };
 
 class FalconDriver final : public DeviceDriver {
@@ -100,13 +100,13 @@ class FalconDriver final : public DeviceDriver {
   FrameAssembler assembler_;
   std::array<std::uint8_t, kUsbPacketBytes> raw_{};
   std::array<std::uint8_t, kUsbPacketBytes> payload_{};
-  int in_flight_ = 0;  ///< commands sent whose reply has not arrived (0 or 1 in normal flow)
+  int in_flight_ = 0;                  ///< commands sent whose reply has not arrived (0 or 1 in normal flow)
   std::atomic<int> extra_replies_{0};  ///< replies emergency_zero() will cause, for read() to absorb
 
   Status status_{};
   Command command_{};
-  std::atomic<std::uint8_t> led_flags_{kLedRed};   ///< red until homed, green after
-  std::atomic<std::uint8_t> led_override_{0};      ///< set_led(); 0: led_flags_
+  std::atomic<std::uint8_t> led_flags_{kLedRed};  ///< red until homed, green after
+  std::atomic<std::uint8_t> led_override_{0};     ///< set_led(); 0: led_flags_
   bool homed_ = false;
   bool pose_valid_ = false;
   bool last_read_ok_ = false;

@@ -26,8 +26,8 @@ struct FalconOptions {
   // User-provided, so `open_falcon({})` value-initialises through it: g++ 12 otherwise reports
   // a false -Wmaybe-uninitialized on the std::function inside `firmware` at such call sites.
   FalconOptions() noexcept {}  // NOLINT(modernize-use-equals-default)
-  std::string serial;   ///< the FTDI serial number of the Falcon to open; empty: use `index`
-  unsigned index = 0;   ///< the index-th Falcon in USB enumeration order when `serial` is empty
+  std::string serial;          ///< the FTDI serial number of the Falcon to open; empty: use `index`
+  unsigned index = 0;          ///< the index-th Falcon in USB enumeration order when `serial` is empty
   /// A firmware file to load if the Falcon has none yet (power-up). Empty: firmware must
   /// already be loaded (`toonforce falcon firmware FILE`). Checked before the device is touched.
   std::string firmware_path;

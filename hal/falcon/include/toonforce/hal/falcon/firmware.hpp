@@ -32,7 +32,7 @@ bool parse_sha256_hex(std::string_view hex, Sha256& out) noexcept;
 
 /// An image the loader accepts.
 struct KnownFirmware {
-  std::string_view name;    ///< "nvent_firmware.bin"
+  std::string_view name;  ///< "nvent_firmware.bin"
   std::size_t size_bytes;
   Sha256 sha256;
   std::string_view origin;  ///< where users find it
@@ -50,8 +50,8 @@ struct BootTable {
   std::size_t data_words = 0;  ///< 16-bit words over all blocks
 };
 inline constexpr std::uint16_t kBootTableKey = 0x08AA;
-inline constexpr std::uint32_t kFalconEntryPoint = 0x003F8002;  ///< all four known images
-inline constexpr std::size_t kMaxFirmwareBytes = std::size_t{64} * 1024; ///< the known ones are < 9 KiB
+inline constexpr std::uint32_t kFalconEntryPoint = 0x003F8002;            ///< all four known images
+inline constexpr std::size_t kMaxFirmwareBytes = std::size_t{64} * 1024;  ///< the known ones are < 9 KiB
 
 /// Checks the boot-table structure; the error says which byte offset is wrong and why.
 Result<BootTable> parse_boot_table(std::span<const std::uint8_t> image);
@@ -74,10 +74,10 @@ Result<FirmwareImage> read_firmware_file(const std::string& path,
                                          std::span<const KnownFirmware> allowlist = known_firmware_images());
 
 struct FirmwareLoadOptions {
-  int attempts = 5;                ///< whole-sequence tries (libnifalcon's callers use 10)
-  int handshake_tries = 100;       ///< "\nC\r" probes per attempt (FALCON.md §2.1 step 3)
+  int attempts = 5;                 ///< whole-sequence tries (libnifalcon's callers use 10)
+  int handshake_tries = 100;        ///< "\nC\r" probes per attempt (FALCON.md §2.1 step 3)
   std::uint32_t timeout_ms = 1000;  ///< per USB transfer (FALCON.md §2.1)
-  int echo_idle_reads = 30;        ///< bulk reads without new echo bytes before giving up
+  int echo_idle_reads = 30;         ///< bulk reads without new echo bytes before giving up
   /// Called after each chunk with (bytes echoed, total) and on each new attempt; may be empty.
   std::function<void(std::size_t done, std::size_t total, int attempt)> progress;
 };

@@ -12,7 +12,7 @@
 namespace toonforce::falcon::ftdi {
 
 // Request numbers (bRequest).
-inline constexpr std::uint8_t kReset = 0;        ///< value: kPurgeRx / kPurgeTx
+inline constexpr std::uint8_t kReset = 0;         ///< value: kPurgeRx / kPurgeTx
 inline constexpr std::uint8_t kModemControl = 1;  ///< value: kDtr* / kRts*
 inline constexpr std::uint8_t kFlowControl = 2;   ///< value: kFlowNone
 inline constexpr std::uint8_t kBaudDivisor = 3;   ///< value: a divisor of the 3 MHz base

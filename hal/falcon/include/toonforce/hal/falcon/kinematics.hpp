@@ -30,14 +30,14 @@ bool invert(const Mat3& a, Mat3& inverse, double min_abs_det = 1e-15) noexcept;
 /// FalconGeometry.h after the 2009 r/s swap). PI is exact here; libnifalcon's literal
 /// 3.14159265 differs by 4e-9 rad, far below one encoder count (6.4e-4 rad).
 struct FalconGeometry {
-  double a_m = 0.060;      ///< thigh
-  double b_m = 0.1025;     ///< parallelogram side
-  double c_m = 0.01443;    ///< effector offset along u
-  double f_m = -0.025;     ///< effector offset along v
-  double d_m = 0.01125;    ///< joint offset
-  double e_m = 0.01125;    ///< joint offset
-  double r_m = 0.0400;     ///< leg-base offset along u
-  double s_m = -0.02309;   ///< leg-base offset along v
+  double a_m = 0.060;                                                             ///< thigh
+  double b_m = 0.1025;                                                            ///< parallelogram side
+  double c_m = 0.01443;                                                           ///< effector offset along u
+  double f_m = -0.025;                                                            ///< effector offset along v
+  double d_m = 0.01125;                                                           ///< joint offset
+  double e_m = 0.01125;                                                           ///< joint offset
+  double r_m = 0.0400;                                                            ///< leg-base offset along u
+  double s_m = -0.02309;                                                          ///< leg-base offset along v
   Angles phi_rad{1.8325957145940461, -0.26179938779914941, -2.3561944901923448};  ///< 105, -15, -135 deg
 };
 
@@ -127,7 +127,7 @@ bool force_envelope_at(const FalconGeometry& g, const Vec3<double>& p_m, const M
 /// at 15 with gain 0.5 and a 0.01 rad tolerance; this solves to 1e-9 rad, far below a count).
 struct FkOptions {
   int max_iterations = 12;
-  double tolerance_rad = 1e-9;       ///< stop when |theta_target - IK(p)| is below this
+  double tolerance_rad = 1e-9;                   ///< stop when |theta_target - IK(p)| is below this
   Vec3<double> initial_guess_m{0.0, 0.0, 0.11};  ///< the workspace centre (FALCON.md §5)
 };
 
@@ -136,7 +136,7 @@ struct FkResult {
   Mat3 dp_dtheta;           ///< Jacobian at position_m (valid when jacobian_valid)
   double residual_rad = 0;  ///< |theta_target - IK(position_m)|
   int iterations = 0;
-  bool converged = false;   ///< residual <= tolerance
+  bool converged = false;  ///< residual <= tolerance
   bool jacobian_valid = false;
 };
 

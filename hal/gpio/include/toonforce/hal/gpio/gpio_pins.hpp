@@ -92,9 +92,7 @@ class GpioLights {
 
   GpioLights() = default;  ///< absent: no LED
   /// Start-up: the LED for `state`, requested as an output at 0 (off).
-  void attach(LightState state, gpiod_line* line) noexcept {
-    lines_[static_cast<std::size_t>(state)] = line;
-  }
+  void attach(LightState state, gpiod_line* line) noexcept { lines_[static_cast<std::size_t>(state)] = line; }
 
   void show(LightState state) noexcept {
     if (state == shown_) return;
@@ -123,7 +121,6 @@ class GpioLights {
 /// The pins of a run with GPIO (any of them may be absent).
 using GpioPins = Pins<GpioTickPin, GpioEstopPin, GpioEnablePin, GpioLights>;
 
-static_assert(TickPin<GpioTickPin> && InputPin<GpioEstopPin> && InputPin<GpioEnablePin> &&
-              StatusLights<GpioLights>);
+static_assert(TickPin<GpioTickPin> && InputPin<GpioEstopPin> && InputPin<GpioEnablePin> && StatusLights<GpioLights>);
 
 }  // namespace toonforce::gpio

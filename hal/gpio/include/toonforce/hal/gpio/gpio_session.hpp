@@ -80,8 +80,7 @@ std::string pin_error_summary(const GpioPins& pins);
 /// `run` returns. `run` is called with both types (a generic lambda), and must return the same
 /// non-void type for both. If opening fails, `run` is not called and the error is returned.
 template <class Run>
-auto with_gpio_pins(const GpioOptions& options, Run&& run)
-    -> Result<std::invoke_result_t<Run&, NullPins&>> {
+auto with_gpio_pins(const GpioOptions& options, Run&& run) -> Result<std::invoke_result_t<Run&, NullPins&>> {
   using R = std::invoke_result_t<Run&, NullPins&>;
   static_assert(std::is_same_v<R, std::invoke_result_t<Run&, GpioPins&>>,
                 "run(NullPins&) and run(GpioPins&) must return the same type");

@@ -24,12 +24,12 @@ enum class Bias : std::uint8_t { kAsIs, kPullUp, kPullDown };
 
 /// One line, as written.
 struct LineSpec {
-  std::string chip;              ///< "gpiochip0", "/dev/gpiochip0" or "0"; empty when by name
-  unsigned offset = 0;           ///< line offset on `chip` (only when `chip` is set)
-  std::string name;              ///< line name to look up on every chip; empty when by chip
-  bool active_low = false;       ///< the line is active (asserted) when its level is low
+  std::string chip;         ///< "gpiochip0", "/dev/gpiochip0" or "0"; empty when by name
+  unsigned offset = 0;      ///< line offset on `chip` (only when `chip` is set)
+  std::string name;         ///< line name to look up on every chip; empty when by chip
+  bool active_low = false;  ///< the line is active (asserted) when its level is low
   Bias bias = Bias::kAsIs;
-  std::string text;              ///< as written, for messages
+  std::string text;  ///< as written, for messages
 
   bool by_name() const noexcept { return chip.empty(); }
 };

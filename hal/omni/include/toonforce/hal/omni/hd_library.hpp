@@ -42,8 +42,7 @@ enum class LoadProblem : std::uint8_t {
 class Library {
  public:
   Library(void* handle, std::string path, std::string file_version, const HdFunctions& functions)
-      : handle_(handle), path_(std::move(path)), file_version_(std::move(file_version)),
-        functions_(functions) {}
+      : handle_(handle), path_(std::move(path)), file_version_(std::move(file_version)), functions_(functions) {}
   Library(const Library&) = delete;
   Library& operator=(const Library&) = delete;
 

@@ -102,59 +102,59 @@ struct OmniOptions {
 /// What the device says about itself at open time, converted to SI and the scene frame.
 /// Zero means "the device does not report it" unless noted.
 struct OmniLimits {
-  double max_force_n = 0.0;               ///< HD_NOMINAL_MAX_FORCE (peak, room temperature); > 0
-  double max_continuous_force_n = 0.0;    ///< HD_NOMINAL_MAX_CONTINUOUS_FORCE
-  double max_stiffness_n_per_m = 0.0;     ///< HD_NOMINAL_MAX_STIFFNESS [N/mm] * 1000
-  double max_damping_n_s_per_m = 0.0;     ///< HD_NOMINAL_MAX_DAMPING [N s/mm] * 1000
-  double force_cap_n = 0.0;               ///< what this device enforces (OmniOptions::max_force_n)
-  std::string force_cap_source;           ///< where force_cap_n comes from, for messages
-  double software_velocity_limit_m_per_s = 0.0;      ///< HD_SOFTWARE_VELOCITY_LIMIT
-  double software_force_impulse_limit_n_per_s = 0.0; ///< HD_SOFTWARE_FORCE_IMPULSE_LIMIT [N/ms] * 1000
-  double force_ramping_rate_n_per_s = 0.0;           ///< HD_FORCE_RAMPING_RATE
-  bool has_motor_temperature = false;     ///< HD_MOTOR_TEMPERATURE answers (a model, not a sensor)
-  Vec3<double> usable_workspace_min_m;    ///< HD_USABLE_WORKSPACE_DIMENSIONS, scene frame
+  double max_force_n = 0.0;                           ///< HD_NOMINAL_MAX_FORCE (peak, room temperature); > 0
+  double max_continuous_force_n = 0.0;                ///< HD_NOMINAL_MAX_CONTINUOUS_FORCE
+  double max_stiffness_n_per_m = 0.0;                 ///< HD_NOMINAL_MAX_STIFFNESS [N/mm] * 1000
+  double max_damping_n_s_per_m = 0.0;                 ///< HD_NOMINAL_MAX_DAMPING [N s/mm] * 1000
+  double force_cap_n = 0.0;                           ///< what this device enforces (OmniOptions::max_force_n)
+  std::string force_cap_source;                       ///< where force_cap_n comes from, for messages
+  double software_velocity_limit_m_per_s = 0.0;       ///< HD_SOFTWARE_VELOCITY_LIMIT
+  double software_force_impulse_limit_n_per_s = 0.0;  ///< HD_SOFTWARE_FORCE_IMPULSE_LIMIT [N/ms] * 1000
+  double force_ramping_rate_n_per_s = 0.0;            ///< HD_FORCE_RAMPING_RATE
+  bool has_motor_temperature = false;                 ///< HD_MOTOR_TEMPERATURE answers (a model, not a sensor)
+  Vec3<double> usable_workspace_min_m;                ///< HD_USABLE_WORKSPACE_DIMENSIONS, scene frame
   Vec3<double> usable_workspace_max_m;
-  Vec3<double> max_workspace_min_m;       ///< HD_MAX_WORKSPACE_DIMENSIONS, scene frame
+  Vec3<double> max_workspace_min_m;  ///< HD_MAX_WORKSPACE_DIMENSIONS, scene frame
   Vec3<double> max_workspace_max_m;
-  Vec3<double> workspace_centre_mm;       ///< the scene origin in the device frame [mm]
-  double tabletop_offset_m = 0.0;         ///< HD_TABLETOP_OFFSET
+  Vec3<double> workspace_centre_mm;  ///< the scene origin in the device frame [mm]
+  double tabletop_offset_m = 0.0;    ///< HD_TABLETOP_OFFSET
   int input_dof = 0;
   int output_dof = 0;
-  int calibration_styles = 0;             ///< HD_CALIBRATION_STYLE bitmask
-  int calibration_style = 0;              ///< the one used: auto > inkwell > encoder reset
+  int calibration_styles = 0;  ///< HD_CALIBRATION_STYLE bitmask
+  int calibration_style = 0;   ///< the one used: auto > inkwell > encoder reset
 };
 
 // ClockedTick, TickVerdict and ClockedTickFn: the seam's (hal/device.hpp); the vendor's
 // scheduler is this device's clock (Clocking::kDeviceThread).
 
 enum class OmniPhase : std::uint8_t {
-  kIdle,          ///< opened, not started
-  kCalibrating,   ///< running, forces off until hdCheckCalibration says OK
-  kRunning,       ///< forces on
-  kHeld,          ///< a force error: zero force for the hold time
-  kRamping,       ///< forces ramping in (after calibration or a force error)
-  kStopped,       ///< the run ended (stop(), the tick's kStop, or a fatal error)
+  kIdle,         ///< opened, not started
+  kCalibrating,  ///< running, forces off until hdCheckCalibration says OK
+  kRunning,      ///< forces on
+  kHeld,         ///< a force error: zero force for the hold time
+  kRamping,      ///< forces ramping in (after calibration or a force error)
+  kStopped,      ///< the run ended (stop(), the tick's kStop, or a fatal error)
 };
 std::string_view to_string(OmniPhase p) noexcept;
 
 /// Published by the servo thread every tick; read from any thread with OmniDevice::status().
 struct OmniStatus {
-  std::int64_t tick = 0;                ///< ClockedTick::tick of the last frame
-  std::int64_t frames = 0;              ///< frames run since start()
-  Vec3<double> position_m;              ///< scene frame
-  Vec3<double> force_n;                 ///< commanded this tick after gating and cap, scene frame
-  double force_scale = 0.0;             ///< 0 (off/held) .. 1 (full)
-  double update_rate_hz = 0.0;          ///< HD_INSTANTANEOUS_UPDATE_RATE
-  double motor_temperature = -1.0;      ///< hottest motor, 0 cold .. 1 warm; -1 unknown
-  std::uint32_t calibration = 0;        ///< last hdCheckCalibration answer
-  std::uint32_t calibration_errors = 0; ///< HD errors from checking or updating calibration
+  std::int64_t tick = 0;                     ///< ClockedTick::tick of the last frame
+  std::int64_t frames = 0;                   ///< frames run since start()
+  Vec3<double> position_m;                   ///< scene frame
+  Vec3<double> force_n;                      ///< commanded this tick after gating and cap, scene frame
+  double force_scale = 0.0;                  ///< 0 (off/held) .. 1 (full)
+  double update_rate_hz = 0.0;               ///< HD_INSTANTANEOUS_UPDATE_RATE
+  double motor_temperature = -1.0;           ///< hottest motor, 0 cold .. 1 warm; -1 unknown
+  std::uint32_t calibration = 0;             ///< last hdCheckCalibration answer
+  std::uint32_t calibration_errors = 0;      ///< HD errors from checking or updating calibration
   std::uint32_t last_calibration_error = 0;  ///< the most recent of them (0 none)
-  std::uint32_t last_hd_error = 0;      ///< most recent HD error code (0 none)
+  std::uint32_t last_hd_error = 0;           ///< most recent HD error code (0 none)
   std::int32_t last_hd_internal_error = 0;
-  std::uint32_t hd_errors = 0;          ///< HD errors seen since start()
-  std::uint32_t force_errors = 0;       ///< of which force errors
-  std::uint32_t overruns = 0;           ///< ticks that overran their period
-  std::uint32_t buttons = 0;            ///< HD_CURRENT_BUTTONS
+  std::uint32_t hd_errors = 0;     ///< HD errors seen since start()
+  std::uint32_t force_errors = 0;  ///< of which force errors
+  std::uint32_t overruns = 0;      ///< ticks that overran their period
+  std::uint32_t buttons = 0;       ///< HD_CURRENT_BUTTONS
   OmniPhase phase = OmniPhase::kIdle;
   DeviceStatus device_status = DeviceStatus::kNotReady;  ///< what read() said this tick
 };
@@ -251,11 +251,11 @@ class OmniDevice final : public DeviceDriver {
   std::int64_t frames_ = 0;
   bool calibrated_ = false;
   bool forces_enabled_ = false;
-  bool shutting_down_ = false;     // the next frame is the last
+  bool shutting_down_ = false;  // the next frame is the last
   std::int64_t hold_until_tick_ = 0;
   std::int64_t ramp_start_tick_ = 0;
   std::int64_t ramp_ticks_ = 1;
-  bool held_ = false;             // a force error holds force at zero until hold_until_tick_
+  bool held_ = false;  // a force error holds force at zero until hold_until_tick_
   bool warm_hold_ = false;
   bool temperature_readable_ = false;
   int consecutive_overruns_ = 0;
@@ -275,8 +275,8 @@ class OmniDevice final : public DeviceDriver {
   std::atomic<std::uint32_t> last_code_{0};
   std::atomic<std::int32_t> last_internal_{0};
   std::atomic<std::int64_t> last_code_tick_{0};
-  std::atomic<std::uint8_t> end_reason_{0};     // EndReason in omni_device.cpp
-  std::atomic<std::uint32_t> overrun_run_{0};   // overruns in a row when the run ended
+  std::atomic<std::uint8_t> end_reason_{0};               // EndReason in omni_device.cpp
+  std::atomic<std::uint32_t> overrun_run_{0};             // overruns in a row when the run ended
   std::atomic<std::uint32_t> last_calibration_error_{0};  // for last_error() while calibrating
 };
 

@@ -27,15 +27,15 @@ struct ChipSpec {
 
 /// What the emulated kernel and the "hardware" know about one line.
 struct LineState {
-  bool requested = false;   ///< held by a line handle (of this process or a claim())
+  bool requested = false;  ///< held by a line handle (of this process or a claim())
   bool output = false;
   bool active_low = false;  ///< requested active-low: values are inverted at the handle
   Bias bias = Bias::kAsIs;
-  std::string consumer;     ///< the requester's label, as line info reports it
-  int physical = 0;         ///< electrical level on the pin (0 low, 1 high)
-  std::uint64_t writes = 0;  ///< GPIOHANDLE_SET_LINE_VALUES ioctls that included the line
-  std::uint64_t reads = 0;   ///< GPIOHANDLE_GET_LINE_VALUES ioctls that included the line
-  std::uint64_t changes = 0; ///< physical level changes made by writes
+  std::string consumer;       ///< the requester's label, as line info reports it
+  int physical = 0;           ///< electrical level on the pin (0 low, 1 high)
+  std::uint64_t writes = 0;   ///< GPIOHANDLE_SET_LINE_VALUES ioctls that included the line
+  std::uint64_t reads = 0;    ///< GPIOHANDLE_GET_LINE_VALUES ioctls that included the line
+  std::uint64_t changes = 0;  ///< physical level changes made by writes
 };
 
 class EmulatedGpio {

@@ -118,7 +118,9 @@ class FalconEmulator {
   /// and the weight's mass on the grip.
   void hang_weight(double mass_kg) noexcept { weight_kg_ = mass_kg; }
   /// The LED bits (kLedRed, kLedGreen, kLedBlue) of the last command: what a person sees.
-  std::uint8_t led() const noexcept { return static_cast<std::uint8_t>(last_command_.flags & (kLedRed | kLedGreen | kLedBlue)); }
+  std::uint8_t led() const noexcept {
+    return static_cast<std::uint8_t>(last_command_.flags & (kLedRed | kLedGreen | kLedBlue));
+  }
   /// The force the motors apply at the grip [N, Falcon frame] for the last motor words.
   Vec3<double> motor_force_n() const noexcept;
   void power_cycle();  ///< firmware lost, not homed, FTDI back to defaults
@@ -193,7 +195,7 @@ class FalconEmulator {
   Vec3<double> velocity_m_per_s_{};
   std::array<std::int16_t, 3> last_counts_{};
   std::array<std::int16_t, 3> dead_counts_{};  ///< what dead encoders report (power-on counts)
-  bool dynamic_ = false;   ///< the grip moves under forces (a hand spring), not by script
+  bool dynamic_ = false;                       ///< the grip moves under forces (a hand spring), not by script
   double weight_kg_ = 0.0;
   std::uint8_t buttons_ = 0;
   bool homed_ = false;
