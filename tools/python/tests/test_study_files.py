@@ -346,6 +346,39 @@ def test_resume_refuses_a_changed_scene_or_hand_script_naming_it_and_both_hashes
     Session(session.folder, resume=True)
 
 
+def test_a_sessions_hand_script_is_recorded_and_resume_keeps_it(tmp_path):
+    hand = tmp_path / "press.toml"
+    hand.write_text(open(os.path.join(SCENES, "hands", "stroke.toml")).read())
+    path = tmp_path / "study.toml"
+    path.write_text(BASE)
+    session = Session.start(str(path), str(tmp_path / "s"), participant=1, seed=1, hand=str(hand))
+    recorded = experiments.file_sha256(str(hand))
+    assert session.meta["hand"] == str(hand) and session.meta["files"][str(hand)] == recorded
+    Session(session.folder, resume=True, hand=str(hand))  # the same hand, unchanged: it opens
+    with pytest.raises(ValueError, match="began with --hand"):
+        Session(session.folder, resume=True)
+    other = tmp_path / "other.toml"
+    other.write_text(hand.read_text())
+    with pytest.raises(ValueError, match="began with --hand"):
+        Session(session.folder, resume=True, hand=str(other))
+    original = hand.read_text()
+    hand.write_text(original.replace("stiffness = 100.0", "stiffness = 90.0"))
+    with pytest.raises(ValueError) as e:
+        Session(session.folder, resume=True, hand=str(hand))
+    assert str(hand) in str(e.value) and recorded in str(e.value), str(e.value)
+    resumed = run_cli("resume", session.folder, "--hand", str(hand))
+    assert resumed.returncode == 2 and f"{hand} changed since the session started" in resumed.stderr
+    hand.write_text(original)
+    # A session begun without --hand is not resumed with one.
+    plain = Session.start(str(path), str(tmp_path / "p"), participant=1, seed=1)
+    with pytest.raises(ValueError, match="began without --hand"):
+        Session(plain.folder, resume=True, hand=str(hand))
+    # A simulated participant has no hand on the device: --hand is refused, and no folder written.
+    refused = run_cli("run", str(path), "--participant", "1", "--out", str(tmp_path / "o"),
+                      "--simulated-threshold", "0.2", "--hand", str(hand))
+    assert refused.returncode == 2 and "--hand" in refused.stderr and not (tmp_path / "o").exists()
+
+
 # ---- the device silent between intervals ------------------------------------------------
 
 SILENCE_EXPERIMENT = f"""

@@ -193,16 +193,20 @@ def main(argv=None) -> int:
             first = next((i for i, b in enumerate(exp.blocks) if b.procedure in experiments.LEVEL_PROCEDURES), None)
             if first is None and args.simulated_threshold is not None:
                 raise ValueError("--simulated-threshold needs a block with a level (a staircase or constant stimuli)")
+            if args.simulated_threshold is not None and args.hand:
+                raise ValueError("--hand: a simulated participant (--simulated-threshold) answers from its model, "
+                                 "with no hand on the device; --hand tries a person's session without a device")
             observer = None
             if args.simulated_threshold is not None:
                 observer = {"threshold": args.simulated_threshold, "lapse": args.simulated_lapse, "block": first}
             session = Session.start(args.experiment, args.out, args.participant, args.seed,
-                                    "sim" if observer else args.device, observer, toonforce.__version__)
+                                    "sim" if observer else args.device, observer, toonforce.__version__,
+                                    hand=args.hand)
             return _go(session, args)
         if args.command == "resume":
             _check_hand(args)
             _check_numbers(args)
-            session = Session(args.folder, resume=True)
+            session = Session(args.folder, resume=True, hand=args.hand)
             if session.done:
                 print(f"toonforce study: {args.folder} is done already", file=sys.stderr)
                 return 0

@@ -89,15 +89,31 @@ class Session:
     folder. Opened to resume, the experiment file, every scene and every hand script must be
     where they were and as they were (the same SHA-256), or it refuses, naming what changed."""
 
-    def __init__(self, folder: str, resume: bool = False):
+    def __init__(self, folder: str, resume: bool = False, hand: Optional[str] = None):
+        """`hand`: to resume, the --hand script given now; it must be the one the session began
+        with (or none if it began without), as it was."""
         self.folder = os.path.abspath(folder)
         with open(os.path.join(self.folder, "session.json"), encoding="utf-8") as f:
             self.meta: Dict[str, Any] = json.load(f)
         if resume:
+            self._same_hand(hand)
             self.experiment = self._unchanged()
         else:
             self.experiment = experiments.load(self.meta["experiment_file"], self.meta["experiment_text"], files=False)
         self.trials: List[Dict[str, Any]] = self._read_trials()
+
+    def _same_hand(self, hand: Optional[str]) -> None:
+        """The simulated hand of a session tried without a device (--hand) is part of what the
+        participant felt: a resumed session keeps it (its SHA-256 is among the files checked)."""
+        recorded = self.meta.get("hand")
+        given = os.path.abspath(hand) if hand else None
+        if given == recorded:
+            return
+        if recorded is None:
+            raise ValueError(f"--hand {hand}: the session began without --hand; resume it without one")
+        if given is None:
+            raise ValueError(f"the session began with --hand {recorded}; resume it with the same --hand")
+        raise ValueError(f"--hand {hand}: the session began with --hand {recorded}; resume it with that one")
 
     def _unchanged(self) -> experiments.Experiment:
         """The experiment from its file, with its scenes and hand scripts, as the session began."""
@@ -123,17 +139,24 @@ class Session:
 
     @staticmethod
     def start(experiment_file: str, folder: str, participant: int, seed: Optional[int] = None,
-              device: str = "sim", observer: Optional[Dict[str, Any]] = None, version: str = "") -> "Session":
+              device: str = "sim", observer: Optional[Dict[str, Any]] = None, version: str = "",
+              hand: Optional[str] = None) -> "Session":
         """Checks the experiment file with every scene and hand script on `device` first: a
-        mistake writes no folder."""
+        mistake writes no folder. `hand`: the --hand script of a session tried without a device,
+        recorded with its SHA-256 like the experiment's own files."""
         if os.path.exists(os.path.join(folder, "session.json")):
             raise FileExistsError(f"{folder} holds a session already: `resume` it, or choose another folder")
         exp = experiments.load(experiment_file, device=device)
         os.makedirs(folder, exist_ok=True)
         seed = seed if seed is not None else (exp.seed if exp.seed is not None else secrets.randbits(31))
+        files = dict(exp.files)
+        if hand:
+            hand = os.path.abspath(hand)
+            files[hand] = experiments.file_sha256(hand)
         meta = {
             "experiment_file": exp.path, "experiment_sha256": exp.sha256, "experiment_text": exp.text,
-            "files": exp.files,  # every scene and hand script: its SHA-256, compared on resume
+            "files": files,  # every scene and hand script: its SHA-256, compared on resume
+            "hand": hand or None,
             "experiment": exp.name, "participant": participant, "seed": seed, "device": device,
             "observer": observer, "version": version, "started_utc": _now(),
             "block_order": exp.block_order(participant, seed),
