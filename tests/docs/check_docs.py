@@ -42,7 +42,7 @@ PERFORMANCE_LINES = 300
 # The generated blocks' names (the programs that write them: tools/report/src/documents.cpp,
 # mcu.cpp, tools/mcu/wcet/bounds_table.py, stages_table.py).
 GENERATED = {"toonforce-lab report", "toonforce-lab report precision", "toonforce-lab report mcu", "wcet bounds", "wcet stages"}
-MARKER = re.compile(r"<!-- ([a-z][a-z0-9 ]*): (.*?) -->")
+MARKER = re.compile(r"<!-- ([a-z][a-z0-9 -]*): (.*?) -->")
 # What a repository path in a code span starts with. Fixed, not listed from the disk: a build
 # folder inside the source tree (build/release/bin/toonforce) is not part of the repository.
 TOP_DIRS = {".ci", "cmake", "control", "docs", "effects", "examples", "hal", "host_sim", "scenes", "tests", "tools"}
