@@ -47,19 +47,23 @@ LAB_PATHS = [
     (re.compile(r"(^|/)libtoonforce_report[^/]*\.a$"), "the report library"),
 ]
 
-# The source tree's path as tools/sim bakes it into every program linking it, the build tree's
-# fallbacks when no installed data is found beside the binary (data_dir.hpp): figures_root()
-# returns the source tree (the path alone), plot_script_path() its tools/plot_trace.py. Known,
-# not wanted. As the bytes that follow the path: "" (the string ends) or the start of
-# "/tools/plot_trace.py" (g++ may keep a literal's head in .rodata and write its tail with
-# immediates), up to "/tools/plot_t", which no other file of tools/ starts with (plot_report.py
-# does not). Any other occurrence fails.
-KNOWN_SOURCE_PATHS = ["", "/tools/plot_t"]
+# The source tree's path as tools/sim keeps it in every program linking it: a build tree's
+# binary's fallback for its scenes and plot script when no installed data is found beside it
+# (data_dir.hpp, build_source_dir(): one string, ended where the path ends; what it needs under
+# it is appended at run time). Known, not wanted. Any other occurrence (the path inside a longer
+# string) fails.
+KNOWN_SOURCE_PATHS = [""]
+
+# The documentation is the product's: it may describe the lab's measurements (the pages under
+# share/doc/.../performance/ on the WCET analysis), so the lab's names are not looked for in it.
+DOC_PATH = re.compile(r"(^|/)share/doc/[^/]+/.*\.(md|png|svg|csv)$")
 
 
 def lab_path_problems(paths):
     problems = []
     for path in paths:
+        if DOC_PATH.search(path):
+            continue
         for pattern, what in LAB_PATHS:
             if pattern.search(path):
                 problems.append(f"{path}: {what} is the lab's, never installed")

@@ -15,4 +15,11 @@ std::string installed_data_dir() {
   return dir.string();
 }
 
+// Out of line, the one place the path is spelled: callers append to it at run time, so the
+// compiler never folds it into a longer literal.
+const char* build_source_dir() noexcept {
+  static constexpr char kSourceDir[] = TOONFORCE_SOURCE_DIR;
+  return kSourceDir;
+}
+
 }  // namespace toonforce

@@ -41,7 +41,7 @@ std::string figures_root(const std::string& given) {
       !installed.empty() && std::filesystem::is_directory(std::filesystem::path(installed) / "scenes/hands", ec)) {
     return installed;
   }
-  return TOONFORCE_SOURCE_DIR;
+  return build_source_dir();
 }
 
 SimOptions figure_sim_options(const FigureSpec& spec, const std::string& root) {

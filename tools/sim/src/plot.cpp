@@ -29,7 +29,7 @@ std::string plot_script_path() {
     std::error_code ec;
     if (std::filesystem::is_regular_file(script, ec)) return script;
   }
-  return TOONFORCE_PLOT_SCRIPT;
+  return std::string(build_source_dir()) + "/tools/plot_trace.py";
 }
 
 Result<bool> plot_trace(const PlotRequest& request) {

@@ -13,4 +13,10 @@ namespace toonforce {
 /// that directory exists; empty otherwise (a binary run from its build tree).
 std::string installed_data_dir();
 
+/// The source tree this binary was built from: a build tree's binary's fallback for its scenes
+/// and plot script when no installed data is found beside it. One string, ended where the path
+/// ends (an installed product's files are checked for any other copy of the build machine's
+/// path: tests/install/check_install_files.py).
+const char* build_source_dir() noexcept;
+
 }  // namespace toonforce
