@@ -7,6 +7,10 @@
 #include <array>
 #include <limits>
 #include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -17,6 +21,8 @@
 #include "toonforce/host_sim/sim_device.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 #include "toonforce/report/scenario.hpp"
+#include "toonforce/report/template.hpp"
+#include "toonforce/report/templates.hpp"
 #include "toonforce/report/tsc_clock.hpp"
 #include "toonforce/report/workloads.hpp"
 #include "toonforce/sim/closed_loop.hpp"
@@ -1001,6 +1007,20 @@ std::string event_cell(const std::vector<EventTiming>& events, EventKind kind, d
   return "-";
 }
 
+// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
+// compiled in, so a placeholder without a value here is this file's bug, not an input's.
+std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
+  auto text = render(tmpl, values);
+  if (!text) throw std::logic_error(text.error());
+  return std::move(text.value());
+}
+
+// A figure as `{:g}` prints it, of its own type (a float prints differently from a double).
+template <typename T>
+std::string g(T value) {
+  return fmt::format("{:g}", value);
+}
+
 }  // namespace
 
 std::string precision_markdown(const PrecisionReport& r, const std::string& plot_dir) {
@@ -1011,19 +1031,13 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
 
   if (!r.analytic.empty()) {
     const AnalyticWall& w = r.analytic_wall;
-    md += fmt::format(
-        "### The analytic wall: a reference with no error of its own\n\n"
-        "The wall scene's law (K = {:g} N/m, no damping) along a sinusoidal penetration path: the handle at x = 10 mm, "
-        "z(t) = {:g} mm - {:g} mm sin(2 pi {:g} Hz t). Its force is known in closed form at every instant, "
-        "**F(t) = K max(0, -z(t))** along +z (effects.md §1): the reference's own error is double rounding only "
-        "(about 1e-16 relative). The path stays under the clamp ({:g} N at most) and the force-rate limit ({:.1f} N/s "
-        "at most), so neither acts. Replay's servo loop (spec stages) runs two periods; the second is compared. "
-        "**Sampled**: |F_k - F(t_k)| at the loop's own ticks: a position-only law is exact at its ticks, so this is the "
-        "scalar type's arithmetic alone. **Held**: the force held over each tick (what the device renders) against F(t) "
-        "at 64 points per tick; theory (a first-order hold error): RMS = T rms(dF/dt) / sqrt(3). **Order**: observed "
-        "from the held RMS at this rate and the one before it in the table.\n\n",
-        w.stiffness_n_per_m, w.offset_m * 1e3, w.amplitude_m * 1e3, w.frequency_hz, w.peak_force_n(),
-        w.peak_force_rate_n_per_s());
+    md += prose(templates::precision_analytic_wall_md,
+                {{"stiffness", g(w.stiffness_n_per_m)},
+                 {"offset_mm", g(w.offset_m * 1e3)},
+                 {"amplitude_mm", g(w.amplitude_m * 1e3)},
+                 {"frequency", g(w.frequency_hz)},
+                 {"peak_force", g(w.peak_force_n())},
+                 {"peak_force_rate", fmt::format("{:.1f}", w.peak_force_rate_n_per_s())}});
     md += "| scalar | rate | sampled max [N] | held max [N] | held RMS [N] | theory, held RMS [N] | observed order |\n"
           "| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& a : r.analytic) {
@@ -1034,29 +1048,12 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     md += "\n";
   }
 
-  md += "### The scripted scenarios: a convergence ladder\n\n";
-  md += fmt::format(
-      "Where no closed form exists (friction's velocity estimate, the safety stage's rate limit, impacts, the cliff's "
-      "state), the reference is replay's servo loop (effects.md §6 stages) in double with the library sine on each "
-      "paper scene's scripted scenario (tools/report/src/scenario.cpp), velocity estimated from the positions (the "
-      "scenes' 50 Hz cut-off) as on a Falcon, forces after the scenes' safety stage (2000 N/s, 8 N); two passes of the "
-      "periodic scenario, the second compared. It is run at {} Hz; each row below compares a rate with its double, at "
-      "the coarser run's ticks. **Away from events** leaves out 2 ticks (of the coarser rate) before and 2 ticks plus "
-      "the force-rate ramp to the clamp (8 N / 2000 N/s = 4 ms) after each contact onset and end, impact trigger and "
-      "cliff fall of the reference, and the whole of a running impact transient (an event's timing shifts all of it). "
-      "The observed order is log2 of the ratio of successive differences. The reference is the finest run, **{:g} Hz**. "
-      "The ladder alone does not bound its error at events: an event (a contact's end, a cliff's fall) is seen at the "
-      "first tick at or after it, and at two rates of the ladder it can land alike by chance (realistic_friction's "
-      "contact end did at 160 and 320 kHz: compare its last ladder row with its check row). So the "
-      "reference is also **checked** against a run at {:g} times its rate, {:g} kHz (last row of each scene, compared at "
-      "the reference's ticks), and its error at the ticks near events is **bounded** from how far it can have moved "
-      "an event: one of its ticks (or, if the check run shows a larger shift, that shift x {:g} / {:g}, first order), "
-      "times the force's change over that many ticks on either side (the 2000 N/s rate limit caps it at 2000 N/s x "
-      "the shift). Test Precision.TheStatedReferenceErrorBoundsItsDifferenceToAFinerRunAtEventsToo holds every "
-      "scene's stated error against a run 8 times finer than the reference.\n\n",
-      fmt::join(r.options.reference_rates_hz, ", "), reference_rate, r.options.reference_check_factor,
-      reference_rate * r.options.reference_check_factor / 1e3, r.options.reference_check_factor,
-      r.options.reference_check_factor - 1.0);
+  md += prose(templates::precision_ladder_md,
+              {{"reference_rates", fmt::format("{}", fmt::join(r.options.reference_rates_hz, ", "))},
+               {"reference_rate", g(reference_rate)},
+               {"check_factor", g(r.options.reference_check_factor)},
+               {"check_khz", g(reference_rate * r.options.reference_check_factor / 1e3)},
+               {"check_factor_less_one", g(r.options.reference_check_factor - 1.0)}});
   md += "| scene | rates | max diff [N] | RMS diff [N] | order (RMS) | away: max diff [N] | away: RMS diff [N] | away: "
         "order (RMS) | away: order (max) |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
   for (const auto& c : r.convergence) {
@@ -1074,17 +1071,9 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   const double check_factor = r.options.reference_check_factor;
-  md += fmt::format(
-      "\nThe {:g} Hz reference's own error, per scene, as stated (the bound every figure below is read against). "
-      "**Away from events**: the ladder's Richardson estimate (its last difference d and order p, d / (2^p - 1), when "
-      "the last two orders agree within 0.5, else d), or the check's difference scaled as convergence of that order "
-      "(x {:g}^p / ({:g}^p - 1), p = 1 outside the asymptotic range) if larger. It is 0 where every force is decided "
-      "by the position at the tick (the cartoon wall outside its transients, the cliff): every run then gives the "
-      "law's exact value at the common ticks. **Every tick**: the largest of the ladder's estimate, the check's "
-      "difference x {:g} / {:g}, and the error away from events plus the event bound (the max: summed; the RMS: in "
-      "quadrature, the event bound's RMS taken over the whole pass). **Event shift**: the largest shift of an event "
-      "between the reference and the check run, and the shift the bound assumes, in reference ticks.\n\n",
-      reference_rate, check_factor, check_factor, check_factor, check_factor - 1.0);
+  md += prose(templates::precision_reference_error_md, {{"reference_rate", g(reference_rate)},
+                                                        {"check_factor", g(check_factor)},
+                                                        {"check_factor_less_one", g(check_factor - 1.0)}});
   md +=
       "| scene | away: RMS [N] | away: max [N] | every tick: RMS [N] | every tick: max [N] | event bound: max / RMS "
       "[N] | event shift: vs check / bound [ticks] | events in the compared pass |\n| --- | ---: | ---: | ---: | ---: | "
@@ -1103,19 +1092,8 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
                     c.check_event_shift_s * reference_rate, c.event_shift_bound_s * reference_rate, counts);
   }
 
-  md += fmt::format(
-      "\n### Error and cost per configuration\n\n"
-      "Against the {:g} Hz reference (its own error just above). Every rate divides it, so each of its ticks falls on "
-      "a reference tick: **sampled** error = |F - F_ref| at the configuration's own ticks, every tick and **away** "
-      "from events (the windows above, in the configuration's ticks); **held** error = the configuration's force held "
-      "over its tick (zero-order hold: what the device renders) against the reference taken as continuous, linear "
-      "between its ticks, integrated exactly over each reference tick (precision_reference.hpp held_difference; "
-      "sampling at each reference tick's left end instead reads a ramp's RMS low by sqrt((m - 1)(2m - 1) / (2 m^2)), "
-      "m reference ticks per tick: 0.977 at 10 kHz). Cost: replay's "
-      "servo loop tick of that configuration, each of {} ticks timed alone (mean; the median is in steps of the "
-      "counter, 10 ns here). CPU per second = mean ns x rate. **Max vs double, same rate** = the sampled error against "
-      "double with the library sine at the same rate: the scalar type's and the sine method's own share.\n\n",
-      reference_rate, r.options.timing_ticks);
+  md += prose(templates::precision_configurations_md,
+              {{"reference_rate", g(reference_rate)}, {"timing_ticks", fmt::format("{}", r.options.timing_ticks)}});
   if (!plot_dir.empty()) {
     md += fmt::format("![work-precision diagram]({}/work_precision.png)\n\n", plot_dir);
   }
@@ -1195,27 +1173,13 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   if (!shifts.empty()) {
-    md += "Where a \"vs double at the same rate\" figure stands out (more than 3 times the smallest of its scene and "
-          "scalar type, the law's floor), an event fell on another tick than in double at the same rate; every such "
-          "event of those rows' compared pass:\n\n" +
-          shifts +
-          "\nQ16.16 holds a position in steps of 1/65536 m (15.3 um), rounded to the nearest: a position within 7.6 um "
-          "of an edge the law decides on (the cliff's gap begins at x = 0, the ground at z = 0) can round onto the "
-          "other side of it, and the event is decided a tick early or late. The force then moves through the 2000 N/s "
-          "rate limit a tick early or late, which is off by up to one rate-limited step, 2000 N/s x T (0.5 N at 4 kHz, "
-          "0.2 N at 10 kHz), for the length of the ramp: it is event timing, not the arithmetic's error away from "
-          "events (the \"away\" columns).\n\n";
+    md += prose(templates::precision_event_shifts_md, {{"shifts", shifts}});
   }
 
   // Event lateness, double with the library sine (or no sine): the rate's own share.
-  md += fmt::format(
-      "Event lateness, double (library sine): each reference event's time in the configuration minus the {:g} Hz "
-      "reference's, as min..max over the compared pass, in the configuration's ticks and in ms. Theory for an event "
-      "decided from the position alone (contact onset and end): the loop sees it at its first tick at or after the "
-      "reference's, so 0 <= lateness < 1 tick, give or take the reference's own tick ({:.4f} ms). Events decided from "
-      "the filtered velocity (an impact's speed threshold, the cliff's) can be later: the 50 Hz estimate itself lags "
-      "differently at each rate.\n\n",
-      reference_rate, 1e3 / reference_rate);
+  md += prose(
+      templates::precision_event_lateness_md,
+      {{"reference_rate", g(reference_rate)}, {"reference_tick_ms", fmt::format("{:.4f}", 1e3 / reference_rate)}});
   md +=
       "| scene | rate | contact onset | contact end | impact trigger | cliff fall |\n| --- | ---: | --- | --- | --- | --- |\n";
   for (const auto& row : r.rows) {
@@ -1263,55 +1227,23 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       left_out += row.loop_ticks_left_out;
       timed += row.loop_ticks;
     }
-    md += fmt::format(
-        "\n### The closed loop: error against cost, to pick a scalar type and a rate\n\n"
-        "The servo loop with every stage on the simulated Falcon-class device (one tick of I/O delay, Coulomb "
-        "friction, RK4 with 4 sub-steps per tick; here without its 20 um encoder and 12-bit DAC steps, which are the "
-        "device's, the same for every scalar and rate, and do not converge with the rate) held by the simulated hand, the same "
-        "seeded varied hand as the drift run (seed {}), for {:g} s per run. Reference: the same closed loop in "
-        "double at {} Hz (a ladder); it is the finest, **{:g} Hz**, with its own error the Richardson estimate from "
-        "the last doubling (as above; where the observed order is not positive, the last difference itself). Note "
-        "that the device's delay is one tick, so it shrinks with the rate: the reference is the ideal device's limit, "
-        "not a 1 kHz Falcon's. **Force**: the rendered force (after the DAC), held over each tick, against the "
-        "reference's at every reference tick (events included: a closed loop has no common event times). "
-        "**Position**: the handle's true position at the configuration's ticks.\n\n"
-        "**Cost, x86** (this machine, the line at the top of this section): every `ServoLoop::tick` call of the very "
-        "runs that give the errors, each between two reads of the time-stamp counter; the plant, the hand and the "
-        "records step outside them (the simulated device is split at the tick: the loop reads the reading the device "
-        "gave before it and leaves its force, a copy each way, as on the scripted device; the plant then steps with "
-        "that force; the run is the simulation's own, tick for tick, test "
-        "`Precision.TheTimedClosedLoopIsTheSimulationsClosedLoop`). The empty measurement's cost is subtracted, its "
-        "mean from the mean and its median from the median and p99. **Loop CPU per simulated second** = mean x ticks "
-        "/ {:g} s, the ticks being rate x duration, every tick as the run meets it: its first ticks are cold "
-        "(caches, branch predictors), which weighs more in 500 Hz's {:g} ticks than in 10 kHz's {:g}. Ticks of 2^17 "
-        "cycles and more (preemptions) are left out of the mean ({} of {} here; counted per row in "
-        "closed_loop.csv). How accurate: the counter advances in steps of {:.1f} ns here, so each tick's time, the "
-        "median and the p99 are multiples of it (less the overhead); a mean over thousands of ticks resolves below "
-        "the step, but this is a 2-vCPU VM shared with other work (load average above), whose noise moved one run's "
-        "mean by up to 2x while this was written, for seconds at a time. So each configuration runs {} times "
-        "(bit-identical runs: the same ticks and branches), in rounds over the scene's configurations so that a slow "
-        "spell falls on different ones; the row gives the least disturbed run (the smallest mean: the noise only adds "
-        "time), and **runs' means, min..max** shows how far the noise moved the others. Between two whole reports "
-        "minutes apart the least disturbed means of one configuration still differed by up to 25 % (a slow spell "
-        "longer than a round): read rows within that of each other as equal. "
-        "**Scripted pass**, for comparison: the loop's tick with every stage timed alone on the scripted scenario "
-        "(`loop/SCENE/SCALAR/runtime`, {} ticks, warm) times the rate: what this table's cost was before it was "
-        "measured in the closed loop.\n\n"
-        "**Cost, Cortex-M3** (q16.16 rows): `toonforce-lab report mcu`'s every-stage loop tick, the mean instructions "
-        "per tick over the scene's 1 kHz scripted motions under QEMU (exact), times the rate. *Computed, not "
-        "measured here*: the column is one figure per scene times the rate, so it grows with the rate by "
-        "construction and is no evidence of how the cost varies with it; it stands beside the measured x86 columns "
-        "only to give the M3's scale. An approximation besides: the motions are not this hand's, and it takes the "
-        "instructions per tick at every rate to be those at 1 kHz. Instructions, not cycles. {}\n\n",
-        r.options.drift_seed, r.options.closed_loop_s, fmt::join(r.options.closed_loop_reference_rates_hz, ", "),
-        cl_reference, r.options.closed_loop_s, r.options.rates_hz.front() * r.options.closed_loop_s,
-        r.options.rates_hz.back() * r.options.closed_loop_s, left_out, timed,
-        static_cast<double>(r.clock.step_cycles) / r.clock.cycles_per_ns, r.options.closed_loop_timing_runs,
-        r.options.timing_ticks,
-        r.options.m3_loop_instructions_per_tick.empty()
-            ? "The Cortex-M3 images were not built when this ran: \"not built\" below (`cmake --workflow --preset "
-              "release && ctest --preset release -L mcu` builds them)."
-            : "Here from the images as `report mcu` ran them just before this report.");
+    md += prose(
+        templates::precision_closed_loop_md,
+        {{"seed", fmt::format("{}", r.options.drift_seed)},
+         {"duration_s", g(r.options.closed_loop_s)},
+         {"reference_rates", fmt::format("{}", fmt::join(r.options.closed_loop_reference_rates_hz, ", "))},
+         {"reference_rate", g(cl_reference)},
+         {"slowest_ticks", g(r.options.rates_hz.front() * r.options.closed_loop_s)},
+         {"fastest_ticks", g(r.options.rates_hz.back() * r.options.closed_loop_s)},
+         {"ticks_left_out", fmt::format("{}", left_out)},
+         {"ticks_timed", fmt::format("{}", timed)},
+         {"counter_step_ns", fmt::format("{:.1f}", static_cast<double>(r.clock.step_cycles) / r.clock.cycles_per_ns)},
+         {"timing_runs", fmt::format("{}", r.options.closed_loop_timing_runs)},
+         {"timing_ticks", fmt::format("{}", r.options.timing_ticks)},
+         {"cortex_m3_images", r.options.m3_loop_instructions_per_tick.empty()
+                                  ? "The Cortex-M3 images were not built when this ran: \"not built\" below (`cmake "
+                                    "--workflow --preset release && ctest --preset release -L mcu` builds them)."
+                                  : "Here from the images as `report mcu` ran them just before this report."}});
     if (!plot_dir.empty())
       md +=
           fmt::format("![closed loop: force error against CPU per simulated second]({}/closed_loop.png)\n\n", plot_dir);
@@ -1354,38 +1286,11 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   if (!r.drift.empty()) {
-    md += fmt::format(
-        "\n### Drift: {:g} simulated hours of closed loop per scene\n\n"
-        "The servo loop with every stage (as `toonforce sim` runs it: supervisor, velocity estimate, scene, passivity "
-        "observer and controller, force-rate limit and clamp) on the simulated Falcon-class device (one tick of I/O "
-        "delay, encoder and DAC quantisation; RK4, 4 sub-steps) held by the simulated hand, at {:g} Hz, for {:g} "
-        "simulated hours ({:g} ticks) per scene and scalar type. The hand is seeded (seed {}) and varied, never one "
-        "pass repeated: minimum-jerk moves between random points from 8 mm above the ground to 6 mm into it and "
-        "across the cliff's gap, at mean speeds of 1 to 30 cm/s, a quarter of them taps straight down into the ground "
-        "in 40 to 80 ms (impacts), and holds pressing with up to 2 N ({:.0f} segments per hour). Double, float and Q16.16 run in lock-step on the same hand. Compared, every tick:\n\n"
-        "- **observer - port work**: the passivity observer's energy E_obs (Hannaford and Ryu 2002: -sum F_(k-1) . "
-        "(x_k - x_(k-1)) on the positions the loop read) against the energy the plant really absorbed, -integral F . "
-        "v dt (exact per tick: the force the device applied, held over the tick, times the handle's true "
-        "displacement). Its reference is the simulation's own state (integration error of RK4 at 4 sub-steps only "
-        "affects the motion, not this identity);\n"
-        "- **observer vs double**: E_obs of float and Q16.16 against double's;\n"
-        "- **force vs double**: |F - F_double| of the commanded force (the runs separate once an event falls on "
-        "different ticks, then meet again).\n\n"
-        "Each |difference| is fitted by least squares against time: the slope per hour is its growth (R^2 says how "
-        "much of its variation the line explains; a slope near zero with R^2 near zero is no drift).\n\n"
-        "Reading it: the observer's reference checks itself. With no I/O delay and no encoder or DAC steps the "
-        "observer equals the port work to rounding (test `Precision.TheDriftRunsPortWorkIsWhatTheObserverSeesWithout"
-        "DelayOrQuantisation`). With the Falcon's one tick of I/O delay it pairs each held force with the motion of "
-        "another tick, and the difference grows linearly with the motion, positive: the observer reports more energy "
-        "absorbed than the plant absorbed (twice as much with two ticks of delay). That is a property of the "
-        "Hannaford-Ryu observer on a delayed device, not of the arithmetic: double, float and Q16.16 drift alike; "
-        "compare it with the energy through the port in the same row. Against double, float's observer stays close "
-        "on the passive scenes, and Q16.16's moves away with one sign over most of a run (the slopes with R^2 near "
-        "1; the cause, rounding of the per-tick F . dx, is not isolated here). The force difference has no trend: the runs "
-        "separate when an event falls on different ticks (the cartoon wall's impacts: several N for a few ticks) and "
-        "meet again.\n\n",
-        r.options.drift_hours, r.options.drift_rate_hz, r.options.drift_hours,
-        r.options.drift_hours * 3600.0 * r.options.drift_rate_hz, r.options.drift_seed, r.drift_segments_per_h);
+    md += prose(templates::precision_drift_md, {{"hours", g(r.options.drift_hours)},
+                                                {"rate", g(r.options.drift_rate_hz)},
+                                                {"ticks", g(r.options.drift_hours * 3600.0 * r.options.drift_rate_hz)},
+                                                {"seed", fmt::format("{}", r.options.drift_seed)},
+                                                {"segments_per_hour", fmt::format("{:.0f}", r.drift_segments_per_h)}});
     if (!plot_dir.empty()) md += fmt::format("![drift over simulated hours]({}/drift.png)\n\n", plot_dir);
     md +=
         "| scene | scalar | quantity | max over first bucket | max over last bucket | at the end (signed) | slope per "
