@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <map>
+#include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -13,6 +16,8 @@
 
 #include "toonforce/control/faults.hpp"
 #include "toonforce/report/callgrind.hpp"
+#include "toonforce/report/template.hpp"
+#include "toonforce/report/templates.hpp"
 
 namespace toonforce::report {
 
@@ -130,6 +135,14 @@ Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress&
 
 namespace {
 
+// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
+// compiled in, so a placeholder without a value here is this file's bug, not an input's.
+std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
+  auto text = render(tmpl, values);
+  if (!text) throw std::logic_error(text.error());
+  return std::move(text.value());
+}
+
 std::string cell(const std::optional<double>& v, int decimals) {
   if (!v) return "-";
   return decimals == 0 ? fmt::format("{:.0f}", *v) : fmt::format("{:.{}f}", *v, decimals);
@@ -160,23 +173,8 @@ std::string search_markdown(const LatencyReport& r) {
   bool any = false;
   for (const auto& row : r.rows) any = any || (row.info.form == "search" && row.instructions_max);
   if (!any) return md;
-  md += fmt::format(
-      "\n### Constructed and searched inputs: the most expensive tick found\n\n"
-      "The scripted scenarios drive every branch of each stage, but not every combination of them in one tick. "
-      "The **search** rows above run {} strikes of {} ticks at 1 kHz per scene (tools/report/src/workloads.cpp, "
-      "`search_path`): each strike starts a fresh loop out of contact. The first is constructed for the largest "
-      "vectors of normal use (the Q16.16 square root's most rounds): 1 m/s straight down to the workspace's floor, "
-      "55 mm deep, then 1 m/s along its width and back, held deep. The others follow smooth random paths through "
-      "waypoints up to 12 mm off the scenario's own points (deeper than it goes: several times the clamp's force) "
-      "at up to 1.25 m/s, seeded. The whole loop runs with every stage and `search_config`: a 0.1 s soft start, a "
-      "thermal model at half the clamp with a 50 ms time constant, a passivity budget of 0.1 mJ, so that the soft "
-      "start, the thermal derating, the passivity controller's damping, the rate limit and the clamp can all act "
-      "on one tick. The figures are the largest found over these inputs: **a search, not a bound**. Below, for the "
-      "whole loop: the most expensive tick found and what limited the force on it, then for each stage's "
-      "expensive branch the ticks that reached it and the most expensive of them; \"all five\" counts the ticks "
-      "on which the soft start, the passivity damping, the thermal derating and the rate limit or clamp acted at "
-      "once.\n\n",
-      kSearchStrikes, kSearchStrikeTicks);
+  md += prose(templates::latency_search_md, {{"strikes", fmt::format("{}", kSearchStrikes)},
+                                             {"strike_ticks", fmt::format("{}", kSearchStrikeTicks)}});
   md +=
       "| scene | scalar | effects + safety: max found (scenario's max) | whole loop: mean, max found (scenario's max) "
       "| what acted on the max tick | soft start | passivity | thermal | rate limit | clamp | all five |\n";
@@ -236,26 +234,17 @@ std::string latency_markdown(const LatencyReport& r) {
   std::string md;
   md += fmt::format("Measured {} UTC on {}; load average (1, 5, 15 min) {} before and {} after the timing runs.\n\n",
                     r.machine.date_utc, describe(r.machine), r.load_before, r.load_after);
-  md += fmt::format("Clock: {}. {} ticks timed per row (each tick alone; median, p99.9 and maximum of all of them), "
-                    "warm: after a pass that fills the caches. **Cold**: {} more ticks of scene and loop rows, each "
-                    "after writing a 64 MiB buffer (more than the last-level cache), so the tick's data comes from "
-                    "memory; the instruction cache and branch predictors are not flushed.\n\n",
-                    describe(r.clock), r.ticks, r.cold_ticks);
+  md += prose(templates::latency_clock_md, {{"clock", describe(r.clock)},
+                                            {"ticks", fmt::format("{}", r.ticks)},
+                                            {"cold_ticks", fmt::format("{}", r.cold_ticks)}});
   if (!r.callgrind_command.empty()) {
-    md += fmt::format(
-        "Instructions: callgrind, counting only the ticks (`{}`); the empty tick's {:.0f} instructions (the call "
-        "into the counted function and its return) are subtracted. Scenario rows give the mean over one pass of the "
-        "scenario and its most expensive tick (the largest of that pass: a sample, not a bound on every input); "
-        "branch rows the mean over 1024 ticks of the branch.\n\n",
-        r.callgrind_command, r.harness_instructions);
+    md += prose(
+        templates::latency_instructions_md,
+        {{"command", r.callgrind_command}, {"empty_tick_instructions", fmt::format("{:.0f}", r.harness_instructions)}});
   }
 
-  md += "### Paper scenes: effects plus the safety stage\n\n";
-  md += fmt::format(
-      "One tick = `scene.force()` then `ForceSafety::limit()` (rate limit, clamp), inputs from the scene's scripted "
-      "scenario at 1 kHz (tools/report/src/scenario.cpp: every branch, the expensive ones included). Target, "
-      "double: at most {:.0f} instructions and at most {:.0f} ns median per tick.\n\n",
-      kTargetInstructionsPerTick, kTargetMedianNsPerTick);
+  md += prose(templates::latency_scenes_md, {{"target_instructions", fmt::format("{:.0f}", kTargetInstructionsPerTick)},
+                                             {"target_median_ns", fmt::format("{:.0f}", kTargetMedianNsPerTick)}});
   md += "| scene | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";
   md += "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
@@ -284,15 +273,8 @@ std::string latency_markdown(const LatencyReport& r) {
                       scalar_kind_name(row.info.scalar), times(row), cell(row.instructions_mean, 1));
   }
 
-  md += "\n### The whole servo loop tick\n\n";
-  md += fmt::format(
-      "`ServoLoop::tick()`, read to write, on a scripted device that plays the scene's scenario (positions only, "
-      "as from a Falcon: the loop estimates velocity): the supervisor, the effects on a copy of their state with "
-      "the non-finite guard, and the safety chain. **every stage**: engage and soft start, passivity observer and "
-      "controller, thermal model, velocity limit and workspace, rate limit, clamp, all configured on (the "
-      "`run` loop); **spec stages**: only effects.md §6's (rate limit, clamp), as `toonforce replay` runs it. "
-      "Target, double, every stage: at most {:.0f} instructions mean per tick.\n\n",
-      kTargetLoopInstructionsPerTick);
+  md += prose(templates::latency_loop_md,
+              {{"target_instructions", fmt::format("{:.0f}", kTargetLoopInstructionsPerTick)}});
   md += "| scene | stages | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";
   md += "| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
