@@ -9,6 +9,9 @@
 #include <complex>
 #include <functional>
 #include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -19,6 +22,8 @@
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/control/velocity_estimator.hpp"
 #include "toonforce/host_sim/sim_device.hpp"
+#include "toonforce/report/template.hpp"
+#include "toonforce/report/templates.hpp"
 
 namespace toonforce::report {
 
@@ -32,6 +37,14 @@ std::string_view stability_name(Stability s) noexcept {
 }
 
 namespace {
+
+// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
+// compiled in, so a placeholder without a value here is this file's bug, not an input's.
+std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
+  auto text = render(tmpl, values);
+  if (!text) throw std::logic_error(text.error());
+  return std::move(text.value());
+}
 
 /// V above this many times V0 is a runaway (walls; see stability.hpp).
 constexpr double kRunawayRatio = 10.0;
@@ -285,12 +298,10 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.title = fmt::format("Stiffness and servo period (b = {} N s/m, B = 0)", b_falcon);
     s.map.x_label = "virtual stiffness K [N/m]";
     s.map.y_label = "servo period T [s]";
-    s.map.setup = fmt::format(
-        "Falcon-mass device ({} kg) with only its viscous damping b = {} N s/m (Coulomb friction, encoder and DAC "
-        "steps, I/O delay and force saturation off), pressed onto a penalty wall with 1 N, starting at the "
-        "equilibrium depth 1 N / K moving in at half the speed that would reach the surface; no safety limits; "
-        "velocity by plain backward difference; {} s per point.",
-        mass, b_falcon, o.duration_s);
+    s.map.setup =
+        prose(templates::stability_stiffness_period_setup_md, {{"mass", fmt::format("{}", mass)},
+                                                               {"damping", fmt::format("{}", b_falcon)},
+                                                               {"duration_s", fmt::format("{}", o.duration_s)}});
     s.map.bound = "(1 + 2 d) K T / 2 < b with the device's delay d = 0, i.e. T < 2 b / K";
     s.xs = logspace(10.0, 1e5, n);
     s.ys = logspace(1e-4, 2e-3, n);
@@ -360,12 +371,9 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.y_label = "device damping b [N s/m]";
     constexpr double kWall = 50.0;
     constexpr double kPress = 0.5;
-    s.map.setup = fmt::format(
-        "The same ideal device pressed with {} N onto a slippery surface (wall {} N/m, so the normal direction is "
-        "inside its own bound for every b swept; cap 2 N), starting at the equilibrium depth and sliding at 0.05 m/s; "
-        "velocity by plain backward difference; {} s per point. The slippery force is a negative damping -mu along "
-        "the surface, where the wall's K is 0.",
-        kPress, kWall, o.duration_s);
+    s.map.setup = prose(templates::stability_slippery_setup_md, {{"press", fmt::format("{}", kPress)},
+                                                                 {"wall", fmt::format("{}", kWall)},
+                                                                 {"duration_s", fmt::format("{}", o.duration_s)}});
     s.map.bound = "b > (1 + 2 d) K T / 2 + |B| along the surface, where K = 0 and B = -mu: b > mu";
     s.xs = logspace(0.01, 30.0, n);
     s.ys = logspace(0.03, 30.0, n);
@@ -412,19 +420,21 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.y_label = "virtual stiffness K [N/m]";
     constexpr double kAim = -0.002;
     constexpr double kImpactDuration = 1.0;
-    s.map.setup = fmt::format(
-        "The Falcon-class simulated device as `toonforce sim` runs it (mass {} kg, b = {} N s/m, Coulomb {} N, 20 um "
-        "encoder steps, force DAC steps, one tick of I/O delay, {} N saturation; exact integration of the linear part, "
-        "4 sub-steps) held by a firm hand (0.1 kg, 300 N/m, 15 N s/m) aiming 2 mm into the wall, thrown at it from "
-        "1 mm above at the impact speed; {} with the bundled scenes' safety stage (8 N, 2000 N/s) and velocity "
-        "estimate (50 Hz); T = 1 ms; {} s per point.{}",
-        falcon.mass_kg, falcon.damping_n_s_per_m, falcon.coulomb_n, falcon.max_force_n,
-        cartoon ? "the cartoon wall (scenes/cartoon_wall.toml's transient: k_r 200, k_osc 400 N/m, 0.15 s, 30 Hz)"
-                : "a penalty wall",
-        kImpactDuration,
-        cartoon ? " The transient adds energy by design for 0.15 s after each entry, so the run-away and growth tests "
-                  "start at 0.2 s and measure against the largest energy until then (which includes what it added)."
-                : "");
+    s.map.setup = prose(
+        templates::stability_impact_setup_md,
+        {{"mass", fmt::format("{}", falcon.mass_kg)},
+         {"damping", fmt::format("{}", falcon.damping_n_s_per_m)},
+         {"coulomb", fmt::format("{}", falcon.coulomb_n)},
+         {"saturation", fmt::format("{}", falcon.max_force_n)},
+         {"wall", cartoon
+                      ? "the cartoon wall (scenes/cartoon_wall.toml's transient: k_r 200, k_osc 400 N/m, 0.15 s, 30 Hz)"
+                      : "a penalty wall"},
+         {"duration_s", fmt::format("{}", kImpactDuration)},
+         {"transient",
+          cartoon
+              ? " The transient adds energy by design for 0.15 s after each entry, so the run-away and growth tests "
+                "start at 0.2 s and measure against the largest energy until then (which includes what it added)."
+              : ""}});
     const double b_total = falcon.damping_n_s_per_m + hand.damping_n_s_per_m;
     const double k_bound = stiffest_passive_wall_n_per_m(b_total, 1e-3, falcon.io_delay_ticks);
     s.map.bound = fmt::format(
@@ -862,15 +872,15 @@ std::string port_markdown(const StabilityMap& map) {
                                    : "b_req's maximum lies off the forcing frequencies"});
     }
   }
-  std::string md = fmt::format(
-      "\nPassivity by port energy (measured: the servo loop driven by the handle's motion at {} frequencies from "
-      "0.1 Hz to Nyquist; see how a point is classified): with the sampled sinusoid joined by straight lines "
-      "(Colgate's worst motion through those samples) {} of {} points agree with b_req's verdict, with the "
-      "sinusoid itself {} of {}{}. The measured and modelled Colgate-Schenkel integrand differ by at most {:.2g} N s/m "
-      "at the same theta.\n",
-      frequencies, agree_ramp, counted, agree_sine, counted,
-      on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound),
-      model_difference);
+  std::string md =
+      prose(templates::stability_port_passivity_md,
+            {{"frequencies", fmt::format("{}", frequencies)},
+             {"agree_ramp", fmt::format("{}", agree_ramp)},
+             {"counted", fmt::format("{}", counted)},
+             {"agree_sine", fmt::format("{}", agree_sine)},
+             {"on_the_bound",
+              on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound)},
+             {"model_difference", fmt::format("{:.2g}", model_difference)}});
   if (disagreements.empty()) return md;
   md += fmt::format("\n{} disagreements{}:\n\n", disagreements.size(),
                     disagreements.size() > 8 ? " (the 8 nearest the bound)" : "");
@@ -958,13 +968,11 @@ std::string spectral_markdown(const StabilityMap& map) {
     for (const auto* p : unseen) {
       if (p->run_s < kEfoldsToSee * p->efold_s) ++too_short;
     }
-    md += fmt::format(
-        "\n{} points have rho > 1 but their run did not class them unstable: {} because the run was shorter than "
-        "{:g} e-folding times (the eigenvalue predicts growth the run was too short to see), {} whose run was long "
-        "enough, so the growth stopped outside the linear model's range (the one-sided wall: the handle leaves "
-        "contact and bounces; on the impact maps also the 8 N clamp, Coulomb friction and quantisation). The "
-        "slowest-growing of them:\n\n",
-        unseen.size(), too_short, kEfoldsToSee, static_cast<int>(unseen.size()) - too_short);
+    md += prose(templates::stability_unseen_md,
+                {{"unseen", fmt::format("{}", unseen.size())},
+                 {"too_short", fmt::format("{}", too_short)},
+                 {"efoldings", fmt::format("{:g}", kEfoldsToSee)},
+                 {"long_enough", fmt::format("{}", static_cast<int>(unseen.size()) - too_short)}});
     md += fmt::format(
         "| {} | {} | rho | e-folding [s] | run [s] | run's class |\n| ---: | ---: | ---: | ---: | ---: | --- |\n",
         map.x_label, map.y_label);
