@@ -9,11 +9,16 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
 #include "toonforce/report/process.hpp"
+#include "toonforce/report/template.hpp"
+#include "toonforce/report/templates.hpp"
 
 // From tools/mcu/images.cmake (tools/report/CMakeLists.txt): the scenes comma-separated.
 #if !defined(TOONFORCE_MCU_SCENES) || !defined(TOONFORCE_MCU_ICOUNT_SHIFT)
@@ -430,6 +435,18 @@ std::vector<std::pair<std::string, double>> mcu_loop_mean_instructions(const Mcu
   return out;
 }
 
+namespace {
+
+// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
+// compiled in, so a placeholder without a value here is this file's bug, not an input's.
+std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
+  auto text = render(tmpl, values);
+  if (!text) throw std::logic_error(text.error());
+  return std::move(text.value());
+}
+
+}  // namespace
+
 std::string mcu_markdown(const McuReport& report) {
   const auto opt = [](const McuCore& core) {
     return core.opt.empty() ? std::string("optimisation not known: no CMakeCache.txt beside the images")
@@ -444,14 +461,7 @@ std::string mcu_markdown(const McuReport& report) {
   }
   md += fmt::format("{}   # runs them again and regenerates this part\n```\n\n", report.command);
   if (report.build_command.empty()) md += "The images were built as tools/mcu/README.md says. ";
-  md += fmt::format("For each image it runs (MACHINE CPU: `mps2-an385 cortex-m3` for the Cortex-M3 images, `mps2-an386 "
-                    "cortex-m4` for the Cortex-M4F ones; the -icount shift is tools/mcu/images.cmake's):\n\n```sh\n"
-                    "arm-none-eabi-size -A size_NAME.elf > size_NAME.txt\n"
-                    "qemu-system-arm -machine MACHINE -cpu CPU -display none -monitor none -serial none \\\n"
-                    "  -chardev file,id=out,path=NAME.txt -semihosting-config enable=on,target=native,chardev=out \\\n"
-                    "  -icount shift={},align=off,sleep=off -kernel NAME.elf\n"
-                    "toonforce_mcu_gen figures --size NAME=size_NAME.txt... --run NAME=NAME.txt...\n```\n\n",
-                    report.icount_shift);
+  md += prose(templates::mcu_qemu_commands_md, {{"icount_shift", fmt::format("{}", report.icount_shift)}});
   for (const McuCore* core : {&report.m3, &report.m4f}) {
     if (!core->present) {
       md += fmt::format("### {} (QEMU {})\n\n{}\n\n", core->title, core->machine, core->absent);
