@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -47,6 +48,16 @@ TEST(Template, ABraceOpeningNoPlaceholderIsAnError) {
     const auto r = render(Template{"odd.md.in", text}, {{"b", "x"}});
     EXPECT_FALSE(r) << text;
   }
+}
+
+// The code fills its paragraphs with render_prose: the same text as render, and a missing or
+// extra value (the code's bug) is an exception, not a paragraph left out or half filled.
+TEST(Template, RenderProseIsRenderAndThrowsOnAMismatch) {
+  EXPECT_EQ(render_prose(kGreeting, {{"title", "Hi"}, {"who", "me"}, {"command", "run"}}),
+            "# Hi\n\nme ran `run` for me.\n");
+  EXPECT_THROW(render_prose(kGreeting, {{"title", "Hi"}, {"who", "me"}}), std::logic_error);
+  EXPECT_THROW(render_prose(kGreeting, {{"title", "Hi"}, {"who", "me"}, {"command", "run"}, {"x", "y"}}),
+               std::logic_error);
 }
 
 // The placeholders a template names, in order of first appearance.

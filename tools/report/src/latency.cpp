@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <map>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -135,14 +134,6 @@ Result<LatencyReport> run_latency(const LatencyOptions& options, const Progress&
 
 namespace {
 
-// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
-// compiled in, so a placeholder without a value here is this file's bug, not an input's.
-std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
-  auto text = render(tmpl, values);
-  if (!text) throw std::logic_error(text.error());
-  return std::move(text.value());
-}
-
 std::string cell(const std::optional<double>& v, int decimals) {
   if (!v) return "-";
   return decimals == 0 ? fmt::format("{:.0f}", *v) : fmt::format("{:.{}f}", *v, decimals);
@@ -173,8 +164,8 @@ std::string search_markdown(const LatencyReport& r) {
   bool any = false;
   for (const auto& row : r.rows) any = any || (row.info.form == "search" && row.instructions_max);
   if (!any) return md;
-  md += prose(templates::latency_search_md, {{"strikes", fmt::format("{}", kSearchStrikes)},
-                                             {"strike_ticks", fmt::format("{}", kSearchStrikeTicks)}});
+  md += render_prose(templates::latency_search_md, {{"strikes", fmt::format("{}", kSearchStrikes)},
+                                                    {"strike_ticks", fmt::format("{}", kSearchStrikeTicks)}});
   md +=
       "| scene | scalar | effects + safety: max found (scenario's max) | whole loop: mean, max found (scenario's max) "
       "| what acted on the max tick | soft start | passivity | thermal | rate limit | clamp | all five |\n";
@@ -234,17 +225,18 @@ std::string latency_markdown(const LatencyReport& r) {
   std::string md;
   md += fmt::format("Measured {} UTC on {}; load average (1, 5, 15 min) {} before and {} after the timing runs.\n\n",
                     r.machine.date_utc, describe(r.machine), r.load_before, r.load_after);
-  md += prose(templates::latency_clock_md, {{"clock", describe(r.clock)},
-                                            {"ticks", fmt::format("{}", r.ticks)},
-                                            {"cold_ticks", fmt::format("{}", r.cold_ticks)}});
+  md += render_prose(templates::latency_clock_md, {{"clock", describe(r.clock)},
+                                                   {"ticks", fmt::format("{}", r.ticks)},
+                                                   {"cold_ticks", fmt::format("{}", r.cold_ticks)}});
   if (!r.callgrind_command.empty()) {
-    md += prose(
+    md += render_prose(
         templates::latency_instructions_md,
         {{"command", r.callgrind_command}, {"empty_tick_instructions", fmt::format("{:.0f}", r.harness_instructions)}});
   }
 
-  md += prose(templates::latency_scenes_md, {{"target_instructions", fmt::format("{:.0f}", kTargetInstructionsPerTick)},
-                                             {"target_median_ns", fmt::format("{:.0f}", kTargetMedianNsPerTick)}});
+  md += render_prose(templates::latency_scenes_md,
+                     {{"target_instructions", fmt::format("{:.0f}", kTargetInstructionsPerTick)},
+                      {"target_median_ns", fmt::format("{:.0f}", kTargetMedianNsPerTick)}});
   md += "| scene | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";
   md += "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";
@@ -273,8 +265,8 @@ std::string latency_markdown(const LatencyReport& r) {
                       scalar_kind_name(row.info.scalar), times(row), cell(row.instructions_mean, 1));
   }
 
-  md += prose(templates::latency_loop_md,
-              {{"target_instructions", fmt::format("{:.0f}", kTargetLoopInstructionsPerTick)}});
+  md += render_prose(templates::latency_loop_md,
+                     {{"target_instructions", fmt::format("{:.0f}", kTargetLoopInstructionsPerTick)}});
   md += "| scene | stages | scalar | form | mean ns | median ns | p99.9 ns | max ns | cold median ns | cold p99 ns | "
         "instructions, mean | instructions, max over the pass | target |\n";
   md += "| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n";

@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -435,18 +434,6 @@ std::vector<std::pair<std::string, double>> mcu_loop_mean_instructions(const Mcu
   return out;
 }
 
-namespace {
-
-// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
-// compiled in, so a placeholder without a value here is this file's bug, not an input's.
-std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
-  auto text = render(tmpl, values);
-  if (!text) throw std::logic_error(text.error());
-  return std::move(text.value());
-}
-
-}  // namespace
-
 std::string mcu_markdown(const McuReport& report) {
   const auto opt = [](const McuCore& core) {
     return core.opt.empty() ? std::string("optimisation not known: no CMakeCache.txt beside the images")
@@ -461,7 +448,7 @@ std::string mcu_markdown(const McuReport& report) {
   }
   md += fmt::format("{}   # runs them again and regenerates this part\n```\n\n", report.command);
   if (report.build_command.empty()) md += "The images were built as tools/mcu/README.md says. ";
-  md += prose(templates::mcu_qemu_commands_md, {{"icount_shift", fmt::format("{}", report.icount_shift)}});
+  md += render_prose(templates::mcu_qemu_commands_md, {{"icount_shift", fmt::format("{}", report.icount_shift)}});
   for (const McuCore* core : {&report.m3, &report.m4f}) {
     if (!core->present) {
       md += fmt::format("### {} (QEMU {})\n\n{}\n\n", core->title, core->machine, core->absent);

@@ -7,7 +7,6 @@
 #include <array>
 #include <limits>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -1007,14 +1006,6 @@ std::string event_cell(const std::vector<EventTiming>& events, EventKind kind, d
   return "-";
 }
 
-// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
-// compiled in, so a placeholder without a value here is this file's bug, not an input's.
-std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
-  auto text = render(tmpl, values);
-  if (!text) throw std::logic_error(text.error());
-  return std::move(text.value());
-}
-
 // A figure as `{:g}` prints it, of its own type (a float prints differently from a double).
 template <typename T>
 std::string g(T value) {
@@ -1031,13 +1022,13 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
 
   if (!r.analytic.empty()) {
     const AnalyticWall& w = r.analytic_wall;
-    md += prose(templates::precision_analytic_wall_md,
-                {{"stiffness", g(w.stiffness_n_per_m)},
-                 {"offset_mm", g(w.offset_m * 1e3)},
-                 {"amplitude_mm", g(w.amplitude_m * 1e3)},
-                 {"frequency", g(w.frequency_hz)},
-                 {"peak_force", g(w.peak_force_n())},
-                 {"peak_force_rate", fmt::format("{:.1f}", w.peak_force_rate_n_per_s())}});
+    md += render_prose(templates::precision_analytic_wall_md,
+                       {{"stiffness", g(w.stiffness_n_per_m)},
+                        {"offset_mm", g(w.offset_m * 1e3)},
+                        {"amplitude_mm", g(w.amplitude_m * 1e3)},
+                        {"frequency", g(w.frequency_hz)},
+                        {"peak_force", g(w.peak_force_n())},
+                        {"peak_force_rate", fmt::format("{:.1f}", w.peak_force_rate_n_per_s())}});
     md += "| scalar | rate | sampled max [N] | held max [N] | held RMS [N] | theory, held RMS [N] | observed order |\n"
           "| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n";
     for (const auto& a : r.analytic) {
@@ -1048,12 +1039,12 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     md += "\n";
   }
 
-  md += prose(templates::precision_ladder_md,
-              {{"reference_rates", fmt::format("{}", fmt::join(r.options.reference_rates_hz, ", "))},
-               {"reference_rate", g(reference_rate)},
-               {"check_factor", g(r.options.reference_check_factor)},
-               {"check_khz", g(reference_rate * r.options.reference_check_factor / 1e3)},
-               {"check_factor_less_one", g(r.options.reference_check_factor - 1.0)}});
+  md += render_prose(templates::precision_ladder_md,
+                     {{"reference_rates", fmt::format("{}", fmt::join(r.options.reference_rates_hz, ", "))},
+                      {"reference_rate", g(reference_rate)},
+                      {"check_factor", g(r.options.reference_check_factor)},
+                      {"check_khz", g(reference_rate * r.options.reference_check_factor / 1e3)},
+                      {"check_factor_less_one", g(r.options.reference_check_factor - 1.0)}});
   md += "| scene | rates | max diff [N] | RMS diff [N] | order (RMS) | away: max diff [N] | away: RMS diff [N] | away: "
         "order (RMS) | away: order (max) |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n";
   for (const auto& c : r.convergence) {
@@ -1071,9 +1062,9 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   const double check_factor = r.options.reference_check_factor;
-  md += prose(templates::precision_reference_error_md, {{"reference_rate", g(reference_rate)},
-                                                        {"check_factor", g(check_factor)},
-                                                        {"check_factor_less_one", g(check_factor - 1.0)}});
+  md += render_prose(templates::precision_reference_error_md, {{"reference_rate", g(reference_rate)},
+                                                               {"check_factor", g(check_factor)},
+                                                               {"check_factor_less_one", g(check_factor - 1.0)}});
   md +=
       "| scene | away: RMS [N] | away: max [N] | every tick: RMS [N] | every tick: max [N] | event bound: max / RMS "
       "[N] | event shift: vs check / bound [ticks] | events in the compared pass |\n| --- | ---: | ---: | ---: | ---: | "
@@ -1092,8 +1083,9 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
                     c.check_event_shift_s * reference_rate, c.event_shift_bound_s * reference_rate, counts);
   }
 
-  md += prose(templates::precision_configurations_md,
-              {{"reference_rate", g(reference_rate)}, {"timing_ticks", fmt::format("{}", r.options.timing_ticks)}});
+  md += render_prose(
+      templates::precision_configurations_md,
+      {{"reference_rate", g(reference_rate)}, {"timing_ticks", fmt::format("{}", r.options.timing_ticks)}});
   if (!plot_dir.empty()) {
     md += fmt::format("![work-precision diagram]({}/work_precision.png)\n\n", plot_dir);
   }
@@ -1173,11 +1165,11 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   if (!shifts.empty()) {
-    md += prose(templates::precision_event_shifts_md, {{"shifts", shifts}});
+    md += render_prose(templates::precision_event_shifts_md, {{"shifts", shifts}});
   }
 
   // Event lateness, double with the library sine (or no sine): the rate's own share.
-  md += prose(
+  md += render_prose(
       templates::precision_event_lateness_md,
       {{"reference_rate", g(reference_rate)}, {"reference_tick_ms", fmt::format("{:.4f}", 1e3 / reference_rate)}});
   md +=
@@ -1227,7 +1219,7 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
       left_out += row.loop_ticks_left_out;
       timed += row.loop_ticks;
     }
-    md += prose(
+    md += render_prose(
         templates::precision_closed_loop_md,
         {{"seed", fmt::format("{}", r.options.drift_seed)},
          {"duration_s", g(r.options.closed_loop_s)},
@@ -1286,11 +1278,12 @@ std::string precision_markdown(const PrecisionReport& r, const std::string& plot
     }
   }
   if (!r.drift.empty()) {
-    md += prose(templates::precision_drift_md, {{"hours", g(r.options.drift_hours)},
-                                                {"rate", g(r.options.drift_rate_hz)},
-                                                {"ticks", g(r.options.drift_hours * 3600.0 * r.options.drift_rate_hz)},
-                                                {"seed", fmt::format("{}", r.options.drift_seed)},
-                                                {"segments_per_hour", fmt::format("{:.0f}", r.drift_segments_per_h)}});
+    md += render_prose(templates::precision_drift_md,
+                       {{"hours", g(r.options.drift_hours)},
+                        {"rate", g(r.options.drift_rate_hz)},
+                        {"ticks", g(r.options.drift_hours * 3600.0 * r.options.drift_rate_hz)},
+                        {"seed", fmt::format("{}", r.options.drift_seed)},
+                        {"segments_per_hour", fmt::format("{:.0f}", r.drift_segments_per_h)}});
     if (!plot_dir.empty()) md += fmt::format("![drift over simulated hours]({}/drift.png)\n\n", plot_dir);
     md +=
         "| scene | scalar | quantity | max over first bucket | max over last bucket | at the end (signed) | slope per "

@@ -9,7 +9,6 @@
 #include <complex>
 #include <functional>
 #include <limits>
-#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -37,14 +36,6 @@ std::string_view stability_name(Stability s) noexcept {
 }
 
 namespace {
-
-// A paragraph of the report's prose (tools/report/templates) with its values. The templates are
-// compiled in, so a placeholder without a value here is this file's bug, not an input's.
-std::string prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
-  auto text = render(tmpl, values);
-  if (!text) throw std::logic_error(text.error());
-  return std::move(text.value());
-}
 
 /// V above this many times V0 is a runaway (walls; see stability.hpp).
 constexpr double kRunawayRatio = 10.0;
@@ -299,9 +290,9 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.x_label = "virtual stiffness K [N/m]";
     s.map.y_label = "servo period T [s]";
     s.map.setup =
-        prose(templates::stability_stiffness_period_setup_md, {{"mass", fmt::format("{}", mass)},
-                                                               {"damping", fmt::format("{}", b_falcon)},
-                                                               {"duration_s", fmt::format("{}", o.duration_s)}});
+        render_prose(templates::stability_stiffness_period_setup_md, {{"mass", fmt::format("{}", mass)},
+                                                                      {"damping", fmt::format("{}", b_falcon)},
+                                                                      {"duration_s", fmt::format("{}", o.duration_s)}});
     s.map.bound = "(1 + 2 d) K T / 2 < b with the device's delay d = 0, i.e. T < 2 b / K";
     s.xs = logspace(10.0, 1e5, n);
     s.ys = logspace(1e-4, 2e-3, n);
@@ -371,9 +362,10 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.y_label = "device damping b [N s/m]";
     constexpr double kWall = 50.0;
     constexpr double kPress = 0.5;
-    s.map.setup = prose(templates::stability_slippery_setup_md, {{"press", fmt::format("{}", kPress)},
-                                                                 {"wall", fmt::format("{}", kWall)},
-                                                                 {"duration_s", fmt::format("{}", o.duration_s)}});
+    s.map.setup =
+        render_prose(templates::stability_slippery_setup_md, {{"press", fmt::format("{}", kPress)},
+                                                              {"wall", fmt::format("{}", kWall)},
+                                                              {"duration_s", fmt::format("{}", o.duration_s)}});
     s.map.bound = "b > (1 + 2 d) K T / 2 + |B| along the surface, where K = 0 and B = -mu: b > mu";
     s.xs = logspace(0.01, 30.0, n);
     s.ys = logspace(0.03, 30.0, n);
@@ -420,7 +412,7 @@ std::vector<Sweep> sweeps(const StabilityOptions& o) {
     s.map.y_label = "virtual stiffness K [N/m]";
     constexpr double kAim = -0.002;
     constexpr double kImpactDuration = 1.0;
-    s.map.setup = prose(
+    s.map.setup = render_prose(
         templates::stability_impact_setup_md,
         {{"mass", fmt::format("{}", falcon.mass_kg)},
          {"damping", fmt::format("{}", falcon.damping_n_s_per_m)},
@@ -872,15 +864,15 @@ std::string port_markdown(const StabilityMap& map) {
                                    : "b_req's maximum lies off the forcing frequencies"});
     }
   }
-  std::string md =
-      prose(templates::stability_port_passivity_md,
-            {{"frequencies", fmt::format("{}", frequencies)},
-             {"agree_ramp", fmt::format("{}", agree_ramp)},
-             {"counted", fmt::format("{}", counted)},
-             {"agree_sine", fmt::format("{}", agree_sine)},
-             {"on_the_bound",
-              on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound)},
-             {"model_difference", fmt::format("{:.2g}", model_difference)}});
+  std::string md = render_prose(
+      templates::stability_port_passivity_md,
+      {{"frequencies", fmt::format("{}", frequencies)},
+       {"agree_ramp", fmt::format("{}", agree_ramp)},
+       {"counted", fmt::format("{}", counted)},
+       {"agree_sine", fmt::format("{}", agree_sine)},
+       {"on_the_bound",
+        on_the_bound == 0 ? std::string() : fmt::format(" ({} on the bound left out, as above)", on_the_bound)},
+       {"model_difference", fmt::format("{:.2g}", model_difference)}});
   if (disagreements.empty()) return md;
   md += fmt::format("\n{} disagreements{}:\n\n", disagreements.size(),
                     disagreements.size() > 8 ? " (the 8 nearest the bound)" : "");
@@ -968,11 +960,11 @@ std::string spectral_markdown(const StabilityMap& map) {
     for (const auto* p : unseen) {
       if (p->run_s < kEfoldsToSee * p->efold_s) ++too_short;
     }
-    md += prose(templates::stability_unseen_md,
-                {{"unseen", fmt::format("{}", unseen.size())},
-                 {"too_short", fmt::format("{}", too_short)},
-                 {"efoldings", fmt::format("{:g}", kEfoldsToSee)},
-                 {"long_enough", fmt::format("{}", static_cast<int>(unseen.size()) - too_short)}});
+    md += render_prose(templates::stability_unseen_md,
+                       {{"unseen", fmt::format("{}", unseen.size())},
+                        {"too_short", fmt::format("{}", too_short)},
+                        {"efoldings", fmt::format("{:g}", kEfoldsToSee)},
+                        {"long_enough", fmt::format("{}", static_cast<int>(unseen.size()) - too_short)}});
     md += fmt::format(
         "| {} | {} | rho | e-folding [s] | run [s] | run's class |\n| ---: | ---: | ---: | ---: | ---: | --- |\n",
         map.x_label, map.y_label);

@@ -2,6 +2,7 @@
 #include "toonforce/report/template.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 
 #include <fmt/format.h>
 
@@ -52,6 +53,12 @@ Result<std::string> render(const Template& tmpl, const std::vector<TemplateValue
                                values[i].first)};
   }
   return out;
+}
+
+std::string render_prose(const Template& tmpl, const std::vector<TemplateValue>& values) {
+  auto text = render(tmpl, values);
+  if (!text) throw std::logic_error(text.error());
+  return std::move(text).value();
 }
 
 }  // namespace toonforce::report

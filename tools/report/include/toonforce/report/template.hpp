@@ -29,4 +29,9 @@ using TemplateValue = std::pair<std::string_view, std::string>;
 /// unfilled or silently dropped.
 Result<std::string> render(const Template& tmpl, const std::vector<TemplateValue>& values);
 
+/// `render` for a template compiled in, filled by code that always gives the same names: a
+/// mismatch is that code's bug, not an input's, so it throws std::logic_error (render's
+/// message) rather than returning an error every caller would have to pass on.
+std::string render_prose(const Template& tmpl, const std::vector<TemplateValue>& values);
+
 }  // namespace toonforce::report
