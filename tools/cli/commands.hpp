@@ -49,4 +49,10 @@ using toonforce::hand_script_length_problem;
 int exit_code();
 void set_exit_code(int code);
 
+/// Parses the command line into `app` (running the subcommand it names) and returns the exit
+/// status, for toonforce and the lab's toonforce-lab alike (spec interfaces.md, exits.md): a bad
+/// command line is 2, too little memory 2, any other error 1 with `program: what` on standard
+/// error, and what went to standard output must have arrived.
+int parse_and_finish(CLI::App& app, int argc, char** argv, const char* program);
+
 }  // namespace toonforce::cli

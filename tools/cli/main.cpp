@@ -3,13 +3,9 @@
 // registers itself here; this file only parses and dispatches.
 #include <csignal>
 #include <cstdio>
-#include <exception>
-#include <new>
 #include <string_view>
-#include <system_error>
 
 #include <CLI/CLI.hpp>
-#include <fmt/format.h>
 
 #include "commands.hpp"
 #include "toonforce/run/command_stop.hpp"
@@ -52,37 +48,5 @@ int main(int argc, char** argv) {
 #if TOONFORCE_VIEWER
   toonforce::cli::add_view(app);
 #endif
-  int code = 0;
-  try {
-    app.parse(argc, argv);
-    code = toonforce::cli::exit_code();
-  } catch (const CLI::ParseError& e) {
-    // A bad command line (unknown flag, missing or out-of-range value) is "cannot start": 2
-    // (interfaces.md), not CLI11's own codes (105, 106, 109, ...); --help and --version are 0.
-    code = app.exit(e) == 0 ? 0 : 2;
-  } catch (const std::bad_alloc&) {
-    // Too little memory (`ulimit -v`): cannot start (interfaces.md, exits.md), said in one line.
-    std::fputs("toonforce: out of memory (is `ulimit -v` too small?)\n", stderr);
-    code = 2;
-  } catch (const std::system_error& e) {
-    if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory) {
-      // A thread or a mapping refused (`ulimit -v`): cannot start, as above.
-      std::fprintf(stderr, "toonforce: %s (too little memory: is `ulimit -v` too small?)\n", e.what());
-      code = 2;
-    } else {
-      // A message that could not be written (standard error a closed pipe, a full disk): the
-      // run itself ended as it would have; what could not be said is a failed status (exits.md).
-      std::fprintf(stderr, "toonforce: %s\n", e.what());
-      code = 1;
-    }
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "toonforce: %s\n", e.what());
-    code = 1;
-  }
-  // What went to standard output must have arrived (`falcon udev-rule > /dev/full`).
-  if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0) {
-    std::fprintf(stderr, "toonforce: writing to standard output failed\n");
-    if (code == 0) code = 1;
-  }
-  return code;
+  return toonforce::cli::parse_and_finish(app, argc, argv, "toonforce");
 }

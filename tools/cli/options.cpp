@@ -1,13 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
-// Numeric option checks shared by every subcommand (commands.hpp says why they replace CLI11's).
+// Numeric option checks shared by every subcommand (commands.hpp says why they replace CLI11's),
+// and the parse and exit status that toonforce and the lab's toonforce-lab share.
 #include <sys/stat.h>
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <limits>
+#include <new>
 #include <string>
+#include <system_error>
 
 #include <fmt/format.h>
 
@@ -80,6 +85,50 @@ std::string input_overwritten_by(const std::string& output, std::initializer_lis
     }
   }
   return {};
+}
+
+namespace {
+int g_exit_code = 0;
+}
+
+int exit_code() { return g_exit_code; }
+void set_exit_code(int code) { g_exit_code = code; }
+
+int parse_and_finish(CLI::App& app, int argc, char** argv, const char* program) {
+  int code = 0;
+  try {
+    app.parse(argc, argv);
+    code = exit_code();
+  } catch (const CLI::ParseError& e) {
+    // A bad command line (unknown flag, missing or out-of-range value) is "cannot start": 2
+    // (interfaces.md), not CLI11's own codes (105, 106, 109, ...); --help and --version are 0.
+    code = app.exit(e) == 0 ? 0 : 2;
+  } catch (const std::bad_alloc&) {
+    // Too little memory (`ulimit -v`): cannot start (interfaces.md, exits.md), said in one line.
+    std::fputs(program, stderr);  // no formatting: nothing more to allocate
+    std::fputs(": out of memory (is `ulimit -v` too small?)\n", stderr);
+    code = 2;
+  } catch (const std::system_error& e) {
+    if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory) {
+      // A thread or a mapping refused (`ulimit -v`): cannot start, as above.
+      std::fprintf(stderr, "%s: %s (too little memory: is `ulimit -v` too small?)\n", program, e.what());
+      code = 2;
+    } else {
+      // A message that could not be written (standard error a closed pipe, a full disk): the
+      // run itself ended as it would have; what could not be said is a failed status (exits.md).
+      std::fprintf(stderr, "%s: %s\n", program, e.what());
+      code = 1;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    code = 1;
+  }
+  // What went to standard output must have arrived (`falcon udev-rule > /dev/full`).
+  if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0) {
+    std::fprintf(stderr, "%s: writing to standard output failed\n", program);
+    if (code == 0) code = 1;
+  }
+  return code;
 }
 
 }  // namespace toonforce::cli

@@ -13,12 +13,6 @@
 #include "toonforce/replay/replay.hpp"
 
 namespace toonforce::cli {
-namespace {
-int g_exit_code = 0;
-}
-
-int exit_code() { return g_exit_code; }
-void set_exit_code(int code) { g_exit_code = code; }
 
 void add_replay(CLI::App& app) {
   auto options = std::make_shared<ReplayOptions>();
