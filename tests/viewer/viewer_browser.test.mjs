@@ -74,8 +74,13 @@ async function scenario(s, check) {
     const url = await run.url;
     assert.match(url, /^http:\/\/127\.0\.0\.1:\d+\/$/, 'served on the loopback address by default');
     const { page, errors } = await openPage(url);
-    // Live: the simulation waits for the page, then runs paced to the wall clock.
-    await page.waitForFunction(() => window.toonforceViewer.snapshot().connection === 'live', null, { timeout: kWaitMs });
+    // Live: the simulation waits for the page, then runs paced to the wall clock. The hello
+    // says so; 'live' itself lasts only as long as the run (1-2 s), which a page polled on a
+    // loaded machine can miss entirely, so the wait is on the hello, which stays.
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().live !== null, null, { timeout: kWaitMs });
+    const hello = await snapshot(page);
+    assert.equal(hello.live, true, 'the server says the run is live');
+    assert.notEqual(hello.connection, 'closed', 'the socket was not closed under the page');
     await page.waitForFunction(() => window.toonforceViewer.snapshot().frames > 0, null, { timeout: kWaitMs });
     await page.waitForFunction(() => window.toonforceViewer.snapshot().ended, null, { timeout: kWaitMs });
     await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));

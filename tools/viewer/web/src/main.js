@@ -297,6 +297,9 @@ window.toonforceViewer = {
     const has = s && s.count > 0;
     return {
       connection: view.connection,
+      // What the server's hello said (null before it came): unlike `connection`, which a live
+      // run passes through on its way to 'ended', this does not change once known.
+      live: view.hello ? view.hello.live : null,
       ended: view.ended,
       following: view.following,
       playing: view.playing,
