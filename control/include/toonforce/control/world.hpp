@@ -1,0 +1,409 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+/// Several devices in one world: each device keeps its own servo loop (ServoLoop, with its own
+/// supervisor, HIP sensor and safety chain, configured with that device's limits), and a
+/// `World` ticks them together so that forces between the hands can be computed from every
+/// HIP of the same tick. One world tick:
+///
+///   read every device (each loop later takes its reading from here: WorldDevice)
+///   -> every HIP into the world frame (DeviceFrame), a velocity for each
+///   -> the forces between HIPs (couplings, the shared ball: effects/between.hpp), per device
+///   -> each device's loop ticks: its scene (FramedScene: the scene's effects in the world
+///      frame, plus the world's force for it) and its whole safety chain, in its device's frame
+///   -> one stop: a latched fault on any device holds every device (the policy kAll).
+///
+/// The world's force for a device enters that device's loop as part of its scene force, so
+/// everything the loop does to a scene force applies to it: the non-finite guard, the
+/// passivity observer at that device's port, engage and the soft start, the velocity and
+/// workspace limits, the rate limit and the clamp at the device's own maximum.
+///
+/// The tick is noexcept and allocation-free; its work is linear in the number of devices (and
+/// in the couplings). A World holds pointers into itself: it is neither copied nor moved.
+
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+
+#include "toonforce/control/servo_config.hpp"
+#include "toonforce/control/servo_loop.hpp"
+#include "toonforce/control/velocity_estimator.hpp"
+#include "toonforce/effects/between.hpp"
+#include "toonforce/effects/scene.hpp"
+#include "toonforce/hal/device.hpp"
+#include "toonforce/hal/pins.hpp"
+
+namespace toonforce {
+
+/// Where a device's workspace sits in the world: x_world = scale R x_device + offset. R is a
+/// rotation (rows orthonormal, determinant +1) and scale > 0. Velocities map with scale R and
+/// forces back with scale R^T, so that the power a force delivers is the same in both frames
+/// (f_w . v_w = f_w . (s R v_d) = (s R^T f_w) . v_d): the passivity observer's energy at the
+/// device's port is the world's.
+struct DeviceFrame {
+  Vec3<double> offset_m{};
+  std::array<Vec3<double>, 3> rotation{{{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {0.0, 0.0, 1.0}}};  ///< rows
+  double scale = 1.0;
+
+  /// A turn by `angle_rad` about the world's z axis (two devices facing each other: pi).
+  static DeviceFrame yaw(double angle_rad, const Vec3<double>& offset_m = {}, double scale = 1.0) noexcept {
+    const double c = std::cos(angle_rad);
+    const double s = std::sin(angle_rad);
+    DeviceFrame f;
+    f.rotation = {{{c, -s, 0.0}, {s, c, 0.0}, {0.0, 0.0, 1.0}}};
+    f.offset_m = offset_m;
+    f.scale = scale;
+    return f;
+  }
+
+  template <Scalar S>
+  Vec3<S> rotate(const Vec3<S>& v) const noexcept {
+    return {dot(vec_cast<S>(rotation[0]), v), dot(vec_cast<S>(rotation[1]), v), dot(vec_cast<S>(rotation[2]), v)};
+  }
+  template <Scalar S>
+  Vec3<S> rotate_back(const Vec3<S>& v) const noexcept {  // R^T v
+    return vec_cast<S>(rotation[0]) * v.x + vec_cast<S>(rotation[1]) * v.y + vec_cast<S>(rotation[2]) * v.z;
+  }
+  template <Scalar S>
+  Vec3<S> position_to_world(const Vec3<S>& x) const noexcept {
+    return rotate(x) * scalar_cast<S>(scale) + vec_cast<S>(offset_m);
+  }
+  template <Scalar S>
+  Vec3<S> velocity_to_world(const Vec3<S>& v) const noexcept {
+    return rotate(v) * scalar_cast<S>(scale);
+  }
+  template <Scalar S>
+  Vec3<S> force_to_device(const Vec3<S>& f) const noexcept {
+    return rotate_back(f) * scalar_cast<S>(scale);
+  }
+  /// The identity: the device's frame is the world's.
+  bool identity() const noexcept {
+    return offset_m == Vec3<double>{} && scale == 1.0 && rotation[0] == Vec3<double>{1.0, 0.0, 0.0} &&
+           rotation[1] == Vec3<double>{0.0, 1.0, 0.0} && rotation[2] == Vec3<double>{0.0, 0.0, 1.0};
+  }
+};
+
+/// Why a frame is refused (empty: accepted): R must be a rotation to 1e-9, scale > 0.
+inline std::string check(const DeviceFrame& f) {
+  if (!is_finite(f.offset_m)) return "the offset must be finite";
+  if (!(std::isfinite(f.scale) && f.scale > 0.0)) return "the scale must be finite and > 0";
+  constexpr double kTol = 1e-9;
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!is_finite(f.rotation[i])) return "the rotation must be finite";
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double want = i == j ? 1.0 : 0.0;
+      if (std::abs(dot(f.rotation[i], f.rotation[j]) - want) > kTol) {
+        return "the rotation's rows must be orthonormal (a rotation, without scale or shear: scale is its own key)";
+      }
+    }
+  }
+  const auto& r = f.rotation;
+  const double det = r[0].x * (r[1].y * r[2].z - r[1].z * r[2].y) - r[0].y * (r[1].x * r[2].z - r[1].z * r[2].x) +
+                     r[0].z * (r[1].x * r[2].y - r[1].y * r[2].x);
+  if (det < 0.0) return "the rotation must not mirror (determinant -1): a mirrored device would push the wrong way";
+  return "";
+}
+
+/// A device's scene as its loop sees it: the scene's effects act in the world frame (the HIP
+/// is carried there first), the world's force for this device (`world_force_n`, in the world
+/// frame, written by the World before the loop's tick) is added to theirs, and the sum goes
+/// back to the device's frame, as do the active parts the passivity controller budgets.
+template <SceneType Inner>
+class FramedScene {
+ public:
+  using Scalar = typename Inner::Scalar;
+  using S = Scalar;
+  using State = typename Inner::State;
+  static constexpr Needs kNeeds = Inner::kNeeds;
+  static constexpr std::size_t kActiveCapacity = Inner::kActiveCapacity;
+  static constexpr std::size_t kValueCapacity = Inner::kValueCapacity;
+
+  FramedScene(const Inner& inner, const DeviceFrame& frame, const Vec3<S>* world_force_n) noexcept
+      : inner_(inner), frame_(frame), world_force_n_(world_force_n) {}
+
+  Vec3<S> force(const TickInput<S>& in, State& s, ActiveForce<S>* active) const noexcept {
+    return to_device(inner_.force(to_world(in), s, active), active);
+  }
+  Vec3<S> force(const TickInput<S>& in, const State& from, State& to, ActiveForce<S>* active) const noexcept {
+    return to_device(inner_.force(to_world(in), from, to, active), active);
+  }
+  Needs needs() const noexcept { return inner_.needs(); }
+  std::size_t active_slots() const noexcept { return inner_.active_slots(); }
+  std::size_t value_count() const noexcept { return inner_.value_count(); }
+  bool describe(const State& s, const TickInput<S>& in, double* values) const noexcept {
+    return inner_.describe(s, to_world(in), values);
+  }
+  std::size_t effect_count() const noexcept { return inner_.effect_count(); }
+  EffectInfo effect_info(std::size_t i) const noexcept { return inner_.effect_info(i); }
+
+  const Inner& inner() const noexcept { return inner_; }
+  const DeviceFrame& frame() const noexcept { return frame_; }
+
+ private:
+  TickInput<S> to_world(const TickInput<S>& in) const noexcept {
+    TickInput<S> w = in;
+    w.position_m = frame_.position_to_world(in.position_m);
+    w.velocity_m_per_s = frame_.velocity_to_world(in.velocity_m_per_s);
+    return w;
+  }
+  Vec3<S> to_device(const Vec3<S>& scene_n, ActiveForce<S>* active) const noexcept {
+    for (std::size_t i = 0; i < inner_.active_slots(); ++i) active[i].force_n = frame_.force_to_device(active[i].force_n);
+    return frame_.force_to_device(scene_n + *world_force_n_);
+  }
+
+  Inner inner_;
+  DeviceFrame frame_;
+  const Vec3<S>* world_force_n_;
+};
+
+/// A device of a world: the World reads the real device once a tick (`fetch`), and the
+/// device's loop takes that reading (`read`); writes go straight through.
+template <ServoDevice Device>
+class WorldDevice {
+  static_assert(std::same_as<device_scalar_t<Device>, double>, "a world's devices read in double");
+
+ public:
+  explicit WorldDevice(Device* device) noexcept : device_(device) {}
+  DeviceStatus fetch() noexcept {
+    reading_ = DeviceReading{};
+    status_ = device_->read(reading_);
+    return status_;
+  }
+  DeviceStatus read(DeviceReading& reading) noexcept {
+    reading = reading_;
+    return status_;
+  }
+  DeviceStatus write(const Vec3<double>& force_n) noexcept { return device_->write(force_n); }
+  const DeviceReading& reading() const noexcept { return reading_; }
+  DeviceStatus status() const noexcept { return status_; }
+  Device& device() noexcept { return *device_; }
+
+ private:
+  Device* device_;
+  DeviceReading reading_{};
+  DeviceStatus status_ = DeviceStatus::kNotReady;
+};
+
+/// The e-stop input of a world's loop: engaged while the world holds every device.
+struct WorldStopPin {
+  const std::atomic<bool>* held = nullptr;
+  PinLevel read() noexcept { return held->load(std::memory_order_acquire) ? PinLevel::kActive : PinLevel::kInactive; }
+};
+using WorldPins = Pins<NullTickPin, WorldStopPin, AlwaysActive, NullLights>;
+
+/// What one device's fault does to the others.
+enum class StopPolicy : std::uint8_t {
+  kAll,   ///< a latched fault (e-stop, watchdog, silent device) on one holds every device at zero force
+  kEach,  ///< independent stations: each device stops on its own faults only
+};
+
+/// The most couplings a world has (sized at start-up: a fixed array).
+inline constexpr std::size_t kMaxCouplings = 8;
+
+struct CouplingSpec {
+  std::size_t a = 0;  ///< device indices, a != b
+  std::size_t b = 1;
+  between::CouplingParams params;
+};
+
+struct WorldConfig {
+  StopPolicy stop = StopPolicy::kAll;
+  std::array<CouplingSpec, kMaxCouplings> couplings{};
+  std::size_t coupling_count = 0;
+  bool has_ball = false;
+  between::BallParams ball;
+  std::uint32_t ball_devices = ~0U;  ///< bit i: device i touches the ball
+};
+
+/// Why a world's configuration is refused for `devices` devices (empty: accepted); normalises
+/// the ball's wall normal.
+inline std::string check(WorldConfig& c, std::size_t devices) {
+  if (c.coupling_count > kMaxCouplings) return "at most " + std::to_string(kMaxCouplings) + " couplings";
+  for (std::size_t i = 0; i < c.coupling_count; ++i) {
+    const CouplingSpec& s = c.couplings[i];
+    if (s.a >= devices || s.b >= devices) return "coupling " + std::to_string(i + 1) + " names a device the world does not have";
+    if (s.a == s.b) return "coupling " + std::to_string(i + 1) + " couples a device with itself";
+    if (const std::string why = between::check(s.params); !why.empty()) {
+      return "coupling " + std::to_string(i + 1) + ": " + why;
+    }
+  }
+  if (c.has_ball) {
+    if (const std::string why = between::check_and_normalise(c.ball); !why.empty()) return "ball: " + why;
+  }
+  return "";
+}
+
+/// The outcome of one world tick.
+template <std::size_t N>
+struct WorldStatus {
+  std::array<TickStatus, N> devices{};
+  bool held = false;             ///< every device is held at zero force (one stop)
+  std::size_t held_by = N;       ///< the device whose fault started the hold (N: none)
+};
+
+/// N devices of one type (a backend, or the DeviceDriver seam for a mix) in one world.
+template <ServoDevice Device, SceneType SceneT, std::size_t N>
+class World {
+  static_assert(N >= 1 && N <= 32, "1 to 32 devices");
+
+ public:
+  using S = typename SceneT::Scalar;
+  using Loop = ServoLoop<WorldDevice<Device>, FramedScene<SceneT>, WorldPins, kEveryStage>;
+
+  /// One device of the world: the device (owned by the caller, outliving the world), its
+  /// scene (the effects that act on it, in the world frame), where it sits, and its loop's
+  /// configuration (its own limits; must pass check_servo_config()). All devices share one
+  /// period.
+  struct Member {
+    Device* device;
+    SceneT scene;
+    DeviceFrame frame;
+    ServoConfig config;
+  };
+
+  /// `config` must pass check(config, N); every member's frame check(frame).
+  World(const std::array<Member, N>& members, const WorldConfig& config) noexcept
+      : World(members, config, std::make_index_sequence<N>{}) {}
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  /// One world tick at integer time k (strictly increasing).
+  WorldStatus<N> tick(std::int64_t k) noexcept {
+    // A re-arm asked for since the last tick: the hold lets go and every loop re-arms in this
+    // tick (its supervisor reads the request), so a device whose fault is gone comes back and
+    // one whose fault persists latches again below.
+    const std::uint64_t rearms = rearm_requests_.load(std::memory_order_acquire);
+    if (rearms != rearms_seen_) {
+      rearms_seen_ = rearms;
+      held_.store(false, std::memory_order_release);
+      for (Loop& loop : loops_) loop.request_rearm();
+    }
+    const std::int64_t gap = started_ ? k - last_k_ : 1;
+    const S rate_hz = scalar_cast<S>(1.0 / (static_cast<double>(gap > 0 ? gap : 1) * period_s_));
+    for (std::size_t i = 0; i < N; ++i) sense(i, rate_hz);
+    between(static_cast<double>(gap > 0 ? gap : 1) * period_s_);
+
+    WorldStatus<N> status;
+    for (std::size_t i = 0; i < N; ++i) status.devices[i] = loops_[i].tick(k);
+    if (config_.stop == StopPolicy::kAll && !held_.load(std::memory_order_relaxed)) {
+      for (std::size_t i = 0; i < N; ++i) {
+        if ((loops_[i].latched().bits() & kLatchedFaults) != 0) {
+          held_by_.store(i, std::memory_order_relaxed);
+          held_.store(true, std::memory_order_release);
+          break;
+        }
+      }
+    }
+    status.held = held_.load(std::memory_order_relaxed);
+    status.held_by = status.held ? held_by_.load(std::memory_order_relaxed) : N;
+    started_ = true;
+    last_k_ = k;
+    return status;
+  }
+
+  /// The last tick of a run: zero force on every device (ServoLoop::shutdown).
+  void shutdown(std::int64_t k) noexcept {
+    for (Loop& loop : loops_) static_cast<void>(loop.shutdown(k));
+  }
+
+  /// Asks the world to let go of the hold and every loop to re-arm at the next tick (any
+  /// thread: one atomic counter, which the tick reads). A fault still present holds again.
+  void request_rearm() noexcept { rearm_requests_.fetch_add(1, std::memory_order_release); }
+
+  bool held() const noexcept { return held_.load(std::memory_order_acquire); }
+  /// The device whose fault started the hold (N: not held).
+  std::size_t held_by() const noexcept { return held() ? held_by_.load(std::memory_order_relaxed) : N; }
+  static constexpr std::size_t size() noexcept { return N; }
+  Loop& loop(std::size_t i) noexcept { return loops_[i]; }
+  const Loop& loop(std::size_t i) const noexcept { return loops_[i]; }
+  /// Device i's HIP in the world frame this tick (valid when hip_known(i)).
+  const Vec3<S>& hip_m(std::size_t i) const noexcept { return hip_m_[i]; }
+  const Vec3<S>& hip_m_per_s(std::size_t i) const noexcept { return hip_v_[i]; }
+  bool hip_known(std::size_t i) const noexcept { return known_[i]; }
+  /// The forces between HIPs on device i this tick, world frame, before its safety chain [N].
+  const Vec3<S>& world_force_n(std::size_t i) const noexcept { return world_force_n_[i]; }
+  /// Coupling j's force on its device a this tick (b got its negation) [N].
+  const Vec3<S>& coupling_force_n(std::size_t j) const noexcept { return coupling_n_[j]; }
+  const between::BallState& ball() const noexcept { return ball_; }
+  const WorldConfig& config() const noexcept { return config_; }
+
+ private:
+  template <std::size_t... I>
+  World(const std::array<Member, N>& members, const WorldConfig& config, std::index_sequence<I...>) noexcept
+      : config_(config),
+        period_s_(members[0].config.period_s),
+        frames_{members[I].frame...},
+        estimators_{VelocityEstimator<S>(members[I].config.velocity_cutoff_hz)...},
+        loops_{Loop(WorldDevice<Device>(members[I].device), FramedScene<SceneT>(members[I].scene, members[I].frame,
+                                                                                  &world_force_n_[I]),
+                    members[I].config, WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
+    // (The loop owns its WorldDevice; the world fetches through loop.device().)
+    ball_.position_m = config_.ball.start_m;
+  }
+
+  /// Device i's reading, its HIP in the world frame and a velocity (the device's, or the
+  /// estimator's, the same low-pass the loop uses).
+  void sense(std::size_t i, S rate_hz) noexcept {
+    WorldDevice<Device>& device = loops_[i].device();
+    const DeviceStatus read = device.fetch();
+    const DeviceReading& r = device.reading();
+    known_[i] = read == DeviceStatus::kOk && is_finite(r.position_m) && is_finite(r.velocity_m_per_s);
+    if (!known_[i]) return;
+    hip_m_[i] = frames_[i].position_to_world(vec_cast<S>(r.position_m));
+    if (r.has_velocity) {
+      hip_v_[i] = frames_[i].velocity_to_world(vec_cast<S>(r.velocity_m_per_s));
+    } else {
+      hip_v_[i] = estimators_[i].estimate(hip_m_[i], rate_hz);
+      estimators_[i].commit(hip_m_[i], hip_v_[i]);
+    }
+  }
+
+  /// The forces between HIPs: each coupling's once, its negation on the other end; the ball's
+  /// on each HIP in it, their sum's negation on the ball, which then moves one step. A HIP
+  /// whose device did not read this tick takes part in nothing.
+  void between(double dt_s) noexcept {
+    for (Vec3<S>& f : world_force_n_) f = Vec3<S>{};
+    for (std::size_t j = 0; j < config_.coupling_count; ++j) {
+      const CouplingSpec& c = config_.couplings[j];
+      coupling_n_[j] = Vec3<S>{};
+      if (!known_[c.a] || !known_[c.b]) continue;
+      const Vec3<S> f = between::coupling_force(c.params, hip_m_[c.a], hip_v_[c.a], hip_m_[c.b], hip_v_[c.b]);
+      coupling_n_[j] = f;
+      world_force_n_[c.a] += f;
+      world_force_n_[c.b] -= f;
+    }
+    if (config_.has_ball) {
+      Vec3<double> on_ball{};
+      for (std::size_t i = 0; i < N; ++i) {
+        if (!known_[i] || (config_.ball_devices & (1U << i)) == 0) continue;
+        const Vec3<double> f = between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i]));
+        world_force_n_[i] += vec_cast<S>(f);
+        on_ball -= f;
+      }
+      static_cast<void>(between::step_ball(config_.ball, ball_, on_ball, dt_s));
+    }
+  }
+
+  WorldConfig config_;
+  double period_s_;
+  std::atomic<bool> held_{false};
+  std::atomic<std::size_t> held_by_{N};
+  std::atomic<std::uint64_t> rearm_requests_{0};
+  std::uint64_t rearms_seen_ = 0;
+  bool started_ = false;
+  std::int64_t last_k_ = 0;
+  std::array<Vec3<S>, N> world_force_n_{};
+  std::array<Vec3<S>, kMaxCouplings> coupling_n_{};
+  std::array<Vec3<S>, N> hip_m_{};
+  std::array<Vec3<S>, N> hip_v_{};
+  std::array<bool, N> known_{};
+  between::BallState ball_{};
+  std::array<DeviceFrame, N> frames_;
+  std::array<VelocityEstimator<S>, N> estimators_;
+  std::array<Loop, N> loops_;
+};
+
+}  // namespace toonforce
