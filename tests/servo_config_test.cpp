@@ -7,6 +7,7 @@
 #include <string>
 
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/config/world_file.hpp"
 
 namespace toonforce {
 namespace {
@@ -104,6 +105,15 @@ TEST(ServoSceneKeys, EveryBundledSceneLoadsAndMakesAUsableServoConfig) {
   int scenes = 0;
   for (const auto& entry : std::filesystem::directory_iterator(TOONFORCE_SOURCE_DIR "/scenes")) {
     if (entry.path().extension() != ".toml") continue;
+    if (is_world_file(entry.path().string())) {  // several devices, each with its own [device] keys
+      const auto world = load_world_file(entry.path().string());
+      ASSERT_TRUE(world) << world.error();
+      for (const WorldDeviceEntry& d : world->devices) {
+        EXPECT_EQ(check_servo_config(servo_config(d.settings, 1e-3)), "") << entry.path() << " " << d.name;
+      }
+      ++scenes;
+      continue;
+    }
     for (const ScalarKind kind : {ScalarKind::kDouble, ScalarKind::kQ16_16}) {
       const auto scene = load_scene_file(entry.path().string(), kind);
       ASSERT_TRUE(scene) << scene.error();

@@ -39,6 +39,17 @@ void read_settings(TableReader& root, SceneSettings& settings) {
   }
 }
 
+bool refuse_world(const toml::table& root, ErrorList& errors) {
+  const toml::node* device = root.get("device");
+  if (device == nullptr || !device->is_array_of_tables()) return false;
+  const toml::array& tables = *device->as_array();
+  errors.add(tables.empty() ? device->source().begin.line : tables[0].source().begin.line, "device",
+             fmt::format("[[device]] tables make this a world scene of {} device{}; `toonforce sim --scene FILE "
+                         "--script NAME=HAND_SCRIPT ...` runs a world",
+                         tables.size(), tables.size() == 1 ? "" : "s"));
+  return true;
+}
+
 void check_scene(const std::vector<SceneEntry>&, std::size_t values, const std::string& file, ErrorList& errors) {
   if (values > kMaxEffectValues) {
     errors.add(1, "",

@@ -26,6 +26,10 @@ namespace scene_reader {
 
 /// Reads the top-level name and the [device] table (the same for every scene).
 void read_settings(TableReader& root, SceneSettings& settings);
+/// A file with `[[device]]` tables is a world (world_file.hpp), not a one-device scene: records
+/// one error saying so, and what runs it, and returns true. Nothing else of the file is read
+/// then: every other error would follow from reading a world as one device.
+bool refuse_world(const toml::table& root, ErrorList& errors);
 /// Errors about the scene as a whole once its effects are read (empty scene, too many values).
 void check_scene(const std::vector<SceneEntry>& order, std::size_t values, const std::string& file, ErrorList& errors);
 
@@ -174,6 +178,7 @@ template <template <class> class... Kinds>
 Result<SceneFileOf<Kinds...>> describe(const toml::table& root, ErrorList& errors, ScalarKind scalar,
                                        std::string_view source_name) {
   using File = SceneFileOf<Kinds...>;
+  if (refuse_world(root, errors)) return Error{errors.text()};
   File scene;
   scene.source = std::string(source_name);
   TableReader r(root, "", errors, scalar);
