@@ -427,5 +427,25 @@ TEST(WorldFile, TheTwoPlayersExampleLoadsWithItsHandScripts) {
   EXPECT_NEAR(w.devices[right].frame.position_to_world(reach).x, 0.01, 1e-15);
 }
 
+TEST(WorldFile, TheSpecsExampleIsAWorldThatLoads) {
+  std::ifstream in(std::string(TOONFORCE_SOURCE_DIR) + "/docs/spec/interfaces.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string spec = text.str();
+  const std::size_t section = spec.find("\n## World scenes");
+  ASSERT_NE(section, std::string::npos) << "docs/spec/interfaces.md has no World scenes section";
+  const std::size_t begin = spec.find("```toml\n", section);
+  ASSERT_NE(begin, std::string::npos);
+  const std::size_t end = spec.find("```\n", begin + 8);
+  ASSERT_NE(end, std::string::npos);
+  const std::string example = spec.substr(begin + 8, end - begin - 8);
+  EXPECT_TRUE(is_world_text(example));
+  const auto world = parse_world(example, "interfaces.md");
+  ASSERT_TRUE(world) << world.error();
+  EXPECT_EQ(world->devices.size(), 2U);
+  EXPECT_EQ(world->couplings.size(), 1U);
+  EXPECT_TRUE(world->ball && world->ball->has_wall);
+}
+
 }  // namespace
 }  // namespace toonforce
