@@ -242,7 +242,7 @@ const Mistake kMistakes[] = {
      "w.toml:7: coupling[1].rest_length: must be >= 0 (got -0.1); the spring's length at rest [m]"},
     {"unknown_key_in_ball", "[[device]]\nname = \"a\"\n[ball]\nradius = 0.01\nbounce = 0.5\n",
      "w.toml:5: ball: unknown key 'bounce' (the keys of [ball]: radius, mass, stiffness, damping, drag, start, "
-     "wall_point, wall_normal, wall_stiffness, wall_damping)"},
+     "gravity, wall_point, wall_normal, wall_stiffness, wall_damping)"},
     {"ball_radius_zero", "[[device]]\nname = \"a\"\n[ball]\nradius = 0\n",
      "w.toml:4: ball.radius: must be > 0 (got 0); the ball's radius [m]"},
     {"ball_mass_negative", "[[device]]\nname = \"a\"\n[ball]\nmass = -0.1\n",
@@ -401,8 +401,8 @@ TEST(WorldFile, TheTwoPlayersExampleLoadsWithItsHandScripts) {
     EXPECT_EQ(check_servo_config(servo_config(d.settings, 1e-3)), "") << d.name;
   }
   ASSERT_EQ(w.couplings.size(), 1U);
-  EXPECT_EQ(w.couplings[0].params.stiffness_n_per_m, 150.0);
-  EXPECT_EQ(w.couplings[0].params.damping_n_s_per_m, 1.5);
+  EXPECT_EQ(w.couplings[0].params.stiffness_n_per_m, 40.0);
+  EXPECT_EQ(w.couplings[0].params.damping_n_s_per_m, 1.0);
   ASSERT_TRUE(w.ball);
   EXPECT_EQ(w.ball->radius_m, 0.015);
   EXPECT_EQ(w.ball->mass_kg, 0.05);

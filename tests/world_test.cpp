@@ -41,7 +41,8 @@ TEST(Coupling, PullsTheHipsTogetherWithEqualAndOppositeForces) {
 TEST(Coupling, TheDamperOpposesTheRelativeVelocityOnly) {
   const CouplingParams p{0.0, 3.0, 0.0};
   // Both moving together: no relative velocity, no force.
-  EXPECT_EQ(between::coupling_force<double>(p, {0.01, 0, 0}, {0.2, 0.1, 0}, {0, 0, 0}, {0.2, 0.1, 0}), (Vec3<double>{}));
+  EXPECT_EQ(between::coupling_force<double>(p, {0.01, 0, 0}, {0.2, 0.1, 0}, {0, 0, 0}, {0.2, 0.1, 0}),
+            (Vec3<double>{}));
   const Vec3<double> f = between::coupling_force<double>(p, {0.01, 0, 0}, {0.2, 0, 0}, {0, 0, 0}, {-0.1, 0, 0});
   EXPECT_DOUBLE_EQ(f.x, -3.0 * 0.3);
 }
@@ -71,6 +72,7 @@ BallParams free_ball() {
   p.stiffness_n_per_m = 800.0;
   p.damping_n_s_per_m = 0.0;
   p.drag_n_s_per_m = 0.0;
+  p.gravity_m_per_s2 = {};  // weightless: the bounce keeps its speed
   return p;
 }
 
@@ -172,7 +174,9 @@ TEST(DeviceFrame, RefusesShearMirrorsAndAScaleThatIsNotPositive) {
 using FakeWorld2 = World<FakeDevice, RuntimeScene<double>, 2>;
 
 /// A scene whose one surface is a metre below: only the world's forces act.
-std::string empty_toml() { return "[[surface]]\npoint = [0.0, 0.0, -1.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 1.0\n"; }
+std::string empty_toml() {
+  return "[[surface]]\npoint = [0.0, 0.0, -1.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 1.0\n";
+}
 
 WorldConfig coupled(double k, double b = 0.0, StopPolicy stop = StopPolicy::kAll) {
   WorldConfig c;
@@ -222,7 +226,7 @@ TEST(World, EachDevicesOwnClampLimitsItsShareOfACouplingForce) {
   std::array<FakeDevice, 2> fakes{FakeDevice{nullptr}, FakeDevice{nullptr}};
   auto world = make_world(dev, fakes, coupled(1000.0));
   dev[0].position_m = dev[1].position_m = {};
-  world->tick(0);  // engage with the hands together
+  world->tick(0);                    // engage with the hands together
   dev[0].position_m = {0.02, 0, 0};  // 20 N asked of each
   world->tick(1);
   EXPECT_DOUBLE_EQ(world->world_force_n(0).x, -20.0);
@@ -430,10 +434,11 @@ TEST(WorldOnSimulatedDevices, TwoHandsMovingApartFeelEachOtherPullAndEachPortSta
                                              sim_device({-0.0002, 0, 0}, {-0.0075, 0, 0})};
   WorldConfig config = coupled(200.0, 1.0);
   ASSERT_EQ(check(config, 2), "");
-  SimWorld2 world(std::array<SimWorld2::Member, 2>{
-                      SimWorld2::Member{&devices[0], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()},
-                      SimWorld2::Member{&devices[1], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()}},
-                  config);
+  SimWorld2 world(
+      std::array<SimWorld2::Member, 2>{
+          SimWorld2::Member{&devices[0], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()},
+          SimWorld2::Member{&devices[1], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()}},
+      config);
   double least_energy_j = 0.0;
   for (std::int64_t k = 0; k < 3000; ++k) {
     const WorldStatus<2> s = world.tick(k);
@@ -472,10 +477,11 @@ TEST(WorldOnSimulatedDevices, TwoHandsPressTheBallIntoTheFloorAndEachFeelsItPush
   ASSERT_EQ(check(config, 2), "");
   std::array<host_sim::SimDevice, 2> devices{sim_device({0.01, 0, 0.06}, {0.01, 0, 0.03}),
                                              sim_device({-0.01, 0, 0.06}, {-0.01, 0, 0.03})};
-  SimWorld2 world(std::array<SimWorld2::Member, 2>{
-                      SimWorld2::Member{&devices[0], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()},
-                      SimWorld2::Member{&devices[1], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()}},
-                  config);
+  SimWorld2 world(
+      std::array<SimWorld2::Member, 2>{
+          SimWorld2::Member{&devices[0], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()},
+          SimWorld2::Member{&devices[1], scene_from<double>(empty_toml()), DeviceFrame{}, sim_config()}},
+      config);
   bool touched_floor = false;
   Vec3<double> momentum_change{};  // what the HIPs gave the ball, summed (impulse)
   for (std::int64_t k = 0; k < 2000; ++k) {

@@ -2,8 +2,12 @@
 // toonforce sim --scene S.toml --script hand.toml --duration SECONDS --trace out.csv [--plot out.svg|out.png]
 //   [--device falcon|omni] [--integrator ...] [--substeps N] [--rate HZ] [--seed N]
 //   [--sensor-noise M] [--scalar ...] [--sine ...] [--view [PORT]] [--view-address ADDR] [--view-pace X]
+// toonforce sim --scene WORLD.toml --script NAME=hand.toml ... [--fail NAME@SECONDS] --trace out.csv
+//   a world scene ([[device]] tables): one hand script per device (sim/world_sim.hpp)
 #include <atomic>
 #include <cctype>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -13,6 +17,7 @@
 #include "commands.hpp"
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/sim/sim_run.hpp"
+#include "toonforce/sim/world_sim.hpp"
 #if TOONFORCE_VIEWER
 #include "viewer_support.hpp"
 #endif
@@ -31,7 +36,14 @@ void add_sim(CLI::App& app) {
   cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_flag("--strict", options->strict,
                 "Do not start on a plausibility warning (the scene outside the device's limits: `toonforce check`)");
-  cmd->add_option("--script", options->script_path, "Hand script (TOML, docs/HAND_SCRIPTS.md)")->required();
+  auto scripts = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("--script", *scripts,
+                  "Hand script (TOML, docs/HAND_SCRIPTS.md); a world scene takes one per device, as NAME=FILE")
+      ->required();
+  auto fail = std::make_shared<std::string>();
+  cmd->add_option("--fail", *fail,
+                  "World scenes: pull device NAME's cable at SECONDS (NAME@SECONDS): its reads and writes fail from "
+                  "then on, as an unplugged device's would");
   CLI::Option* duration_option =
       cmd->add_option("--duration", *duration, "Simulated seconds (default: the hand script's length)")
           ->check(positive_number());
@@ -75,6 +87,84 @@ void add_sim(CLI::App& app) {
       ->needs(view->view);
 #endif
   cmd->callback([=] {
+    if (is_world_file(options->scene_path)) {
+      // Options of the one-device simulation that a world does not take are refused, not ignored.
+      for (const char* name : {"--plot", "--plot-kind", "--scalar", "--sine", "--sensor-noise", "--strict",
+                               "--allow-empty", "--max-output"
+#if TOONFORCE_VIEWER
+                               ,
+                               "--view", "--view-pace"
+#endif
+           }) {
+        if (cmd->get_option(name)->count() > 0) {
+          fmt::print(stderr, "{}: a world scene ({}) does not take it yet\n", name, options->scene_path);
+          set_exit_code(2);
+          return;
+        }
+      }
+      WorldSimOptions w;
+      w.scene_path = options->scene_path;
+      for (const std::string& text : *scripts) {
+        auto named = parse_named_script(text);
+        if (!named) {
+          fmt::print(stderr, "{}\n", named.error());
+          set_exit_code(2);
+          return;
+        }
+        w.scripts.push_back(std::move(named).value());
+      }
+      if (!fail->empty()) {
+        const std::size_t at = fail->rfind('@');
+        char* end = nullptr;
+        const double seconds = at == std::string::npos ? -1.0 : std::strtod(fail->c_str() + at + 1, &end);
+        if (at == std::string::npos || at == 0 || end == fail->c_str() + at + 1 || *end != '\0' ||
+            !(seconds >= 0.0 && std::isfinite(seconds))) {
+          fmt::print(stderr, "--fail {}: give NAME@SECONDS (a device of the scene, a time >= 0)\n", *fail);
+          set_exit_code(2);
+          return;
+        }
+        w.fail = std::pair{fail->substr(0, at), seconds};
+      }
+      if (duration_option->count() > 0) w.duration_s = *duration;
+      w.trace_path = options->trace_path;
+      const auto lower_word = [](std::string text) {
+        for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        return text;
+      };
+      w.device = host_sim::parse_device_preset(lower_word(*device)).value_or(host_sim::DevicePreset::kFalcon);
+      w.integrator = host_sim::parse_integrator(lower_word(*integrator)).value_or(host_sim::Integrator::kRk4);
+      w.substeps = options->substeps;
+      w.rate_hz = options->rate_hz;
+      w.seed = options->seed;
+      static std::atomic<int> world_stop{0};
+      world_stop.store(0);
+      install_signal_handlers(world_stop, EmergencyZero{});
+      w.stop = &world_stop;
+      const auto summary = run_world_sim(w);
+      restore_signals();
+      if (!summary) {
+        std::fputs(summary.error().c_str(), stderr);
+        if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
+        set_exit_code(1);
+        return;
+      }
+      if (!*quiet) {
+        std::fputs(format_world_sim_summary(summary.value(), w).c_str(), w.trace_path == "-" ? stderr : stdout);
+      }
+      set_exit_code(0);
+      return;
+    }
+    if (scripts->size() != 1) {
+      fmt::print(stderr, "--script given {} times: a one-device scene takes one hand script\n", scripts->size());
+      set_exit_code(2);
+      return;
+    }
+    if (!fail->empty()) {
+      fmt::print(stderr, "--fail: only a world scene ([[device]] tables) takes it\n");
+      set_exit_code(2);
+      return;
+    }
+    options->script_path = scripts->front();
     if (duration_option->count() > 0) options->duration_s = *duration;
     if (noise_option->count() > 0) options->sensor_noise_m = *noise;
     // The checks above admit only known words (in any case): these parse.

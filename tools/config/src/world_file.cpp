@@ -23,9 +23,9 @@ constexpr std::array<std::string_view, 4> kWorldKeys{"device", "coupling", "ball
 constexpr std::array<std::string_view, 3> kBackends{"sim", "falcon", "omni"};
 constexpr std::array<std::string_view, 6> kFrameKeys{"name", "backend", "select", "offset", "yaw", "scale"};
 constexpr std::array<std::string_view, 4> kCouplingKeys{"between", "stiffness", "damping", "rest_length"};
-constexpr std::array<std::string_view, 10> kBallKeys{"radius",         "mass",        "stiffness",  "damping",
-                                                     "drag",           "start",       "wall_point", "wall_normal",
-                                                     "wall_stiffness", "wall_damping"};
+constexpr std::array<std::string_view, 11> kBallKeys{"radius",      "mass",           "stiffness",   "damping",
+                                                     "drag",        "start",          "gravity",     "wall_point",
+                                                     "wall_normal", "wall_stiffness", "wall_damping"};
 constexpr std::array<std::string_view, 1> kWorldTableKeys{"stop"};
 
 /// A yaw beyond a full turn either way is a slip (radians, or a typo), not a placement.
@@ -216,6 +216,7 @@ between::BallParams read_ball(const toml::table& table, ErrorList& errors) {
   b.drag_n_s_per_m =
       r.number_or("drag", defaults.drag_n_s_per_m, Range::kNonNegative, "the ball's own viscous drag [N s/m]");
   b.start_m = r.optional_vec3("start", "[m]").value_or(defaults.start_m);
+  b.gravity_m_per_s2 = r.optional_vec3("gravity", "[m/s^2]").value_or(defaults.gravity_m_per_s2);
   // Any wall_* key makes the wall; its normal says which side is out, so it has no default.
   b.has_wall = r.has("wall_point") || r.has("wall_normal") || r.has("wall_stiffness") || r.has("wall_damping");
   b.wall_point_m = r.optional_vec3("wall_point", "[m]").value_or(defaults.wall_point_m);

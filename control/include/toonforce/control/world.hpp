@@ -150,7 +150,8 @@ class FramedScene {
     return w;
   }
   Vec3<S> to_device(const Vec3<S>& scene_n, ActiveForce<S>* active) const noexcept {
-    for (std::size_t i = 0; i < inner_.active_slots(); ++i) active[i].force_n = frame_.force_to_device(active[i].force_n);
+    for (std::size_t i = 0; i < inner_.active_slots(); ++i)
+      active[i].force_n = frame_.force_to_device(active[i].force_n);
     return frame_.force_to_device(scene_n + *world_force_n_);
   }
 
@@ -224,7 +225,8 @@ inline std::string check(WorldConfig& c, std::size_t devices) {
   if (c.coupling_count > kMaxCouplings) return "at most " + std::to_string(kMaxCouplings) + " couplings";
   for (std::size_t i = 0; i < c.coupling_count; ++i) {
     const CouplingSpec& s = c.couplings[i];
-    if (s.a >= devices || s.b >= devices) return "coupling " + std::to_string(i + 1) + " names a device the world does not have";
+    if (s.a >= devices || s.b >= devices)
+      return "coupling " + std::to_string(i + 1) + " names a device the world does not have";
     if (s.a == s.b) return "coupling " + std::to_string(i + 1) + " couples a device with itself";
     if (const std::string why = between::check(s.params); !why.empty()) {
       return "coupling " + std::to_string(i + 1) + ": " + why;
@@ -240,8 +242,8 @@ inline std::string check(WorldConfig& c, std::size_t devices) {
 template <std::size_t N>
 struct WorldStatus {
   std::array<TickStatus, N> devices{};
-  bool held = false;             ///< every device is held at zero force (one stop)
-  std::size_t held_by = N;       ///< the device whose fault started the hold (N: none)
+  bool held = false;        ///< every device is held at zero force (one stop)
+  std::size_t held_by = N;  ///< the device whose fault started the hold (N: none)
 };
 
 /// N devices of one type (a backend, or the DeviceDriver seam for a mix) in one world.
@@ -325,6 +327,9 @@ class World {
   bool hip_known(std::size_t i) const noexcept { return known_[i]; }
   /// The forces between HIPs on device i this tick, world frame, before its safety chain [N].
   const Vec3<S>& world_force_n(std::size_t i) const noexcept { return world_force_n_[i]; }
+  /// Of that, what the couplings put on device i, and what the ball did [N].
+  const Vec3<S>& coupling_sum_n(std::size_t i) const noexcept { return coupling_sum_n_[i]; }
+  const Vec3<S>& ball_force_n(std::size_t i) const noexcept { return ball_n_[i]; }
   /// Coupling j's force on its device a this tick (b got its negation) [N].
   const Vec3<S>& coupling_force_n(std::size_t j) const noexcept { return coupling_n_[j]; }
   const between::BallState& ball() const noexcept { return ball_; }
@@ -337,9 +342,9 @@ class World {
         period_s_(members[0].config.period_s),
         frames_{members[I].frame...},
         estimators_{VelocityEstimator<S>(members[I].config.velocity_cutoff_hz)...},
-        loops_{Loop(WorldDevice<Device>(members[I].device), FramedScene<SceneT>(members[I].scene, members[I].frame,
-                                                                                  &world_force_n_[I]),
-                    members[I].config, WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
+        loops_{Loop(WorldDevice<Device>(members[I].device),
+                    FramedScene<SceneT>(members[I].scene, members[I].frame, &world_force_n_[I]), members[I].config,
+                    WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
     // (The loop owns its WorldDevice; the world fetches through loop.device().)
     ball_.position_m = config_.ball.start_m;
   }
@@ -365,26 +370,28 @@ class World {
   /// on each HIP in it, their sum's negation on the ball, which then moves one step. A HIP
   /// whose device did not read this tick takes part in nothing.
   void between(double dt_s) noexcept {
-    for (Vec3<S>& f : world_force_n_) f = Vec3<S>{};
+    for (std::size_t i = 0; i < N; ++i) world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = Vec3<S>{};
     for (std::size_t j = 0; j < config_.coupling_count; ++j) {
       const CouplingSpec& c = config_.couplings[j];
       coupling_n_[j] = Vec3<S>{};
       if (!known_[c.a] || !known_[c.b]) continue;
       const Vec3<S> f = between::coupling_force(c.params, hip_m_[c.a], hip_v_[c.a], hip_m_[c.b], hip_v_[c.b]);
       coupling_n_[j] = f;
-      world_force_n_[c.a] += f;
-      world_force_n_[c.b] -= f;
+      coupling_sum_n_[c.a] += f;
+      coupling_sum_n_[c.b] -= f;
     }
     if (config_.has_ball) {
       Vec3<double> on_ball{};
       for (std::size_t i = 0; i < N; ++i) {
         if (!known_[i] || (config_.ball_devices & (1U << i)) == 0) continue;
-        const Vec3<double> f = between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i]));
-        world_force_n_[i] += vec_cast<S>(f);
+        const Vec3<double> f =
+            between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i]));
+        ball_n_[i] = vec_cast<S>(f);
         on_ball -= f;
       }
       static_cast<void>(between::step_ball(config_.ball, ball_, on_ball, dt_s));
     }
+    for (std::size_t i = 0; i < N; ++i) world_force_n_[i] = coupling_sum_n_[i] + ball_n_[i];
   }
 
   WorldConfig config_;
@@ -396,6 +403,8 @@ class World {
   bool started_ = false;
   std::int64_t last_k_ = 0;
   std::array<Vec3<S>, N> world_force_n_{};
+  std::array<Vec3<S>, N> coupling_sum_n_{};
+  std::array<Vec3<S>, N> ball_n_{};
   std::array<Vec3<S>, kMaxCouplings> coupling_n_{};
   std::array<Vec3<S>, N> hip_m_{};
   std::array<Vec3<S>, N> hip_v_{};

@@ -62,7 +62,10 @@ struct BallParams {
   double damping_n_s_per_m = 1.0;    ///< HIP-ball contact, only while pressing in (no pull)
   double drag_n_s_per_m = 0.5;       ///< the ball's own viscous drag (it comes to rest)
   Vec3<double> start_m{};            ///< where the ball is at the start, at rest
-  bool has_wall = false;             ///< a wall the ball bounces off
+  /// Gravity on the ball [m/s^2] (the scenes' z is up). Without it a ball squeezed between two
+  /// HIPs a little below its centre is pressed up and out, and nothing brings it back.
+  Vec3<double> gravity_m_per_s2{0.0, 0.0, -9.81};
+  bool has_wall = false;  ///< a wall the ball bounces off
   Vec3<double> wall_point_m{};
   Vec3<double> wall_normal{0.0, 0.0, 1.0};  ///< unit, pointing out of the wall (normalised by check_and_normalise)
   double wall_stiffness_n_per_m = 2000.0;
@@ -79,6 +82,7 @@ inline const char* check_and_normalise(BallParams& p) noexcept {
     return "stiffness, damping and drag must be finite and >= 0";
   }
   if (!is_finite(p.start_m)) return "start must be finite";
+  if (!is_finite(p.gravity_m_per_s2)) return "gravity must be finite";
   if (p.has_wall) {
     const double n = std::sqrt(dot(p.wall_normal, p.wall_normal));
     if (!(std::isfinite(n) && n > 0.0)) return "the wall's normal must be finite and not zero";
@@ -113,8 +117,8 @@ inline Vec3<double> ball_force_on_hip(const BallParams& p, const BallState& ball
   return n * push;
 }
 
-/// Advances the ball by `dt_s` under `force_on_ball_n` (what the HIPs put on it), its drag and
-/// the wall. Returns the wall's force on the ball [N] (for the record).
+/// Advances the ball by `dt_s` under `force_on_ball_n` (what the HIPs put on it), gravity, its
+/// drag and the wall. Returns the wall's force on the ball [N] (for the record).
 inline Vec3<double> step_ball(const BallParams& p, BallState& ball, const Vec3<double>& force_on_ball_n,
                               double dt_s) noexcept {
   Vec3<double> wall{};
@@ -123,13 +127,13 @@ inline Vec3<double> step_ball(const BallParams& p, BallState& ball, const Vec3<d
     const double depth = p.radius_m - dot(ball.position_m - p.wall_point_m, p.wall_normal);
     if (depth > 0.0) {
       const double closing = -dot(ball.velocity_m_per_s, p.wall_normal);
-      const double push =
-          p.wall_stiffness_n_per_m * depth + (closing > 0.0 ? p.wall_damping_n_s_per_m * closing : 0.0);
+      const double push = p.wall_stiffness_n_per_m * depth + (closing > 0.0 ? p.wall_damping_n_s_per_m * closing : 0.0);
       wall = p.wall_normal * push;
       ball.touched_wall = true;
     }
   }
-  const Vec3<double> total = force_on_ball_n + wall - ball.velocity_m_per_s * p.drag_n_s_per_m;
+  const Vec3<double> total =
+      force_on_ball_n + wall + p.gravity_m_per_s2 * p.mass_kg - ball.velocity_m_per_s * p.drag_n_s_per_m;
   ball.velocity_m_per_s += total * (dt_s / p.mass_kg);
   ball.position_m += ball.velocity_m_per_s * dt_s;
   return wall;
