@@ -89,11 +89,12 @@ void add_sim(CLI::App& app) {
   cmd->callback([=] {
     if (is_world_file(options->scene_path)) {
       // Options of the one-device simulation that a world does not take are refused, not ignored.
-      for (const char* name : {"--plot", "--plot-kind", "--scalar", "--sine", "--sensor-noise", "--strict",
-                               "--allow-empty", "--max-output"
+      for (const char* name : {
+             "--plot", "--plot-kind", "--scalar", "--sine", "--sensor-noise", "--strict", "--allow-empty",
+                 "--max-output"
 #if TOONFORCE_VIEWER
-                               ,
-                               "--view", "--view-pace"
+                 ,
+                 "--view", "--view-pace"
 #endif
            }) {
         if (cmd->get_option(name)->count() > 0) {
