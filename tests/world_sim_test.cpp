@@ -144,7 +144,7 @@ TEST(WorldSim, TheCouplingsForcesOnTheTwoDevicesAreExactNegationsAtEveryTick) {
     if (std::abs(row[t.col("left.coupling_fx")]) > 0.1) ++coupled;
     if (std::abs(row[t.col("left.ball_fx")]) > 0.01 || std::abs(row[t.col("right.ball_fx")]) > 0.01) ++ball_touched;
   }
-  EXPECT_GT(coupled, 100U);  // the comparison is of forces, not of zeros
+  EXPECT_GT(coupled, 100U);       // the comparison is of forces, not of zeros
   EXPECT_GT(ball_touched, 100U);  // the hands reach the ball (4 cm in: its surface is 2.5 cm from each)
   // The device facing the other way: world +x is its -x, so its commanded force is the world
   // force turned back. Both devices are pulled toward the middle at the end of the reach.

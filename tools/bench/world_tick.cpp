@@ -93,7 +93,8 @@ struct Bench {
     std::array<typename W::Member, N> members = [&]<std::size_t... I>(std::index_sequence<I...>) {
       return std::array<typename W::Member, N>{
           typename W::Member{&devices[I], scene, DeviceFrame::yaw(0.3 * I), loaded().config}...};
-    }(std::make_index_sequence<N>{});
+    }
+    (std::make_index_sequence<N>{});
     for (std::size_t i = 0; i < N; ++i) devices[i].k = 700 * i;
     world = std::make_unique<W>(members, c);
   }

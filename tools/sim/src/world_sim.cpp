@@ -98,7 +98,8 @@ class WorldTrace {
   WorldTrace& operator=(const WorldTrace&) = delete;
   void write(const std::vector<double>& row) {
     line_.clear();
-    for (std::size_t i = 0; i < row.size(); ++i) fmt::format_to(std::back_inserter(line_), "{}{}", i == 0 ? "" : ",", row[i]);
+    for (std::size_t i = 0; i < row.size(); ++i)
+      fmt::format_to(std::back_inserter(line_), "{}{}", i == 0 ? "" : ",", row[i]);
     line_ += '\n';
     if (ok_) ok_ = std::fwrite(line_.data(), 1, line_.size(), file_) == line_.size();
   }
@@ -135,9 +136,11 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   std::array<typename SimWorld::Member, N> members = [&]<std::size_t... I>(std::index_sequence<I...>) {
     return std::array<typename SimWorld::Member, N>{
         typename SimWorld::Member{&devices[I], scene, p.world.devices[I].frame, p.configs[I]}...};
-  }(std::make_index_sequence<N>{});
+  }
+  (std::make_index_sequence<N>{});
   WorldConfig config = world_config(p.world);
-  if (const std::string bad = check(config, N); !bad.empty()) return Error{fmt::format("{}: {}", options.scene_path, bad)};
+  if (const std::string bad = check(config, N); !bad.empty())
+    return Error{fmt::format("{}: {}", options.scene_path, bad)};
   auto world = std::make_unique<SimWorld>(members, config);
 
   std::unique_ptr<WorldTrace> trace;
@@ -215,7 +218,8 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   summary.ticks = k;
   summary.duration_s = static_cast<double>(k) * p.period_s;
   if (trace && !trace->close()) {
-    return Error{fmt::format("--trace {}: writing failed: {}", options.trace_path, std::strerror(errno != 0 ? errno : EIO))};
+    return Error{
+        fmt::format("--trace {}: writing failed: {}", options.trace_path, std::strerror(errno != 0 ? errno : EIO))};
   }
   return summary;
 }
@@ -262,7 +266,8 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
     if (i == p.world.devices.size()) {
       std::string names;
       for (const auto& d : p.world.devices) names += (names.empty() ? "" : ", ") + d.name;
-      problems += fmt::format("--script {}={}: the scene has no device '{}' (its devices: {})\n", name, path, name, names);
+      problems +=
+          fmt::format("--script {}={}: the scene has no device '{}' (its devices: {})\n", name, path, name, names);
       continue;
     }
     if (given[i]) {
@@ -296,7 +301,8 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
                                           : d.backend == "falcon" ? host_sim::DevicePreset::kFalcon
                                                                   : options.device;
     p.params.push_back(host_sim::device_params(preset));
-    p.configs.push_back(with_device(servo_config(d.settings, p.period_s), host_sim::device_info(p.params.back(), p.period_s)));
+    p.configs.push_back(
+        with_device(servo_config(d.settings, p.period_s), host_sim::device_info(p.params.back(), p.period_s)));
     if (const std::string bad = check_servo_config(p.configs.back()); !bad.empty()) {
       return Error{fmt::format("{}:{}: device '{}': the servo configuration does not work:\n{}", options.scene_path,
                                d.line, d.name, bad)};
@@ -324,7 +330,8 @@ std::string format_world_sim_summary(const WorldSimSummary& s, const WorldSimOpt
   for (const WorldSimDeviceSummary& d : s.devices) {
     std::string latched;
     for (const Fault f : kAllFaults) {
-      if ((d.latched & static_cast<std::uint32_t>(f)) != 0) latched += fmt::format("{}{}", latched.empty() ? "" : ",", fault_name(f));
+      if ((d.latched & static_cast<std::uint32_t>(f)) != 0)
+        latched += fmt::format("{}{}", latched.empty() ? "" : ",", fault_name(f));
     }
     text += fmt::format("device  {} (hand {}): peak force {:.4g} N; faults {} ticks; {} at the end{}; HIP at "
                         "[{:.4g}, {:.4g}, {:.4g}] m\n",
@@ -332,7 +339,8 @@ std::string format_world_sim_summary(const WorldSimSummary& s, const WorldSimOpt
                         latched.empty() ? "" : fmt::format(" (latched: {})", latched), d.final_hip_m.x, d.final_hip_m.y,
                         d.final_hip_m.z);
   }
-  text += fmt::format("between couplings: largest |sum of the forces on their two ends| {:.3g} N\n", s.coupling_imbalance_n);
+  text += fmt::format("between couplings: largest |sum of the forces on their two ends| {:.3g} N\n",
+                      s.coupling_imbalance_n);
   if (s.final_ball_m) {
     text += fmt::format("ball    at [{:.4g}, {:.4g}, {:.4g}] m at the end\n", s.final_ball_m->x, s.final_ball_m->y,
                         s.final_ball_m->z);
