@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "toonforce/sim/check.hpp"
 #include "toonforce/sim/world_sim.hpp"
 
 namespace toonforce::test {
@@ -218,6 +219,63 @@ TEST(WorldSim, TheSameRunGivesTheSameTraceToTheByte) {
   second << std::ifstream(o.trace_path).rdbuf();
   EXPECT_EQ(first.str(), second.str());
   EXPECT_GT(first.str().size(), 10000U);
+}
+
+// ---- toonforce check of a world ------------------------------------------------------------
+
+bool any_has(const std::vector<std::string>& lines, const std::string& part) {
+  for (const std::string& l : lines) {
+    if (l.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST(WorldCheck, EachDeviceIsCheckedWithTheSceneInItsOwnFrame) {
+  // A floor at world z = -0.03 is inside a Falcon's workspace (+-5 cm) for a device at the
+  // world's origin; for one lifted 9 cm, the floor is 12 cm below its centre: 7 cm out of reach.
+  Dir dir;
+  CheckOptions o;
+  o.scene_path =
+      dir.write("w.toml", std::string(kWorld) + "\n[[device]]\nname = \"high\"\noffset = [0.0, 0.0, 0.09]\n");
+  const CheckReport r = check_scene(o);
+  EXPECT_TRUE(r.world);
+  EXPECT_TRUE(r.errors.empty()) << r.errors.front();
+  EXPECT_TRUE(any_has(r.warnings, "(high):2: surface[1]: its plane lies")) << format_check_report(r, o);
+  EXPECT_FALSE(any_has(r.warnings, "(left):2: surface[1]: its plane lies"));
+  EXPECT_FALSE(any_has(r.warnings, "(right):2: surface[1]: its plane lies"));
+  EXPECT_NE(format_check_report(r, o).find("a world of several devices; loads as sim would load it"),
+            std::string::npos);
+}
+
+TEST(WorldCheck, ACouplingOverThePassiveBoundEvenWhenHeldIsAWarningAtEachOfItsPorts) {
+  Dir dir;
+  CheckOptions o;
+  std::string text = kWorld;
+  text.replace(text.find("stiffness = 40.0"), std::string("stiffness = 40.0").size(), "stiffness = 20000.0");
+  o.scene_path = dir.write("w.toml", text);
+  CheckReport r = check_scene(o);
+  EXPECT_TRUE(any_has(r.warnings, "device 'left': coupling[1] K = 20000 N/m"));
+  EXPECT_TRUE(any_has(r.warnings, "device 'right': coupling[1] K = 20000 N/m"));
+  o.strict = true;
+  r = check_scene(o);
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.exit_code, 1);
+  // The example's soft coupling is not.
+  o.strict = false;
+  o.scene_path = dir.write("w.toml", kWorld);
+  r = check_scene(o);
+  EXPECT_FALSE(any_has(r.warnings, "coupling[1]"));
+  EXPECT_TRUE(r.ok);
+}
+
+TEST(WorldCheck, AWorldTakesItsHandScriptsThroughSimNotOneHere) {
+  Dir dir;
+  CheckOptions o;
+  o.scene_path = dir.write("w.toml", kWorld);
+  o.script_path = dir.write("hand.toml", hand(0.01));
+  const CheckReport r = check_scene(o);
+  EXPECT_FALSE(r.ok);
+  EXPECT_TRUE(any_has(r.errors, "a world scene takes one hand script per device"));
 }
 
 }  // namespace
