@@ -41,6 +41,7 @@
 #include "toonforce/sim/check.hpp"
 #include "toonforce/sim/figures.hpp"
 #include "toonforce/sim/sim_run.hpp"
+#include "toonforce/sim/world_sim.hpp"
 #include "toonforce/sim/sim_trace.hpp"
 #include "toonforce/control/servo_session.hpp"
 
@@ -505,6 +506,94 @@ py::tuple sim(const std::string& scene_path, const std::optional<std::string>& s
   return py::make_tuple(arrays_of(columns), units, summary_dict(summary.value()), warnings);
 }
 
+/// run_world_sim's rows into Columns.
+class WorldColumns final : public WorldRowSink {
+ public:
+  explicit WorldColumns(Columns& columns) : columns_(columns) {}
+  void begin(const std::vector<std::string>& names, std::int64_t ticks) override {
+    columns_.begin(names, static_cast<std::size_t>(ticks) + 1);
+  }
+  void row(const std::vector<double>& values) override { columns_.add(values); }
+
+ private:
+  Columns& columns_;
+};
+
+/// sim_world(): `toonforce sim` of a world scene through run_world_sim, the rows as columns.
+/// `scripts`: (device name, path or the name standing for it, text or None).
+py::tuple sim_world(const std::string& scene_path, const std::optional<std::string>& scene_text,
+                    const std::vector<std::tuple<std::string, std::string, std::optional<std::string>>>& scripts,
+                    double rate_hz, std::optional<double> duration_s, const std::string& device,
+                    const std::string& integrator, int substeps, std::uint64_t seed,
+                    const std::optional<std::pair<std::string, double>>& fail, const std::string& trace_path) {
+  WorldSimOptions options;
+  options.scene_path = scene_path;
+  options.scene_text = scene_text;
+  for (const auto& [name, path, text] : scripts) {
+    options.scripts.emplace_back(name, path);
+    if (text) options.script_texts[name] = *text;
+  }
+  options.rate_hz = rate_hz;
+  options.duration_s = duration_s;
+  options.device = device_of(device);
+  if (auto i = host_sim::parse_integrator(integrator)) {
+    options.integrator = *i;
+  } else {
+    raise_value_error(
+        fmt::format("integrator must be semi-implicit-euler, velocity-verlet, rk4 or exact (got '{}')", integrator));
+  }
+  options.substeps = substeps;
+  options.seed = seed;
+  options.fail = fail;
+  options.trace_path = trace_path;
+  // The world file's errors as SceneError (file, line, key); run_world_sim loads it again.
+  {
+    auto world = scene_text ? parse_world(*scene_text, scene_path) : load_world_file(scene_path);
+    if (!world) raise_scene_error(world.error(), scene_path);
+  }
+  std::atomic<int> stop{0};
+  options.stop = &stop;
+  Columns columns(stop);
+  WorldColumns sink(columns);
+  options.rows = &sink;
+  Result<WorldSimSummary> summary = Error{""};
+  {
+    py::gil_scoped_release unlocked;
+    summary = run_world_sim(options);
+  }
+  columns.raise_interrupt();
+  if (!summary) raise_value_error(summary.error());
+  py::dict units;
+  for (const std::string& name : columns.names()) units[py::str(name)] = world_column_unit(name);
+  const WorldSimSummary& s = summary.value();
+  py::dict d;
+  d["scene_name"] = s.scene_name;
+  d["ticks"] = s.ticks;
+  d["duration_s"] = s.duration_s;
+  py::list devices;
+  for (const WorldSimDeviceSummary& v : s.devices) {
+    py::dict one;
+    one["name"] = v.name;
+    one["script"] = v.script;
+    one["peak_force_n"] = v.peak_force_n;
+    one["fault_ticks"] = v.fault_ticks;
+    one["latched"] = v.latched;
+    one["state"] = to_string(static_cast<LoopState>(v.state));
+    one["final_hip_m"] = py::make_tuple(v.final_hip_m.x, v.final_hip_m.y, v.final_hip_m.z);
+    devices.append(one);
+  }
+  d["devices"] = devices;
+  d["held_at_s"] = s.held_at_s ? py::object(py::float_(*s.held_at_s)) : py::object(py::none());
+  d["held_by"] = s.held_by;
+  d["coupling_imbalance_n"] = s.coupling_imbalance_n;
+  d["forced_while_held"] = s.forced_while_held;
+  d["final_ball_m"] = s.final_ball_m
+                          ? py::object(py::make_tuple(s.final_ball_m->x, s.final_ball_m->y, s.final_ball_m->z))
+                          : py::object(py::none());
+  d["stop_signal"] = s.stop_signal;
+  return py::make_tuple(arrays_of(columns), units, d, py::list());
+}
+
 /// replay(): `toonforce replay` through run_replay, the rows kept as columns instead of text.
 py::tuple replay(const std::string& scene_path, const std::optional<std::string>& scene_text,
                  const std::string& motion_path, const std::optional<std::string>& motion_text,
@@ -821,6 +910,9 @@ PYBIND11_MODULE(_toonforce, m) {
         py::arg("rate_hz"), py::arg("scalar"), py::arg("duration_s"), py::arg("device"), py::arg("integrator"),
         py::arg("substeps"), py::arg("seed"), py::arg("sensor_noise_m"), py::arg("sine"), py::arg("allow_empty"),
         py::arg("strict"), py::arg("trace_path"));
+  m.def("sim_world", &sim_world, py::arg("scene_path"), py::arg("scene_text"), py::arg("scripts"), py::arg("rate_hz"),
+        py::arg("duration_s"), py::arg("device"), py::arg("integrator"), py::arg("substeps"), py::arg("seed"),
+        py::arg("fail"), py::arg("trace_path"));
   m.def("replay", &replay, py::arg("scene_path"), py::arg("scene_text"), py::arg("motion_path"), py::arg("motion_text"),
         py::arg("scalar"), py::arg("sine"), py::arg("allow_empty"), py::arg("output_path"));
   m.def("figures", &figures, py::arg("out_dir"), py::arg("root"), py::arg("format"), py::arg("plot"));

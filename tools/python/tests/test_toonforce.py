@@ -62,6 +62,37 @@ def test_sim_arrays_are_the_programs_trace(cli, root, tmp_path, scene, script, d
         assert_same_doubles(name, trace[name], theirs[name])
 
 
+WORLD = ("scenes/two_players.toml", {"left": "scenes/hands/left_push.toml", "right": "scenes/hands/right_push.toml"})
+
+
+def test_sim_world_arrays_are_the_programs_trace(cli, root, tmp_path):
+    scene, scripts = WORLD
+    csv_path = tmp_path / "world.csv"
+    command = [cli, "sim", "--scene", str(root / scene), "--fail", "right@1.2", "--trace", str(csv_path), "--quiet"]
+    for name, path in scripts.items():
+        command += ["--script", f"{name}={root / path}"]
+    subprocess.run(command, check=True)
+    header, theirs = read_csv(csv_path)
+    trace = toonforce.sim_world(root / scene, {n: root / p for n, p in scripts.items()}, fail=("right", 1.2))
+    assert list(trace) == header
+    assert trace.units["left.fx"] == "N" and trace.units["ball.z"] == "m" and trace.units["held"] == ""
+    for name in header:
+        assert_same_doubles(name, trace[name], theirs[name])
+    # What the README says of it: the couplings' two ends are negations, and the pulled cable
+    # holds both devices.
+    assert np.array_equal(trace["left.coupling_fx"], -trace["right.coupling_fx"])
+    assert trace.summary["held_by"] == "right" and trace.summary["forced_while_held"] == 0
+    assert [d["name"] for d in trace.summary["devices"]] == ["left", "right"]
+
+
+def test_sim_world_names_a_device_without_a_hand_script(root):
+    scene, scripts = WORLD
+    with pytest.raises(ValueError, match="device 'right' has no hand script"):
+        toonforce.sim_world(root / scene, {"left": root / scripts["left"]})
+    with pytest.raises(TypeError, match="one-device scene"):
+        toonforce.sim_world(toonforce.Scene.__new__(toonforce.Scene), {})
+
+
 @pytest.mark.parametrize("scalar", SCALARS)
 @pytest.mark.parametrize("scene,motion", REPLAY_CASES)
 def test_replay_arrays_are_the_programs_output(cli, root, tmp_path, scene, motion, scalar):

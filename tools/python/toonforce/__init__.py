@@ -27,7 +27,7 @@ from ._toonforce import SceneError
 from ._trace import Trace
 
 __all__ = ["SceneError", "RunError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim",
-           "replay", "figures", "run", "__version__"]
+           "sim_world", "replay", "figures", "run", "__version__"]
 __version__: str = _toonforce.version
 
 
@@ -212,6 +212,36 @@ def sim(scene: SceneLike, script: ScriptLike, rate_hz: float = 1000.0, scalar: s
             None if sensor_noise_m is None else float(sensor_noise_m), sine, allow_empty, strict,
             "" if trace_path is None else os.fspath(trace_path))
     _warn(warned)
+    return Trace(columns, units, summary, warned)
+
+
+def sim_world(scene: Union[str, "os.PathLike[str]", Mapping[str, Any]], scripts: Mapping[str, ScriptLike],
+              rate_hz: float = 1000.0, duration_s: Optional[float] = None, device: str = "falcon",
+              integrator: str = "rk4", substeps: int = 4, seed: int = 1, fail: Optional[Tuple[str, float]] = None,
+              trace_path: Optional[str] = None) -> Trace:
+    """``toonforce sim`` of a world scene (``[[device]]`` tables, docs/spec/interfaces.md "World
+    scenes"): every device simulated with its own hand script, in simulated time. ``scripts``
+    maps each device's name to its hand script (a path, a dict or a ``HandScript``); ``fail`` is
+    ``(name, seconds)``: that device's cable is pulled then. Returns the trace as a ``Trace``
+    holding the same doubles as the CSV ``toonforce sim --trace`` writes: per device
+    ``NAME.x``..., ``NAME.fx``..., ``NAME.coupling_fx``..., ``NAME.ball_fx``..., ``NAME.faults``,
+    ``NAME.latched``, ``NAME.state``; ``couplingJ.fx``..., ``ball.x``..., ``held``. The world is a
+    path or a dict (``toonforce.Scene`` is a one-device scene). Ctrl-C stops it.
+    """
+    if isinstance(scene, _Source):
+        raise TypeError("a world is a path or a dict; toonforce.Scene holds a one-device scene")
+    scene_path, scene_text = _source(scene, Scene)
+    if not isinstance(scripts, Mapping):
+        raise TypeError(f"scripts maps each device's name to its hand script, not {type(scripts).__name__}")
+    named = []
+    for name, script in scripts.items():
+        path, text = _source(script, HandScript)
+        named.append((str(name), path, text))
+    failing = None if fail is None else (str(fail[0]), float(fail[1]))
+    with _scene_errors():
+        columns, units, summary, warned = _toonforce.sim_world(
+            scene_path, scene_text, named, float(rate_hz), None if duration_s is None else float(duration_s), device,
+            integrator, int(substeps), int(seed), failing, "" if trace_path is None else os.fspath(trace_path))
     return Trace(columns, units, summary, warned)
 
 

@@ -33,6 +33,12 @@ def sim(scene_path: str, scene_text: Optional[str], script_path: str, script_tex
     """``toonforce sim``: (columns, units, summary, warnings); columns as the CSV's, float64.
     rate_hz [Hz] 10..100000; duration_s [s] (0, 86400] or None for the script's length;
     substeps 1..1000; sensor_noise_m [m] >= 0; trace_path "" for no CSV."""
+def sim_world(scene_path: str, scene_text: Optional[str], scripts: List[Tuple[str, str, Optional[str]]],
+              rate_hz: float, duration_s: Optional[float], device: str, integrator: str, substeps: int, seed: int,
+              fail: Optional[Tuple[str, float]],
+              trace_path: str) -> Tuple[Dict[str, np.ndarray], Dict[str, str], Dict[str, Any], List[str]]:
+    """``toonforce sim`` of a world: (columns, units, summary, warnings); scripts are (device name,
+    path or its stand-in name, text or None); fail is (device name, seconds) or None."""
 def replay(scene_path: str, scene_text: Optional[str], motion_path: str, motion_text: Optional[str], scalar: str,
            sine: Optional[str], allow_empty: bool, output_path: str) -> Tuple[Dict[str, np.ndarray], Dict[str, str], Dict[str, Any]]:
     """``toonforce replay``: (columns, units, summary); columns as the output CSV's, float64,

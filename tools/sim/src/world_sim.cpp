@@ -149,6 +149,7 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
     if (!opened) return Error{opened.error()};
     trace = std::move(opened.value());
   }
+  if (options.rows != nullptr) options.rows->begin(columns_of(p.world), p.ticks);
   WorldSimSummary summary;
   summary.scene_name = p.world.scene.name;
   for (std::size_t i = 0; i < N; ++i) {
@@ -202,6 +203,7 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
       ++summary.forced_while_held;  // from the tick after the hold began
     }
     if (trace) trace->write(row);
+    if (options.rows != nullptr) options.rows->row(row);
   };
   const auto stopped = [&options] { return options.stop != nullptr && options.stop->load() != 0; };
   std::int64_t k = 0;
@@ -225,6 +227,15 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
 }
 
 }  // namespace
+
+std::string world_column_unit(const std::string& column) {
+  if (column == "t") return "s";
+  const std::size_t dot = column.rfind('.');
+  const std::string v = dot == std::string::npos ? column : column.substr(dot + 1);
+  if (v == "x" || v == "y" || v == "z") return "m";
+  if (v.size() >= 2 && v[v.size() - 2] == 'f' && (v.back() == 'x' || v.back() == 'y' || v.back() == 'z')) return "N";
+  return "";
+}
 
 Result<std::pair<std::string, std::string>> parse_named_script(const std::string& text) {
   const std::size_t eq = text.find('=');
@@ -253,7 +264,8 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
     }
   }
   Prepared p;
-  auto world = load_world_file(options.scene_path);
+  auto world =
+      options.scene_text ? parse_world(*options.scene_text, options.scene_path) : load_world_file(options.scene_path);
   if (!world) return Error{world.error()};
   p.world = std::move(world).value();
   p.period_s = 1.0 / options.rate_hz;
@@ -275,7 +287,8 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
       continue;
     }
     given[i] = true;
-    auto hand = load_hand_script(path);
+    const auto text = options.script_texts.find(name);
+    auto hand = text != options.script_texts.end() ? parse_hand_script(text->second, path) : load_hand_script(path);
     if (!hand) {
       problems += hand.error();
       if (problems.back() != '\n') problems += '\n';

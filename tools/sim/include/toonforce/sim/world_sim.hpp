@@ -7,6 +7,7 @@
 /// couplings' and the ball's, world frame, before its safety chain), its faults and state.
 
 #include <atomic>
+#include <map>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -20,12 +21,29 @@
 
 namespace toonforce {
 
+/// Where run_world_sim hands every trace row as numbers, besides the trace file or (with an empty
+/// trace_path) instead of it: the Python module keeps them as arrays. From run_world_sim's thread.
+class WorldRowSink {
+ public:
+  virtual ~WorldRowSink() = default;
+  /// Before the first row: every column's name (the trace's header) and the ticks to come.
+  virtual void begin(const std::vector<std::string>& columns, std::int64_t ticks) = 0;
+  virtual void row(const std::vector<double>& values) = 0;
+};
+
+/// The SI unit of a world trace's column ("" for flags, bit sets and states).
+std::string world_column_unit(const std::string& column);
+
 struct WorldSimOptions {
   std::string scene_path;
+  std::optional<std::string> scene_text;  ///< set: the world is this text; scene_path names it in messages
   /// One hand script per device: (device name, hand script file).
   std::vector<std::pair<std::string, std::string>> scripts;
+  /// Hand scripts given as text, by device name (their entry in `scripts` names them in messages).
+  std::map<std::string, std::string> script_texts;
   std::optional<double> duration_s;  ///< default: the longest hand script
-  std::string trace_path;            ///< "-": standard output
+  std::string trace_path;            ///< "-": standard output; empty: no file (with `rows`)
+  WorldRowSink* rows = nullptr;      ///< also (or, without trace_path, only) every row as numbers
   /// Devices whose backend is "sim" are simulated as this class; "falcon" and "omni" devices as theirs.
   host_sim::DevicePreset device = host_sim::DevicePreset::kFalcon;
   host_sim::Integrator integrator = host_sim::Integrator::kRk4;
