@@ -22,6 +22,8 @@
 #include "run_command.hpp"
 #include "synthetic_firmware.hpp"
 #include "toonforce/config/falcon_calibration_file.hpp"
+#include "toonforce/config/scene_file.hpp"
+#include "toonforce/control/world.hpp"
 #include "toonforce/hal/falcon/calibration.hpp"
 #include "toonforce/hal/falcon/driver.hpp"
 #include "toonforce/hal/falcon/emulator/usbfs_emulator.hpp"
@@ -321,6 +323,66 @@ TEST_F(FalconUsb, HomingThenHundredsOfTicksWithForcesAndNoAllocation) {
   bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.homing_bit_dropped(), 0u); });
 }
 
+// Two Falcons in one world (control/world.hpp), each opened by its serial number through
+// libusb, coupled by a spring: each Falcon's motors get its share of the coupling, through
+// usbfs, and when one is unplugged both end at zero force.
+TEST_F(FalconUsb, TwoFalconsInOneWorldFeelEachOtherAndStopTogether) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  std::array<std::unique_ptr<FalconDriver>, 2> falcons;
+  for (std::size_t i = 0; i < 2; ++i) {
+    FalconOptions by_serial;
+    by_serial.serial = i == 0 ? "FTEMU0001" : "FTEMU0002";
+    falcons[i] = open(by_serial);
+    ASSERT_NE(falcons[i], nullptr);
+    home(*falcons[i], i);
+  }
+  auto scene =
+      parse_scene("[[surface]]\npoint = [0.0, 0.0, -1.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 1.0\n", "far.toml");
+  ASSERT_TRUE(scene) << scene.error();
+  ServoConfig config = servo_config(scene.value(), 1e-3);
+  config.safety.soft_start_s = 0.0;
+  config.safety.has_max_velocity = false;
+  config.safety.thermal.continuous_force_n = 0.0;
+  config.limits.has_max_force = true;
+  config.limits.max_force_n = 8.0;
+  ASSERT_EQ(check_servo_config(config), "");
+  WorldConfig coupling;
+  coupling.coupling_count = 1;
+  coupling.couplings[0] = {0, 1, {200.0, 0.0, 0.0}};
+  using FalconWorld = World<DeviceDriver, RuntimeScene<double>, 2>;
+  const RuntimeScene<double> runtime = make_runtime_scene<double>(scene.value());
+  auto world = std::make_unique<FalconWorld>(
+      std::array<FalconWorld::Member, 2>{FalconWorld::Member{falcons[0].get(), runtime, DeviceFrame{}, config},
+                                         FalconWorld::Member{falcons[1].get(), runtime, DeviceFrame{}, config}},
+      coupling);
+  // Both grips at the centre (the loops engage), then Falcon 0's moves 1 cm along +x.
+  std::int64_t k = 0;
+  for (; k < 5; ++k) ASSERT_FALSE(world->tick(k).held) << falcons[0]->last_error() << falcons[1]->last_error();
+  bed_->with(0, [](FalconEmulator& e) { e.set_grip_position(kCentre + Vec3<double>{0.01, 0.0, 0.0}); });
+  for (; k < 20; ++k) ASSERT_FALSE(world->tick(k).held);
+  const Vec3<double> f0 = world->loop(0).force();
+  const Vec3<double> f1 = world->loop(1).force();
+  EXPECT_LT(f0.x, -1.0);  // pulled back toward the other
+  EXPECT_EQ(f0, -f1);     // each gets its exact share
+  for (std::size_t i = 0; i < 2; ++i) {
+    Mat3 j;
+    ASSERT_TRUE(position_jacobian(FalconGeometry{}, falcons[i]->position_falcon_m(), j));
+    const MotorWords expected = force_to_motor_words(j, scene_force_to_falcon(world->loop(i).force()));
+    bed_->with(i, [&](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, expected.word) << "Falcon " << i; });
+  }
+  // Falcon 1 is unplugged: it latches silent after its failed exchanges, and the world holds
+  // Falcon 0 at zero force from the next tick.
+  bed_->unplug(1);
+  bool held = false;
+  for (int i = 0; i < 40 && !held; ++i, ++k) held = world->tick(k).held;
+  ASSERT_TRUE(held);
+  EXPECT_EQ(world->held_by(), 1U);
+  world->tick(k++);
+  EXPECT_EQ(world->loop(0).force(), (Vec3<double>{}));
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, MotorWords{}.word); });
+}
+
 TEST_F(FalconUsb, SplitRepliesAreReassembledThroughLibusb) {
   bed_->add_falcon(with_firmware());
   auto d = open();
@@ -345,7 +407,7 @@ TEST_F(FalconUsb, DroppedAndGarbledRepliesBecomeFaultsWithZeroForce) {
   EXPECT_EQ(d->read(r), DeviceStatus::kTimeout);
   EXPECT_NE(d->last_error().find("did not answer"), std::string::npos);
   EXPECT_EQ(d->write({0, 0, 2}), DeviceStatus::kNotReady);
-  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, MotorWords{}.word); });
   ASSERT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
 
   bed_->with(0, [](FalconEmulator& e) { e.garble_replies(1); });
@@ -353,7 +415,7 @@ TEST_F(FalconUsb, DroppedAndGarbledRepliesBecomeFaultsWithZeroForce) {
   EXPECT_EQ(d->read(r), DeviceStatus::kProtocolError);
   EXPECT_EQ(d->fault(), FalconFault::kGarbled);
   EXPECT_EQ(d->write({0, 0, 2}), DeviceStatus::kNotReady);
-  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, MotorWords{}.word); });
   EXPECT_EQ(tick(*d, r, {0, 0, 2}), DeviceStatus::kOk);
 }
 
@@ -529,7 +591,7 @@ TEST_F(FalconUsb, BringupThroughTheCommandLineCatchesAMotorWiredBackwards) {
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("[FAIL] Motor direction: arm 1 (top) turned the wrong way"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("Forces were set to zero at once"), std::string::npos) << r.output;
-  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})); });
+  bed_->with(0, [](FalconEmulator& e) { EXPECT_EQ(e.last_command().motor, MotorWords{}.word); });
 }
 
 TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
