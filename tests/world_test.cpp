@@ -374,6 +374,29 @@ TEST(World, WithOneDeviceItIsThatDevicesLoopBitForBit) {
   EXPECT_GT(pushed, 500);  // the floor did push: the comparison is not of zeros
 }
 
+TEST(World, AHipBackFromTicksWithoutAPositionGivesTheDamperNoKick) {
+  // A damper-only coupling; device 1 moves steadily at 0.1 m/s, device 0 stands still. Device
+  // 1's reads fail for 5 ticks (not enough to latch it silent): when it answers again, the
+  // velocity starts afresh instead of 6 ticks of motion taken as one tick's.
+  std::array<FakeDeviceState, 2> dev{};
+  std::array<FakeDevice, 2> fakes{FakeDevice{nullptr}, FakeDevice{nullptr}};
+  WorldConfig c;
+  c.coupling_count = 1;
+  c.couplings[0] = {0, 1, {0.0, 10.0, 0.0}};
+  auto world = make_world(dev, fakes, c);
+  double steady = 0.0;
+  double after = 0.0;
+  for (std::int64_t k = 0; k < 400; ++k) {
+    dev[1].position_m = {1e-4 * static_cast<double>(k), 0.0, 0.0};  // 0.1 m/s at 1 kHz
+    dev[1].read_status = k >= 300 && k < 305 ? DeviceStatus::kTimeout : DeviceStatus::kOk;
+    world->tick(k);
+    if (k == 299) steady = std::abs(world->coupling_force_n(0).x);
+    if (k >= 305) after = std::max(after, std::abs(world->coupling_force_n(0).x));
+  }
+  EXPECT_NEAR(steady, 10.0 * 0.1, 1e-3);  // b |v_rel|, the estimate settled
+  EXPECT_LE(after, steady * 1.001);
+}
+
 TEST(World, ATickAllocatesNothing) {
   std::array<FakeDeviceState, 2> dev{};
   std::array<FakeDevice, 2> fakes{FakeDevice{nullptr}, FakeDevice{nullptr}};

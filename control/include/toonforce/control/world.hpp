@@ -342,6 +342,7 @@ class World {
         period_s_(members[0].config.period_s),
         frames_{members[I].frame...},
         estimators_{VelocityEstimator<S>(members[I].config.velocity_cutoff_hz)...},
+        fresh_estimators_{estimators_},
         loops_{Loop(WorldDevice<Device>(members[I].device),
                     FramedScene<SceneT>(members[I].scene, members[I].frame, &world_force_n_[I]), members[I].config,
                     WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
@@ -355,8 +356,12 @@ class World {
     WorldDevice<Device>& device = loops_[i].device();
     const DeviceStatus read = device.fetch();
     const DeviceReading& r = device.reading();
+    const bool was_known = known_[i];
     known_[i] = read == DeviceStatus::kOk && is_finite(r.position_m) && is_finite(r.velocity_m_per_s);
     if (!known_[i]) return;
+    // Back after ticks without a position: the last one is old, and a difference over one tick
+    // would be a velocity spike (the coupling's damper would kick); the estimate starts afresh.
+    if (!was_known) estimators_[i] = fresh_estimators_[i];
     hip_m_[i] = frames_[i].position_to_world(vec_cast<S>(r.position_m));
     if (r.has_velocity) {
       hip_v_[i] = frames_[i].velocity_to_world(vec_cast<S>(r.velocity_m_per_s));
@@ -412,6 +417,7 @@ class World {
   between::BallState ball_{};
   std::array<DeviceFrame, N> frames_;
   std::array<VelocityEstimator<S>, N> estimators_;
+  std::array<VelocityEstimator<S>, N> fresh_estimators_;  ///< as at the start
   std::array<Loop, N> loops_;
 };
 
