@@ -9,6 +9,7 @@
 //   toonforce_world_stability                 the whole map (hand a lets go of its handle)
 //   toonforce_world_stability --hold          hand a holds its handle instead
 //   toonforce_world_stability --csv FILE      also every point as CSV
+//   toonforce_world_stability --trace K,B,DA,DB  one point, a CSV line a tick (handles, forces, energies)
 #include <array>
 #include <cstdio>
 #include <string>
