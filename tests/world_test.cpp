@@ -397,6 +397,46 @@ TEST(World, AHipBackFromTicksWithoutAPositionGivesTheDamperNoKick) {
   EXPECT_LE(after, steady * 1.001);
 }
 
+TEST(World, AHandleWhoseForceIsCutLeavesTheCouplingAndComesBackRamped) {
+  // Device 0 leaves its workspace: its own loop cuts its force, and from the next tick the
+  // coupling lets device 1 go too (it was pulled at its 8 N clamp toward the lost handle).
+  // Back inside, the coupling comes back over the soft start (0.1 s), not as a step.
+  std::array<FakeDeviceState, 2> dev{};
+  std::array<FakeDevice, 2> fakes{FakeDevice{nullptr}, FakeDevice{nullptr}};
+  ServoConfig c = bare_config();
+  c.safety.has_workspace = true;
+  c.safety.workspace_min_m = {-0.05, -0.05, -0.05};
+  c.safety.workspace_max_m = {0.05, 0.05, 0.05};
+  c.safety.soft_start_s = 0.1;
+  auto world = make_world(dev, fakes, coupled(200.0), empty_toml(), {}, c);
+  std::int64_t k = 0;
+  for (; k < 200; ++k) world->tick(k);  // together at the origin: engaged, soft start done
+  dev[0].position_m = {0.02, 0.0, 0.0};
+  for (int i = 0; i < 5; ++i) world->tick(k++);
+  ASSERT_NEAR(dev[1].last_written.x, 4.0, 1e-9);  // 200 N/m x 2 cm, toward device 0
+  dev[0].position_m = {0.06, 0.0, 0.0};           // out of its workspace
+  world->tick(k++);
+  EXPECT_TRUE(world->loop(0).last_status().faults.has(Fault::kOutsideWorkspace));
+  EXPECT_EQ(dev[0].last_written, (Vec3<double>{}));
+  for (int i = 0; i < 20; ++i) {
+    world->tick(k++);
+    EXPECT_EQ(dev[1].last_written, (Vec3<double>{})) << "device 1 pulled toward a handle whose force is off";
+    EXPECT_EQ(world->world_force_n(0), (Vec3<double>{}));
+  }
+  EXPECT_FALSE(world->held());           // not a latched fault: no one stop
+  dev[0].position_m = {0.02, 0.0, 0.0};  // back inside
+  world->tick(k++);                      // device 0's loop counts this tick: the coupling comes back the next
+  double previous = 0.0;
+  for (int i = 0; i < 100; ++i) {
+    world->tick(k++);
+    const double f = dev[1].last_written.x;
+    EXPECT_LE(f, previous + 4.0 * 0.01 + 1e-9) << i;  // at most 1/100 of the force a tick
+    previous = f;
+  }
+  EXPECT_NEAR(dev[1].last_written.x, 4.0, 1e-9);
+  EXPECT_EQ(world->world_force_n(0), -world->world_force_n(1));
+}
+
 TEST(World, ATickAllocatesNothing) {
   std::array<FakeDeviceState, 2> dev{};
   std::array<FakeDevice, 2> fakes{FakeDevice{nullptr}, FakeDevice{nullptr}};

@@ -20,6 +20,7 @@
 /// The tick is noexcept and allocation-free; its work is linear in the number of devices (and
 /// in the couplings). A World holds pointers into itself: it is neither copied nor moved.
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -285,7 +286,15 @@ class World {
     }
     const std::int64_t gap = started_ ? k - last_k_ : 1;
     const S rate_hz = scalar_cast<S>(1.0 / (static_cast<double>(gap > 0 ? gap : 1) * period_s_));
-    for (std::size_t i = 0; i < N; ++i) sense(i, rate_hz);
+    for (std::size_t i = 0; i < N; ++i) {
+      sense(i, rate_hz);
+      // In the world: read this tick, and its loop's force was not cut by a fault last tick (a
+      // handle outside its workspace, too fast, a device error, a latched fault). A device that
+      // is not takes part in nothing between hands, at either end: the others are not pulled
+      // toward a handle whose own force is off (a coupling thrown out of the workspace pulled
+      // the other device at its clamp).
+      in_world_[i] = known_[i] && !loops_[i].last_status().faults;
+    }
     between(static_cast<double>(gap > 0 ? gap : 1) * period_s_);
 
     WorldStatus<N> status;
@@ -348,6 +357,12 @@ class World {
                     WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
     // (The loop owns its WorldDevice; the world fetches through loop.device().)
     ball_.position_m = config_.ball.start_m;
+    const auto step = [this](double soft_start_s) { return soft_start_s > 0.0 ? period_s_ / soft_start_s : 1.0; };
+    for (std::size_t i = 0; i < N; ++i) ball_step_[i] = step(members[i].config.safety.soft_start_s);
+    for (std::size_t j = 0; j < config_.coupling_count && j < kMaxCouplings; ++j) {
+      const CouplingSpec& c = config_.couplings[j];
+      coupling_step_[j] = std::min(ball_step_[c.a < N ? c.a : 0], ball_step_[c.b < N ? c.b : 0]);
+    }
   }
 
   /// Device i's reading, its HIP in the world frame and a velocity (the device's, or the
@@ -371,16 +386,30 @@ class World {
     }
   }
 
+  template <std::size_t M>
+  static constexpr std::array<double, M> filled(double v) noexcept {
+    std::array<double, M> a{};
+    for (double& x : a) x = v;
+    return a;
+  }
+
   /// The forces between HIPs: each coupling's once, its negation on the other end; the ball's
   /// on each HIP in it, their sum's negation on the ball, which then moves one step. A HIP
-  /// whose device did not read this tick takes part in nothing.
+  /// not in the world this tick takes part in nothing.
   void between(double dt_s) noexcept {
     for (std::size_t i = 0; i < N; ++i) world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = Vec3<S>{};
     for (std::size_t j = 0; j < config_.coupling_count; ++j) {
       const CouplingSpec& c = config_.couplings[j];
       coupling_n_[j] = Vec3<S>{};
-      if (!known_[c.a] || !known_[c.b]) continue;
-      const Vec3<S> f = between::coupling_force(c.params, hip_m_[c.a], hip_v_[c.a], hip_m_[c.b], hip_v_[c.b]);
+      if (!in_world_[c.a] || !in_world_[c.b]) {
+        coupling_gain_[j] = 0.0;
+        continue;
+      }
+      // Back together after one end was out: ramped in over the slower end's soft start (a
+      // step of the spring's whole force would kick the end that never left).
+      coupling_gain_[j] = std::min(1.0, coupling_gain_[j] + coupling_step_[j]);
+      Vec3<S> f = between::coupling_force(c.params, hip_m_[c.a], hip_v_[c.a], hip_m_[c.b], hip_v_[c.b]);
+      if (coupling_gain_[j] < 1.0) f = f * scalar_cast<S>(coupling_gain_[j]);
       coupling_n_[j] = f;
       coupling_sum_n_[c.a] += f;
       coupling_sum_n_[c.b] -= f;
@@ -388,9 +417,14 @@ class World {
     if (config_.has_ball) {
       Vec3<double> on_ball{};
       for (std::size_t i = 0; i < N; ++i) {
-        if (!known_[i] || (config_.ball_devices & (1U << i)) == 0) continue;
+        if ((config_.ball_devices & (1U << i)) == 0) continue;
+        if (!in_world_[i]) {
+          ball_gain_[i] = 0.0;
+          continue;
+        }
+        ball_gain_[i] = std::min(1.0, ball_gain_[i] + ball_step_[i]);
         const Vec3<double> f =
-            between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i]));
+            between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i])) * ball_gain_[i];
         ball_n_[i] = vec_cast<S>(f);
         on_ball -= f;
       }
@@ -414,6 +448,12 @@ class World {
   std::array<Vec3<S>, N> hip_m_{};
   std::array<Vec3<S>, N> hip_v_{};
   std::array<bool, N> known_{};
+  std::array<bool, N> in_world_{};
+  /// 1 while both ends have been in the world; from 0 back to 1 over the soft start after one left.
+  std::array<double, kMaxCouplings> coupling_gain_ = filled<kMaxCouplings>(1.0);
+  std::array<double, kMaxCouplings> coupling_step_ = filled<kMaxCouplings>(1.0);
+  std::array<double, N> ball_gain_ = filled<N>(1.0);
+  std::array<double, N> ball_step_ = filled<N>(1.0);
   between::BallState ball_{};
   std::array<DeviceFrame, N> frames_;
   std::array<VelocityEstimator<S>, N> estimators_;
