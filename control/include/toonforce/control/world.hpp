@@ -284,8 +284,9 @@ class World {
       held_.store(false, std::memory_order_release);
       for (Loop& loop : loops_) loop.request_rearm();
     }
-    const std::int64_t gap = started_ ? k - last_k_ : 1;
-    const S rate_hz = scalar_cast<S>(1.0 / (static_cast<double>(gap > 0 ? gap : 1) * period_s_));
+    const std::int64_t gap = started_ && k > last_k_ ? k - last_k_ : 1;
+    const double dt_s = static_cast<double>(gap) * period_s_;
+    const S rate_hz = scalar_cast<S>(1.0 / dt_s);
     for (std::size_t i = 0; i < N; ++i) {
       sense(i, rate_hz);
       // In the world: read this tick, and its loop's force was not cut by a fault last tick (a
@@ -295,7 +296,7 @@ class World {
       // the other device at its clamp).
       in_world_[i] = known_[i] && !loops_[i].last_status().faults;
     }
-    between(static_cast<double>(gap > 0 ? gap : 1) * period_s_);
+    between(dt_s);
 
     WorldStatus<N> status;
     for (std::size_t i = 0; i < N; ++i) status.devices[i] = loops_[i].tick(k);
@@ -349,7 +350,6 @@ class World {
   World(const std::array<Member, N>& members, const WorldConfig& config, std::index_sequence<I...>) noexcept
       : config_(config),
         period_s_(members[0].config.period_s),
-        frames_{members[I].frame...},
         estimators_{VelocityEstimator<S>(members[I].config.velocity_cutoff_hz)...},
         fresh_estimators_{estimators_},
         loops_{Loop(WorldDevice<Device>(members[I].device),
@@ -357,6 +357,9 @@ class World {
                     WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
     // (The loop owns its WorldDevice; the world fetches through loop.device().)
     ball_.position_m = config_.ball.start_m;
+    coupling_gain_.fill(1.0);
+    coupling_step_.fill(1.0);
+    ball_gain_.fill(1.0);
     const auto step = [this](double soft_start_s) { return soft_start_s > 0.0 ? period_s_ / soft_start_s : 1.0; };
     for (std::size_t i = 0; i < N; ++i) ball_step_[i] = step(members[i].config.safety.soft_start_s);
     for (std::size_t j = 0; j < config_.coupling_count && j < kMaxCouplings; ++j) {
@@ -377,20 +380,14 @@ class World {
     // Back after ticks without a position: the last one is old, and a difference over one tick
     // would be a velocity spike (the coupling's damper would kick); the estimate starts afresh.
     if (!was_known) estimators_[i] = fresh_estimators_[i];
-    hip_m_[i] = frames_[i].position_to_world(vec_cast<S>(r.position_m));
+    const DeviceFrame& frame = loops_[i].scene().frame();  // the one its scene carries the HIP with
+    hip_m_[i] = frame.position_to_world(vec_cast<S>(r.position_m));
     if (r.has_velocity) {
-      hip_v_[i] = frames_[i].velocity_to_world(vec_cast<S>(r.velocity_m_per_s));
+      hip_v_[i] = frame.velocity_to_world(vec_cast<S>(r.velocity_m_per_s));
     } else {
       hip_v_[i] = estimators_[i].estimate(hip_m_[i], rate_hz);
       estimators_[i].commit(hip_m_[i], hip_v_[i]);
     }
-  }
-
-  template <std::size_t M>
-  static constexpr std::array<double, M> filled(double v) noexcept {
-    std::array<double, M> a{};
-    for (double& x : a) x = v;
-    return a;
   }
 
   /// The forces between HIPs: each coupling's once, its negation on the other end; the ball's
@@ -450,12 +447,11 @@ class World {
   std::array<bool, N> known_{};
   std::array<bool, N> in_world_{};
   /// 1 while both ends have been in the world; from 0 back to 1 over the soft start after one left.
-  std::array<double, kMaxCouplings> coupling_gain_ = filled<kMaxCouplings>(1.0);
-  std::array<double, kMaxCouplings> coupling_step_ = filled<kMaxCouplings>(1.0);
-  std::array<double, N> ball_gain_ = filled<N>(1.0);
-  std::array<double, N> ball_step_ = filled<N>(1.0);
+  std::array<double, kMaxCouplings> coupling_gain_{};
+  std::array<double, kMaxCouplings> coupling_step_{};
+  std::array<double, N> ball_gain_{};
+  std::array<double, N> ball_step_{};
   between::BallState ball_{};
-  std::array<DeviceFrame, N> frames_;
   std::array<VelocityEstimator<S>, N> estimators_;
   std::array<VelocityEstimator<S>, N> fresh_estimators_;  ///< as at the start
   std::array<Loop, N> loops_;
