@@ -87,6 +87,11 @@ void add_sim(CLI::App& app) {
       ->needs(view->view);
 #endif
   cmd->callback([=] {
+    // The checks above admit only known words (in any case): these parse.
+    const auto lower = [](std::string text) {
+      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return text;
+    };
     if (is_world_file(options->scene_path)) {
       // Options of the one-device simulation that a world does not take are refused, not ignored.
       for (const char* name : {
@@ -128,12 +133,8 @@ void add_sim(CLI::App& app) {
       }
       if (duration_option->count() > 0) w.duration_s = *duration;
       w.trace_path = options->trace_path;
-      const auto lower_word = [](std::string text) {
-        for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-        return text;
-      };
-      w.device = host_sim::parse_device_preset(lower_word(*device)).value_or(host_sim::DevicePreset::kFalcon);
-      w.integrator = host_sim::parse_integrator(lower_word(*integrator)).value_or(host_sim::Integrator::kRk4);
+      w.device = host_sim::parse_device_preset(lower(*device)).value_or(host_sim::DevicePreset::kFalcon);
+      w.integrator = host_sim::parse_integrator(lower(*integrator)).value_or(host_sim::Integrator::kRk4);
       w.substeps = options->substeps;
       w.rate_hz = options->rate_hz;
       w.seed = options->seed;
@@ -168,11 +169,6 @@ void add_sim(CLI::App& app) {
     options->script_path = scripts->front();
     if (duration_option->count() > 0) options->duration_s = *duration;
     if (noise_option->count() > 0) options->sensor_noise_m = *noise;
-    // The checks above admit only known words (in any case): these parse.
-    const auto lower = [](std::string text) {
-      for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      return text;
-    };
     options->device = host_sim::parse_device_preset(lower(*device)).value_or(host_sim::DevicePreset::kFalcon);
     options->integrator = host_sim::parse_integrator(lower(*integrator)).value_or(host_sim::Integrator::kRk4);
     options->scalar = parse_scalar_kind(lower(*scalar)).value_or(ScalarKind::kDouble);

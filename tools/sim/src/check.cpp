@@ -12,6 +12,7 @@
 #include "toonforce/control/servo_config.hpp"
 #include "toonforce/sim/plausibility.hpp"
 #include "toonforce/sim/sim_run.hpp"
+#include "toonforce/sim/world_sim.hpp"
 
 namespace toonforce {
 
@@ -61,18 +62,10 @@ CheckReport check_world(const CheckOptions& o) {
   } else {
     const double period_s = 1.0 / o.rate_hz;
     for (const WorldDeviceEntry& d : world->devices) {
-      const host_sim::DevicePreset preset = d.backend == "omni"     ? host_sim::DevicePreset::kOmni
-                                            : d.backend == "falcon" ? host_sim::DevicePreset::kFalcon
-                                                                    : o.device;
-      const host_sim::DeviceParams params = host_sim::device_params(preset);
-      DeviceInfo info;
-      info.name = std::string(params.name);
-      info.max_force_n = params.max_force_n;
-      info.workspace_min_m = params.workspace_min_m;
-      info.workspace_max_m = params.workspace_max_m;
+      const SimulatedWorldDevice simulated = simulated_device(d, o.device, period_s);
+      const host_sim::DeviceParams& params = simulated.params;
       const std::string who = fmt::format("{}:{}: device '{}'", o.scene_path, d.line, d.name);
-      if (const std::string bad = check_servo_config(with_device(servo_config(d.settings, period_s), info));
-          !bad.empty()) {
+      if (const std::string bad = check_servo_config(simulated.config); !bad.empty()) {
         out.errors.push_back(fmt::format("{}: the servo configuration does not work:\n{}", who, bad));
       }
       if (d.frame.scale != 1.0) {

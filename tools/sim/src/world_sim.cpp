@@ -237,6 +237,15 @@ std::string world_column_unit(const std::string& column) {
   return "";
 }
 
+SimulatedWorldDevice simulated_device(const WorldDeviceEntry& device, host_sim::DevicePreset for_sim, double period_s) {
+  const host_sim::DevicePreset preset = device.backend == "omni"     ? host_sim::DevicePreset::kOmni
+                                        : device.backend == "falcon" ? host_sim::DevicePreset::kFalcon
+                                                                     : for_sim;
+  SimulatedWorldDevice out{host_sim::device_params(preset), {}};
+  out.config = with_device(servo_config(device.settings, period_s), host_sim::device_info(out.params, period_s));
+  return out;
+}
+
 Result<std::pair<std::string, std::string>> parse_named_script(const std::string& text) {
   const std::size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == text.size()) {
@@ -310,12 +319,9 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
   double longest_s = 0.0;
   for (std::size_t i = 0; i < p.world.devices.size(); ++i) {
     const WorldDeviceEntry& d = p.world.devices[i];
-    const host_sim::DevicePreset preset = d.backend == "omni"     ? host_sim::DevicePreset::kOmni
-                                          : d.backend == "falcon" ? host_sim::DevicePreset::kFalcon
-                                                                  : options.device;
-    p.params.push_back(host_sim::device_params(preset));
-    p.configs.push_back(
-        with_device(servo_config(d.settings, p.period_s), host_sim::device_info(p.params.back(), p.period_s)));
+    SimulatedWorldDevice simulated = simulated_device(d, options.device, p.period_s);
+    p.params.push_back(simulated.params);
+    p.configs.push_back(simulated.config);
     if (const std::string bad = check_servo_config(p.configs.back()); !bad.empty()) {
       return Error{fmt::format("{}:{}: device '{}': the servo configuration does not work:\n{}", options.scene_path,
                                d.line, d.name, bad)};

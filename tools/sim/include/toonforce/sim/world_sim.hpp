@@ -16,6 +16,7 @@
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/config/world_file.hpp"
+#include "toonforce/control/servo_config.hpp"
 #include "toonforce/host_sim/device_model.hpp"
 #include "toonforce/host_sim/integrator.hpp"
 
@@ -81,6 +82,15 @@ struct WorldSimSummary {
   std::optional<Vec3<double>> final_ball_m;
   int stop_signal = 0;
 };
+
+/// A world's device as `sim` simulates it: its backend's model (a "sim" device: `for_sim`'s),
+/// and its loop's configuration, its own [device] keys completed by that model's figures.
+/// `check` takes the same, so that it checks what `sim` runs.
+struct SimulatedWorldDevice {
+  host_sim::DeviceParams params;
+  ServoConfig config;
+};
+SimulatedWorldDevice simulated_device(const WorldDeviceEntry& device, host_sim::DevicePreset for_sim, double period_s);
 
 Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options);
 std::string format_world_sim_summary(const WorldSimSummary& summary, const WorldSimOptions& options);
