@@ -5,7 +5,6 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
-#include <numbers>
 #include <utility>
 
 #include <fmt/format.h>
@@ -68,29 +67,6 @@ std::vector<std::string> strings(const std::array<std::string_view, N>& keys) {
   return {keys.begin(), keys.end()};
 }
 
-/// The rotation about z by `yaw_deg`, exact at multiples of 90 degrees (two devices facing
-/// each other are then mirror images to the last bit).
-DeviceFrame frame_of(double yaw_deg, const Vec3<double>& offset_m, double scale) {
-  const double quarter_turns = yaw_deg / 90.0;
-  double c = 0.0;
-  double s = 0.0;
-  if (quarter_turns == std::floor(quarter_turns)) {
-    constexpr std::array<std::pair<double, double>, 4> kQuarters{{{1.0, 0.0}, {0.0, 1.0}, {-1.0, 0.0}, {0.0, -1.0}}};
-    const auto q = static_cast<std::size_t>(((static_cast<long long>(quarter_turns) % 4) + 4) % 4);
-    c = kQuarters[q].first;
-    s = kQuarters[q].second;
-  } else {
-    const double rad = yaw_deg * std::numbers::pi / 180.0;
-    c = std::cos(rad);
-    s = std::sin(rad);
-  }
-  DeviceFrame f;  // the rows of DeviceFrame::yaw
-  f.rotation = {{{c, -s, 0.0}, {s, c, 0.0}, {0.0, 0.0, 1.0}}};
-  f.offset_m = offset_m;
-  f.scale = scale;
-  return f;
-}
-
 WorldDeviceEntry read_device(const toml::table& table, std::size_t number, const std::string& source,
                              const std::vector<std::string>& known, ErrorList& errors) {
   const std::string path = fmt::format("device[{}]", number);
@@ -124,7 +100,7 @@ WorldDeviceEntry read_device(const toml::table& table, std::size_t number, const
   }
   const double scale =
       r.number_or("scale", 1.0, Range::kPositive, "the factor from the device's metres to the world's (1: as it is)");
-  d.frame = frame_of(yaw_deg, offset, scale);
+  d.frame = DeviceFrame::yaw_degrees(yaw_deg, offset, scale);
   if (errors.count() == before) {
     if (const std::string why = check(d.frame); !why.empty()) r.error("", why);
   }

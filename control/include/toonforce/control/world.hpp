@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <numbers>
 #include <string>
 #include <utility>
 
@@ -51,13 +52,18 @@ struct DeviceFrame {
 
   /// A turn by `angle_rad` about the world's z axis (two devices facing each other: pi).
   static DeviceFrame yaw(double angle_rad, const Vec3<double>& offset_m = {}, double scale = 1.0) noexcept {
-    const double c = std::cos(angle_rad);
-    const double s = std::sin(angle_rad);
-    DeviceFrame f;
-    f.rotation = {{{c, -s, 0.0}, {s, c, 0.0}, {0.0, 0.0, 1.0}}};
-    f.offset_m = offset_m;
-    f.scale = scale;
-    return f;
+    return about_z(std::cos(angle_rad), std::sin(angle_rad), offset_m, scale);
+  }
+  /// The same in degrees, exact at whole quarter turns (cos 90 deg is 0 here, not 6e-17): two
+  /// devices facing each other are then mirror images to the last bit.
+  static DeviceFrame yaw_degrees(double angle_deg, const Vec3<double>& offset_m = {}, double scale = 1.0) noexcept {
+    const double quarter_turns = angle_deg / 90.0;
+    if (quarter_turns != std::floor(quarter_turns) || !std::isfinite(quarter_turns)) {
+      return yaw(angle_deg * std::numbers::pi / 180.0, offset_m, scale);
+    }
+    constexpr std::array<std::array<double, 2>, 4> kQuarters{{{1.0, 0.0}, {0.0, 1.0}, {-1.0, 0.0}, {0.0, -1.0}}};
+    const auto q = static_cast<std::size_t>(((static_cast<long long>(quarter_turns) % 4) + 4) % 4);
+    return about_z(kQuarters[q][0], kQuarters[q][1], offset_m, scale);
   }
 
   template <Scalar S>
@@ -79,6 +85,14 @@ struct DeviceFrame {
   template <Scalar S>
   Vec3<S> force_to_device(const Vec3<S>& f) const noexcept {
     return rotate_back(f) * scalar_cast<S>(scale);
+  }
+  /// The rotation about z with this cosine and sine, then the offset and scale.
+  static DeviceFrame about_z(double c, double s, const Vec3<double>& offset_m, double scale) noexcept {
+    DeviceFrame f;
+    f.rotation = {{{c, -s, 0.0}, {s, c, 0.0}, {0.0, 0.0, 1.0}}};
+    f.offset_m = offset_m;
+    f.scale = scale;
+    return f;
   }
   /// The identity: the device's frame is the world's.
   bool identity() const noexcept {
