@@ -55,9 +55,8 @@ class WorldSimDevice {
 
 struct Prepared {
   WorldDescription world;
-  std::vector<HandScriptFile> hands;  ///< in device order
-  std::vector<host_sim::DeviceParams> params;
-  std::vector<ServoConfig> configs;
+  std::vector<HandScriptFile> hands;            ///< in device order
+  std::vector<SimulatedWorldDevice> simulated;  ///< in device order
   double period_s = 1e-3;
   std::int64_t ticks = 0;
 };
@@ -125,7 +124,7 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   std::vector<WorldSimDevice> devices;
   devices.reserve(N);  // the world keeps pointers to them: no reallocation after this
   for (std::size_t i = 0; i < N; ++i) {
-    auto device = host_sim::SimDevice::create(p.params[i], p.hands[i].intent,
+    auto device = host_sim::SimDevice::create(p.simulated[i].params, p.hands[i].intent,
                                               {options.integrator, options.substeps, p.period_s}, options.seed + i);
     if (!device) return Error{fmt::format("device {}: {}", p.world.devices[i].name, device.error())};
     std::optional<double> fail_at;
@@ -135,7 +134,7 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   const RuntimeScene<double> scene = make_runtime_scene<double>(p.world.scene);
   std::array<typename SimWorld::Member, N> members = [&]<std::size_t... I>(std::index_sequence<I...>) {
     return std::array<typename SimWorld::Member, N>{
-        typename SimWorld::Member{&devices[I], scene, p.world.devices[I].frame, p.configs[I]}...};
+        typename SimWorld::Member{&devices[I], scene, p.world.devices[I].frame, p.simulated[I].config}...};
   }
   (std::make_index_sequence<N>{});
   WorldConfig config = world_config(p.world);
@@ -143,13 +142,14 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
     return Error{fmt::format("{}: {}", options.scene_path, bad)};
   auto world = std::make_unique<SimWorld>(members, config);
 
+  const std::vector<std::string> columns = columns_of(p.world);
   std::unique_ptr<WorldTrace> trace;
   if (!options.trace_path.empty()) {
-    auto opened = WorldTrace::open(options.trace_path, columns_of(p.world));
+    auto opened = WorldTrace::open(options.trace_path, columns);
     if (!opened) return Error{opened.error()};
     trace = std::move(opened.value());
   }
-  if (options.rows != nullptr) options.rows->begin(columns_of(p.world), p.ticks);
+  if (options.rows != nullptr) options.rows->begin(columns, p.ticks);
   WorldSimSummary summary;
   summary.scene_name = p.world.scene.name;
   for (std::size_t i = 0; i < N; ++i) {
@@ -319,10 +319,8 @@ Result<WorldSimSummary> run_world_sim(const WorldSimOptions& options) {
   double longest_s = 0.0;
   for (std::size_t i = 0; i < p.world.devices.size(); ++i) {
     const WorldDeviceEntry& d = p.world.devices[i];
-    SimulatedWorldDevice simulated = simulated_device(d, options.device, p.period_s);
-    p.params.push_back(simulated.params);
-    p.configs.push_back(simulated.config);
-    if (const std::string bad = check_servo_config(p.configs.back()); !bad.empty()) {
+    p.simulated.push_back(simulated_device(d, options.device, p.period_s));
+    if (const std::string bad = check_servo_config(p.simulated.back().config); !bad.empty()) {
       return Error{fmt::format("{}:{}: device '{}': the servo configuration does not work:\n{}", options.scene_path,
                                d.line, d.name, bad)};
     }
