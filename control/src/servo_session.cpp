@@ -32,28 +32,16 @@ void request_session_stop(int signal) noexcept {
 
 namespace {
 
-/// One frame to the consumer. A message it cannot write (standard error a closed pipe: fmt
-/// throws) must not end the process from this thread (std::terminate): the frame's message is
-/// lost, the run and the trace go on.
-void consume(FrameConsumer& consumer, const TelemetryFrame& f) noexcept {
-  try {
-    consumer.consume(f);
-  } catch (...) {  // NOLINT(bugprone-empty-catch): nothing left to say it on
-  }
-}
-
-/// Drains the ring into the consumer until the run is over and the ring is empty.
-void write_frames(TelemetryRing& ring, FrameConsumer& consumer, const std::atomic<bool>& finished) {
-  TelemetryFrame f;
+/// Drains the queue until the run is over and the queue is empty.
+void write_frames(FrameDrain& drain, const std::atomic<bool>& finished) {
   for (;;) {
-    if (ring.pop(f)) {
-      consume(consumer, f);
-    } else if (finished.load(std::memory_order_acquire)) {
-      if (!ring.pop(f)) return;  // the servo thread is done: what is left is all there is
-      consume(consumer, f);
-    } else {
-      sleep_ms(2);
+    if (drain.drain_one()) continue;
+    if (finished.load(std::memory_order_acquire)) {
+      while (drain.drain_one()) {  // the servo thread is done: what is left is all there is
+      }
+      return;
     }
+    sleep_ms(2);
   }
 }
 
@@ -79,8 +67,7 @@ void zero_device(void* device) noexcept { static_cast<DeviceDriver*>(device)->em
 
 }  // namespace
 
-Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const TelemetryFrame* (*last_frame)(void*),
-                                  void* last_frame_context, DeviceDriver& device, FrameConsumer& consumer,
+Result<SessionReport> run_session(PeriodicTask& task, FrameDrain& drain, DeviceDriver& device,
                                   const SessionOptions& options, RearmRequest rearm) {
   g_stop.store(0);
   if (options.handle_signals) install_signal_handlers(g_stop, EmergencyZero{zero_device, &device});
@@ -93,7 +80,7 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
   std::atomic<bool> finished{false};
   std::thread writer([&] {
     static_cast<void>(use_alternate_signal_stack());
-    write_frames(ring, consumer, finished);
+    write_frames(drain, finished);
   });
   std::thread commands;
   if (session.interactive) {
@@ -117,12 +104,11 @@ Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const
   finished.store(true, std::memory_order_release);
   writer.join();
   if (commands.joinable()) commands.join();
-  if (const TelemetryFrame* last = last_frame(last_frame_context)) consume(consumer, *last);
-  consumer.finish();
+  drain.finish();
   if (options.handle_signals) restore_signals();
   if (!report) return Error{report.error()};
   session.report = std::move(report.value());
-  session.frames_dropped = ring.dropped();
+  session.frames_dropped = drain.dropped();
   return session;
 }
 

@@ -20,6 +20,8 @@
 #include "toonforce/control/servo_config.hpp"
 #include "toonforce/control/supervisor.hpp"
 #include "toonforce/control/world.hpp"
+#include "toonforce/control/world_frame.hpp"
+#include "toonforce/sim/world_trace.hpp"
 #include "toonforce/host_sim/sim_device.hpp"
 #include "toonforce/host_sim/sim_driver.hpp"
 
@@ -61,63 +63,6 @@ struct Prepared {
   std::int64_t ticks = 0;
 };
 
-std::vector<std::string> columns_of(const WorldDescription& world) {
-  std::vector<std::string> c{"t"};
-  for (const WorldDeviceEntry& d : world.devices) {
-    for (const char* v : {"x", "y", "z", "fx", "fy", "fz", "coupling_fx", "coupling_fy", "coupling_fz", "ball_fx",
-                          "ball_fy", "ball_fz", "faults", "latched", "state"}) {
-      c.push_back(fmt::format("{}.{}", d.name, v));
-    }
-  }
-  for (std::size_t j = 0; j < world.couplings.size(); ++j) {
-    for (const char* v : {"fx", "fy", "fz"}) c.push_back(fmt::format("coupling{}.{}", j + 1, v));
-  }
-  if (world.ball) {
-    for (const char* v : {"x", "y", "z"}) c.push_back(fmt::format("ball.{}", v));
-  }
-  c.emplace_back("held");
-  return c;
-}
-
-/// The trace file: a CSV header, then one line of shortest round-trip numbers a tick.
-class WorldTrace {
- public:
-  static Result<std::unique_ptr<WorldTrace>> open(const std::string& path, const std::vector<std::string>& columns) {
-    std::FILE* file = path == "-" ? stdout : std::fopen(path.c_str(), "w");
-    if (file == nullptr) return Error{fmt::format("--trace {}: cannot write it: {}", path, std::strerror(errno))};
-    auto trace = std::unique_ptr<WorldTrace>(new WorldTrace(file, path != "-"));
-    std::string header;
-    for (std::size_t i = 0; i < columns.size(); ++i) header += (i == 0 ? "" : ",") + columns[i];
-    header += '\n';
-    trace->ok_ = std::fputs(header.c_str(), file) >= 0;
-    return trace;
-  }
-  ~WorldTrace() { static_cast<void>(close()); }
-  WorldTrace(const WorldTrace&) = delete;
-  WorldTrace& operator=(const WorldTrace&) = delete;
-  void write(const std::vector<double>& row) {
-    line_.clear();
-    for (std::size_t i = 0; i < row.size(); ++i)
-      fmt::format_to(std::back_inserter(line_), "{}{}", i == 0 ? "" : ",", row[i]);
-    line_ += '\n';
-    if (ok_) ok_ = std::fwrite(line_.data(), 1, line_.size(), file_) == line_.size();
-  }
-  bool close() {
-    if (file_ == nullptr) return ok_;
-    if (std::fflush(file_) != 0) ok_ = false;
-    if (owned_ && std::fclose(file_) != 0) ok_ = false;
-    file_ = nullptr;
-    return ok_;
-  }
-
- private:
-  WorldTrace(std::FILE* file, bool owned) : file_(file), owned_(owned) {}
-  std::FILE* file_;
-  bool owned_;
-  bool ok_ = true;
-  std::string line_;
-};
-
 template <std::size_t N>
 Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   using SimWorld = World<WorldSimDevice, RuntimeScene<double>, N>;
@@ -142,10 +87,10 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
     return Error{fmt::format("{}: {}", options.scene_path, bad)};
   auto world = std::make_unique<SimWorld>(members, config);
 
-  const std::vector<std::string> columns = columns_of(p.world);
+  const std::vector<std::string> columns = world_columns(p.world);
   std::unique_ptr<WorldTrace> trace;
   if (!options.trace_path.empty()) {
-    auto opened = WorldTrace::open(options.trace_path, columns);
+    auto opened = WorldTrace::open(options.trace_path, columns, "--trace");
     if (!opened) return Error{opened.error()};
     trace = std::move(opened.value());
   }
@@ -156,50 +101,27 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
     summary.devices.push_back({p.world.devices[i].name, p.hands[i].script.name, 0.0, 0, 0, 0, {}});
   }
   std::vector<double> row;
+  WorldFrame frame;
   const auto record = [&](std::int64_t k, const WorldStatus<N>& status) {
-    row.clear();
-    row.push_back(static_cast<double>(k) * p.period_s);
+    fill_world_frame(*world, status, k, p.period_s, frame);
+    world_row(frame, row);
     bool forced = false;
     for (std::size_t i = 0; i < N; ++i) {
-      const auto& loop = world->loop(i);
-      const Vec3<double> hip = world->hip_m(i);
-      const Vec3<double> f = loop.force();
-      const Vec3<double> c = world->coupling_sum_n(i);
-      const Vec3<double> b = world->ball_force_n(i);
-      for (const double v : {hip.x, hip.y, hip.z, f.x, f.y, f.z, c.x, c.y, c.z, b.x, b.y, b.z}) row.push_back(v);
-      row.push_back(static_cast<double>(status.devices[i].faults.bits()));
-      row.push_back(static_cast<double>(loop.latched().bits()));
-      row.push_back(static_cast<double>(static_cast<int>(status.devices[i].state)));
+      const WorldDeviceFrame& f = frame.device[i];
       WorldSimDeviceSummary& d = summary.devices[i];
-      d.peak_force_n = std::max(d.peak_force_n, std::sqrt(dot(f, f)));
-      if (status.devices[i].faults) ++d.fault_ticks;
-      d.latched = loop.latched().bits();
-      d.state = static_cast<std::uint8_t>(status.devices[i].state);
-      d.final_hip_m = hip;
-      forced = forced || f != Vec3<double>{};
+      d.peak_force_n = std::max(d.peak_force_n, std::sqrt(dot(f.force_n, f.force_n)));
+      if (f.faults != 0) ++d.fault_ticks;
+      d.latched = f.latched;
+      d.state = f.state;
+      d.final_hip_m = f.hip_m;
+      forced = forced || f.force_n != Vec3<double>{};
     }
-    for (std::size_t j = 0; j < p.world.couplings.size(); ++j) {
-      const Vec3<double> c = world->coupling_force_n(j);
-      row.push_back(c.x);
-      row.push_back(c.y);
-      row.push_back(c.z);
-    }
-    // Newton, read back from what each device was given: the couplings' sums over all devices.
-    Vec3<double> total{};
-    for (std::size_t i = 0; i < N; ++i) total += world->coupling_sum_n(i);
-    summary.coupling_imbalance_n = std::max(summary.coupling_imbalance_n, std::sqrt(dot(total, total)));
-    if (p.world.ball) {
-      const Vec3<double> ball = world->ball().position_m;
-      row.push_back(ball.x);
-      row.push_back(ball.y);
-      row.push_back(ball.z);
-      summary.final_ball_m = ball;
-    }
-    row.push_back(status.held ? 1.0 : 0.0);
-    if (status.held && !summary.held_at_s) {
-      summary.held_at_s = static_cast<double>(k) * p.period_s;
-      summary.held_by = status.held_by < N ? p.world.devices[status.held_by].name : "";
-    } else if (status.held && forced) {
+    summary.coupling_imbalance_n = std::max(summary.coupling_imbalance_n, coupling_imbalance_n(frame));
+    if (frame.has_ball) summary.final_ball_m = frame.ball_m;
+    if (frame.held && !summary.held_at_s) {
+      summary.held_at_s = frame.t_s;
+      summary.held_by = frame.held_by < N ? p.world.devices[frame.held_by].name : "";
+    } else if (frame.held && forced) {
       ++summary.forced_while_held;  // from the tick after the hold began
     }
     if (trace) trace->write(row);
@@ -211,11 +133,7 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
   if (k < p.ticks && stopped()) {
     summary.stop_signal = options.stop->load();
     world->shutdown(k);
-    WorldStatus<N> status;
-    for (std::size_t i = 0; i < N; ++i) status.devices[i] = world->loop(i).last_status();
-    status.held = world->held();
-    status.held_by = world->held_by();
-    record(k, status);
+    record(k, shutdown_status(*world));
   }
   summary.ticks = k;
   summary.duration_s = static_cast<double>(k) * p.period_s;
@@ -227,15 +145,6 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
 }
 
 }  // namespace
-
-std::string world_column_unit(const std::string& column) {
-  if (column == "t") return "s";
-  const std::size_t dot = column.rfind('.');
-  const std::string v = dot == std::string::npos ? column : column.substr(dot + 1);
-  if (v == "x" || v == "y" || v == "z") return "m";
-  if (v.size() >= 2 && v[v.size() - 2] == 'f' && (v.back() == 'x' || v.back() == 'y' || v.back() == 'z')) return "N";
-  return "";
-}
 
 SimulatedWorldDevice simulated_device(const WorldDeviceEntry& device, host_sim::DevicePreset for_sim, double period_s) {
   const host_sim::DevicePreset preset = device.backend == "omni"     ? host_sim::DevicePreset::kOmni

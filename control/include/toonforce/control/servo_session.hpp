@@ -103,10 +103,63 @@ struct RearmRequest {
   void* loop = nullptr;
 };
 
-/// The non-template part: signals, the writer and command threads, the runner.
-Result<SessionReport> run_session(PeriodicTask& task, TelemetryRing& ring, const TelemetryFrame* (*last_frame)(void*),
-                                  void* last_frame_context, DeviceDriver& device, FrameConsumer& consumer,
+/// The writer thread's side of a session: what the servo thread queued, taken in tick order
+/// and handed on (a trace, the viewer, messages). Called from the writer thread only.
+class FrameDrain {
+ public:
+  FrameDrain() = default;
+  FrameDrain(const FrameDrain&) = delete;
+  FrameDrain& operator=(const FrameDrain&) = delete;
+  /// Takes one queued frame and hands it on; false when the queue was empty.
+  virtual bool drain_one() = 0;
+  /// After the servo thread is done: its shut-down frame, if it made one; then no frame follows.
+  virtual void finish() = 0;
+  /// Frames the queue had no room for.
+  virtual std::uint64_t dropped() const noexcept = 0;
+
+ protected:
+  ~FrameDrain() = default;
+};
+
+/// The non-template part: signals, the writer and command threads, the runner. `device` gives
+/// the clock (run_on_device) and the emergency zero of the watchdog and the signal handlers
+/// (several devices: one DeviceDriver that zeroes every one).
+Result<SessionReport> run_session(PeriodicTask& task, FrameDrain& drain, DeviceDriver& device,
                                   const SessionOptions& options, RearmRequest rearm);
+
+/// A ring of frames of type Frame into a consumer with `consume(const Frame&)` and `finish()`;
+/// `last` gives the shut-down frame (or nullptr).
+template <class Frame, std::size_t Capacity, class Consumer, class Last>
+class RingDrain final : public FrameDrain {
+ public:
+  RingDrain(SpscRing<Frame, Capacity>& ring, Consumer& consumer, Last last)
+      : ring_(ring), consumer_(consumer), last_(last) {}
+  bool drain_one() override {
+    if (!ring_.pop(frame_)) return false;
+    consume(frame_);
+    return true;
+  }
+  void finish() override {
+    if (const Frame* f = last_()) consume(*f);
+    consumer_.finish();
+  }
+  std::uint64_t dropped() const noexcept override { return ring_.dropped(); }
+
+ private:
+  /// A message the consumer cannot write (standard error a closed pipe: fmt throws) must not end
+  /// the process from the writer thread (std::terminate): the frame's message is lost, the run
+  /// and the trace go on.
+  void consume(const Frame& f) noexcept {
+    try {
+      consumer_.consume(f);
+    } catch (...) {  // NOLINT(bugprone-empty-catch): nothing left to say it on
+    }
+  }
+  SpscRing<Frame, Capacity>& ring_;
+  Consumer& consumer_;
+  Last last_;
+  Frame frame_{};
+};
 
 /// Runs `loop` (a ServoLoop on `device`, built and configured by the caller) until
 /// options.realtime.deadlines periods have passed or a signal or 'q' stops it.
@@ -116,16 +169,12 @@ Result<SessionReport> run_loop(Loop& loop, DeviceDriver& device, FrameConsumer& 
   auto ring = std::make_unique<TelemetryRing>();  // allocated before the servo thread starts
   auto task = std::make_unique<LoopTask<Loop>>(loop, *ring);
   auto frame = std::make_unique<TelemetryFrame>();
-  struct Last {
-    LoopTask<Loop>* task;
-    TelemetryFrame* frame;
-  } last{task.get(), frame.get()};
-  const auto last_frame = [](void* context) -> const TelemetryFrame* {
-    auto* l = static_cast<Last*>(context);
-    return l->task->last_frame(*l->frame) ? l->frame : nullptr;
+  const auto last = [t = task.get(), f = frame.get()]() -> const TelemetryFrame* {
+    return t->last_frame(*f) ? f : nullptr;
   };
+  RingDrain<TelemetryFrame, TelemetryRing::kCapacity, FrameConsumer, decltype(last)> drain(*ring, consumer, last);
   const RearmRequest rearm{[](void* l) noexcept { static_cast<Loop*>(l)->request_rearm(); }, &loop};
-  return run_session(*task, *ring, last_frame, &last, device, consumer, options, rearm);
+  return run_session(*task, drain, device, options, rearm);
 }
 
 }  // namespace toonforce

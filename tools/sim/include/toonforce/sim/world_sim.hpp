@@ -19,6 +19,7 @@
 #include "toonforce/control/servo_config.hpp"
 #include "toonforce/host_sim/device_model.hpp"
 #include "toonforce/host_sim/integrator.hpp"
+#include "toonforce/sim/world_trace.hpp"
 
 namespace toonforce {
 
@@ -31,9 +32,6 @@ class WorldRowSink {
   virtual void begin(const std::vector<std::string>& columns, std::int64_t ticks) = 0;
   virtual void row(const std::vector<double>& values) = 0;
 };
-
-/// The SI unit of a world trace's column ("" for flags, bit sets and states).
-std::string world_column_unit(const std::string& column);
 
 struct WorldSimOptions {
   std::string scene_path;
