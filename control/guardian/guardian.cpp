@@ -317,10 +317,16 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
     warn(fmt::format("guardian: pidfd_open failed ({}): the loop's process's end is seen by polling\n",
                      std::strerror(errno)));
   }
-  int usb_fd = -1;
+  // One verified node per device that can be reached from outside (a world has several).
+  struct UsbTarget {
+    int fd = -1;
+    std::string node;
+    std::string refused;
+  };
+  std::array<UsbTarget, kMaxGuardedDevices> usb{};
+  std::array<ExternalZero, kMaxGuardedDevices> zeros{};
+  std::size_t zero_count = 0;
   bool usb_tried = false;
-  std::string usb_node;
-  std::string usb_refused;
   bool enabled = false;
   bool enable_failed = false;
   std::int64_t enable_dropped_ns = 0;  ///< when a stall dropped the line
@@ -366,15 +372,22 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
     }
     // The device's node, opened while the loop's process still holds the device: at its end,
     // only the claim and the transfer remain to be done.
-    if (!usb_tried && out.device_seen_open && page.zero.kind == ExternalZero::Kind::kUsbBulk) {
+    if (!usb_tried && out.device_seen_open) {
       usb_tried = true;
-      const ExternalZero zero = page.zero;
-      usb_node.assign(zero.usbfs_node, ::strnlen(zero.usbfs_node, sizeof zero.usbfs_node));
-      usb_fd = open_verified_usbfs(zero, usb_refused);
-      if (usb_fd < 0) {
-        warn(fmt::format("guardian: WARNING: {}: if the loop's process dies, the guardian cannot zero the force\n",
-                         usb_refused));
+      const std::size_t count = std::min<std::size_t>(page.zero_count, kMaxGuardedDevices);
+      for (std::size_t i = 0; i < count; ++i) {
+        const ExternalZero zero = page.zeros[i];  // a copy: what is checked is what is used
+        zeros[i] = zero;
+        if (zero.kind != ExternalZero::Kind::kUsbBulk) continue;
+        usb[i].node.assign(zero.usbfs_node, ::strnlen(zero.usbfs_node, sizeof zero.usbfs_node));
+        usb[i].fd = open_verified_usbfs(zero, usb[i].refused);
+        if (usb[i].fd < 0) {
+          warn(fmt::format("guardian: WARNING: {}: if the loop's process dies, the guardian cannot zero that "
+                           "device's force\n",
+                           usb[i].refused));
+        }
       }
+      zero_count = count;
     }
     if (options.enable != nullptr && ticking != enabled && !out.stalled) {
       if (options.enable->set(ticking)) {
@@ -445,19 +458,31 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
     }
   }
   if (out.loop_died) {
-    std::string detail;
-    if (page.zero.kind == ExternalZero::Kind::kUsbBulk && usb_fd >= 0) {
-      const bool sent = usb_zero(page.zero, usb_fd, usb_node, detail);
-      if (sent && !out.zero_sent) out.zero_ns = now_ns();
-      out.zero_sent = out.zero_sent || sent;
-    } else if (usb_tried) {
-      detail = fmt::format("the device could not be reached: {}", usb_refused);
-    } else if (!out.zero_sent) {
-      detail = "nothing outside the loop's process can reach this device: its force ended with the process "
-               "(the simulated device lives in it; an Omni's driver stops with the process that opened it)";
-      out.zero_ns = now_ns();
+    // Every device the guardian can reach, one transfer each; the others' force ended with the
+    // process that drove them.
+    bool unreachable = zero_count == 0;
+    for (std::size_t i = 0; i < zero_count; ++i) {
+      std::string detail;
+      if (zeros[i].kind == ExternalZero::Kind::kUsbBulk && usb[i].fd >= 0) {
+        const bool sent = usb_zero(zeros[i], usb[i].fd, usb[i].node, detail);
+        if (sent && !out.zero_sent) out.zero_ns = now_ns();
+        out.zero_sent = out.zero_sent || sent;
+      } else if (zeros[i].kind == ExternalZero::Kind::kUsbBulk) {
+        detail = fmt::format("the device could not be reached: {}", usb[i].refused);
+      } else {
+        unreachable = true;
+        continue;
+      }
+      if (zero_count > 1) detail = fmt::format("device {}: {}", i + 1, detail);
+      out.zero_detail += (out.zero_detail.empty() ? "" : "; ") + detail;
     }
-    if (!detail.empty()) out.zero_detail += (out.zero_detail.empty() ? "" : "; ") + detail;
+    if (unreachable && !out.zero_sent) {
+      const std::string detail =
+          "nothing outside the loop's process can reach this device: its force ended with the process "
+          "(the simulated device lives in it; an Omni's driver stops with the process that opened it)";
+      out.zero_ns = now_ns();
+      out.zero_detail += (out.zero_detail.empty() ? "" : "; ") + detail;
+    }
   }
   if (out.cause.empty()) out.cause = describe_wait_status(status);
   out.have_frame = read_frame(page, out.last_frame);
@@ -468,7 +493,9 @@ GuardOutcome guard(pid_t loop, SharedPage& page, const GuardOptions& options) {
   } else if (out.have_frame) {
     out.t_end_s = out.last_frame.t_s;
   }
-  if (usb_fd >= 0) ::close(usb_fd);
+  for (const UsbTarget& t : usb) {
+    if (t.fd >= 0) ::close(t.fd);
+  }
   if (pidfd >= 0) ::close(pidfd);
   // The loop's process has ended: a stop signal from now on (the rest of a burst of copies, as a
   // dying parent sends one per thread) finds nothing to stop, and by its default action it would

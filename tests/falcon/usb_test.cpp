@@ -601,6 +601,62 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
       << r.output;
 }
 
+std::string fmt_ticks(std::size_t ticks) { return "run      " + std::to_string(ticks) + " ticks at 1000 Hz"; }
+
+TEST_F(FalconUsb, RunOfAWorldOfTwoFalconsThroughTheCommandLine) {
+  // `toonforce run --device scene` of a world naming two Falcons by serial: both found and
+  // opened, homed by their hands, coupled (the second grip rests 1 cm along +x, so the spring
+  // pulls), every trace row with equal and opposite coupling forces, zero force on both at the end.
+  bed_->add_falcon(homing_hand(with_firmware(), 10), "FTEMU0001", 5);
+  EmulatorOptions moved = homing_hand(with_firmware(), 10);
+  moved.hand_script.push_back({60, kCentre + Vec3<double>{0.01, 0.0, 0.0}});
+  bed_->add_falcon(moved, "FTEMU0002", 6);
+  std::filesystem::create_directories(config_home_);
+  const auto world = config_home_ / "two_falcons.toml";
+  const auto trace = config_home_ / "two_falcons.csv";
+  {
+    std::ofstream out(world);
+    out << "name = \"two falcons\"\n"
+           "[[device]]\nname = \"a\"\nbackend = \"falcon\"\nselect = \"FTEMU0001\"\nsoft_start = 0.0\n"
+           "[[device]]\nname = \"b\"\nbackend = \"falcon\"\nselect = \"FTEMU0002\"\nsoft_start = 0.0\n"
+           "[[coupling]]\nbetween = [\"a\", \"b\"]\nstiffness = 200.0\ndamping = 0.0\n";
+  }
+  const toonforce::test::CommandRun r =
+      toonforce::test::run_toonforce("run --device scene --scene " + world.string() +
+                                     " --duration 1 --allow-empty --allow-non-rt --no-mlock --trace " + trace.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* line : {"device   a: falcon (Novint Falcon", "FTEMU0001", "device   b: falcon (Novint Falcon",
+                           "FTEMU0002", "largest |sum of the forces on their two ends| 0 N"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  std::ifstream in(trace);
+  std::string header;
+  ASSERT_TRUE(std::getline(in, header));
+  EXPECT_EQ(header.rfind("t,a.x,a.y,a.z,a.fx,", 0), 0U) << header;
+  std::size_t rows = 0;
+  double pulled_n = 0.0;
+  std::vector<double> last;
+  for (std::string line; std::getline(in, line); ++rows) {
+    std::vector<double> v;
+    std::stringstream fields(line);
+    for (std::string f; std::getline(fields, f, ',');) v.push_back(std::strtod(f.c_str(), nullptr));
+    ASSERT_EQ(v.size(), 35U) << line;
+    for (std::size_t axis = 0; axis < 3; ++axis) ASSERT_EQ(v[7 + axis], -v[22 + axis]) << line;  // a's, b's
+    pulled_n = std::max(pulled_n, std::abs(v[7]));
+    last = v;
+  }
+  // Each tick is two exchanges with emulated Falcons (slow, and slower on a loaded host): the
+  // deadlines missed are counted, the ticks run are the rows.
+  EXPECT_NE(r.output.find(fmt_ticks(rows - 1)), std::string::npos) << rows << " rows\n" << r.output;
+  EXPECT_GT(pulled_n, 1.0) << "the 1 cm apart grips felt the 200 N/m spring";
+  for (const std::size_t i : {4U, 5U, 6U, 19U, 20U, 21U}) EXPECT_EQ(last[i], 0.0) << "column " << i;
+  for (std::size_t i = 0; i < 2; ++i) {
+    bed_->with(i, [i](FalconEmulator& e) {
+      EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "Falcon " << i;
+    });
+  }
+}
+
 // ---- the guardian: the Falcon zeroed from outside the process that drove it ----
 
 TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) {
@@ -631,6 +687,40 @@ TEST_F(FalconUsb, TheGuardianSendsTheZeroForceFrameWhenTheLoopsProcessIsKilled) 
     EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "the last frame the Falcon got";
     EXPECT_EQ(norm(e.motor_force_n()), 0.0);
   });
+}
+
+TEST_F(FalconUsb, TheGuardianZeroesEveryFalconOfAWorldWhenTheLoopsProcessIsKilled) {
+  // A world of two Falcons, both pushing: the page holds each one's zero; after the kill the
+  // guardian sends each its own zero-force frame through its own verified node.
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  std::vector<std::unique_ptr<FalconDriver>> falcons;
+  std::vector<ExternalZero> zeros;
+  for (std::size_t i = 0; i < 2; ++i) {
+    FalconOptions by_serial;
+    by_serial.serial = i == 0 ? "FTEMU0001" : "FTEMU0002";
+    falcons.push_back(open(by_serial));
+    ASSERT_NE(falcons.back(), nullptr);
+    home(*falcons.back(), i);
+    DeviceReading r;
+    for (int t = 0; t < 5; ++t) tick(*falcons.back(), r, {0.0, 0.0, 4.0});
+    bed_->with(i, [](FalconEmulator& e) { ASSERT_GT(norm(e.motor_force_n()), 1.0) << "it pushes before the kill"; });
+    zeros.push_back(falcons.back()->external_zero());
+  }
+  ASSERT_STRNE(zeros[0].usbfs_node, zeros[1].usbfs_node);
+  const toonforce::test::GuardedStandIn run = toonforce::test::guard_a_stand_in(zeros, nullptr);
+  EXPECT_TRUE(run.outcome.loop_died);
+  EXPECT_TRUE(run.outcome.zero_sent) << run.outcome.zero_detail;
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_NE(run.outcome.zero_detail.find("device " + std::to_string(i + 1) +
+                                           ": the zero-force frame was sent to the device at " + bed_->devnode(i)),
+              std::string::npos)
+        << run.outcome.zero_detail;
+    bed_->with(i, [i](FalconEmulator& e) {
+      EXPECT_EQ(e.last_command().motor, (std::array<std::int16_t, 3>{0, 0, 0})) << "Falcon " << i;
+      EXPECT_EQ(norm(e.motor_force_n()), 0.0) << "Falcon " << i;
+    });
+  }
 }
 
 TEST_F(FalconUsb, TheGuardianOpensOnlyAFalconsNodeItVerifiedItself) {

@@ -15,6 +15,7 @@
 #include <chrono>
 #include <thread>
 #include <type_traits>
+#include <vector>
 
 #include "toonforce/control/guardian.hpp"
 
@@ -34,13 +35,15 @@ inline std::int64_t monotonic_ns() {
 
 /// `sample_enable`: called while the stand-in ticks (before the kill), returns whether the
 /// enable line is active; may be null.
+/// `zeros`: each device's (a world's devices), at most guardian::kMaxGuardedDevices.
 template <class Sample = bool (*)()>
-GuardedStandIn guard_a_stand_in(const ExternalZero& zero, guardian::EnableLine* enable,
+GuardedStandIn guard_a_stand_in(const std::vector<ExternalZero>& zeros, guardian::EnableLine* enable,
                                 Sample sample_enable = nullptr) {
   GuardedStandIn result;
   guardian::SharedPage* page = guardian::map_shared_page();
   if (page == nullptr) return result;
-  page->zero = zero;
+  for (std::size_t i = 0; i < zeros.size() && i < guardian::kMaxGuardedDevices; ++i) page->zeros[i] = zeros[i];
+  page->zero_count = static_cast<std::uint32_t>(zeros.size());
   page->period_ns = 1'000'000;
   page->guardian_pid = getpid();
   page->phase.store(static_cast<std::uint32_t>(guardian::Phase::kDeviceOpen));
@@ -67,6 +70,12 @@ GuardedStandIn guard_a_stand_in(const ExternalZero& zero, guardian::EnableLine* 
   killer.join();
   munmap(page, sizeof *page);
   return result;
+}
+
+template <class Sample = bool (*)()>
+GuardedStandIn guard_a_stand_in(const ExternalZero& zero, guardian::EnableLine* enable,
+                                Sample sample_enable = nullptr) {
+  return guard_a_stand_in(std::vector<ExternalZero>{zero}, enable, sample_enable);
 }
 
 }  // namespace toonforce::test

@@ -30,7 +30,9 @@
 
 #include <sys/types.h>
 
+#include <array>
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
@@ -62,6 +64,9 @@ struct Verdict {
   char zero_detail[480] = {};
 };
 
+/// The most devices whose force the guardian zeroes (a world's devices: control/world.hpp).
+inline constexpr std::size_t kMaxGuardedDevices = 4;
+
 /// The page the loop's process and its guardian share (a memfd, mapped before the fork).
 struct SharedPage {
   std::atomic<std::int64_t> heartbeat{0};    ///< the runner's: the next tick's index; 0 before the first
@@ -71,8 +76,11 @@ struct SharedPage {
   /// cannot (the loop's process ends without opening it).
   std::atomic<std::uint32_t> guardian_ready{0};
   pid_t guardian_pid = 0;
-  std::int64_t period_ns = 0;               ///< the loop's period, set before kDeviceOpen
-  ExternalZero zero;                        ///< set before kDeviceOpen
+  std::int64_t period_ns = 0;  ///< the loop's period, set before kDeviceOpen
+  /// Each device's, set before kDeviceOpen: the first `zero_count` (one device: one; a world:
+  /// one per device). The guardian reads no more than kMaxGuardedDevices whatever the count says.
+  std::array<ExternalZero, kMaxGuardedDevices> zeros{};
+  std::uint32_t zero_count = 0;
   std::atomic<std::uint32_t> frame_seq{0};  ///< odd while `frame` is being written
   TelemetryFrame frame{};                   ///< the last frame the writer thread took
   std::atomic<std::uint64_t> frames{0};     ///< frames the writer took
