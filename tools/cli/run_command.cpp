@@ -9,6 +9,8 @@
 
 #include <array>
 #include <cerrno>
+#include <cmath>
+#include <cstdlib>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -16,6 +18,8 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string_view>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -28,6 +32,9 @@
 #include "toonforce/control/process_split.hpp"
 #include "toonforce/run/guardian_report.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/run/world_run.hpp"
+#include "toonforce/config/world_file.hpp"
+#include "toonforce/sim/world_sim.hpp"
 #if TOONFORCE_VIEWER
 #include <pwd.h>
 
@@ -126,6 +133,90 @@ std::optional<std::string> read_scene_text(const std::string& path) {
 }
 #endif
 
+/// `run` of a world scene (run/world_run.hpp): the options one device's run takes that a world
+/// does not are refused, not ignored; the rest as for one device. The command's exit status.
+int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vector<std::string>& scripts,
+                      const std::string& fail, bool quiet) {
+  for (const char* name : {"--view", "--control", "--serial", "--falcon-index", "--falcon-calibration", "--omni-device",
+                           "--omni-library", "--omni-max-force", "--omni-disable-on-close", "--tick-pin", "--estop-pin",
+                           "--enable-pin", "--amp-enable-pin", "--led-pin"}) {
+    const CLI::Option* option = cmd.get_option_no_throw(name);
+    if (option != nullptr && option->count() > 0) {
+      fmt::print(stderr, "{}: a world scene ({}) does not take it yet{}\n", name, options.scene_path,
+                 std::string_view(name).starts_with("--serial") || std::string_view(name).starts_with("--falcon")
+                     ? " (each [[device]] table names its device with `select`)"
+                     : "");
+      return 2;
+    }
+  }
+  for (const std::string& text : scripts) {
+    auto named = parse_named_script(text);
+    if (!named) {
+      fmt::print(stderr, "{}\n", named.error());
+      return 2;
+    }
+    options.world_scripts.push_back(std::move(named.value()));
+  }
+  if (!fail.empty()) {
+    const std::size_t at = fail.rfind('@');
+    char* end = nullptr;
+    const double seconds = at == std::string::npos ? -1.0 : std::strtod(fail.c_str() + at + 1, &end);
+    if (at == std::string::npos || at == 0 || end == fail.c_str() + at + 1 || *end != '\0' ||
+        !(seconds >= 0.0 && std::isfinite(seconds))) {
+      fmt::print(stderr, "--fail {}: give NAME@SECONDS (a device of the scene, a time >= 0)\n", fail);
+      return 2;
+    }
+    options.world_fail = std::pair{fail.substr(0, at), seconds};
+  }
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> stats_file(nullptr, &std::fclose);
+  if (!options.stats_json_path.empty()) {
+    std::vector<std::string> inputs{options.scene_path};
+    for (const auto& [name, path] : options.world_scripts) inputs.push_back(path);
+    for (const std::string& input : inputs) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(options.stats_json_path, input, ec) && !ec) {
+        fmt::print(stderr,
+                   "--stats-json {} is an input of the run ({}): it would be overwritten; choose another file\n",
+                   options.stats_json_path, input);
+        return 2;
+      }
+    }
+    stats_file.reset(std::fopen(options.stats_json_path.c_str(), "wb"));
+    if (!stats_file) {
+      fmt::print(stderr, "--stats-json {}: cannot be created: {}\n", options.stats_json_path, std::strerror(errno));
+      return 2;
+    }
+  }
+  const auto summary = run_world_servo(options);
+  if (!summary) {
+    std::fputs(summary.error().c_str(), stderr);
+    if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
+    if (stats_file) {
+      stats_file.reset();
+      std::filesystem::remove(options.stats_json_path);  // created above, for nothing
+    }
+    return 2;
+  }
+  if (!quiet) {
+    std::fputs(format_world_run_summary(summary.value(), options).c_str(), options.trace_path == "-" ? stderr : stdout);
+  }
+  int status = 0;
+  if (stats_file) {
+    const std::string json = world_stats_json(summary.value(), options);
+    std::FILE* f = stats_file.release();
+    if (std::fwrite(json.data(), 1, json.size(), f) != json.size() || std::fclose(f) != 0) {
+      fmt::print(stderr, "{}: cannot write the statistics: {}\n", options.stats_json_path, std::strerror(errno));
+      status = 1;
+    }
+  }
+  if (!summary->trace_error.empty()) {
+    fmt::print(stderr, "{}: the trace is incomplete: {}\n", options.trace_path, summary->trace_error);
+    status = 1;
+  }
+  std::fflush(stdout);
+  return status;
+}
+
 }  // namespace
 
 /// `toonforce run-epilogue`: what the guardian program execs after the loop's process died and
@@ -186,17 +277,23 @@ void add_run(CLI::App& app) {
       app.add_subcommand("run", "The servo loop on a device in real time, with a timing summary at the end");
   cmd->add_option("--device", options->device,
                   "sim (the host simulation's device and hand), falcon (Novint Falcon over USB) or omni "
-                  "(Phantom Omni / Touch through OpenHaptics)")
+                  "(Phantom Omni / Touch through OpenHaptics); a world scene ([[device]] tables): sim (every device "
+                  "simulated) or scene (each device as its table says)")
       ->required()
-      ->check(CLI::IsMember({"sim", "falcon", "omni"}));
+      ->check(CLI::IsMember({"sim", "falcon", "omni", "scene"}));
   cmd->add_option("--scene", options->scene_path, "Scene file (TOML)")->required();
   cmd->add_flag("--allow-empty", options->allow_empty, "A scene without surfaces or cliffs is not an error");
   cmd->add_flag("--strict", options->strict,
                 "Do not start on a plausibility warning (the scene outside the device's limits: `toonforce check`)");
   CLI::Option_group* sim = cmd->add_option_group("Simulated device (--device sim)");
-  sim->add_option("--script", options->hand_script_path,
+  auto scripts = std::make_shared<std::vector<std::string>>();
+  sim->add_option("--script", *scripts,
                   "Hand script the simulated hand follows (docs/HAND_SCRIPTS.md); default: it holds still 1 cm "
-                  "above the workspace centre");
+                  "above the workspace centre. A world scene takes one per device, as NAME=FILE");
+  auto fail = std::make_shared<std::string>();
+  sim->add_option("--fail", *fail,
+                  "World scenes: pull simulated device NAME's cable at SECONDS (NAME@SECONDS): its reads and writes "
+                  "fail from then on");
   sim->add_option("--sim-device", options->sim_device, "Device model of the simulation")
       ->check(CLI::IsMember({"falcon", "omni"}))
       ->capture_default_str();
@@ -326,6 +423,26 @@ void add_run(CLI::App& app) {
     unblock_stop_signals();
     options->early_stop = &command_stop();
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
+    if (is_world_file(options->scene_path)) {
+      set_exit_code(run_world_command(*options, *cmd, *scripts, *fail, *quiet));
+      return;
+    }
+    if (!fail->empty()) {
+      fmt::print(stderr, "--fail: only a world scene ([[device]] tables) takes it\n");
+      set_exit_code(2);
+      return;
+    }
+    if (scripts->size() > 1) {
+      fmt::print(stderr, "--script: {} is a one-device scene: it takes one hand script\n", options->scene_path);
+      set_exit_code(2);
+      return;
+    }
+    if (!scripts->empty()) options->hand_script_path = scripts->front();
+    if (options->device == "scene") {
+      fmt::print(stderr, "--device scene: {} is a one-device scene: give sim, falcon or omni\n", options->scene_path);
+      set_exit_code(2);
+      return;
+    }
 #if TOONFORCE_VIEWER
     // The viewer and the control protocol's server run in a process of their own
     // (server_process.hpp), forked here, before this process has any thread: the writer thread

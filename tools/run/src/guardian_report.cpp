@@ -3,6 +3,10 @@
 // (guardian_report.hpp).
 #include "toonforce/run/guardian_report.hpp"
 
+#include <string.h>
+#include <sys/types.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -30,9 +34,68 @@ std::size_t header_effect_values(const std::string& path) {
   return columns > fixed ? std::min(columns - fixed, kMaxEffectValues) : 0;
 }
 
+/// The header's columns ("" when it cannot be read).
+std::vector<std::string> header_columns(const std::string& path) {
+  std::ifstream in(path);
+  std::string header;
+  std::vector<std::string> columns;
+  if (!std::getline(in, header) || header.empty()) return columns;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = header.find(',', start);
+    columns.push_back(header.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) return columns;
+    start = comma + 1;
+  }
+}
+
+/// A world's trace (its header begins with "t," and ends with ",held": sim/world_trace.hpp):
+/// the row of the zero command. Each device's commanded force is zero; what the process did not
+/// live to compute (positions, the forces between HIPs, states) is NaN, "not known".
+std::string end_world_trace(const std::string& path, const std::vector<std::string>& columns, const Verdict& v) {
+  std::string row = fmt::format("{}", v.t_end_s);
+  for (std::size_t i = 1; i < columns.size(); ++i) {
+    const std::string& c = columns[i];
+    const std::size_t dot = c.rfind('.');
+    const std::string what = dot == std::string::npos ? c : c.substr(dot + 1);
+    const std::string prefix = dot == std::string::npos ? c : c.substr(0, dot);
+    // A device's commanded force: NAME.fx three columns after NAME.x (a coupling's couplingJ.fx is not).
+    const bool device_force = (what == "fx" || what == "fy" || what == "fz") && i >= 3 &&
+                              columns[i - 3] == prefix + "." + std::string(1, what[1]);
+    row += device_force ? ",0" : ",nan";
+  }
+  row += '\n';
+  std::FILE* f = std::fopen(path.c_str(), "r+b");
+  if (f == nullptr) return fmt::format("{}: cannot open the trace to end it: {}", path, std::strerror(errno));
+  // Back to the end of the last whole row: a writer killed in the middle of one leaves a part.
+  std::setvbuf(f, nullptr, _IONBF, 0);
+  off_t size = 0;
+  if (std::fseek(f, 0, SEEK_END) == 0) size = ftello(f);
+  std::vector<char> tail(static_cast<std::size_t>(std::min<off_t>(size, 1 << 16)));
+  off_t end = size;
+  if (!tail.empty() && fseeko(f, size - static_cast<off_t>(tail.size()), SEEK_SET) == 0 &&
+      std::fread(tail.data(), 1, tail.size(), f) == tail.size()) {
+    const void* nl = memrchr(tail.data(), '\n', tail.size());
+    if (nl != nullptr) end = size - static_cast<off_t>(tail.size()) + (static_cast<const char*>(nl) - tail.data()) + 1;
+  }
+  const bool cut = end == size || ftruncate(fileno(f), end) == 0;
+  const bool written = cut && fseeko(f, end, SEEK_SET) == 0 && std::fwrite(row.data(), 1, row.size(), f) == row.size();
+  const int error = errno;
+  const bool closed = std::fclose(f) == 0;
+  if (!written || !closed) {
+    return fmt::format("{}: the zero-force row could not be written: {}", path,
+                       std::strerror(error != 0 ? error : (errno != 0 ? errno : EIO)));
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string end_trace(const std::string& path, const Verdict& v, const TelemetryFrame* last) {
+  if (const std::vector<std::string> columns = header_columns(path);
+      columns.size() > 2 && columns.front() == "t" && columns.back() == "held") {
+    return end_world_trace(path, columns, v);
+  }
   const std::size_t effect_values = header_effect_values(path);
   auto writer = TraceWriter::append_to(path, std::vector<std::string>(telemetry_extra_count(effect_values, true)));
   if (!writer) return writer.error();

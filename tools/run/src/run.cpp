@@ -199,14 +199,6 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
   return summary;
 }
 
-std::string json_latency(const LatencySummary& s) {
-  const auto us = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-3; };
-  return fmt::format(
-      "{{\"count\": {}, \"min\": {:.3f}, \"median\": {:.3f}, \"p99\": {:.3f}, \"p99_9\": {:.3f}, \"max\": {:.3f}, \"below_zero\": {}, "
-      "\"overflow\": {}}}",
-      s.count, us(s.min_ns), us(s.median_ns), us(s.p99_ns), us(s.p999_ns), us(s.max_ns), s.below_zero, s.overflow);
-}
-
 std::string stop_reason(int signal) {
   if (signal == 0) return "";
   if (signal == kStopByUser) return "stopped by the user";
@@ -214,6 +206,14 @@ std::string stop_reason(int signal) {
 }
 
 }  // namespace
+
+std::string json_latency(const LatencySummary& s) {
+  const auto us = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-3; };
+  return fmt::format(
+      "{{\"count\": {}, \"min\": {:.3f}, \"median\": {:.3f}, \"p99\": {:.3f}, \"p99_9\": {:.3f}, \"max\": {:.3f}, \"below_zero\": {}, "
+      "\"overflow\": {}}}",
+      s.count, us(s.min_ns), us(s.median_ns), us(s.p99_ns), us(s.p999_ns), us(s.max_ns), s.below_zero, s.overflow);
+}
 
 std::string describe_faults(std::uint32_t bits) {
   std::string out;
@@ -260,24 +260,28 @@ Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options) {
   return Error{fmt::format("--device {}: unknown device (sim, falcon or omni)", options.device)};
 }
 
-Result<RunSummary> run_servo(const RunOptions& options) {
+std::string run_options_problem(const RunOptions& options) {
   if (!(options.rate_hz >= 500.0 && options.rate_hz <= 10000.0)) {
-    return Error{fmt::format("--rate {}: the servo rate must be within 500..10000 Hz", options.rate_hz)};
+    return fmt::format("--rate {}: the servo rate must be within 500..10000 Hz", options.rate_hz);
   }
   if (!(options.duration_s >= 0.0) || !std::isfinite(options.duration_s)) {
-    return Error{fmt::format("--duration {}: must be >= 0 seconds (0: until stopped)", options.duration_s)};
+    return fmt::format("--duration {}: must be >= 0 seconds (0: until stopped)", options.duration_s);
   }
   // The maximum first: a tick count of 1e16 s does not fit an integer (it read as "less than
   // one tick").
   if (options.duration_s > kMaxRunDurationS) {
-    return Error{fmt::format("--duration {:g}: over the maximum of {:g} s (30 days; 0 runs until stopped)",
-                             options.duration_s, kMaxRunDurationS)};
+    return fmt::format("--duration {:g}: over the maximum of {:g} s (30 days; 0 runs until stopped)",
+                       options.duration_s, kMaxRunDurationS);
   }
   if (options.duration_s > 0.0 && std::llround(options.duration_s * options.rate_hz) < 1) {
-    return Error{
-        fmt::format("--duration {:g}: less than one tick at {:g} Hz (allowed: 0, until stopped, or {:g} .. {:g} s)",
-                    options.duration_s, options.rate_hz, 1.0 / options.rate_hz, kMaxRunDurationS)};
+    return fmt::format("--duration {:g}: less than one tick at {:g} Hz (allowed: 0, until stopped, or {:g} .. {:g} s)",
+                       options.duration_s, options.rate_hz, 1.0 / options.rate_hz, kMaxRunDurationS);
   }
+  return {};
+}
+
+Result<RunSummary> run_servo(const RunOptions& options) {
+  if (const std::string bad = run_options_problem(options); !bad.empty()) return Error{bad};
   // No output may replace an input: both are checked before anything is opened for writing.
   for (const auto& [output, flag] :
        {std::pair{options.trace_path, "--trace"}, std::pair{options.stats_json_path, "--stats-json"}}) {
@@ -323,7 +327,8 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   if (!device) return Error{device.error()};
   DeviceDriver& driver = *device.value();
   if (options.guardian != nullptr) {  // from here until the loop ends, the guardian zeroes if this process dies
-    options.guardian->zero = driver.external_zero();
+    options.guardian->zeros[0] = driver.external_zero();
+    options.guardian->zero_count = 1;
     options.guardian->period_ns = static_cast<std::int64_t>(std::llround(1e9 / options.rate_hz));
     options.guardian->phase.store(static_cast<std::uint32_t>(guardian::Phase::kDeviceOpen), std::memory_order_release);
   }
@@ -350,12 +355,8 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   return std::move(result.value());
 }
 
-std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
-  const RunReport& r = s.report;
+std::string format_run_timing(const RunReport& r, double rate_hz) {
   std::string text;
-  text += fmt::format("scene    {} ({}): {} surface(s), {} cliff(s); scalar {}\n", s.scene_name, o.scene_path,
-                      s.surfaces, s.cliffs, scalar_kind_name(o.scalar));
-  text += fmt::format("device   {} ({})\n", o.device, s.device_name);
   std::string rt = r.setup.priority < 0 ? "the device's own servo thread (its scheduler sets the priority)"
                    : r.setup.fifo       ? fmt::format("SCHED_FIFO {}", r.setup.priority)
                                         : "NOT real-time (normal scheduling)";
@@ -371,7 +372,7 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   // stalls, and the loop's own gap check, a fault in the "faults" line.
   text += fmt::format("run      {} ticks at {} Hz over {:.3f} s{}; {} deadline(s) missed; heartbeat watchdog "
                       "(outside the loop) tripped {} time(s)\n",
-                      r.ticks, o.rate_hz, r.elapsed_s, why.empty() ? "" : " (" + why + ")", r.missed, r.watchdog_trips);
+                      r.ticks, rate_hz, r.elapsed_s, why.empty() ? "" : " (" + why + ")", r.missed, r.watchdog_trips);
   text += "timing   [us]             min   median      p99    p99.9      max\n";
   const auto row = [&text](std::string_view name, const LatencySummary& l) {
     const auto us = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-3; };
@@ -381,6 +382,16 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
   row("wake-up latency", r.wake.summary());
   row("compute", r.compute.summary());
   row("slack", r.slack.summary());
+  return text;
+}
+
+std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
+  const RunReport& r = s.report;
+  std::string text;
+  text += fmt::format("scene    {} ({}): {} surface(s), {} cliff(s); scalar {}\n", s.scene_name, o.scene_path,
+                      s.surfaces, s.cliffs, scalar_kind_name(o.scalar));
+  text += fmt::format("device   {} ({})\n", o.device, s.device_name);
+  text += format_run_timing(r, o.rate_hz);
   text += fmt::format("forces   peak {:.3f} N\n", s.peak_force_n);
   if (s.live) {
     text += fmt::format("live     {} scene update(s) applied, {} refused{}\n", s.updates_applied, s.updates_refused,

@@ -12,6 +12,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "toonforce/common/result.hpp"
 #include "toonforce/control/faults.hpp"
@@ -54,7 +56,7 @@ struct LiveMailboxes {
 inline constexpr double kMaxRunDurationS = 30.0 * 86400.0;
 
 struct RunOptions {
-  std::string device;        ///< sim | falcon | omni
+  std::string device;        ///< sim | falcon | omni; a world scene: sim | scene (world_run.hpp)
   bool allow_empty = false;  ///< a scene without effects is not an error (--allow-empty)
   bool strict = false;       ///< a plausibility warning refuses the start (--strict)
   std::uint64_t max_output_bytes = kDefaultTraceLimitBytes;  ///< the trace's size limit (0: none)
@@ -62,10 +64,16 @@ struct RunOptions {
   /// its last point; empty: it holds still 1 cm above the workspace centre.
   std::string hand_script_path;
   std::string sim_device = "falcon";  ///< --device sim: the device model's preset (falcon | omni)
-  std::uint64_t seed = 1;             ///< --device sim: sensor-noise seed
-  FalconOptions falcon;               ///< --device falcon: which Falcon, firmware to load
-  OmniOptions omni;                   ///< --device omni: which device, where libHD is
-  gpio::GpioOptions gpio;             ///< tick pin, e-stop, enable, lights (none: no GPIO code runs)
+  /// A world scene: one hand script per simulated device, (device name, file); a device
+  /// without one holds still 1 cm above its workspace centre.
+  std::vector<std::pair<std::string, std::string>> world_scripts;
+  /// A world scene: pull this simulated device's cable after this many seconds (its reads and
+  /// writes fail from then on), to see one stop hold every device.
+  std::optional<std::pair<std::string, double>> world_fail;
+  std::uint64_t seed = 1;  ///< --device sim: sensor-noise seed
+  FalconOptions falcon;    ///< --device falcon: which Falcon, firmware to load
+  OmniOptions omni;        ///< --device omni: which device, where libHD is
+  gpio::GpioOptions gpio;  ///< tick pin, e-stop, enable, lights (none: no GPIO code runs)
   std::string scene_path;
   /// Set: the scene is this TOML text, not the file's; scene_path names it in messages (the
   /// Python module's runs of a scene given as a string or a dict).
@@ -124,11 +132,18 @@ struct RunSummary {
 /// Opens the device backend `options.device` names, for a loop at `options.rate_hz`.
 Result<std::unique_ptr<DeviceDriver>> open_device(const RunOptions& options);
 
+/// Why the rate or the duration cannot be run ("" if they can).
+std::string run_options_problem(const RunOptions& options);
+
 /// Runs; errors (bad scene, no device, real time refused) come back before the first tick.
 Result<RunSummary> run_servo(const RunOptions& options);
 
 std::string format_run_summary(const RunSummary& summary, const RunOptions& options);
 std::string stats_json(const RunSummary& summary, const RunOptions& options);
+/// The summary's real-time, run and timing lines.
+std::string format_run_timing(const RunReport& report, double rate_hz);
+/// A latency summary as JSON, in microseconds.
+std::string json_latency(const LatencySummary& summary);
 /// "watchdog (missed ticks), emergency stop" (empty for none).
 std::string describe_faults(std::uint32_t bits);
 
