@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "toonforce/control/guardian.hpp"
+#include "toonforce/control/world_session.hpp"
 #include "toonforce/run/guardian_report.hpp"
 #include "toonforce/run/world_run.hpp"
 
@@ -210,6 +211,37 @@ TEST(WorldRun, ErrorsNameTheDeviceTheOptionAndTheFix) {
   o = two_players();
   o.trace_path = TOONFORCE_SOURCE_DIR "/scenes/hands/left_push.toml";
   EXPECT_NE(error_of(o).find("it would be overwritten"), std::string::npos) << error_of(o);
+}
+
+/// A device that counts its emergency zeros.
+class CountingDevice final : public DeviceDriver {
+ public:
+  explicit CountingDevice(Clocking clocking) {
+    info_.name = "counting";
+    info_.clocking = clocking;
+  }
+  DeviceStatus read(DeviceReading&) noexcept override { return DeviceStatus::kOk; }
+  DeviceStatus write(const Vec3<double>&) noexcept override { return DeviceStatus::kOk; }
+  void emergency_zero() noexcept override { ++zeros; }
+  const DeviceInfo& info() const noexcept override { return info_; }
+  int zeros = 0;
+
+ private:
+  DeviceInfo info_;
+};
+
+TEST(WorldRun, TheDeviceGroupsEmergencyZeroReachesEveryDeviceAndOwnClocksAreRefused) {
+  CountingDevice a(Clocking::kHostTimer), b(Clocking::kHostTimer), own(Clocking::kDeviceThread);
+  auto group = DeviceGroup::create({&a, &b}, {"a", "b"});
+  ASSERT_TRUE(group) << group.error();
+  EXPECT_EQ(group.value()->info().clocking, Clocking::kHostTimer);
+  group.value()->emergency_zero();  // the heartbeat watchdog's and the fatal signals' path
+  EXPECT_EQ(a.zeros, 1);
+  EXPECT_EQ(b.zeros, 1);
+  const auto refused = DeviceGroup::create({&a, &own}, {"a", "omni"});
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().find("device 'omni' (counting) is clocked by its own servo thread"), std::string::npos)
+      << refused.error();
 }
 
 TEST(WorldRun, TheGuardianEndsAWorldsTraceWithZeroForceOnEveryDevice) {
