@@ -7,6 +7,10 @@
 
 #include <unistd.h>
 
+#include <array>
+#include <atomic>
+#include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -14,8 +18,10 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "toonforce/control/clock_bridge.hpp"
 #include "toonforce/control/guardian.hpp"
 #include "toonforce/control/world_session.hpp"
 #include "toonforce/run/guardian_report.hpp"
@@ -185,16 +191,11 @@ TEST(WorldRun, ErrorsNameTheDeviceTheOptionAndTheFix) {
   o = two_players();
   o.scalar = ScalarKind::kFloat;
   EXPECT_NE(error_of(o).find("a world runs in double"), std::string::npos);
-  // --device scene: an Omni cannot join a world yet, and two Falcons must each be selected.
+  // --device scene: two Falcons must each be selected.
   o = two_players();
   o.device = "scene";
   o.world_scripts.clear();
   o.duration_s = 0.01;
-  o.scene_text = "[[device]]\nname = \"a\"\nbackend = \"omni\"\n[[device]]\nname = \"b\"\n"
-                 "[[surface]]\npoint = [0.0, 0.0, -0.03]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 300.0\n";
-  EXPECT_NE(error_of(o).find("device 'a': backend 'omni': an Omni is clocked by its own servo thread"),
-            std::string::npos)
-      << error_of(o);
   o.scene_text = "[[device]]\nname = \"a\"\nbackend = \"falcon\"\n[[device]]\nname = \"b\"\nbackend = \"falcon\"\n"
                  "[[surface]]\npoint = [0.0, 0.0, -0.03]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 300.0\n";
   EXPECT_NE(error_of(o).find("device 'a': the world has 2 Falcons: give each its `select`"), std::string::npos)
@@ -242,6 +243,181 @@ TEST(WorldRun, TheDeviceGroupsEmergencyZeroReachesEveryDeviceAndOwnClocksAreRefu
   ASSERT_FALSE(refused);
   EXPECT_NE(refused.error().find("device 'omni' (counting) is clocked by its own servo thread"), std::string::npos)
       << refused.error();
+}
+
+// ---- a device on a clock of its own, bridged to the world's ----
+
+struct Numbered {
+  std::array<std::uint64_t, 5> words{};
+};
+
+TEST(Handoff, AReaderRacingTheWriterSeesOnlyWholeValuesNewestFirstAndNeverWaits) {
+  Handoff<Numbered> handoff;
+  constexpr std::uint64_t kWrites = 200'000;
+  std::atomic<bool> go{false};
+  std::thread writer([&] {
+    while (!go.load(std::memory_order_acquire)) std::this_thread::yield();
+    for (std::uint64_t n = 1; n <= kWrites; ++n) {
+      Numbered v;
+      v.words.fill(n);
+      handoff.write(v);
+    }
+  });
+  std::uint64_t last = 0, torn = 0, backwards = 0, fresh = 0;
+  go.store(true, std::memory_order_release);
+  while (last < kWrites) {
+    Numbered v;
+    const bool is_new = handoff.read(v);
+    fresh += is_new ? 1U : 0U;
+    for (const std::uint64_t w : v.words) torn += w != v.words[0] ? 1U : 0U;
+    backwards += v.words[0] < last ? 1U : 0U;
+    if (!is_new && v.words[0] != last) ++torn;  // "not new" must mean the same value again
+    last = v.words[0];
+  }
+  writer.join();
+  EXPECT_EQ(torn, 0U);
+  EXPECT_EQ(backwards, 0U);
+  EXPECT_GT(fresh, 0U);
+  Numbered v;
+  EXPECT_FALSE(handoff.read(v)) << "nothing new after the last value was read";
+  EXPECT_EQ(v.words[0], kWrites);
+}
+
+/// A device with a servo thread of its own, as OpenHaptics' scheduler is: run_clocked calls the
+/// tick every `period` on its thread until the tick says stop (or `ticks_before_end` ran).
+class SelfClockedDevice final : public DeviceDriver {
+ public:
+  explicit SelfClockedDevice(std::int64_t ticks_before_end = -1) : ticks_before_end_(ticks_before_end) {
+    info_.name = "self-clocked";
+    info_.clocking = Clocking::kDeviceThread;
+  }
+  DeviceStatus read(DeviceReading& r) noexcept override {
+    r.position_m = {static_cast<double>(ticks_.load()) * 1e-6, 0.0, 0.0};
+    return DeviceStatus::kOk;
+  }
+  DeviceStatus write(const Vec3<double>& f) noexcept override {
+    last_x_bits_.store(std::bit_cast<std::uint64_t>(f.x), std::memory_order_relaxed);
+    return DeviceStatus::kOk;
+  }
+  void emergency_zero() noexcept override { emergencies.fetch_add(1); }
+  const DeviceInfo& info() const noexcept override { return info_; }
+  Result<ClockedEnd> run_clocked(ClockedTickFn tick, void* context) override {
+    for (std::int64_t k = 0;; ++k) {
+      if (ticks_before_end_ >= 0 && k >= ticks_before_end_) return ClockedEnd{"the device's thread gave up"};
+      ticks_.store(k + 1);
+      if (tick(context, ClockedTick{k, 1e-3, 1e-3}) == TickVerdict::kStop) return ClockedEnd{};
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+  }
+  double last_x() const noexcept { return std::bit_cast<double>(last_x_bits_.load(std::memory_order_relaxed)); }
+  std::int64_t ticks() const noexcept { return ticks_.load(); }
+  std::atomic<int> emergencies{0};
+
+ private:
+  DeviceInfo info_;
+  std::int64_t ticks_before_end_;
+  std::atomic<std::int64_t> ticks_{0};
+  std::atomic<std::uint64_t> last_x_bits_{0};
+};
+
+template <class Predicate>
+bool eventually(Predicate p) {  // a condition that must come, however slow the host (10 s at most)
+  for (int i = 0; i < 10'000; ++i) {
+    if (p()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return p();
+}
+
+TEST(ClockBridge, TheDeviceAppliesTheWorldsNewestForceAndZeroOnceItIsTooOld) {
+  SelfClockedDevice device;
+  auto bridge = ClockBridge::start(device, 0.005);  // 5 ms
+  ASSERT_TRUE(bridge) << bridge.error();
+  ClockBridge& b = *bridge.value();
+  EXPECT_EQ(b.info().clocking, Clocking::kHostTimer) << "to the world it is one more host-clocked device";
+  DeviceReading r;
+  ASSERT_TRUE(eventually([&] { return b.read(r) == DeviceStatus::kOk; }));
+  // The world writes a force every millisecond: the device applies it.
+  ASSERT_TRUE(eventually([&] {
+    static_cast<void>(b.write({1.5, 0.0, 0.0}));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return device.last_x() == 1.5;
+  }));
+  // The world stops writing (it stalled): once the force is over 5 ms old the device writes zero.
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_TRUE(eventually([&] { return device.last_x() == 0.0; }));
+  EXPECT_GT(b.stale_force_ticks(), 0);
+  // Writing again brings the force back; an emergency zero holds it at zero and reaches the device.
+  ASSERT_TRUE(eventually([&] {
+    static_cast<void>(b.write({2.0, 0.0, 0.0}));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return device.last_x() == 2.0;
+  }));
+  b.emergency_zero();
+  EXPECT_EQ(device.emergencies.load(), 1);
+  ASSERT_TRUE(eventually([&] {
+    static_cast<void>(b.write({2.0, 0.0, 0.0}));
+    return device.last_x() == 0.0;
+  }));
+  b.stop();
+  EXPECT_EQ(device.last_x(), 0.0) << "its last tick wrote zero";
+  EXPECT_GT(b.reading_age().summary().count, 0);
+  EXPECT_GT(b.force_age().summary().count, 0);
+}
+
+TEST(ClockBridge, ADeviceThreadThatEndsIsATimeoutNamingWhy) {
+  SelfClockedDevice device(50);  // its thread ends by itself after 50 ticks
+  auto bridge = ClockBridge::start(device, 0.005);
+  ASSERT_TRUE(bridge) << bridge.error();
+  ClockBridge& b = *bridge.value();
+  DeviceReading r;
+  ASSERT_TRUE(eventually([&] { return device.ticks() >= 50; }));
+  ASSERT_TRUE(eventually([&] { return b.read(r) == DeviceStatus::kTimeout; }));
+  EXPECT_NE(b.last_error().find("its servo thread ended: the device's thread gave up"), std::string::npos)
+      << b.last_error();
+}
+
+TEST(WorldRun, AnOmniOnItsOwnClockJoinsASimulatedDeviceAndBothFeelTheCoupling) {
+  // The fake libHD (tests/omni/fake_hd) runs a scheduler thread of its own, as OpenHaptics does.
+  RunOptions o = two_players();
+  o.device = "scene";
+  o.world_scripts = {{"hand", TOONFORCE_SOURCE_DIR "/scenes/hands/left_push.toml"}};
+  o.omni.library_path = TOONFORCE_FAKE_HD;
+  o.allow_empty = true;
+  o.duration_s = 1.2;
+  o.trace_path = temp_path("mixed.csv").string();
+  o.scene_text = "name = \"hand and omni\"\n"
+                 "[[device]]\nname = \"hand\"\nbackend = \"sim\"\noffset = [-0.04, 0.0, 0.0]\n"
+                 "[[device]]\nname = \"omni\"\nbackend = \"omni\"\noffset = [0.04, 0.0, 0.0]\nyaw = 180.0\n"
+                 "[[coupling]]\nbetween = [\"hand\", \"omni\"]\nstiffness = 100.0\ndamping = 0.5\n"
+                 "rest_length = 0.08\n";
+  const auto summary = run_world_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  ASSERT_EQ(summary->devices.size(), 2U);
+  const WorldRunDevice& omni = summary->devices[1];
+  EXPECT_EQ(omni.backend, "omni");
+  EXPECT_TRUE(omni.bridged);
+  EXPECT_GT(omni.reading_age.count, 100);
+  EXPECT_GT(omni.force_age.count, 100);
+  EXPECT_GT(omni.peak_force_n, 0.2) << "the Omni felt the hand's pull through the coupling";
+  const Csv csv = read_csv(o.trace_path);
+  ASSERT_EQ(csv.rows.size(), summary->frames_written);
+  for (const auto& row : csv.rows) {
+    ASSERT_EQ(row[csv.at("hand.coupling_fx")], -row[csv.at("omni.coupling_fx")]) << "t = " << row[0];
+  }
+  for (const char* f : {"hand.fx", "hand.fy", "hand.fz", "omni.fx", "omni.fy", "omni.fz"}) {
+    EXPECT_EQ(csv.rows.back()[csv.at(f)], 0.0) << f;
+  }
+  const std::string text = format_world_run_summary(summary.value(), o);
+  EXPECT_NE(text.find("clocks   omni: on its own servo thread; reading age median"), std::string::npos) << text;
+  EXPECT_NE(world_stats_json(summary.value(), o).find("\"reading_age_us\""), std::string::npos);
+  std::filesystem::remove(o.trace_path);
+  // Two Omnis: refused, with why.
+  o.scene_text = "[[device]]\nname = \"a\"\nbackend = \"omni\"\n[[device]]\nname = \"b\"\nbackend = \"omni\"\n";
+  o.world_scripts.clear();
+  const auto two = run_world_servo(o);
+  ASSERT_FALSE(two);
+  EXPECT_NE(two.error().find("2 Omnis: one Omni per world for now"), std::string::npos) << two.error();
 }
 
 TEST(WorldRun, TheGuardianEndsAWorldsTraceWithZeroForceOnEveryDevice) {

@@ -138,12 +138,12 @@ std::optional<std::string> read_scene_text(const std::string& path) {
 int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vector<std::string>& scripts,
                       const std::string& fail, bool quiet) {
   for (const char* name : {"--view", "--control", "--serial", "--falcon-index", "--falcon-calibration", "--omni-device",
-                           "--omni-library", "--omni-max-force", "--omni-disable-on-close", "--tick-pin", "--estop-pin",
-                           "--enable-pin", "--amp-enable-pin", "--led-pin"}) {
+                           "--tick-pin", "--estop-pin", "--enable-pin", "--amp-enable-pin", "--led-pin"}) {
     const CLI::Option* option = cmd.get_option_no_throw(name);
     if (option != nullptr && option->count() > 0) {
       fmt::print(stderr, "{}: a world scene ({}) does not take it yet{}\n", name, options.scene_path,
-                 std::string_view(name).starts_with("--serial") || std::string_view(name).starts_with("--falcon")
+                 std::string_view(name).starts_with("--serial") || std::string_view(name).starts_with("--falcon") ||
+                         std::string_view(name) == "--omni-device"
                      ? " (each [[device]] table names its device with `select`)"
                      : "");
       return 2;

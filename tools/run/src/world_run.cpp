@@ -17,6 +17,7 @@
 #include "toonforce/config/falcon_calibration_file.hpp"
 #include "toonforce/config/hand_script_file.hpp"
 #include "toonforce/config/world_file.hpp"
+#include "toonforce/control/clock_bridge.hpp"
 #include "toonforce/control/guardian.hpp"
 #include "toonforce/control/process_split.hpp"
 #include "toonforce/control/world.hpp"
@@ -62,9 +63,21 @@ class PulledCable final : public DeviceDriver {
 };
 
 struct Opened {
+  /// Devices behind a bridge (ClockBridge): destroyed after their bridges (declared first).
+  std::vector<std::unique_ptr<DeviceDriver>> bridged;
   std::vector<std::unique_ptr<DeviceDriver>> drivers;  ///< in device order
   std::vector<WorldRunDevice> devices;
 };
+
+WorldRunDevice named(const std::string& name, const std::string& backend, const std::string& driver,
+                     const std::string& script) {
+  WorldRunDevice d;
+  d.name = name;
+  d.backend = backend;
+  d.device_name = driver;
+  d.script = script;
+  return d;
+}
 
 /// Every device of the world, opened as options.device says; nothing is left open on an error.
 Result<Opened> open_world_devices(const WorldDescription& world, const RunOptions& options) {
@@ -91,7 +104,17 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
   const auto preset = host_sim::parse_device_preset(options.sim_device);
   if (!preset) problems += fmt::format("--sim-device {}: unknown device model (falcon or omni)\n", options.sim_device);
   std::size_t falcons = 0;
-  for (const WorldDeviceEntry& d : world.devices) falcons += options.device == "scene" && d.backend == "falcon";
+  std::size_t omnis = 0;
+  for (const WorldDeviceEntry& d : world.devices) {
+    falcons += options.device == "scene" && d.backend == "falcon";
+    omnis += options.device == "scene" && d.backend == "omni";
+  }
+  if (omnis > 1) {
+    problems += fmt::format("{}: {} Omnis: one Omni per world for now (OpenHaptics serves every device of a process "
+                            "from one scheduler callback, which toonforce does not drive yet); run the others as "
+                            "worlds of their own\n",
+                            options.scene_path, omnis);
+  }
   for (std::size_t i = 0; i < world.devices.size() && problems.empty(); ++i) {
     const WorldDeviceEntry& d = world.devices[i];
     const bool simulated = options.device == "sim" || d.backend == "sim";
@@ -137,7 +160,7 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
         const auto reads = static_cast<std::int64_t>(std::llround(options.world_fail->second * options.rate_hz));
         driver = std::make_unique<PulledCable>(std::move(driver), reads);
       }
-      out.devices.push_back({d.name, "sim", driver->info().name, scripts[i], 0.0, 0, 0, 0, 0});
+      out.devices.push_back(named(d.name, "sim", driver->info().name, scripts[i]));
     } else if (d.backend == "falcon") {
       if (falcons > 1 && d.select.empty()) {
         problems += fmt::format("{}: the world has {} Falcons: give each its `select`, the serial number `toonforce "
@@ -154,13 +177,29 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
         break;
       }
       driver = std::move(opened.value());
-      out.devices.push_back({d.name, "falcon", driver->info().name, "", 0.0, 0, 0, 0, 0});
+      out.devices.push_back(named(d.name, "falcon", driver->info().name, ""));
     } else {
-      problems += fmt::format("{}: backend '{}': an Omni is clocked by its own servo thread (OpenHaptics' scheduler), "
-                              "and a world ticks every device from one thread on the host's clock: it cannot join "
-                              "a world yet; run it on its own (a one-device scene), or use --device sim\n",
-                              who, d.backend);
-      break;
+      // OpenHaptics clocks the Omni from its own servo thread; the world ticks on the host's
+      // clock: a bridge lets each go on at its own rate (control/clock_bridge.hpp).
+      OmniOptions omni = options.omni;
+      omni.device_name = d.select;
+      omni.scheduler_rate_hz = options.rate_hz;
+      auto opened = open_omni(omni);
+      if (!opened) {
+        problems += fmt::format("{}: {}\n", who, opened.error());
+        break;
+      }
+      const double period_s = 1.0 / options.rate_hz;
+      const ServoConfig own = servo_config(d.settings, period_s);
+      const double max_age_s = static_cast<double>(std::max<std::int64_t>(own.safety.watchdog_periods, 3)) * period_s;
+      auto bridge = ClockBridge::start(*opened.value(), max_age_s);
+      if (!bridge) {
+        problems += fmt::format("{}: {}\n", who, bridge.error());
+        break;
+      }
+      out.bridged.push_back(std::move(opened.value()));
+      driver = std::move(bridge.value());
+      out.devices.push_back(named(d.name, "omni", driver->info().name, ""));
     }
     out.drivers.push_back(std::move(driver));
   }
@@ -337,6 +376,16 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
+  for (std::size_t i = 0; i < N; ++i) {
+    if (auto* bridge = dynamic_cast<ClockBridge*>(opened.drivers[i].get())) {
+      bridge->stop();  // its thread's last tick writes zero; then its measures are whole
+      WorldRunDevice& d = summary.devices[i];
+      d.bridged = true;
+      d.reading_age = bridge->reading_age().summary();
+      d.force_age = bridge->force_age().summary();
+      d.stale_force_ticks = bridge->stale_force_ticks();
+    }
+  }
   if (trace && !trace->close() && summary.trace_error.empty()) {
     summary.trace_error = fmt::format("writing its end failed: {}", std::strerror(errno != 0 ? errno : EIO));
   }
@@ -451,6 +500,15 @@ std::string format_world_run_summary(const WorldRunSummary& s, const RunOptions&
       text += fmt::format("; could not give the force asked in {} tick(s)", d.device_limited_ticks);
     }
     text += "\n";
+    if (d.bridged) {
+      const auto ms = [](std::int64_t ns) { return static_cast<double>(ns) * 1e-6; };
+      text +=
+          fmt::format("clocks   {}: on its own servo thread; reading age median {:.3f} ms, p99 {:.3f}, max {:.3f} "
+                      "(when the world used it); force age median {:.3f} ms, p99 {:.3f}, max {:.3f} (when the "
+                      "device applied it); {} device tick(s) zeroed a force too old\n",
+                      d.name, ms(d.reading_age.median_ns), ms(d.reading_age.p99_ns), ms(d.reading_age.max_ns),
+                      ms(d.force_age.median_ns), ms(d.force_age.p99_ns), ms(d.force_age.max_ns), d.stale_force_ticks);
+    }
   }
   if (s.couplings > 0) {
     text += fmt::format("between  couplings: largest |sum of the forces on their two ends| {:.3g} N\n",
@@ -489,12 +547,16 @@ std::string world_stats_json(const WorldRunSummary& s, const RunOptions& o) {
   out += "  \"devices\": [";
   for (std::size_t i = 0; i < s.devices.size(); ++i) {
     const WorldRunDevice& d = s.devices[i];
-    out += fmt::format("{}\n    {{\"name\": {}, \"backend\": {}, \"device_name\": {}, \"peak_force_n\": {}, "
-                       "\"fault_ticks\": {}, \"fault_bits\": {}, \"faults\": {}, \"latched_at_end\": {}, "
-                       "\"device_limited_ticks\": {}}}",
-                       i == 0 ? "" : ",", json_string(d.name), json_string(d.backend), json_string(d.device_name),
-                       d.peak_force_n, d.fault_ticks, d.fault_bits, json_string(describe_faults(d.fault_bits)),
-                       d.latched_at_end, d.device_limited_ticks);
+    out +=
+        fmt::format("{}\n    {{\"name\": {}, \"backend\": {}, \"device_name\": {}, \"peak_force_n\": {}, "
+                    "\"fault_ticks\": {}, \"fault_bits\": {}, \"faults\": {}, \"latched_at_end\": {}, "
+                    "\"device_limited_ticks\": {}{}}}",
+                    i == 0 ? "" : ",", json_string(d.name), json_string(d.backend), json_string(d.device_name),
+                    d.peak_force_n, d.fault_ticks, d.fault_bits, json_string(describe_faults(d.fault_bits)),
+                    d.latched_at_end, d.device_limited_ticks,
+                    d.bridged ? fmt::format(", \"reading_age_us\": {}, \"force_age_us\": {}, \"stale_force_ticks\": {}",
+                                            json_latency(d.reading_age), json_latency(d.force_age), d.stale_force_ticks)
+                              : std::string());
   }
   out += "\n  ],\n";
   out += fmt::format("  \"realtime\": {{\"sched_fifo\": {}, \"priority\": {}, \"memory_locked\": {}, \"cpu\": {}, "

@@ -28,6 +28,13 @@ struct WorldRunDevice {
   std::uint32_t fault_bits = 0;  ///< union over the run
   std::uint32_t latched_at_end = 0;
   std::int64_t device_limited_ticks = 0;
+  /// A device on a clock of its own (the Omni), bridged to the world's (control/clock_bridge.hpp):
+  /// how old each reading was when the world used it, how old each force when the device
+  /// applied it [ns], and the device ticks that wrote zero for a force too old.
+  bool bridged = false;
+  LatencySummary reading_age;
+  LatencySummary force_age;
+  std::int64_t stale_force_ticks = 0;
 };
 
 struct WorldRunSummary {
