@@ -173,9 +173,64 @@ radius = 0.01
   EXPECT_EQ(w.ball->mass_kg, ball.mass_kg);
   EXPECT_EQ(w.ball->stiffness_n_per_m, ball.stiffness_n_per_m);
   EXPECT_EQ(w.ball->drag_n_s_per_m, ball.drag_n_s_per_m);
-  EXPECT_FALSE(w.ball->has_wall);  // no wall_* key: no wall
+  EXPECT_FALSE(w.ball->has_wall);      // no wall_* key: no wall
+  EXPECT_FALSE(w.ball->has_slippery);  // no [ball.slippery], no [ball.impact]: a plain ball
+  EXPECT_FALSE(w.ball->has_impact);
   EXPECT_EQ(w.stop, StopPolicy::kAll);
   EXPECT_TRUE(world_config(w).has_ball);
+}
+
+TEST(WorldFile, TheBallsSurfaceEffectsTakeTheSingleDeviceKeysAndDefaults) {
+  const auto world = parse_world(R"([[device]]
+name = "a"
+[ball]
+radius = 0.02
+[ball.slippery]
+mu = 4.0
+[ball.impact]
+recoil_gain = 400.0
+oscillation_gain = 200.0
+duration = 0.05
+frequency = 30.0
+)",
+                                 "w.toml");
+  ASSERT_TRUE(world) << world.error();
+  ASSERT_TRUE(world.value().ball);
+  const between::BallParams& b = *world.value().ball;
+  EXPECT_TRUE(b.has_slippery);
+  EXPECT_EQ(b.slippery.mu_n_s_per_m, 4.0);
+  EXPECT_TRUE(b.has_impact);
+  EXPECT_EQ(b.impact.recoil_gain_n_per_m, 400.0);
+  EXPECT_EQ(b.impact.oscillation_gain_n_per_m, 200.0);
+  EXPECT_EQ(b.impact.duration_s, 0.05);
+  EXPECT_EQ(b.impact.frequency_hz, 30.0);
+  // The keys left out take the single-device tables' defaults (spec effects.md §3-4), read
+  // from the same schema as a [surface.slippery] or [surface.impact] table.
+  const auto surface = parse_scene(R"([[surface]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+stiffness = 1000.0
+[surface.slippery]
+mu = 4.0
+[surface.impact]
+recoil_gain = 400.0
+oscillation_gain = 200.0
+duration = 0.05
+frequency = 30.0
+)",
+                                   "s.toml");
+  ASSERT_TRUE(surface) << surface.error();
+  ASSERT_EQ(surface.value().of<RuntimeSurface>().size(), 1U);
+  const auto& one = surface.value().of<RuntimeSurface>()[0];
+  EXPECT_EQ(b.slippery.max_tangential_force_n, one.tangential.slippery.max_tangential_force_n);
+  EXPECT_EQ(b.impact.min_impact_speed_m_per_s, one.impact.law.min_impact_speed_m_per_s);
+  EXPECT_EQ(b.impact.rearm_distance_m, one.impact.law.rearm_distance_m);
+  EXPECT_EQ(b.impact.sine, one.impact.law.sine);
+  // The world's configuration carries them, and the world accepts it.
+  WorldConfig c = world_config(world.value());
+  EXPECT_TRUE(c.ball.has_slippery);
+  EXPECT_TRUE(c.ball.has_impact);
+  EXPECT_EQ(check(c, 1), "");
 }
 
 // ---- mistakes: each names the file, the line and the key ------------------------------------
@@ -242,7 +297,29 @@ const Mistake kMistakes[] = {
      "w.toml:7: coupling[1].rest_length: must be >= 0 (got -0.1); the spring's length at rest [m]"},
     {"unknown_key_in_ball", "[[device]]\nname = \"a\"\n[ball]\nradius = 0.01\nbounce = 0.5\n",
      "w.toml:5: ball: unknown key 'bounce' (the keys of [ball]: radius, mass, stiffness, damping, drag, start, "
-     "gravity, wall_point, wall_normal, wall_stiffness, wall_damping)"},
+     "gravity, wall_point, wall_normal, wall_stiffness, wall_damping, slippery, impact)"},
+    // The ball's surface effects: the single-device tables' keys, ranges and messages.
+    {"ball_slippery_without_mu", "[[device]]\nname = \"a\"\n[ball]\n[ball.slippery]\nmax_tangential_force = 1.0\n",
+     "w.toml:4: ball.slippery: missing required key 'mu'"},
+    {"ball_slippery_mu_negative", "[[device]]\nname = \"a\"\n[ball.slippery]\nmu = -4.0\n",
+     "w.toml:4: ball.slippery.mu: must be > 0 (got -4)"},
+    {"ball_slippery_cap_zero", "[[device]]\nname = \"a\"\n[ball.slippery]\nmu = 4.0\nmax_tangential_force = 0\n",
+     "w.toml:5: ball.slippery.max_tangential_force: must be > 0 (got 0)"},
+    {"ball_slippery_unknown_key", "[[device]]\nname = \"a\"\n[ball.slippery]\nmu = 4.0\nmu_max = 2.0\n",
+     "w.toml:5: ball.slippery: unknown key 'mu_max'"},
+    {"ball_impact_without_duration",
+     "[[device]]\nname = \"a\"\n[ball.impact]\nrecoil_gain = 400.0\noscillation_gain = 200.0\nfrequency = 30.0\n",
+     "w.toml:3: ball.impact: missing required key 'duration'"},
+    {"ball_impact_duration_zero",
+     "[[device]]\nname = \"a\"\n[ball.impact]\nrecoil_gain = 400.0\noscillation_gain = 200.0\nduration = 0\n"
+     "frequency = 30.0\n",
+     "w.toml:6: ball.impact.duration: must be > 0 (got 0)"},
+    {"ball_impact_negative_min_speed",
+     "[[device]]\nname = \"a\"\n[ball.impact]\nrecoil_gain = 400.0\noscillation_gain = 200.0\nduration = 0.05\n"
+     "frequency = 30.0\nmin_impact_speed = -0.1\n",
+     "w.toml:8: ball.impact.min_impact_speed: must be >= 0 (got -0.1)"},
+    {"ball_impact_not_a_table", "[[device]]\nname = \"a\"\n[ball]\nimpact = 3\n",
+     "w.toml:4: ball.impact: must be a table"},
     {"ball_radius_zero", "[[device]]\nname = \"a\"\n[ball]\nradius = 0\n",
      "w.toml:4: ball.radius: must be > 0 (got 0); the ball's radius [m]"},
     {"ball_mass_negative", "[[device]]\nname = \"a\"\n[ball]\nmass = -0.1\n",

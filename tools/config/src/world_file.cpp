@@ -22,9 +22,9 @@ constexpr std::array<std::string_view, 4> kWorldKeys{"device", "coupling", "ball
 constexpr std::array<std::string_view, 3> kBackends{"sim", "falcon", "omni"};
 constexpr std::array<std::string_view, 6> kFrameKeys{"name", "backend", "select", "offset", "yaw", "scale"};
 constexpr std::array<std::string_view, 4> kCouplingKeys{"between", "stiffness", "damping", "rest_length"};
-constexpr std::array<std::string_view, 11> kBallKeys{"radius",      "mass",           "stiffness",   "damping",
-                                                     "drag",        "start",          "gravity",     "wall_point",
-                                                     "wall_normal", "wall_stiffness", "wall_damping"};
+constexpr std::array<std::string_view, 13> kBallKeys{
+    "radius",     "mass",        "stiffness",      "damping",      "drag",     "start", "gravity",
+    "wall_point", "wall_normal", "wall_stiffness", "wall_damping", "slippery", "impact"};
 constexpr std::array<std::string_view, 1> kWorldTableKeys{"stop"};
 
 /// A yaw beyond a full turn either way is a slip (radians, or a typo), not a placement.
@@ -211,6 +211,18 @@ between::BallParams read_ball(const toml::table& table, ErrorList& errors) {
                                          "the ball-wall contact [N/m]");
   b.wall_damping_n_s_per_m = r.number_or("wall_damping", defaults.wall_damping_n_s_per_m, Range::kNonNegative,
                                          "the ball-wall contact [N s/m]");
+  // The ball's surface effects: the single-device tables' keys, units, defaults and ranges
+  // (spec effects.md §3-4), read by the same schemas, as [ball.slippery] and [ball.impact].
+  if (const toml::table* slippery = r.optional_table(SuperSlippery<double>::kTableKey)) {
+    b.has_slippery = true;
+    scene_reader::read_sub_table(r, SuperSlippery<double>::kTableKey, *slippery, b.slippery,
+                                 SuperSlippery<double>::schema());
+  }
+  if (const toml::table* impact = r.optional_table(ImpactTransient<double>::kTableKey)) {
+    b.has_impact = true;
+    scene_reader::read_sub_table(r, ImpactTransient<double>::kTableKey, *impact, b.impact,
+                                 ImpactTransient<double>::schema());
+  }
   if (errors.count() == before) {
     if (const std::string why = between::check_and_normalise(b); !why.empty()) r.error("", why);
   }

@@ -15,7 +15,10 @@
 /// The world's force for a device enters that device's loop as part of its scene force, so
 /// everything the loop does to a scene force applies to it: the non-finite guard, the
 /// passivity observer at that device's port, engage and the soft start, the velocity and
-/// workspace limits, the rate limit and the clamp at the device's own maximum.
+/// workspace limits, the rate limit and the clamp at the device's own maximum. The ball's
+/// cartoon effects (its slippery surface, its impact) inject energy by design; each is one
+/// more active part of the device's scene (WorldShare), so the passivity controller at that
+/// device's port budgets it as it budgets the single-device slippery surface and impact.
 ///
 /// The tick is noexcept and allocation-free; its work is linear in the number of devices (and
 /// in the couplings). A World holds pointers into itself: it is neither copied nor moved.
@@ -122,10 +125,25 @@ inline std::string check(const DeviceFrame& f) {
   return "";
 }
 
+/// The most active parts the world adds to a device's scene: the ball's slippery surface and
+/// its impact transient.
+inline constexpr std::size_t kWorldActiveSlots = 2;
+
+/// What the world puts on one device on one tick, in the world frame: the force, and of it the
+/// active parts (the first `slots` of `active`, as FramedScene was told), for the passivity
+/// controller at the device's port.
+template <Scalar S>
+struct WorldShare {
+  Vec3<S> force_n{};
+  std::array<ActiveForce<S>, kWorldActiveSlots> active{};
+};
+
 /// A device's scene as its loop sees it: the scene's effects act in the world frame (the HIP
-/// is carried there first), the world's force for this device (`world_force_n`, in the world
+/// is carried there first), the world's force for this device (`share->force_n`, in the world
 /// frame, written by the World before the loop's tick) is added to theirs, and the sum goes
-/// back to the device's frame, as do the active parts the passivity controller budgets.
+/// back to the device's frame, as do the active parts the passivity controller budgets: the
+/// scene's, then the world's `world_slots` (fixed for the loop's life: the controller's slots
+/// are laid out once).
 template <SceneType Inner>
 class FramedScene {
  public:
@@ -133,11 +151,15 @@ class FramedScene {
   using S = Scalar;
   using State = typename Inner::State;
   static constexpr Needs kNeeds = Inner::kNeeds;
-  static constexpr std::size_t kActiveCapacity = Inner::kActiveCapacity;
+  static constexpr std::size_t kActiveCapacity = Inner::kActiveCapacity + kWorldActiveSlots;
   static constexpr std::size_t kValueCapacity = Inner::kValueCapacity;
 
-  FramedScene(const Inner& inner, const DeviceFrame& frame, const Vec3<S>* world_force_n) noexcept
-      : inner_(inner), frame_(frame), world_force_n_(world_force_n) {}
+  FramedScene(const Inner& inner, const DeviceFrame& frame, const WorldShare<S>* share,
+              std::size_t world_slots = 0) noexcept
+      : inner_(inner),
+        frame_(frame),
+        share_(share),
+        world_slots_(world_slots < kWorldActiveSlots ? world_slots : kWorldActiveSlots) {}
 
   Vec3<S> force(const TickInput<S>& in, State& s, ActiveForce<S>* active) const noexcept {
     return to_device(inner_.force(to_world(in), s, active), active);
@@ -146,7 +168,7 @@ class FramedScene {
     return to_device(inner_.force(to_world(in), from, to, active), active);
   }
   Needs needs() const noexcept { return inner_.needs(); }
-  std::size_t active_slots() const noexcept { return inner_.active_slots(); }
+  std::size_t active_slots() const noexcept { return inner_.active_slots() + world_slots_; }
   std::size_t value_count() const noexcept { return inner_.value_count(); }
   bool describe(const State& s, const TickInput<S>& in, double* values) const noexcept {
     return inner_.describe(s, to_world(in), values);
@@ -165,14 +187,17 @@ class FramedScene {
     return w;
   }
   Vec3<S> to_device(const Vec3<S>& scene_n, ActiveForce<S>* active) const noexcept {
-    for (std::size_t i = 0; i < inner_.active_slots(); ++i)
+    const std::size_t scene_slots = inner_.active_slots();
+    for (std::size_t j = 0; j < world_slots_; ++j) active[scene_slots + j] = share_->active[j];
+    for (std::size_t i = 0; i < scene_slots + world_slots_; ++i)
       active[i].force_n = frame_.force_to_device(active[i].force_n);
-    return frame_.force_to_device(scene_n + *world_force_n_);
+    return frame_.force_to_device(scene_n + share_->force_n);
   }
 
   Inner inner_;
   DeviceFrame frame_;
-  const Vec3<S>* world_force_n_;
+  const WorldShare<S>* share_;
+  std::size_t world_slots_;
 };
 
 /// A device of a world: the World reads the real device once a tick (`fetch`), and the
@@ -230,6 +255,8 @@ struct WorldConfig {
   std::array<CouplingSpec, kMaxCouplings> couplings{};
   std::size_t coupling_count = 0;
   bool has_ball = false;
+  /// The ball, with its optional surface effects (ball.has_slippery, ball.has_impact; both off
+  /// by default).
   between::BallParams ball;
   std::uint32_t ball_devices = ~0U;  ///< bit i: device i touches the ball
 };
@@ -310,7 +337,7 @@ class World {
       // the other device at its clamp).
       in_world_[i] = known_[i] && !loops_[i].last_status().faults;
     }
-    between(dt_s);
+    between(dt_s, k);
 
     WorldStatus<N> status;
     for (std::size_t i = 0; i < N; ++i) status.devices[i] = loops_[i].tick(k);
@@ -354,6 +381,11 @@ class World {
   /// Of that, what the couplings put on device i, and what the ball did [N].
   const Vec3<S>& coupling_sum_n(std::size_t i) const noexcept { return coupling_sum_n_[i]; }
   const Vec3<S>& ball_force_n(std::size_t i) const noexcept { return ball_n_[i]; }
+  /// Of the ball's force, its slippery surface's and its impact's parts [N] (zero when off).
+  const Vec3<S>& ball_slippery_n(std::size_t i) const noexcept { return ball_slippery_n_[i]; }
+  const Vec3<S>& ball_impact_n(std::size_t i) const noexcept { return ball_impact_n_[i]; }
+  /// Device i's state against the ball's impact (fresh while it is out of the world).
+  const between::BallHipState& ball_hip_state(std::size_t i) const noexcept { return ball_hip_[i]; }
   /// Coupling j's force on its device a this tick (b got its negation) [N].
   const Vec3<S>& coupling_force_n(std::size_t j) const noexcept { return coupling_n_[j]; }
   const between::BallState& ball() const noexcept { return ball_; }
@@ -367,8 +399,8 @@ class World {
         estimators_{VelocityEstimator<S>(members[I].config.velocity_cutoff_hz)...},
         fresh_estimators_{estimators_},
         loops_{Loop(WorldDevice<Device>(members[I].device),
-                    FramedScene<SceneT>(members[I].scene, members[I].frame, &world_force_n_[I]), members[I].config,
-                    WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
+                    FramedScene<SceneT>(members[I].scene, members[I].frame, &share_[I], world_slots(config, I)),
+                    members[I].config, WorldPins{{}, WorldStopPin{&held_}, {}, {}})...} {
     // (The loop owns its WorldDevice; the world fetches through loop.device().)
     ball_.position_m = config_.ball.start_m;
     coupling_gain_.fill(1.0);
@@ -380,6 +412,12 @@ class World {
       const CouplingSpec& c = config_.couplings[j];
       coupling_step_[j] = std::min(ball_step_[c.a < N ? c.a : 0], ball_step_[c.b < N ? c.b : 0]);
     }
+  }
+
+  /// The ball's active parts device i takes part in: its slippery surface, its impact.
+  static std::size_t world_slots(const WorldConfig& c, std::size_t i) noexcept {
+    if (!c.has_ball || (c.ball_devices & (1U << i)) == 0) return 0;
+    return (c.ball.has_slippery ? 1U : 0U) + (c.ball.has_impact ? 1U : 0U);
   }
 
   /// Device i's reading, its HIP in the world frame and a velocity (the device's, or the
@@ -407,8 +445,11 @@ class World {
   /// The forces between HIPs: each coupling's once, its negation on the other end; the ball's
   /// on each HIP in it, their sum's negation on the ball, which then moves one step. A HIP
   /// not in the world this tick takes part in nothing.
-  void between(double dt_s) noexcept {
-    for (std::size_t i = 0; i < N; ++i) world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = Vec3<S>{};
+  void between(double dt_s, std::int64_t k) noexcept {
+    for (std::size_t i = 0; i < N; ++i) {
+      world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = ball_slippery_n_[i] = ball_impact_n_[i] = Vec3<S>{};
+      share_[i].active = {};
+    }
     for (std::size_t j = 0; j < config_.coupling_count; ++j) {
       const CouplingSpec& c = config_.couplings[j];
       coupling_n_[j] = Vec3<S>{};
@@ -431,17 +472,31 @@ class World {
         if ((config_.ball_devices & (1U << i)) == 0) continue;
         if (!in_world_[i]) {
           ball_gain_[i] = 0.0;
+          ball_hip_[i] = between::BallHipState{};  // back in the world: armed, no transient
           continue;
         }
         ball_gain_[i] = std::min(1.0, ball_gain_[i] + ball_step_[i]);
-        const Vec3<double> f =
-            between::ball_force_on_hip(config_.ball, ball_, to_double(hip_m_[i]), to_double(hip_v_[i])) * ball_gain_[i];
+        const between::BallHipForce h = between::ball_force_on_hip(
+            config_.ball, ball_, ball_hip_[i], to_double(hip_m_[i]), to_double(hip_v_[i]), Instant{k, 0}, period_s_);
+        const Vec3<double> f = h.force_n * ball_gain_[i];
         ball_n_[i] = vec_cast<S>(f);
         on_ball -= f;
+        // The active parts as they reach the device (after the same ramp), for its passivity
+        // controller: the slippery surface in an episode while the HIP is in the ball, the
+        // impact while its transient runs (as on a single device's surface).
+        std::size_t slot = 0;
+        if (config_.ball.has_slippery) {
+          ball_slippery_n_[i] = vec_cast<S>(h.slippery_n * ball_gain_[i]);
+          share_[i].active[slot++] = {ball_slippery_n_[i], h.in_contact, false};
+        }
+        if (config_.ball.has_impact) {
+          ball_impact_n_[i] = vec_cast<S>(h.impact_n * ball_gain_[i]);
+          share_[i].active[slot++] = {ball_impact_n_[i], h.impact_running, h.impact_triggered};
+        }
       }
       static_cast<void>(between::step_ball(config_.ball, ball_, on_ball, dt_s));
     }
-    for (std::size_t i = 0; i < N; ++i) world_force_n_[i] = coupling_sum_n_[i] + ball_n_[i];
+    for (std::size_t i = 0; i < N; ++i) share_[i].force_n = world_force_n_[i] = coupling_sum_n_[i] + ball_n_[i];
   }
 
   WorldConfig config_;
@@ -455,6 +510,10 @@ class World {
   std::array<Vec3<S>, N> world_force_n_{};
   std::array<Vec3<S>, N> coupling_sum_n_{};
   std::array<Vec3<S>, N> ball_n_{};
+  std::array<Vec3<S>, N> ball_slippery_n_{};
+  std::array<Vec3<S>, N> ball_impact_n_{};
+  std::array<between::BallHipState, N> ball_hip_{};
+  std::array<WorldShare<S>, N> share_{};  ///< what each device's FramedScene reads
   std::array<Vec3<S>, kMaxCouplings> coupling_n_{};
   std::array<Vec3<S>, N> hip_m_{};
   std::array<Vec3<S>, N> hip_v_{};

@@ -14,7 +14,11 @@
 ///                 names), `stiffness` [N/m], `damping` [N s/m], `rest_length` [m].
 ///   [ball]        a ball every device can push: `radius` [m], `mass` [kg], `stiffness`,
 ///                 `damping`, `drag`, `start` [m]; optionally a wall it bounces off:
-///                 `wall_point`, `wall_normal`, `wall_stiffness`, `wall_damping`.
+///                 `wall_point`, `wall_normal`, `wall_stiffness`, `wall_damping`; optionally
+///                 the cartoon effects on its surface, with the single-device tables' keys:
+///                 `[ball.slippery]` (`mu`, `max_tangential_force`) and `[ball.impact]`
+///                 (`recoil_gain`, `oscillation_gain`, `duration`, `frequency`,
+///                 `min_impact_speed`, `rearm_distance`, `sine`).
 ///   [world]       `stop = "all"` (default: one device's latched fault holds every device) or
 ///                 `"each"` (independent stations).
 ///
