@@ -446,9 +446,13 @@ class World {
   /// on each HIP in it, their sum's negation on the ball, which then moves one step. A HIP
   /// not in the world this tick takes part in nothing.
   void between(double dt_s, std::int64_t k) noexcept {
+    const bool ball_effects = config_.has_ball && (config_.ball.has_slippery || config_.ball.has_impact);
     for (std::size_t i = 0; i < N; ++i) {
-      world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = ball_slippery_n_[i] = ball_impact_n_[i] = Vec3<S>{};
-      share_[i].active = {};
+      world_force_n_[i] = coupling_sum_n_[i] = ball_n_[i] = Vec3<S>{};
+      if (ball_effects) {  // a world without them pays nothing for them
+        ball_slippery_n_[i] = ball_impact_n_[i] = Vec3<S>{};
+        share_[i].active = {};
+      }
     }
     for (std::size_t j = 0; j < config_.coupling_count; ++j) {
       const CouplingSpec& c = config_.couplings[j];

@@ -182,6 +182,8 @@ inline BallHipForce ball_force_on_hip(const BallParams& p, const BallState& ball
   const Vec3<double> d = hip_m - ball.position_m;
   const double r2 = dot(d, d);
   if (!std::isfinite(r2)) return out;
+  // Outside the ball only the impact has anything to do (its re-arm): no square root for the rest.
+  if (!p.has_impact && !(r2 < p.radius_m * p.radius_m)) return out;
   const double r = std::sqrt(r2);
   // At the very centre any direction is as good as another: out along +z.
   const Vec3<double> n = r > 0.0 ? d * (1.0 / r) : Vec3<double>{0.0, 0.0, 1.0};
