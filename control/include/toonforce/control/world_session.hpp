@@ -7,8 +7,9 @@
 /// zeroes every device, one after the other.
 ///
 /// Every device of the world is ticked by one thread on the host's clock: a device clocked by
-/// its own servo thread (the Omni: Clocking::kDeviceThread) cannot join a world yet, and the
-/// group refuses it rather than let one device's I/O wait on another's clock.
+/// its own servo thread (the Omni: Clocking::kDeviceThread) joins through a ClockBridge
+/// (clock_bridge.hpp), and the group refuses one that comes without, rather than let one
+/// device's I/O wait on another's clock.
 
 #include <cstdint>
 #include <memory>
