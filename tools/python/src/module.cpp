@@ -37,6 +37,7 @@
 #include "toonforce/replay/motion_csv.hpp"
 #include "toonforce/replay/replay.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/run/world_run.hpp"
 #include "toonforce/config/scene_editor.hpp"
 #include "toonforce/sim/check.hpp"
 #include "toonforce/sim/figures.hpp"
@@ -594,6 +595,118 @@ py::tuple sim_world(const std::string& scene_path, const std::optional<std::stri
   return py::make_tuple(arrays_of(columns), units, d, py::list());
 }
 
+/// A world run's rows into Columns; a Ctrl-C the rows hear (Columns' look) stops the run as its
+/// stop signals would.
+class WorldRunColumns final : public WorldRowSink {
+ public:
+  WorldRunColumns(Columns& columns, std::atomic<int>& stop) : columns_(columns), stop_(stop) {}
+  void begin(const std::vector<std::string>& names, std::int64_t ticks) override {
+    columns_.begin(names, static_cast<std::size_t>(std::max<std::int64_t>(ticks, 0)) + 1);
+  }
+  void row(const std::vector<double>& values) override {
+    columns_.add(values);
+    if (const int signal = stop_.load(); signal != 0) request_session_stop(signal);
+  }
+
+ private:
+  Columns& columns_;
+  std::atomic<int>& stop_;
+};
+
+/// run_world(): `toonforce run` of a world scene through run_world_servo, in real time, the rows
+/// as columns. `scripts` as sim_world's. Blocks until the run ends (its duration, or Ctrl-C).
+py::tuple run_world(const std::string& scene_path, const std::optional<std::string>& scene_text,
+                    const std::vector<std::tuple<std::string, std::string, std::optional<std::string>>>& scripts,
+                    const std::string& device, double rate_hz, double duration_s, const std::string& sim_device,
+                    std::uint64_t seed, const std::optional<std::pair<std::string, double>>& fail,
+                    const std::string& trace_path, const std::string& omni_library, int priority, int cpu,
+                    bool lock_memory, bool allow_empty, bool strict) {
+  RunOptions options;
+  options.device = device;
+  options.scene_path = scene_path;
+  options.scene_text = scene_text;
+  for (const auto& [name, path, text] : scripts) {
+    options.world_scripts.emplace_back(name, path);
+    if (text) options.world_script_texts[name] = *text;
+  }
+  options.rate_hz = rate_hz;
+  options.duration_s = duration_s;
+  options.sim_device = sim_device;
+  options.seed = seed;
+  options.world_fail = fail;
+  options.trace_path = trace_path;
+  options.omni.library_path = omni_library;
+  options.priority = priority;
+  options.cpu = cpu;
+  options.lock_memory = lock_memory;
+  options.allow_non_realtime = true;
+  options.allow_empty = allow_empty;
+  options.strict = strict;
+  options.handle_signals = false;  // Python's: Ctrl-C is a KeyboardInterrupt, heard by the rows
+  options.interactive = false;
+  {
+    auto world = scene_text ? parse_world(*scene_text, scene_path) : load_world_file(scene_path);
+    if (!world) raise_scene_error(world.error(), scene_path);
+  }
+  std::atomic<int> stop{0};
+  Columns columns(stop);
+  WorldRunColumns sink(columns, stop);
+  options.world_rows = &sink;
+  options.early_stop = &stop;
+  Result<WorldRunSummary> summary = Error{""};
+  {
+    py::gil_scoped_release unlocked;
+    summary = run_world_servo(options);
+  }
+  columns.raise_interrupt();
+  if (!summary) raise_value_error(summary.error());
+  py::dict units;
+  for (const std::string& name : columns.names()) units[py::str(name)] = world_column_unit(name);
+  const WorldRunSummary& s = summary.value();
+  const auto latency = [](const LatencySummary& l) {
+    py::dict d;
+    d["count"] = l.count;
+    d["median_s"] = static_cast<double>(l.median_ns) * 1e-9;
+    d["p99_s"] = static_cast<double>(l.p99_ns) * 1e-9;
+    d["max_s"] = static_cast<double>(l.max_ns) * 1e-9;
+    return d;
+  };
+  py::dict d;
+  d["scene_name"] = s.scene_name;
+  d["ticks"] = s.report.ticks;
+  d["missed"] = s.report.missed;
+  d["elapsed_s"] = s.report.elapsed_s;
+  d["stop_signal"] = s.report.stop_signal;
+  d["realtime"] = s.report.setup.fifo;
+  d["wake_latency"] = latency(s.report.wake.summary());
+  py::list devices;
+  for (const WorldRunDevice& v : s.devices) {
+    py::dict one;
+    one["name"] = v.name;
+    one["backend"] = v.backend;
+    one["device_name"] = v.device_name;
+    one["script"] = v.script;
+    one["peak_force_n"] = v.peak_force_n;
+    one["fault_ticks"] = v.fault_ticks;
+    one["faults"] = describe_faults(v.fault_bits);
+    one["latched_at_end"] = describe_faults(v.latched_at_end);
+    if (v.bridged) {
+      one["reading_age"] = latency(v.reading_age);
+      one["force_age"] = latency(v.force_age);
+      one["stale_force_ticks"] = v.stale_force_ticks;
+    }
+    devices.append(one);
+  }
+  d["devices"] = devices;
+  d["held_at_s"] = s.held_at_s ? py::object(py::float_(*s.held_at_s)) : py::object(py::none());
+  d["held_by"] = s.held_by;
+  d["coupling_imbalance_n"] = s.coupling_imbalance_n;
+  d["forced_while_held"] = s.forced_while_held;
+  d["frames_dropped"] = s.frames_dropped;
+  d["trace_error"] = s.trace_error;
+  return py::make_tuple(arrays_of(columns), units, d, py::list());
+}
+
 /// replay(): `toonforce replay` through run_replay, the rows kept as columns instead of text.
 py::tuple replay(const std::string& scene_path, const std::optional<std::string>& scene_text,
                  const std::string& motion_path, const std::optional<std::string>& motion_text,
@@ -913,6 +1026,10 @@ PYBIND11_MODULE(_toonforce, m) {
   m.def("sim_world", &sim_world, py::arg("scene_path"), py::arg("scene_text"), py::arg("scripts"), py::arg("rate_hz"),
         py::arg("duration_s"), py::arg("device"), py::arg("integrator"), py::arg("substeps"), py::arg("seed"),
         py::arg("fail"), py::arg("trace_path"));
+  m.def("run_world", &run_world, py::arg("scene_path"), py::arg("scene_text"), py::arg("scripts"), py::arg("device"),
+        py::arg("rate_hz"), py::arg("duration_s"), py::arg("sim_device"), py::arg("seed"), py::arg("fail"),
+        py::arg("trace_path"), py::arg("omni_library"), py::arg("priority"), py::arg("cpu"), py::arg("lock_memory"),
+        py::arg("allow_empty"), py::arg("strict"));
   m.def("replay", &replay, py::arg("scene_path"), py::arg("scene_text"), py::arg("motion_path"), py::arg("motion_text"),
         py::arg("scalar"), py::arg("sine"), py::arg("allow_empty"), py::arg("output_path"));
   m.def("figures", &figures, py::arg("out_dir"), py::arg("root"), py::arg("format"), py::arg("plot"));

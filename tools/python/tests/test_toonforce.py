@@ -93,6 +93,37 @@ def test_sim_world_names_a_device_without_a_hand_script(root):
         toonforce.sim_world(toonforce.Scene.__new__(toonforce.Scene), {})
 
 
+def test_run_world_arrays_are_the_runs_trace_and_name_every_device(root, tmp_path):
+    # In real time: the row count is the ticks run (a loaded host skips and counts deadlines), so
+    # the arrays are compared with the run's own CSV, not with a simulation.
+    scene, scripts = WORLD
+    csv_path = tmp_path / "run.csv"
+    trace = toonforce.run_world(root / scene, 1.5, {n: root / p for n, p in scripts.items()}, fail=("right", 1.2),
+                                trace_path=csv_path)
+    header, theirs = read_csv(csv_path)
+    assert list(trace) == header
+    for name in header:
+        assert_same_doubles(name, trace[name], theirs[name])
+    assert trace.rows == trace.summary["ticks"] + 1  # and the shut-down row
+    assert np.array_equal(trace["left.coupling_fx"], -trace["right.coupling_fx"])
+    assert np.abs(trace["left.coupling_fx"]).max() > 0.3
+    held = np.flatnonzero(trace["held"] == 1)
+    assert len(held) > 0 and trace.summary["held_by"] == "right"
+    after = slice(held[0] + 1, None)
+    for name in ("left.fx", "left.fy", "left.fz", "right.fx", "right.fy", "right.fz"):
+        assert not trace[name][after].any(), name
+    assert [(d["name"], d["backend"]) for d in trace.summary["devices"]] == [("left", "sim"), ("right", "sim")]
+    assert "device silent" in trace.summary["devices"][1]["faults"]
+
+
+def test_run_world_refuses_what_it_cannot_run(root):
+    scene, scripts = WORLD
+    with pytest.raises(ValueError, match="the scene has no device 'middle'"):
+        toonforce.run_world(root / scene, 0.1, {"middle": root / scripts["left"]})
+    with pytest.raises(ValueError, match="duration_s must be > 0"):
+        toonforce.run_world(root / scene, 0)
+
+
 @pytest.mark.parametrize("scalar", SCALARS)
 @pytest.mark.parametrize("scene,motion", REPLAY_CASES)
 def test_replay_arrays_are_the_programs_output(cli, root, tmp_path, scene, motion, scalar):

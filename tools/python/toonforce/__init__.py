@@ -27,7 +27,7 @@ from ._toonforce import SceneError
 from ._trace import Trace
 
 __all__ = ["SceneError", "RunError", "PlausibilityWarning", "Scene", "HandScript", "Trace", "Run", "check", "sim",
-           "sim_world", "replay", "figures", "run", "__version__"]
+           "sim_world", "run_world", "replay", "figures", "run", "__version__"]
 __version__: str = _toonforce.version
 
 
@@ -242,6 +242,39 @@ def sim_world(scene: Union[str, "os.PathLike[str]", Mapping[str, Any]], scripts:
         columns, units, summary, warned = _toonforce.sim_world(
             scene_path, scene_text, named, float(rate_hz), None if duration_s is None else float(duration_s), device,
             integrator, int(substeps), int(seed), failing, "" if trace_path is None else os.fspath(trace_path))
+    return Trace(columns, units, summary, warned)
+
+
+def run_world(scene: Union[str, "os.PathLike[str]", Mapping[str, Any]], duration_s: float,
+              scripts: Optional[Mapping[str, ScriptLike]] = None, device: str = "sim", rate_hz: float = 1000.0,
+              sim_device: str = "falcon", seed: int = 1, fail: Optional[Tuple[str, float]] = None,
+              trace_path: Optional[str] = None, omni_library: Optional[str] = None, priority: int = 80,
+              cpu: int = -1, lock_memory: bool = False, allow_empty: bool = False, strict: bool = False) -> Trace:
+    """``toonforce run`` of a world scene, in real time, for ``duration_s`` seconds (docs/spec/
+    interfaces.md "run of a world scene"): ``device="sim"`` simulates every device, ``"scene"``
+    opens each as its ``[[device]]`` table says (Falcons by serial, one Omni through
+    ``omni_library`` or libHD). ``scripts`` maps simulated devices' names to hand scripts; a
+    device without one holds still. ``fail=(name, seconds)`` pulls a simulated device's cable.
+    SCHED_FIFO when permitted, else normal scheduling (said in ``summary["realtime"]``). Returns
+    the ``Trace`` of the world's columns, one row a tick run; ``summary["devices"]`` names each
+    device, with its faults and, for a device on its own clock, the ages of its readings and
+    forces. Ctrl-C stops it with zero force on every device.
+    """
+    if isinstance(scene, _Source):
+        raise TypeError("a world is a path or a dict; toonforce.Scene holds a one-device scene")
+    if not duration_s > 0:
+        raise ValueError(f"duration_s must be > 0 seconds (got {duration_s})")
+    scene_path, scene_text = _source(scene, Scene)
+    named = []
+    for name, script in (scripts or {}).items():
+        path, text = _source(script, HandScript)
+        named.append((str(name), path, text))
+    failing = None if fail is None else (str(fail[0]), float(fail[1]))
+    with _scene_errors():
+        columns, units, summary, warned = _toonforce.run_world(
+            scene_path, scene_text, named, device, float(rate_hz), float(duration_s), sim_device, int(seed), failing,
+            "" if trace_path is None else os.fspath(trace_path), "" if omni_library is None else os.fspath(omni_library),
+            int(priority), int(cpu), bool(lock_memory), bool(allow_empty), bool(strict))
     return Trace(columns, units, summary, warned)
 
 

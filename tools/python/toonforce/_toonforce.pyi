@@ -39,6 +39,12 @@ def sim_world(scene_path: str, scene_text: Optional[str], scripts: List[Tuple[st
               trace_path: str) -> Tuple[Dict[str, np.ndarray], Dict[str, str], Dict[str, Any], List[str]]:
     """``toonforce sim`` of a world: (columns, units, summary, warnings); scripts are (device name,
     path or its stand-in name, text or None); fail is (device name, seconds) or None."""
+def run_world(scene_path: str, scene_text: Optional[str], scripts: List[Tuple[str, str, Optional[str]]], device: str,
+              rate_hz: float, duration_s: float, sim_device: str, seed: int, fail: Optional[Tuple[str, float]],
+              trace_path: str, omni_library: str, priority: int, cpu: int, lock_memory: bool, allow_empty: bool,
+              strict: bool) -> Tuple[Dict[str, np.ndarray], Dict[str, str], Dict[str, Any], List[str]]:
+    """``toonforce run`` of a world, in real time: (columns, units, summary, warnings); device
+    "sim" or "scene"; scripts and fail as sim_world's; duration_s > 0."""
 def replay(scene_path: str, scene_text: Optional[str], motion_path: str, motion_text: Optional[str], scalar: str,
            sine: Optional[str], allow_empty: bool, output_path: str) -> Tuple[Dict[str, np.ndarray], Dict[str, str], Dict[str, Any]]:
     """``toonforce replay``: (columns, units, summary); columns as the output CSV's, float64,

@@ -135,7 +135,9 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
       if (scripts[i].empty()) {
         intent = host_sim::HandIntent::holding({0.0, 0.0, 0.01});
       } else {
-        auto script = load_hand_script(scripts[i]);
+        const auto text = options.world_script_texts.find(d.name);
+        auto script = text != options.world_script_texts.end() ? parse_hand_script(text->second, scripts[i])
+                                                               : load_hand_script(scripts[i]);
         if (!script) {
           problems += script.error();
           break;
@@ -211,10 +213,11 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
 /// messages, counts.
 class WorldRunConsumer {
  public:
-  WorldRunConsumer(const WorldDescription& world, WorldTrace* trace, std::FILE* messages, WorldRunSummary& summary,
-                   guardian::SharedPage* page)
+  WorldRunConsumer(const WorldDescription& world, WorldTrace* trace, WorldRowSink* rows, std::FILE* messages,
+                   WorldRunSummary& summary, guardian::SharedPage* page)
       : world_(world),
         trace_(trace),
+        rows_(rows),
         messages_(messages),
         summary_(summary),
         page_(page),
@@ -260,8 +263,9 @@ class WorldRunConsumer {
     }
     held_ = f.held;
     summary_.coupling_imbalance_n = std::max(summary_.coupling_imbalance_n, coupling_imbalance_n(f));
+    if (rows_ != nullptr || (trace_ != nullptr && !write_failed_)) world_row(f, row_);
+    if (rows_ != nullptr) rows_->row(row_);
     if (trace_ != nullptr && !write_failed_) {
-      world_row(f, row_);
       if (!trace_->write(row_)) trace_failed(f);
       // With a guardian, the trace goes to the file every 20 ms of loop time: if this process
       // dies, the guardian ends the trace after what the file holds.
@@ -292,6 +296,7 @@ class WorldRunConsumer {
   }
   const WorldDescription& world_;
   WorldTrace* trace_;
+  WorldRowSink* rows_;
   std::FILE* messages_;
   WorldRunSummary& summary_;
   guardian::SharedPage* page_;
@@ -363,7 +368,8 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
   session.interactive = options.interactive;
   session.messages = options.messages;
   session.pending_stop = options.early_stop;
-  WorldRunConsumer consumer(world, trace.get(), options.messages, summary, options.guardian);
+  if (options.world_rows != nullptr) options.world_rows->begin(world_columns(world), session.realtime.deadlines);
+  WorldRunConsumer consumer(world, trace.get(), options.world_rows, options.messages, summary, options.guardian);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;
   auto report = run_world(*run_world_object, group, consumer, session);

@@ -8,6 +8,7 @@
 #include <concepts>
 #include <cstdint>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,6 +30,7 @@
 #include "toonforce/hal/omni/omni_device.hpp"
 
 namespace toonforce {
+class WorldRowSink;  // sim/world_sim.hpp
 namespace guardian {
 struct SharedPage;
 }  // namespace guardian
@@ -67,6 +69,10 @@ struct RunOptions {
   /// A world scene: one hand script per simulated device, (device name, file); a device
   /// without one holds still 1 cm above its workspace centre.
   std::vector<std::pair<std::string, std::string>> world_scripts;
+  /// Hand scripts given as text, by device name (their entry in `world_scripts` names them).
+  std::map<std::string, std::string> world_script_texts;
+  /// A world scene: also every trace row as numbers, from the writer thread (the Python module).
+  WorldRowSink* world_rows = nullptr;
   /// A world scene: pull this simulated device's cable after this many seconds (its reads and
   /// writes fail from then on), to see one stop hold every device.
   std::optional<std::pair<std::string, double>> world_fail;
