@@ -427,7 +427,7 @@ TEST(WorldFile, TheOneDeviceReaderRefusesAWorldInOneLine) {
   ASSERT_FALSE(scene);
   EXPECT_EQ(scene.error(),
             "w.toml:2: device: [[device]] tables make this a world scene of 2 devices; `toonforce sim --scene FILE "
-            "--script NAME=HAND_SCRIPT ...` runs a world\n");
+            "--script NAME=HAND_SCRIPT ...` and `toonforce run --device sim|scene --scene FILE ...` run a world\n");
   const auto one = parse_scene("[[device]]\nname = \"a\"\n", "one.toml");
   ASSERT_FALSE(one);
   EXPECT_NE(one.error().find("one.toml:1: device: [[device]] tables make this a world scene of 1 device; "),

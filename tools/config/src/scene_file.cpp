@@ -45,7 +45,8 @@ bool refuse_world(const toml::table& root, ErrorList& errors) {
   const toml::array& tables = *device->as_array();
   errors.add(tables.empty() ? device->source().begin.line : tables[0].source().begin.line, "device",
              fmt::format("[[device]] tables make this a world scene of {} device{}; `toonforce sim --scene FILE "
-                         "--script NAME=HAND_SCRIPT ...` runs a world",
+                         "--script NAME=HAND_SCRIPT ...` and `toonforce run --device sim|scene --scene FILE ...` run "
+                         "a world",
                          tables.size(), tables.size() == 1 ? "" : "s"));
   return true;
 }

@@ -36,7 +36,7 @@ struct CheckReport {
   std::vector<std::string> notes;     ///< the plausibility report's notes
   std::vector<std::string> warnings;  ///< the plausibility report's warnings
   bool ok = false;                    ///< no error (and, with strict, no warning)
-  bool world = false;                 ///< the scene is a world (`sim` runs it; `run` does not yet)
+  bool world = false;                 ///< the scene is a world (`sim` and `run` run it)
   int exit_code = 1;                  ///< what `toonforce check` exits with: 0 ok, 1 not, 2 rate_error
 };
 
