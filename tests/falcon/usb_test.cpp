@@ -492,6 +492,85 @@ TEST_F(FalconUsb, DevicesCommandWithNoFalconSaysWhatToCheck) {
       << r.output;
 }
 
+// `toonforce devices --scene`: each [[device]] of a world resolved to what is attached.
+
+/// A world file in the test's config directory; returns its path.
+std::string write_world(const std::filesystem::path& dir, const std::string& name, const std::string& text) {
+  std::filesystem::create_directories(dir);
+  const auto path = dir / name;
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+std::string falcon_table(const std::string& name, const std::string& select) {
+  return "[[device]]\nname = \"" + name + "\"\nbackend = \"falcon\"\n" +
+         (select.empty() ? "" : "select = \"" + select + "\"\n");
+}
+
+TEST_F(FalconUsb, DevicesWithAWorldSceneResolvesEachDeviceByItsSerial) {
+  bed_->add_falcon({}, "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  // The tables in the other order from the bus: resolved by serial, not by position.
+  const std::string world = write_world(config_home_, "lab.toml",
+                                        falcon_table("left", "FTEMU0002") + falcon_table("right", "FTEMU0001") +
+                                            "[[device]]\nname = \"ghost\"\nbackend = \"sim\"\n");
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --scene " + world);
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "Novint Falcon: 2 found\n", "\nWorld scene " + world + ": 3 devices\n",
+           std::string("  left (line 1): backend falcon, select \"FTEMU0002\"\n"
+                       "    -> Novint Falcon at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002; this user may "
+                       "open it: yes; firmware: running\n"),
+           std::string("  right (line 5): backend falcon, select \"FTEMU0001\"\n"
+                       "    -> Novint Falcon at usb 001/005 (/dev/bus/usb/001/005), serial FTEMU0001; this user may "
+                       "open it: yes; firmware: not loaded"),
+           std::string("  ghost (line 9): backend sim\n    -> simulated"),
+           std::string("every device of the world resolves\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
+TEST_F(FalconUsb, DevicesWithAWorldSceneSaysWhichDevicesDoNotResolveAndWhy) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const std::string world = write_world(config_home_, "lab.toml",
+                                        falcon_table("a", "FTEMU0001") + falcon_table("b", "FTEMU0001") +
+                                            falcon_table("c", "FTEMU0009") + falcon_table("d", ""));
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --no-probe --scene " + world);
+  EXPECT_EQ(r.status, 1) << r.output;
+  const std::string attached = "attached Falcons: FTEMU0001 (usb 001/005), FTEMU0002 (usb 001/006)";
+  for (
+      const std::string& line : std::vector<std::string>{
+          std::string("  a (line 1): backend falcon, select \"FTEMU0001\"\n    -> Novint Falcon at usb 001/005"),
+          "ERROR: the same Falcon as device 'a': each [[device]] needs its own; give them different `select` serials (" +
+              attached + ")",
+          "    -> not found: no Falcon with serial FTEMU0009 is attached; " + attached + "\n",
+          "    -> ERROR: the world has 4 Falcons, so each needs its own `select`: add select = \"<serial>\" to this "
+          "[[device]] table; " +
+              attached + "\n",
+          std::string("3 of 4 device(s) do not resolve: b, c, d\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
+TEST_F(FalconUsb, DevicesWithAOneDeviceSceneOrABadWorldIsAUsageError) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  const std::string one = write_world(config_home_, "one.toml", "[device]\nmax_force = 2.0\n");
+  toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --scene " + one);
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find(one + ":1: device: a one-device scene (no [[device]] tables)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("Novint Falcon: "), std::string::npos) << "nothing is touched: " << r.output;
+  const std::string bad = write_world(config_home_, "bad.toml", falcon_table("a", "FTEMU0001") + "selekt = 3\n");
+  r = toonforce::test::run_toonforce("devices --scene " + bad);
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find(bad + ":5: device[1]: unknown key 'selekt' (did you mean 'select'?"), std::string::npos)
+      << r.output;
+  r = toonforce::test::run_toonforce("devices --scene " + (config_home_ / "none.toml").string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("none.toml: no such scene file"), std::string::npos) << r.output;
+}
+
 TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) {
   bed_->add_falcon();
   const auto path = std::filesystem::temp_directory_path() / ("toonforce_cli_usb_" + std::to_string(::getpid()));
