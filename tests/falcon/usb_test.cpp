@@ -680,6 +680,78 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
       << r.output;
 }
 
+TEST_F(FalconUsb, BringupOfAWorldBringsUpEachFalconBySerialWithItsOwnReport) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const std::string world =
+      write_world(config_home_, "lab.toml",
+                  falcon_table("left", "FTEMU0002") + falcon_table("right", "FTEMU0001") +
+                      "[[device]]\nname = \"pen\"\nbackend = \"omni\"\nselect = \"Left Touch\"\n");
+  const auto base = config_home_ / "report";
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware --scene " + world + " --report " + base.string());
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "=== " + world + ":1: device 'left': Novint Falcon, serial FTEMU0002 ===\n",
+           std::string("[pass] Found and may be opened: found at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002"),
+           "=== " + world + ":5: device 'right': Novint Falcon, serial FTEMU0001 ===\n",
+           std::string("[pass] Found and may be opened: found at usb 001/005 (/dev/bus/usb/001/005), serial FTEMU0001"),
+           "device 'pen' (omni): not a Falcon: bring it up with `toonforce bringup omni --omni-device \"Left Touch\"`",
+           std::string("  left: no step failed\n  right: no step failed\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  const std::string left = read_text(base.string() + "-left.md");
+  EXPECT_NE(left.find("- device: 'left' of " + world + ": serial FTEMU0002"), std::string::npos) << left;
+  const std::string right = read_text(base.string() + "-right.json");
+  EXPECT_NE(right.find("serial FTEMU0001"), std::string::npos) << right;
+  EXPECT_FALSE(std::filesystem::exists(base.string() + "-pen.md"));
+
+  // One device by name; a device whose Falcon is not attached fails, the others go on.
+  const std::string missing =
+      write_world(config_home_, "missing.toml", falcon_table("gone", "FTEMU0009") + falcon_table("here", "FTEMU0001"));
+  const toonforce::test::CommandRun m = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware --scene " + missing + " --report " + base.string());
+  EXPECT_EQ(m.status, 1) << m.output;
+  EXPECT_NE(
+      m.output.find("[FAIL] Found and may be opened: no Falcon with serial number FTEMU0009 among the 2 connected"),
+      std::string::npos)
+      << m.output;
+  EXPECT_NE(m.output.find("  gone: a step FAILED\n  here: no step failed\n"), std::string::npos) << m.output;
+  const toonforce::test::CommandRun only = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found --scene " + missing + " --device here --report " + base.string());
+  EXPECT_EQ(only.status, 0) << only.output;
+  EXPECT_EQ(only.output.find("'gone'"), std::string::npos) << only.output;
+}
+
+TEST_F(FalconUsb, BringupOfAWorldRefusesOptionsThatChooseOneFalcon) {
+  const std::string world =
+      write_world(config_home_, "lab.toml", falcon_table("left", "FTEMU0002") + falcon_table("right", ""));
+  for (const char* option : {"--serial FTEMU0001", "--falcon-index 1"}) {
+    const toonforce::test::CommandRun r =
+        toonforce::test::run_toonforce(std::string("bringup falcon --scene ") + world + " " + option);
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find(": not with --scene: each Falcon of a world is chosen by its `select` serial"),
+              std::string::npos)
+        << r.output;
+  }
+  toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --device left");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--device left: names a device of a world scene: give the scene with --scene"),
+            std::string::npos)
+      << r.output;
+  r = toonforce::test::run_toonforce("bringup falcon --scene " + world + " --device middle");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--device middle: the scene " + world + " has no such device (its devices: left, right)"),
+            std::string::npos)
+      << r.output;
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --only found --scene " + world +
+                                     " --device right --report " + (config_home_ / "r").string());
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("device 'right': NOT brought up: the world has 2 Falcons, so each needs `select`"),
+            std::string::npos)
+      << r.output;
+}
+
 std::string fmt_ticks(std::size_t ticks) { return "run      " + std::to_string(ticks) + " ticks at 1000 Hz"; }
 
 TEST_F(FalconUsb, RunOfAWorldOfTwoFalconsThroughTheCommandLine) {
