@@ -744,6 +744,18 @@ TEST_F(FalconUsb, BringupOfAWorldRefusesOptionsThatChooseOneFalcon) {
   EXPECT_NE(r.output.find("--device middle: the scene " + world + " has no such device (its devices: left, right)"),
             std::string::npos)
       << r.output;
+  // A directory as the base is refused as for one Falcon (it gave DIR/-left.md), and a base whose
+  // BASE-NAME.md would be the scene itself.
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --scene " + world + " --report " +
+                                     config_home_.string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--report " + config_home_.string() + ": is a directory"), std::string::npos) << r.output;
+  const std::string onto = write_world(config_home_, "x-left.md", falcon_table("left", "FTEMU0002"));
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --scene " + onto + " --report " +
+                                     (config_home_ / "x").string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("would overwrite the input " + onto), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(config_home_ / "x-left.json"));
   r = toonforce::test::run_toonforce("bringup falcon --non-interactive --only found --scene " + world +
                                      " --device right --report " + (config_home_ / "r").string());
   EXPECT_EQ(r.status, 1) << r.output;

@@ -157,7 +157,9 @@ int falcon_world_bringup(const bringup::FalconBringupOptions& options, const Com
                only_device.empty() ? "" : " (--device " + only_device + ")");
     return 2;
   }
-  // Every report's name is checked before the first device is touched.
+  // Every report's name is checked before the first device is touched; the base itself first
+  // (a directory would give the files out/-left.md).
+  if (!report_base_ok(c, {options.falcon.firmware_path, scene})) return 2;
   for (const WorldDeviceEntry* d : devices) {
     Common named = c;
     if (!named.report.empty()) named.report += "-" + d->name;
