@@ -276,6 +276,22 @@ TEST_F(FakeHost, AWorldsFalconThatIsMissingSharedOrUnselectedFailsListingTheSeri
   EXPECT_NE(d.fix.find("add select = \"<serial>\""), std::string::npos) << d.fix;
 }
 
+TEST_F(FakeHost, AWorldsOnlyFalconWithoutSelectIsTheFirstByBusAndAddress) {
+  // sysfs names sort "1-10" before "1-9"; hal/falcon (and so `run`) takes the lower address.
+  falcon("1-10", 1, 10, kRootOnly);
+  write("sys/bus/usb/devices/1-10/serial", "FTHIGH10\n");
+  falcon("1-9", 1, 9, kGroupRw);
+  write("sys/bus/usb/devices/1-9/serial", "FTLOW009\n");
+  DoctorOptions o;
+  o.root = root_.string();
+  o.world = {{"only", "falcon", ""}, {"ghost", "sim", ""}};
+  const Finding only = find(run_doctor(o), "only (falcon)");
+  EXPECT_EQ(only.verdict, Verdict::kOk) << only.finding;
+  EXPECT_NE(only.finding.find("/dev/bus/usb/001/009 (0403:cb48): this user may open it (serial FTLOW009)"),
+            std::string::npos)
+      << only.finding;
+}
+
 TEST_F(FakeHost, TheCommandReadsTheWorldSceneAndRefusesAOneDeviceScene) {
   falcon("1-1", 1, 5, kGroupRw);
   write("sys/bus/usb/devices/1-1/serial", "FTLEFT01\n");

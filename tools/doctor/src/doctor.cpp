@@ -500,6 +500,13 @@ void check_world_devices(const Host& host, const std::vector<DoctorWorldDevice>&
   };
   std::vector<Attached> attached;
   for (const auto& dir : usb_devices(host, "0403", "cb48")) attached.push_back({dir, read_word(dir / "serial")});
+  // In bus and address order, as hal/falcon numbers them (a world's only Falcon without `select`
+  // is the first), not by sysfs name ("1-10" sorts before "1-9").
+  const auto number = [](const Attached& a) {
+    return std::pair{std::atoi(read_word(a.dir / "busnum").c_str()), std::atoi(read_word(a.dir / "devnum").c_str())};
+  };
+  std::stable_sort(attached.begin(), attached.end(),
+                   [&](const Attached& a, const Attached& b) { return number(a) < number(b); });
   std::string list;
   for (const Attached& a : attached) {
     const std::string node = usb_node(host, a.dir).name;  // "/dev/bus/usb/001/005 (0403:cb48)"
