@@ -553,6 +553,24 @@ TEST_F(FalconUsb, DevicesWithAWorldSceneSaysWhichDevicesDoNotResolveAndWhy) {
   }
 }
 
+TEST_F(FalconUsb, DevicesWithAWorldSceneNamesAFalconThatCannotBeOpenedBySerial) {
+  // A Falcon that cannot be opened (here: its usbfs answers ENODEV, as on an unplug) still has
+  // its serial number in sysfs: the table resolves to it and says what stops the opening.
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  bed_->unplug(1);
+  const std::string world =
+      write_world(config_home_, "lab.toml", falcon_table("left", "FTEMU0001") + falcon_table("right", "FTEMU0002"));
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --no-probe --scene " + world);
+  EXPECT_EQ(r.status, 1) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "  usb 001/006 (/dev/bus/usb/001/006)  serial FTEMU0002\n    this user may open it: NO: ",
+           "    -> Novint Falcon at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002; this user may open it: NO: ",
+           "1 of 2 device(s) do not resolve: right\n"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
 TEST_F(FalconUsb, DevicesWithAOneDeviceSceneOrABadWorldIsAUsageError) {
   bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
   const std::string one = write_world(config_home_, "one.toml", "[device]\nmax_force = 2.0\n");

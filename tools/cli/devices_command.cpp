@@ -104,7 +104,7 @@ std::string attached_falcons(const std::vector<DetectedDevice>& falcons) {
   std::string out;
   for (const DetectedDevice& f : falcons) {
     out += out.empty() ? "" : ", ";
-    // Without opening it, libusb cannot read a Falcon's serial number (a string descriptor).
+    // Neither an opened device (libusb) nor sysfs gave its serial number.
     out += f.serial.empty() ? fmt::format("one at {} whose serial cannot be read ({})", short_location(f.location),
                                           f.can_open ? "it reports none" : "this user may not open it")
                             : fmt::format("{} ({})", f.serial, short_location(f.location));
