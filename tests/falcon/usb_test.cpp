@@ -725,8 +725,8 @@ TEST_F(FalconUsb, BringupOfAWorldBringsUpEachFalconBySerialWithItsOwnReport) {
   EXPECT_FALSE(std::filesystem::exists(base.string() + "-pen.md"));
 
   // One device by name; a device whose Falcon is not attached fails, the others go on.
-  const std::string missing =
-      write_world(config_home_, "missing.toml", falcon_table("gone", "FTEMU0009") + falcon_table("here", "FTEMU0001"));
+  const std::string missing = write_world(config_home_, "missing.toml",
+                                          falcon_table("gone/away", "FTEMU0009") + falcon_table("here", "FTEMU0001"));
   const toonforce::test::CommandRun m = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found,firmware --scene " + missing + " --report " + base.string());
   EXPECT_EQ(m.status, 1) << m.output;
@@ -734,11 +734,12 @@ TEST_F(FalconUsb, BringupOfAWorldBringsUpEachFalconBySerialWithItsOwnReport) {
       m.output.find("[FAIL] Found and may be opened: no Falcon with serial number FTEMU0009 among the 2 connected"),
       std::string::npos)
       << m.output;
-  EXPECT_NE(m.output.find("  gone: a step FAILED\n  here: no step failed\n"), std::string::npos) << m.output;
+  EXPECT_NE(m.output.find("  gone/away: a step FAILED\n  here: no step failed\n"), std::string::npos) << m.output;
+  EXPECT_TRUE(std::filesystem::exists(base.string() + "-gone_away.md")) << "a '/' in a name is no directory";
   const toonforce::test::CommandRun only = toonforce::test::run_toonforce(
       "bringup falcon --non-interactive --only found --scene " + missing + " --device here --report " + base.string());
   EXPECT_EQ(only.status, 0) << only.output;
-  EXPECT_EQ(only.output.find("'gone'"), std::string::npos) << only.output;
+  EXPECT_EQ(only.output.find("'gone/away'"), std::string::npos) << only.output;
 }
 
 TEST_F(FalconUsb, BringupOfAWorldRefusesOptionsThatChooseOneFalcon) {

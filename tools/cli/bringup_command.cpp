@@ -132,6 +132,18 @@ void finish(const bringup::Report& report, const Common& c, const char* device) 
   set_exit_code(write_and_say(report, c.report, device));
 }
 
+/// A device's name as part of a file name: a name is any one line (world_file.hpp), but a '/'
+/// in BASE-NAME would be a directory, so what is not a letter, a digit, '.', '_' or '-' is '_'.
+std::string file_part(const std::string& name) {
+  std::string out = name;
+  for (char& ch : out) {
+    const bool plain = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' ||
+                       ch == '_' || ch == '-';
+    if (!plain) ch = '_';
+  }
+  return out;
+}
+
 /// `bringup falcon --scene WORLD.toml [--device NAME]`: the world's Falcons one after another,
 /// each chosen by its `select` serial, each report BASE-NAME.md and .json. Devices of other
 /// backends are named with what brings them up instead; the world's couplings and ball are not
@@ -162,7 +174,7 @@ int falcon_world_bringup(const bringup::FalconBringupOptions& options, const Com
   if (!report_base_ok(c, {options.falcon.firmware_path, scene})) return 2;
   for (const WorldDeviceEntry* d : devices) {
     Common named = c;
-    if (!named.report.empty()) named.report += "-" + d->name;
+    if (!named.report.empty()) named.report += "-" + file_part(d->name);
     if (!report_base_ok(named, {options.falcon.firmware_path, scene})) return 2;
   }
   auto person = person_for(c);
@@ -194,7 +206,8 @@ int falcon_world_bringup(const bringup::FalconBringupOptions& options, const Com
     o.falcon.serial = d->select;  // empty: the world's only Falcon is --falcon-index's (0), as `run` opens it
     bringup::Report report = bringup::run_falcon_bringup(*access, *person, o);
     report.target = fmt::format("'{}' of {}{}", d->name, scene, report.target.empty() ? "" : ": " + report.target);
-    const int one = write_and_say(report, c.report.empty() ? "" : c.report + "-" + d->name, d->name);
+    const int one =
+        write_and_say(report, c.report.empty() ? "" : c.report + "-" + file_part(d->name), file_part(d->name));
     summary += fmt::format("  {}: {}\n", d->name,
                            one == 0   ? "no step failed"
                            : one == 1 ? "a step FAILED"
