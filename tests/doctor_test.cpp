@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -216,6 +217,113 @@ TEST_F(FakeHost, AFalconThisUserCannotOpenFailsWithTheUdevFix) {
   EXPECT_NE(d.finding.find("/dev/bus/usb/002/007"), std::string::npos);
   EXPECT_NE(d.fix.find("plugdev"), std::string::npos);
   EXPECT_NE(d.fix.find("udev"), std::string::npos);
+}
+
+// ---- `doctor --scene WORLD.toml`: the host once, then each device of the world by its name ----
+
+TEST_F(FakeHost, AWorldsFalconsAreCheckedEachByItsSerialAndName) {
+  falcon("1-1", 1, 5, kGroupRw);
+  write("sys/bus/usb/devices/1-1/serial", "FTLEFT01\n");
+  falcon("1-2", 1, 6, fs::perms::owner_read | fs::perms::owner_write | fs::perms::others_read);
+  write("sys/bus/usb/devices/1-2/serial", "FTRIGHT2\n");
+  DoctorOptions o;
+  o.root = root_.string();
+  o.world = {{"left", "falcon", "FTLEFT01"}, {"right", "falcon", "FTRIGHT2"}, {"ghost", "sim", ""}};
+  auto f = run_doctor(o);
+  EXPECT_EQ(find(f, "Falcon USB").finding, "no such check") << "the world's Falcons replace the host-wide list";
+  const Finding left = find(f, "left (falcon)");
+  EXPECT_EQ(left.verdict, Verdict::kOk);
+  EXPECT_EQ(left.finding, "/dev/bus/usb/001/005 (0403:cb48): this user may open it (serial FTLEFT01)");
+  const Finding right = find(f, "right (falcon)");
+  EXPECT_EQ(right.verdict, Verdict::kFail);
+  EXPECT_NE(right.finding.find("/dev/bus/usb/001/006"), std::string::npos) << right.finding;
+  EXPECT_NE(right.finding.find("serial FTRIGHT2"), std::string::npos) << right.finding;
+  EXPECT_NE(right.fix.find("udev"), std::string::npos);
+  EXPECT_EQ(find(f, "ghost (sim)").verdict, Verdict::kInfo);
+  EXPECT_FALSE(host_ready(f));
+  // The world's devices come after every host check.
+  EXPECT_EQ(f[f.size() - 3].check, "left (falcon)");
+
+  // Swapped selects: each device still finds its own, by serial, not by order.
+  o.world = {{"left", "falcon", "FTRIGHT2"}, {"right", "falcon", "FTLEFT01"}};
+  f = run_doctor(o);
+  EXPECT_EQ(find(f, "left (falcon)").verdict, Verdict::kFail);
+  EXPECT_EQ(find(f, "right (falcon)").verdict, Verdict::kOk);
+}
+
+TEST_F(FakeHost, AWorldsFalconThatIsMissingSharedOrUnselectedFailsListingTheSerials) {
+  falcon("1-1", 1, 5, kGroupRw);
+  write("sys/bus/usb/devices/1-1/serial", "FTLEFT01\n");
+  falcon("1-2", 1, 6, kGroupRw);
+  write("sys/bus/usb/devices/1-2/serial", "FTRIGHT2\n");
+  DoctorOptions o;
+  o.root = root_.string();
+  o.world = {{"a", "falcon", "FTLEFT01"}, {"b", "falcon", "FTLEFT01"}, {"c", "falcon", "NOPE"}, {"d", "falcon", ""}};
+  const auto f = run_doctor(o);
+  EXPECT_FALSE(host_ready(f));
+  EXPECT_EQ(find(f, "a (falcon)").verdict, Verdict::kOk);
+  const std::string attached = "attached Falcons: FTLEFT01 (/dev/bus/usb/001/005), FTRIGHT2 (/dev/bus/usb/001/006)";
+  const Finding b = find(f, "b (falcon)");
+  EXPECT_EQ(b.verdict, Verdict::kFail);
+  EXPECT_NE(b.finding.find("the same Falcon as device 'a' (FTLEFT01)"), std::string::npos) << b.finding;
+  const Finding c = find(f, "c (falcon)");
+  EXPECT_EQ(c.verdict, Verdict::kFail);
+  EXPECT_NE(c.finding.find("the Falcon with serial NOPE not connected; attached Falcons: FTLEFT01"), std::string::npos)
+      << c.finding;
+  const Finding d = find(f, "d (falcon)");
+  EXPECT_EQ(d.verdict, Verdict::kFail);
+  EXPECT_NE(d.finding.find("no `select`, and the world has 4 Falcons; " + attached), std::string::npos) << d.finding;
+  EXPECT_NE(d.fix.find("add select = \"<serial>\""), std::string::npos) << d.fix;
+}
+
+TEST_F(FakeHost, AWorldsOnlyFalconWithoutSelectIsTheFirstByBusAndAddress) {
+  // sysfs names sort "1-10" before "1-9"; hal/falcon (and so `run`) takes the lower address.
+  falcon("1-10", 1, 10, kRootOnly);
+  write("sys/bus/usb/devices/1-10/serial", "FTHIGH10\n");
+  falcon("1-9", 1, 9, kGroupRw);
+  write("sys/bus/usb/devices/1-9/serial", "FTLOW009\n");
+  DoctorOptions o;
+  o.root = root_.string();
+  o.world = {{"only", "falcon", ""}, {"ghost", "sim", ""}};
+  const Finding only = find(run_doctor(o), "only (falcon)");
+  EXPECT_EQ(only.verdict, Verdict::kOk) << only.finding;
+  EXPECT_NE(only.finding.find("/dev/bus/usb/001/009 (0403:cb48): this user may open it (serial FTLOW009)"),
+            std::string::npos)
+      << only.finding;
+}
+
+TEST_F(FakeHost, TheCommandReadsTheWorldSceneAndRefusesAOneDeviceScene) {
+  falcon("1-1", 1, 5, kGroupRw);
+  write("sys/bus/usb/devices/1-1/serial", "FTLEFT01\n");
+  const auto run_binary = [this](const std::string& scene, std::string& out) {
+    const std::string cmd = fmt::format("'{}' doctor --root '{}' --scene '{}' 2>&1", TOONFORCE_BINARY, root_.string(),
+                                        (root_ / scene).string());
+    FILE* p = ::popen(cmd.c_str(), "r");
+    char buf[4096];
+    for (std::size_t n = 0; (n = std::fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
+    const int status = ::pclose(p);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  write("world.toml", "[[device]]\nname = \"left\"\nbackend = \"falcon\"\nselect = \"FTLEFT01\"\n"
+                      "[[device]]\nname = \"ghost\"\n");
+  std::string out;
+  EXPECT_EQ(run_binary("world.toml", out), 0) << out;
+  EXPECT_NE(out.find("[ ok ] left (falcon)  /dev/bus/usb/001/005 (0403:cb48): this user may open it (serial "
+                     "FTLEFT01)\n"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("[info] ghost (sim)    simulated"), std::string::npos) << out;
+  write("world.toml", "[[device]]\nname = \"left\"\nbackend = \"falcon\"\nselect = \"FTOTHER9\"\n");
+  out.clear();
+  EXPECT_EQ(run_binary("world.toml", out), 1) << out;
+  write("one.toml", "[device]\nmax_force = 2.0\n");
+  out.clear();
+  EXPECT_EQ(run_binary("one.toml", out), 2) << out;
+  EXPECT_NE(out.find("one.toml:1: device: a one-device scene"), std::string::npos) << out;
+  write("bad.toml", "[[device]]\nname = \"left\"\nbackend = \"falcn\"\n");
+  out.clear();
+  EXPECT_EQ(run_binary("bad.toml", out), 2) << out;
+  EXPECT_NE(out.find("bad.toml:3: device[1].backend"), std::string::npos) << out;
 }
 
 TEST_F(FakeHost, GpioChipsAreCheckedOneByOne) {

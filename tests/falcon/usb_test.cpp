@@ -492,6 +492,103 @@ TEST_F(FalconUsb, DevicesCommandWithNoFalconSaysWhatToCheck) {
       << r.output;
 }
 
+// `toonforce devices --scene`: each [[device]] of a world resolved to what is attached.
+
+/// A world file in the test's config directory; returns its path.
+std::string write_world(const std::filesystem::path& dir, const std::string& name, const std::string& text) {
+  std::filesystem::create_directories(dir);
+  const auto path = dir / name;
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+std::string falcon_table(const std::string& name, const std::string& select) {
+  return "[[device]]\nname = \"" + name + "\"\nbackend = \"falcon\"\n" +
+         (select.empty() ? "" : "select = \"" + select + "\"\n");
+}
+
+TEST_F(FalconUsb, DevicesWithAWorldSceneResolvesEachDeviceByItsSerial) {
+  bed_->add_falcon({}, "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  // The tables in the other order from the bus: resolved by serial, not by position.
+  const std::string world = write_world(config_home_, "lab.toml",
+                                        falcon_table("left", "FTEMU0002") + falcon_table("right", "FTEMU0001") +
+                                            "[[device]]\nname = \"ghost\"\nbackend = \"sim\"\n");
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --scene " + world);
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "Novint Falcon: 2 found\n", "\nWorld scene " + world + ": 3 devices\n",
+           std::string("  left (line 1): backend falcon, select \"FTEMU0002\"\n"
+                       "    -> Novint Falcon at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002; this user may "
+                       "open it: yes; firmware: running\n"),
+           std::string("  right (line 5): backend falcon, select \"FTEMU0001\"\n"
+                       "    -> Novint Falcon at usb 001/005 (/dev/bus/usb/001/005), serial FTEMU0001; this user may "
+                       "open it: yes; firmware: not loaded"),
+           std::string("  ghost (line 9): backend sim\n    -> simulated"),
+           std::string("every device of the world resolves\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
+TEST_F(FalconUsb, DevicesWithAWorldSceneSaysWhichDevicesDoNotResolveAndWhy) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const std::string world = write_world(config_home_, "lab.toml",
+                                        falcon_table("a", "FTEMU0001") + falcon_table("b", "FTEMU0001") +
+                                            falcon_table("c", "FTEMU0009") + falcon_table("d", ""));
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --no-probe --scene " + world);
+  EXPECT_EQ(r.status, 1) << r.output;
+  const std::string attached = "attached Falcons: FTEMU0001 (usb 001/005), FTEMU0002 (usb 001/006)";
+  for (
+      const std::string& line : std::vector<std::string>{
+          std::string("  a (line 1): backend falcon, select \"FTEMU0001\"\n    -> Novint Falcon at usb 001/005"),
+          "ERROR: the same Falcon as device 'a': each [[device]] needs its own; give them different `select` serials (" +
+              attached + ")",
+          "    -> not found: no Falcon with serial FTEMU0009 is attached; " + attached + "\n",
+          "    -> ERROR: the world has 4 Falcons, so each needs its own `select`: add select = \"<serial>\" to this "
+          "[[device]] table; " +
+              attached + "\n",
+          std::string("3 of 4 device(s) do not resolve: b, c, d\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
+TEST_F(FalconUsb, DevicesWithAWorldSceneNamesAFalconThatCannotBeOpenedBySerial) {
+  // A Falcon that cannot be opened (here: its usbfs answers ENODEV, as on an unplug) still has
+  // its serial number in sysfs: the table resolves to it and says what stops the opening.
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  bed_->unplug(1);
+  const std::string world =
+      write_world(config_home_, "lab.toml", falcon_table("left", "FTEMU0001") + falcon_table("right", "FTEMU0002"));
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --no-probe --scene " + world);
+  EXPECT_EQ(r.status, 1) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "  usb 001/006 (/dev/bus/usb/001/006)  serial FTEMU0002\n    this user may open it: NO: ",
+           "    -> Novint Falcon at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002; this user may open it: NO: ",
+           "1 of 2 device(s) do not resolve: right\n"}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+}
+
+TEST_F(FalconUsb, DevicesWithAOneDeviceSceneOrABadWorldIsAUsageError) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  const std::string one = write_world(config_home_, "one.toml", "[device]\nmax_force = 2.0\n");
+  toonforce::test::CommandRun r = toonforce::test::run_toonforce("devices --scene " + one);
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find(one + ":1: device: a one-device scene (no [[device]] tables)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("Novint Falcon: "), std::string::npos) << "nothing is touched: " << r.output;
+  const std::string bad = write_world(config_home_, "bad.toml", falcon_table("a", "FTEMU0001") + "selekt = 3\n");
+  r = toonforce::test::run_toonforce("devices --scene " + bad);
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find(bad + ":5: device[1]: unknown key 'selekt' (did you mean 'select'?"), std::string::npos)
+      << r.output;
+  r = toonforce::test::run_toonforce("devices --scene " + (config_home_ / "none.toml").string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("none.toml: no such scene file"), std::string::npos) << r.output;
+}
+
 TEST_F(FalconUsb, FirmwareCommandRefusesAnUnknownImageWithoutTouchingTheFalcon) {
   bed_->add_falcon();
   const auto path = std::filesystem::temp_directory_path() / ("toonforce_cli_usb_" + std::to_string(::getpid()));
@@ -598,6 +695,91 @@ TEST_F(FalconUsb, BringupRefusesAStepThatDoesNotExist) {
   const toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --only homeing");
   EXPECT_EQ(r.status, 2) << r.output;
   EXPECT_NE(r.output.find("no bring-up step 'homeing' (the steps are: found, firmware, homing"), std::string::npos)
+      << r.output;
+}
+
+TEST_F(FalconUsb, BringupOfAWorldBringsUpEachFalconBySerialWithItsOwnReport) {
+  bed_->add_falcon(with_firmware(), "FTEMU0001", 5);
+  bed_->add_falcon(with_firmware(), "FTEMU0002", 6);
+  const std::string world =
+      write_world(config_home_, "lab.toml",
+                  falcon_table("left", "FTEMU0002") + falcon_table("right", "FTEMU0001") +
+                      "[[device]]\nname = \"pen\"\nbackend = \"omni\"\nselect = \"Left Touch\"\n");
+  const auto base = config_home_ / "report";
+  const toonforce::test::CommandRun r = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware --scene " + world + " --report " + base.string());
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const std::string& line : std::vector<std::string>{
+           "=== " + world + ":1: device 'left': Novint Falcon, serial FTEMU0002 ===\n",
+           std::string("[pass] Found and may be opened: found at usb 001/006 (/dev/bus/usb/001/006), serial FTEMU0002"),
+           "=== " + world + ":5: device 'right': Novint Falcon, serial FTEMU0001 ===\n",
+           std::string("[pass] Found and may be opened: found at usb 001/005 (/dev/bus/usb/001/005), serial FTEMU0001"),
+           "device 'pen' (omni): not a Falcon: bring it up with `toonforce bringup omni --omni-device \"Left Touch\"`",
+           std::string("  left: no step failed\n  right: no step failed\n")}) {
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n---\n" << r.output;
+  }
+  const std::string left = read_text(base.string() + "-left.md");
+  EXPECT_NE(left.find("- device: 'left' of " + world + ": serial FTEMU0002"), std::string::npos) << left;
+  const std::string right = read_text(base.string() + "-right.json");
+  EXPECT_NE(right.find("serial FTEMU0001"), std::string::npos) << right;
+  EXPECT_FALSE(std::filesystem::exists(base.string() + "-pen.md"));
+
+  // One device by name; a device whose Falcon is not attached fails, the others go on.
+  const std::string missing = write_world(config_home_, "missing.toml",
+                                          falcon_table("gone/away", "FTEMU0009") + falcon_table("here", "FTEMU0001"));
+  const toonforce::test::CommandRun m = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found,firmware --scene " + missing + " --report " + base.string());
+  EXPECT_EQ(m.status, 1) << m.output;
+  EXPECT_NE(
+      m.output.find("[FAIL] Found and may be opened: no Falcon with serial number FTEMU0009 among the 2 connected"),
+      std::string::npos)
+      << m.output;
+  EXPECT_NE(m.output.find("  gone/away: a step FAILED\n  here: no step failed\n"), std::string::npos) << m.output;
+  EXPECT_TRUE(std::filesystem::exists(base.string() + "-gone_away.md")) << "a '/' in a name is no directory";
+  const toonforce::test::CommandRun only = toonforce::test::run_toonforce(
+      "bringup falcon --non-interactive --only found --scene " + missing + " --device here --report " + base.string());
+  EXPECT_EQ(only.status, 0) << only.output;
+  EXPECT_EQ(only.output.find("'gone/away'"), std::string::npos) << only.output;
+}
+
+TEST_F(FalconUsb, BringupOfAWorldRefusesOptionsThatChooseOneFalcon) {
+  const std::string world =
+      write_world(config_home_, "lab.toml", falcon_table("left", "FTEMU0002") + falcon_table("right", ""));
+  for (const char* option : {"--serial FTEMU0001", "--falcon-index 1"}) {
+    const toonforce::test::CommandRun r =
+        toonforce::test::run_toonforce(std::string("bringup falcon --scene ") + world + " " + option);
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_NE(r.output.find(": not with --scene: each Falcon of a world is chosen by its `select` serial"),
+              std::string::npos)
+        << r.output;
+  }
+  toonforce::test::CommandRun r = toonforce::test::run_toonforce("bringup falcon --device left");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--device left: names a device of a world scene: give the scene with --scene"),
+            std::string::npos)
+      << r.output;
+  r = toonforce::test::run_toonforce("bringup falcon --scene " + world + " --device middle");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--device middle: the scene " + world + " has no such device (its devices: left, right)"),
+            std::string::npos)
+      << r.output;
+  // A directory as the base is refused as for one Falcon (it gave DIR/-left.md), and a base whose
+  // BASE-NAME.md would be the scene itself.
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --scene " + world + " --report " +
+                                     config_home_.string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--report " + config_home_.string() + ": is a directory"), std::string::npos) << r.output;
+  const std::string onto = write_world(config_home_, "x-left.md", falcon_table("left", "FTEMU0002"));
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --scene " + onto + " --report " +
+                                     (config_home_ / "x").string());
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("would overwrite the input " + onto), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(config_home_ / "x-left.json"));
+  r = toonforce::test::run_toonforce("bringup falcon --non-interactive --only found --scene " + world +
+                                     " --device right --report " + (config_home_ / "r").string());
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("device 'right': NOT brought up: the world has 2 Falcons, so each needs `select`"),
+            std::string::npos)
       << r.output;
 }
 

@@ -1,11 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 // toonforce bringup falcon|omni|gpio [--only STEPS] [--skip STEPS] [--non-interactive]
 //                                   [--answer ID=VALUE]... [--report BASE] [device options]
+//        toonforce bringup falcon --scene WORLD.toml [--device NAME] [...]: the world's Falcons
 // The guided hardware-in-the-loop bring-up of one device (tools/bringup): each step passes or
 // fails with what to do next; the report is written as BASE.md and BASE.json. Exit status 0
 // when no step failed, 1 when one did, 2 when the command line or the report is wrong.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <initializer_list>
@@ -21,6 +23,7 @@
 #include "toonforce/bringup/gpio_bringup.hpp"
 #include "toonforce/bringup/omni_bringup.hpp"
 #include "toonforce/gpio_cli/gpio_options.hpp"
+#include "world_option.hpp"
 
 namespace toonforce::cli {
 namespace {
@@ -104,8 +107,8 @@ bool report_base_ok(const Common& c, std::initializer_list<std::string> inputs) 
   return true;
 }
 
-void finish(const bringup::Report& report, const Common& c, const char* device) {
-  std::string base = c.report;
+/// Writes the report to `base` (empty: bringup-DEVICE-TIME) and says so; the exit status.
+int write_and_say(const bringup::Report& report, std::string base, const std::string& device) {
   if (base.empty()) {
     std::string stamp = report.started_utc;
     for (char& ch : stamp) {
@@ -116,14 +119,105 @@ void finish(const bringup::Report& report, const Common& c, const char* device) 
   auto written = bringup::write_report(report, base);
   if (!written) {
     fmt::print(stderr, "{}\n", written.error());
-    set_exit_code(2);
-    return;
+    return 2;
   }
   std::size_t failed = 0;
   for (const auto& s : report.steps) failed += s.outcome == bringup::Outcome::kFail ? 1 : 0;
   fmt::print("\n{}: report written to {} and {}\n", report.passed() ? "no step failed" : "a step FAILED",
              written.value()[0], written.value()[1]);
-  set_exit_code(failed == 0 ? 0 : 1);
+  return failed == 0 ? 0 : 1;
+}
+
+void finish(const bringup::Report& report, const Common& c, const char* device) {
+  set_exit_code(write_and_say(report, c.report, device));
+}
+
+/// A device's name as part of a file name: a name is any one line (world_file.hpp), but a '/'
+/// in BASE-NAME would be a directory, so what is not a letter, a digit, '.', '_' or '-' is '_'.
+std::string file_part(const std::string& name) {
+  std::string out = name;
+  for (char& ch : out) {
+    const bool plain = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' ||
+                       ch == '_' || ch == '-';
+    if (!plain) ch = '_';
+  }
+  return out;
+}
+
+/// `bringup falcon --scene WORLD.toml [--device NAME]`: the world's Falcons one after another,
+/// each chosen by its `select` serial, each report BASE-NAME.md and .json. Devices of other
+/// backends are named with what brings them up instead; the world's couplings and ball are not
+/// a bring-up's (they need every device at once: `toonforce run` of the world exercises them).
+int falcon_world_bringup(const bringup::FalconBringupOptions& options, const Common& c, const std::string& scene,
+                         const std::string& only_device) {
+  const auto world = load_world_option(scene);
+  if (!world) return 2;
+  std::vector<const WorldDeviceEntry*> devices;
+  std::string names;
+  for (const WorldDeviceEntry& d : world->devices) {
+    names += (names.empty() ? "" : ", ") + d.name;
+    if (only_device.empty() || d.name == only_device) devices.push_back(&d);
+  }
+  if (devices.empty()) {
+    fmt::print(stderr, "--device {}: the scene {} has no such device (its devices: {})\n", only_device, scene, names);
+    return 2;
+  }
+  std::size_t falcons = 0;
+  for (const WorldDeviceEntry& d : world->devices) falcons += d.backend == "falcon";
+  if (std::none_of(devices.begin(), devices.end(), [](const auto* d) { return d->backend == "falcon"; })) {
+    fmt::print(stderr, "{}: no device with backend \"falcon\" to bring up{}\n", scene,
+               only_device.empty() ? "" : " (--device " + only_device + ")");
+    return 2;
+  }
+  // Every report's name is checked before the first device is touched; the base itself first
+  // (a directory would give the files out/-left.md).
+  if (!report_base_ok(c, {options.falcon.firmware_path, scene})) return 2;
+  for (const WorldDeviceEntry* d : devices) {
+    Common named = c;
+    if (!named.report.empty()) named.report += "-" + file_part(d->name);
+    if (!report_base_ok(named, {options.falcon.firmware_path, scene})) return 2;
+  }
+  auto person = person_for(c);
+  if (!person) return 2;
+  auto access = bringup::usb_falcon_access();
+  int status = 0;
+  std::string summary;
+  for (const WorldDeviceEntry* d : devices) {
+    const std::string who = fmt::format("{}:{}: device '{}'", scene, d->line, d->name);
+    if (d->backend != "falcon") {
+      const std::string why = d->backend == "omni"
+                                  ? fmt::format("not a Falcon: bring it up with `toonforce bringup omni{}`",
+                                                d->select.empty() ? "" : " --omni-device \"" + d->select + "\"")
+                                  : std::string("simulated: nothing to bring up");
+      fmt::print("\n{} ({}): {}\n", who, d->backend, why);
+      summary += fmt::format("  {}: {}\n", d->name, why);
+      continue;
+    }
+    if (d->select.empty() && falcons > 1) {
+      fmt::print("\n{}: NOT brought up: the world has {} Falcons, so each needs `select`: add select = \"<serial>\" "
+                 "(`toonforce devices --scene {}` lists the attached serials)\n",
+                 who, falcons, scene);
+      summary += fmt::format("  {}: NOT brought up (no select)\n", d->name);
+      status = std::max(status, 1);
+      continue;
+    }
+    fmt::print("\n=== {}: Novint Falcon{} ===\n", who, d->select.empty() ? "" : ", serial " + d->select);
+    bringup::FalconBringupOptions o = options;
+    o.falcon.serial = d->select;  // empty: the world's only Falcon is --falcon-index's (0), as `run` opens it
+    bringup::Report report = bringup::run_falcon_bringup(*access, *person, o);
+    report.target = fmt::format("'{}' of {}{}", d->name, scene, report.target.empty() ? "" : ": " + report.target);
+    const int one =
+        write_and_say(report, c.report.empty() ? "" : c.report + "-" + file_part(d->name), file_part(d->name));
+    summary += fmt::format("  {}: {}\n", d->name,
+                           one == 0   ? "no step failed"
+                           : one == 1 ? "a step FAILED"
+                                      : "report not written");
+    status = std::max(status, one);
+  }
+  fmt::print("\nthe world's devices, one after another (its couplings and ball need them all at once: `toonforce run` "
+             "of the world):\n{}",
+             summary);
+  return status;
 }
 
 template <std::size_t N>
@@ -151,25 +245,52 @@ void add_bringup(CLI::App& app) {
   CLI::App* f = bringup->add_subcommand("falcon", "Novint Falcon: found, firmware, homing, encoders, motors, force "
                                                   "constant, USB timing, buttons, LED");
   add_common(f, *falcon_common, joined(falcon_steps));
-  f->add_option("--serial", falcon->falcon.serial, "Serial number of the Falcon (toonforce devices)");
-  f->add_option("--falcon-index", falcon->falcon.index, "The index-th Falcon when no --serial is given")
-      ->capture_default_str();
+  auto scene = std::make_shared<std::string>();
+  auto scene_device = std::make_shared<std::string>();
+  CLI::Option* serial =
+      f->add_option("--serial", falcon->falcon.serial, "Serial number of the Falcon (toonforce devices)");
+  CLI::Option* index =
+      f->add_option("--falcon-index", falcon->falcon.index, "The index-th Falcon when no --serial is given")
+          ->capture_default_str();
+  f->add_option("--scene", *scene,
+                "A world scene: bring up its Falcons one after another, each by its `select` serial, each report "
+                "BASE-NAME.md and .json");
+  f->add_option("--device", *scene_device, "With --scene: only the device of this name");
   f->add_option("--firmware", falcon->falcon.firmware_path, "Firmware file to load if the Falcon has none")
       ->check(CLI::ExistingFile);
-  f->add_option("--calibration", falcon->falcon.calibration_path,
-                "The calibration in use (default: the one for this serial number, if any)")
-      ->check(CLI::ExistingFile);
-  f->add_option("--calibration-out", falcon->calibration_out,
-                "Where the force step writes the calibration (default: ~/.config/toonforce/falcon-SERIAL.toml, "
-                "which `toonforce run` reads)");
+  CLI::Option* calibration = f->add_option("--calibration", falcon->falcon.calibration_path,
+                                           "The calibration in use (default: the one for this serial number, if any)")
+                                 ->check(CLI::ExistingFile);
+  CLI::Option* calibration_out =
+      f->add_option("--calibration-out", falcon->calibration_out,
+                    "Where the force step writes the calibration (default: ~/.config/toonforce/falcon-SERIAL.toml, "
+                    "which `toonforce run` reads)");
   f->add_option("--homing-timeout", falcon->homing_timeout_s, "Seconds to wait for homing, 0.1..3600")
       ->check(number_in(0.1, 3600.0))  // nan, inf, negatives reached lround out of its range
       ->capture_default_str();
   f->add_option("--timing-ticks", falcon->timing_ticks, "Exchanges timed at 1 kHz")
       ->check(number_in(10, 100000))
       ->capture_default_str();
-  f->callback([falcon, falcon_common, falcon_steps] {
+  f->callback([falcon, falcon_common, falcon_steps, scene, scene_device, serial, index, calibration, calibration_out] {
     if (!steps_known(*falcon_common, falcon_steps)) return set_exit_code(2);
+    if (!scene_device->empty() && scene->empty()) {
+      fmt::print(stderr, "--device {}: names a device of a world scene: give the scene with --scene\n", *scene_device);
+      return set_exit_code(2);
+    }
+    if (!scene->empty()) {
+      // One Falcon's choice or file would be wrong for the others: each is chosen by its table's
+      // `select` and uses (and writes) the calibration file of its own serial number.
+      for (const CLI::Option* o : {serial, index, calibration, calibration_out}) {
+        if (o->count() > 0) {
+          fmt::print(stderr,
+                     "{}: not with --scene: each Falcon of a world is chosen by its `select` serial and "
+                     "uses the calibration file of that serial\n",
+                     o->get_name());
+          return set_exit_code(2);
+        }
+      }
+      return set_exit_code(falcon_world_bringup(*falcon, *falcon_common, *scene, *scene_device));
+    }
     if (!report_base_ok(*falcon_common,
                         {falcon->falcon.firmware_path, falcon->falcon.calibration_path, falcon->calibration_out})) {
       return set_exit_code(2);

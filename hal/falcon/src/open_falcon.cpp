@@ -2,7 +2,9 @@
 // The Falcon backend's entry points: open_falcon, load_falcon_firmware, detect_falcons.
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <variant>
 
@@ -87,6 +89,28 @@ std::string probe(LibusbTransport& t, bool& loaded) {
            std::string(t.location()) + " whether its firmware runs. Unplug and replug it, then try again.";
   }
   return {};
+}
+
+/// The serial number the kernel read from the USB device at bus/address (sysfs `serial`), or
+/// "". libusb reads it only from an opened device; a Falcon this user may not open (or one held
+/// by another program) is still named by it, so `devices --scene` and `bringup --serial` find it
+/// and say what stops the opening rather than that no such Falcon is attached.
+std::string sysfs_serial(unsigned bus, unsigned address) {
+  namespace fs = std::filesystem;
+  const auto word = [](const fs::path& file) {
+    std::ifstream in(file);
+    std::string w;
+    in >> w;
+    return w;
+  };
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator("/sys/bus/usb/devices", ec)) {
+    if (word(entry.path() / "idVendor") != "0403" || word(entry.path() / "idProduct") != "cb48") continue;
+    if (std::atoi(word(entry.path() / "busnum").c_str()) != static_cast<int>(bus)) continue;
+    if (std::atoi(word(entry.path() / "devnum").c_str()) != static_cast<int>(address)) continue;
+    return word(entry.path() / "serial");
+  }
+  return "";
 }
 
 }  // namespace
@@ -235,6 +259,7 @@ FalconDetection detect_falcons(const FalconDetectOptions& options) {
     d.location = f.location;
     auto opened = LibusbTransport::open(context, f);
     if (auto* failure = std::get_if<OpenFailure>(&opened)) {
+      d.serial = sysfs_serial(f.bus, f.address);
       d.can_open = false;
       d.problem = failure->problem;
       d.fix = failure->fix;

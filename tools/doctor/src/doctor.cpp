@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include <string>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -396,16 +397,17 @@ constexpr const char* kTouchUdevFix =
     "99-3dsystems.rules), sudo udevadm control --reload-rules && sudo udevadm trigger, sudo usermod -aG plugdev "
     "$USER, log in again (docs/OMNI.md)";
 
+constexpr const char* kFalconUdevFix =
+    "the udev rule: the toonforce package installs it (/usr/lib/udev/rules.d/60-novint-falcon.rules); "
+    "otherwise toonforce falcon udev-rule | sudo tee /etc/udev/rules.d/60-novint-falcon.rules, "
+    "sudo udevadm control --reload-rules && sudo udevadm trigger; then sudo usermod -aG plugdev $USER, "
+    "log in again, replug (docs/FALCON.md)";
+
 void check_falcons(const Host& host, std::vector<Finding>& findings) {
   const auto devices = usb_devices(host, "0403", "cb48");
   if (devices.empty()) findings.push_back({"Falcon USB", Verdict::kInfo, "none connected", ""});
   for (const auto& dir : devices) {
-    check_node(host, "Falcon USB", usb_node(host, dir), Verdict::kFail, "",
-               "the udev rule: the toonforce package installs it (/usr/lib/udev/rules.d/60-novint-falcon.rules); "
-               "otherwise toonforce falcon udev-rule | sudo tee /etc/udev/rules.d/60-novint-falcon.rules, "
-               "sudo udevadm control --reload-rules && sudo udevadm trigger; then sudo usermod -aG plugdev $USER, "
-               "log in again, replug (docs/FALCON.md)",
-               findings);
+    check_node(host, "Falcon USB", usb_node(host, dir), Verdict::kFail, "", kFalconUdevFix, findings);
   }
 }
 
@@ -488,11 +490,85 @@ void check_openhaptics(const DoctorOptions& options, std::vector<Finding>& findi
   }
 }
 
-void check_devices(const Host& host, std::vector<Finding>& findings) {
-  check_falcons(host, findings);
-  check_touches(host, findings);
-  check_firewire_omnis(host, findings);
-  check_gpiochips(host, findings);
+/// The world's devices, each under its own name: a Falcon is the attached one whose sysfs
+/// `serial` is its `select` (as `run --device scene` opens it by that serial number).
+void check_world_devices(const Host& host, const std::vector<DoctorWorldDevice>& world,
+                         std::vector<Finding>& findings) {
+  struct Attached {
+    fs::path dir;
+    std::string serial;
+  };
+  std::vector<Attached> attached;
+  for (const auto& dir : usb_devices(host, "0403", "cb48")) attached.push_back({dir, read_word(dir / "serial")});
+  // In bus and address order, as hal/falcon numbers them (a world's only Falcon without `select`
+  // is the first), not by sysfs name ("1-10" sorts before "1-9").
+  const auto number = [](const Attached& a) {
+    return std::pair{std::atoi(read_word(a.dir / "busnum").c_str()), std::atoi(read_word(a.dir / "devnum").c_str())};
+  };
+  std::stable_sort(attached.begin(), attached.end(),
+                   [&](const Attached& a, const Attached& b) { return number(a) < number(b); });
+  std::string list;
+  for (const Attached& a : attached) {
+    const std::string node = usb_node(host, a.dir).name;  // "/dev/bus/usb/001/005 (0403:cb48)"
+    list += fmt::format("{}{} ({})", list.empty() ? "" : ", ", a.serial.empty() ? "(no serial)" : a.serial,
+                        node.substr(0, node.find(' ')));
+  }
+  if (list.empty()) list = "none";
+  std::size_t falcons = 0;
+  for (const DoctorWorldDevice& d : world) falcons += d.backend == "falcon";
+  std::vector<std::pair<std::string, const Attached*>> taken;  // device name, its Falcon
+  for (const DoctorWorldDevice& d : world) {
+    const std::string check = fmt::format("{} ({})", d.name, d.backend);
+    if (d.backend == "sim") {
+      findings.push_back({check, Verdict::kInfo, "simulated: nothing on this host to check", ""});
+      continue;
+    }
+    if (d.backend == "omni") {
+      findings.push_back(
+          {check, Verdict::kWarn,
+           fmt::format("OpenHaptics device {}: its node and the OpenHaptics install are checked above, for the "
+                       "host; `toonforce run --device scene` does not open an Omni in a world yet",
+                       d.select.empty() ? "(the default)" : "\"" + d.select + "\""),
+           "run the Omni on its own (a one-device scene), or the world with --device sim"});
+      continue;
+    }
+    const Attached* found = nullptr;
+    if (d.select.empty() && falcons > 1) {
+      findings.push_back({check, Verdict::kFail,
+                          fmt::format("no `select`, and the world has {} Falcons; attached Falcons: {}", falcons, list),
+                          "add select = \"<serial>\" to its [[device]] table, one of the serials above"});
+      continue;
+    }
+    if (d.select.empty()) {
+      if (!attached.empty()) found = &attached.front();
+    } else {
+      for (const Attached& a : attached) {
+        if (a.serial == d.select) found = &a;
+      }
+    }
+    if (found == nullptr) {
+      findings.push_back(
+          {check, Verdict::kFail,
+           fmt::format("{} not connected; attached Falcons: {}",
+                       d.select.empty() ? "no Falcon" : "the Falcon with serial " + d.select, list),
+           "plug it in (its power supply too; `lsusb -d 0403:cb48 -v | grep iSerial` lists the serials), or correct "
+           "`select`"});
+      continue;
+    }
+    const auto other = std::find_if(taken.begin(), taken.end(), [&](const auto& t) { return t.second == found; });
+    if (other != taken.end()) {
+      findings.push_back({check, Verdict::kFail,
+                          fmt::format("the same Falcon as device '{}' ({}); attached Falcons: {}", other->first,
+                                      found->serial.empty() ? "no serial" : found->serial, list),
+                          "give each [[device]] its own `select` serial"});
+      continue;
+    }
+    taken.emplace_back(d.name, found);
+    const std::size_t before = findings.size();
+    check_node(host, "", usb_node(host, found->dir), Verdict::kFail,
+               found->serial.empty() ? "" : fmt::format(" (serial {})", found->serial), kFalconUdevFix, findings);
+    findings[before].check = check;
+  }
 }
 
 std::string_view label(Verdict v) {
@@ -517,8 +593,14 @@ std::vector<Finding> run_doctor(const DoctorOptions& options) {
   findings.push_back(check_governor(host));
   findings.push_back(check_isolation(host));
   findings.push_back(check_clock(host, options.check_clock));
-  check_devices(host, findings);
+  // With a world, its Falcons are checked per device (after the host's other checks) rather than
+  // every attached one: a Falcon on the bench that no table names is not this session's concern.
+  if (options.world.empty()) check_falcons(host, findings);
+  check_touches(host, findings);
+  check_firewire_omnis(host, findings);
+  check_gpiochips(host, findings);
   check_openhaptics(options, findings);
+  if (!options.world.empty()) check_world_devices(host, options.world, findings);
   return findings;
 }
 
