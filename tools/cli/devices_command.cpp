@@ -181,8 +181,8 @@ Resolution resolve_omni(const WorldDeviceEntry& d, const DetectionReport& found)
   }
   r.resolved = missing.empty();
   r.text = fmt::format(
-      "OpenHaptics device {}; OpenHaptics install checks: {}\n      note: `toonforce run --device scene` does not open "
-      "an Omni in a world yet (OpenHaptics clocks it from its own servo thread); `--device sim` simulates it",
+      "OpenHaptics device {}; OpenHaptics install checks: {}\n      note: `toonforce run --device scene` runs it on "
+      "OpenHaptics' own servo thread, bridged to the world's clock",
       d.select.empty() ? "(the default device)" : "\"" + d.select + "\"",
       r.resolved ? "pass" : "FAIL (" + missing + ": see the prerequisites above)");
   return r;

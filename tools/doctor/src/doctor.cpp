@@ -525,11 +525,12 @@ void check_world_devices(const Host& host, const std::vector<DoctorWorldDevice>&
     }
     if (d.backend == "omni") {
       findings.push_back(
-          {check, Verdict::kWarn,
+          {check, Verdict::kInfo,
            fmt::format("OpenHaptics device {}: its node and the OpenHaptics install are checked above, for the "
-                       "host; `toonforce run --device scene` does not open an Omni in a world yet",
+                       "host; `toonforce run --device scene` runs it on OpenHaptics' servo thread, bridged to the "
+                       "world's clock",
                        d.select.empty() ? "(the default)" : "\"" + d.select + "\""),
-           "run the Omni on its own (a one-device scene), or the world with --device sim"});
+           ""});
       continue;
     }
     const Attached* found = nullptr;
