@@ -105,6 +105,42 @@ TEST_F(OmniTwoDevicesTest, EachRunsByItsNameOnTheOneSchedulerWithItsOwnForce) {
   EXPECT_EQ(fake.stats().scheduler_running, 0);
 }
 
+TEST_F(OmniTwoDevicesTest, EachDeviceIsCalibratedOnItsOwn) {
+  // Right waits for its stylus in the inkwell; Left is calibrated. hdCheckCalibration acts on
+  // the current device, so each frame must make its own device current before checking.
+  ASSERT_GE(fake.select_device("Right"), 0);
+  fake.set_calibration(hd::kCalibrationNeedsManualInput, hd::kCalibrationInkwell);
+  fake.select_device(nullptr);
+  options.device_name = "Left";
+  OmniDevice& left = open();
+  auto opened = open_named("Right");
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  right = std::move(opened).value();
+  probe.device = &left;
+  probe.force = {0.5, 0.0, 0.0};
+  right_probe.device = right.get();
+  right_probe.force = {0.0, 0.4, 0.0};
+  ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
+  ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  ASSERT_EQ(fake.step(20), 20U);
+  EXPECT_EQ(left.status().phase, OmniPhase::kRunning);
+  EXPECT_EQ(left.status().force_n, probe.force);
+  EXPECT_EQ(right->status().phase, OmniPhase::kCalibrating);
+  EXPECT_EQ(right->status().force_n, Vec3<double>{});
+  EXPECT_EQ(stats_of("Right").nonzero_uncalibrated_frames, 0U);
+  EXPECT_EQ(stats_of("Right").enabled_uncalibrated_frames, 0U);
+  EXPECT_EQ(right_probe.records.back().status, DeviceStatus::kNotReady);
+
+  // Its stylus docked, its next periodic check (every 0.1 s) updates it, and its force comes.
+  ASSERT_GE(fake.select_device("Right"), 0);
+  fake.set_inkwell(1);
+  fake.select_device(nullptr);
+  ASSERT_EQ(fake.step(150), 150U);
+  EXPECT_EQ(right->status().phase, OmniPhase::kRunning);
+  EXPECT_EQ(right->status().force_n, right_probe.force);
+  EXPECT_EQ(stats_of("Right").calibration, hd::kCalibrationOk);
+}
+
 TEST_F(OmniTwoDevicesTest, AnUnknownNameIsAClearError) {
   auto result = open_named("Middle");
   ASSERT_FALSE(result.ok());
