@@ -282,6 +282,9 @@ struct Fake {
   bool named = false;
   std::size_t current = 0;   // hdMakeCurrentDevice / hdBeginFrame / hdInitDevice
   std::size_t selected = 0;  // what the tf_fake_hd_* controls act on
+  Fake() {
+    for (std::size_t k = 0; k < kMaxDevices; ++k) devices[k].handle = static_cast<HHD>(k + 1);
+  }
   Dev& current_dev() { return devices[current]; }
   Dev& selected_dev() { return devices[selected]; }
   // The error stack, fixed size so the servo thread never allocates (the oldest drop off).
@@ -919,7 +922,7 @@ TF_EXPORT void hdUpdateCalibration(HDenum style) {
     return violation(f, HD_INVALID_VALUE, "hdUpdateCalibration");
   }
   for (Injection& i : f.injections) {
-    if (i.where == TF_FAKE_HD_AT_CALIBRATION_UPDATE && i.remaining > 0) {
+    if (i.where == TF_FAKE_HD_AT_CALIBRATION_UPDATE && i.remaining > 0 && &f.devices[i.device] == &d) {
       --i.remaining;
       ++d.calibration_update_errors;
       push_error(f, i.code, i.internal);

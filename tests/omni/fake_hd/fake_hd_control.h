@@ -111,7 +111,8 @@ void tf_fake_hd_set_inkwell(int stylus_in_inkwell);
 /* What hdGetString(HD_DEVICE_MODEL_TYPE) answers (default "Touch (toonforce fake libHD)"). */
 void tf_fake_hd_set_model(const char* model);
 void tf_fake_hd_set_buttons(int buttons);
-/* Raises `code` (with `internal`) at `where` on each of the next `count` occasions. */
+/* Raises `code` (with `internal`) at `where` on each of the next `count` occasions, on the selected
+ * device (at scheduler start: whichever device). */
 void tf_fake_hd_inject_error(unsigned int code, int internal, int where, unsigned long count);
 /* The next tick spans `periods` scheduler periods (the ones between were skipped). */
 void tf_fake_hd_inject_overrun(unsigned int periods);
