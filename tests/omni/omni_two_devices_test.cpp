@@ -141,6 +141,34 @@ TEST_F(OmniTwoDevicesTest, EachDeviceIsCalibratedOnItsOwn) {
   EXPECT_EQ(stats_of("Right").calibration, hd::kCalibrationOk);
 }
 
+TEST_F(OmniTwoDevicesTest, OneDevicesErrorEndsItsRunNotTheOthers) {
+  // A communication error in Right's frame: Right's loop stops, Left's goes on.
+  options.device_name = "Left";
+  OmniDevice& left = open();
+  auto opened = open_named("Right");
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  right = std::move(opened).value();
+  probe.device = &left;
+  probe.force = {0.5, 0.0, 0.0};
+  right_probe.device = right.get();
+  right_probe.force = {0.0, 0.4, 0.0};
+  ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
+  ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  ASSERT_EQ(fake.step(10), 10U);
+  ASSERT_GE(fake.select_device("Right"), 0);
+  fake.inject_error(hd::kCommError, -28, TF_FAKE_HD_AT_END, 1);
+  fake.select_device(nullptr);
+  ASSERT_EQ(fake.step(10), 10U);
+  EXPECT_FALSE(right->running());
+  EXPECT_THAT(right->last_error(), HasSubstr("HD_COMM_ERROR"));
+  EXPECT_EQ(right->status().force_n, Vec3<double>{});
+  EXPECT_TRUE(left.running());
+  EXPECT_EQ(left.status().hd_errors, 0U);
+  EXPECT_EQ(left.status().force_n, probe.force);
+  EXPECT_EQ(stats_of("Left").frames, 20U);
+  EXPECT_EQ(fake.stats().scheduler_running, 1);
+}
+
 TEST_F(OmniTwoDevicesTest, AnUnknownNameIsAClearError) {
   auto result = open_named("Middle");
   ASSERT_FALSE(result.ok());
