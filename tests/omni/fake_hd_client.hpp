@@ -48,6 +48,8 @@ class FakeHd {
     bind("tf_fake_hd_set_motor_temperature", set_motor_temperature);
     bind("tf_fake_hd_set_temperature_supported", set_temperature_supported);
     bind("tf_fake_hd_get_stats", get_stats_);
+    bind("tf_fake_hd_add_device", add_device);
+    bind("tf_fake_hd_select_device", select_device);
   }
 
   TfFakeHdStats stats() const {
@@ -79,6 +81,8 @@ class FakeHd {
   void (*set_callback_time)(double) = nullptr;
   void (*set_motor_temperature)(double) = nullptr;
   void (*set_temperature_supported)(int) = nullptr;
+  int (*add_device)(const char* name, const char* serial) = nullptr;  // fake_hd_control.h
+  int (*select_device)(const char* name) = nullptr;
 
  private:
   template <class F>

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -16,9 +18,26 @@
 namespace toonforce {
 namespace {
 
-// One device per process: OpenHaptics runs one scheduler for all devices, and a second open
-// of the same device fails with HD_DEVICE_ALREADY_INITIATED anyway.
-std::atomic<bool> g_device_open{false};
+// OpenHaptics runs ONE scheduler per process for every device (HDAPI: each device is
+// initialised by name with hdInitDevice before hdStartScheduler, which is called once;
+// hdStopScheduler stops it for all; every scheduled callback runs each tick on its one thread).
+// This is its owner: the names of the open devices, and how many hold a share of the running
+// scheduler; the first start() starts it, the last stop() stops it.
+struct SchedulerOwner {
+  std::mutex mu;
+  std::vector<std::string> open;  // OmniOptions::device_name of each open device ("": the default)
+  double rate_hz = 0.0;           // the one scheduler's rate, set by the first device opened
+  int running = 0;                // devices holding a share of the running scheduler
+};
+
+SchedulerOwner& scheduler_owner() {
+  static auto* owner = new SchedulerOwner();  // never destroyed: devices may outlive statics
+  return *owner;
+}
+
+std::string shown_device_name(const std::string& name) {
+  return name.empty() ? std::string("HD_DEFAULT_DEVICE") : fmt::format("\"{}\"", name);
+}
 
 enum class EndReason : std::uint8_t { kNone, kStopRequested, kTickStopped, kFatalHdError, kOverruns };
 
@@ -92,11 +111,19 @@ std::string check_options(const OmniOptions& o) {
   return {};
 }
 
-/// Releases the process-wide "one device" claim unless disarmed.
+/// Takes `name` off the open devices (the owner's lock held).
+void release_name(SchedulerOwner& owner, const std::string& name) {
+  const auto it = std::find(owner.open.begin(), owner.open.end(), name);
+  if (it != owner.open.end()) owner.open.erase(it);
+}
+
+/// Releases a device name claimed by open_omni unless disarmed (runs with the owner's lock held).
 struct OpenClaim {
+  SchedulerOwner& owner;
+  std::string name;
   bool armed = true;
   ~OpenClaim() {
-    if (armed) g_device_open.store(false);
+    if (armed) release_name(owner, name);
   }
 };
 
@@ -138,12 +165,28 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   if (std::string problem = check_options(options); !problem.empty()) {
     return Error{"Omni options: " + problem};
   }
-  bool expected = false;
-  if (!g_device_open.compare_exchange_strong(expected, true)) {
-    return Error{"an Omni/Touch is already open in this process (OpenHaptics has one scheduler "
-                 "for all devices): close it first"};
+  // Opening is serialised with every other open, start and stop of an Omni in the process.
+  SchedulerOwner& owner = scheduler_owner();
+  std::lock_guard owner_lock(owner.mu);
+  const std::string shown_name = shown_device_name(options.device_name);
+  if (std::find(owner.open.begin(), owner.open.end(), options.device_name) != owner.open.end()) {
+    return Error{fmt::format("the Omni/Touch {} is already open in this process: each device opens once (several "
+                             "devices: give each its own device name, as Touch_Setup configured it)",
+                             shown_name)};
   }
-  OpenClaim claim;
+  if (owner.running > 0) {
+    return Error{fmt::format("cannot open the Omni/Touch {}: OpenHaptics' scheduler is already running for {} "
+                             "device(s), and every device is initialised before its one scheduler starts: open "
+                             "every Omni first, then start them",
+                             shown_name, owner.running)};
+  }
+  if (!owner.open.empty() && owner.rate_hz != options.scheduler_rate_hz) {
+    return Error{fmt::format("cannot open the Omni/Touch {} at {} Hz: the devices already open run at {} Hz, and "
+                             "OpenHaptics has one scheduler, at one rate, for all of them",
+                             shown_name, options.scheduler_rate_hz, owner.rate_hz)};
+  }
+  owner.open.push_back(options.device_name);
+  OpenClaim claim{owner, options.device_name};
 
   const hd::LoadOutcome loaded = hd::load_library(options.library_path);
   if (loaded.library == nullptr) return Error{loaded.message};
@@ -152,8 +195,6 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   static_cast<void>(take_error(f));  // nothing left over from an earlier use
 
   const char* name = options.device_name.empty() ? nullptr : options.device_name.c_str();
-  const std::string shown_name =
-      name != nullptr ? fmt::format("\"{}\"", options.device_name) : std::string("HD_DEFAULT_DEVICE");
   const hd::HHD handle = f.hdInitDevice(name);
   if (const hd::HDErrorInfo e = take_error(f); e.errorCode != hd::kSuccess || handle == hd::kInvalidHandle) {
     return Error{fmt::format(
@@ -314,6 +355,7 @@ Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options) {
   device->info_.clocking = Clocking::kDeviceThread;  // the vendor's scheduler calls the tick
   init_guard.armed = false;
   claim.armed = false;  // the device releases it
+  owner.rate_hz = options.scheduler_rate_hz;
   return device;
 }
 
@@ -335,7 +377,11 @@ OmniDevice::~OmniDevice() {
     hd_->hdDisableDevice(handle_);
     static_cast<void>(take_error(*hd_));
   }
-  g_device_open.store(false);
+  {
+    SchedulerOwner& owner = scheduler_owner();
+    std::lock_guard lock(owner.mu);
+    release_name(owner, options_.device_name);
+  }
   // The library stays loaded (never unloaded, hd_library.hpp).
 }
 
@@ -393,14 +439,19 @@ Result<OmniStarted> OmniDevice::start(ClockedTickFn tick, void* context) {
   callback_done_.store(false);
   running_.store(true, std::memory_order_release);
 
-  static_cast<void>(take_error(f));
+  // The one scheduler: this device's callback joins it; the first device to start starts it.
+  SchedulerOwner& owner = scheduler_owner();
+  std::lock_guard owner_lock(owner.mu);
+  // Errors left over, only while no other device runs: the error stack is the library's, and a
+  // running device's frames drain their own.
+  if (owner.running == 0) static_cast<void>(take_error(f));
   schedule_handle_ = f.hdScheduleAsynchronous(&OmniDevice::frame_callback, this, hd::kMaxSchedulerPriority);
   if (const hd::HDErrorInfo e = take_error(f); e.errorCode != hd::kSuccess) {
     running_.store(false);
     callback_done_.store(true);
     return Error{fmt::format("OpenHaptics refused the servo callback: {}", describe(f, e))};
   }
-  if (!scheduler_started_) {
+  if (owner.running == 0) {
     f.hdStartScheduler();
     if (const hd::HDErrorInfo e = take_error(f); e.errorCode != hd::kSuccess) {
       // No frame has run (or will): take the callback off and stop whatever did start.
@@ -415,8 +466,9 @@ Result<OmniStarted> OmniDevice::start(ClockedTickFn tick, void* context) {
                                      "run as root or with CAP_SYS_NICE."
                                    : "")};
     }
-    scheduler_started_ = true;
   }
+  ++owner.running;
+  holds_scheduler_ = true;
   return OmniStarted{period_s_};
 }
 
@@ -435,12 +487,19 @@ void OmniDevice::stop(std::chrono::milliseconds timeout) {
       end_reason_.store(static_cast<std::uint8_t>(EndReason::kStopRequested));
     }
   }
-  if (scheduler_started_) {
-    f.hdStopScheduler();
-    scheduler_started_ = false;
-    // No servo thread any more: forces off from here is safe, whatever the last frame did.
-    f.hdDisable(hd::kForceOutput);
-    static_cast<void>(take_error(f));
+  if (holds_scheduler_) {
+    holds_scheduler_ = false;
+    SchedulerOwner& owner = scheduler_owner();
+    std::lock_guard owner_lock(owner.mu);
+    if (--owner.running == 0) {
+      // The last running device stops the one scheduler. No servo thread any more: forces off
+      // from here is safe, whatever the last frame did. While other devices run, this device's
+      // last frame turned its forces off (the frame calls the HD API only on the servo thread).
+      f.hdStopScheduler();
+      f.hdMakeCurrentDevice(handle_);
+      f.hdDisable(hd::kForceOutput);
+      static_cast<void>(take_error(f));
+    }
     OmniStatus last = status_.load();
     last.phase = OmniPhase::kStopped;
     last.force_n = {};

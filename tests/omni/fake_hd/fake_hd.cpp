@@ -10,9 +10,15 @@
 // so a typo in either shows up as a failing test.
 //
 // Rules it enforces (each breach raises the documented error and counts as a protocol
-// violation, which tests require to stay zero): one frame per tick; hdEndFrame only after
-// hdBeginFrame; current-state reads and force commands only inside a frame; frame and state
-// calls only from the scheduler thread while it runs; parameters of the right type.
+// violation, which tests require to stay zero): one frame per device per tick; hdEndFrame only
+// after hdBeginFrame; current-state reads and force commands only inside the current device's
+// frame; frame and state calls only from the scheduler thread while it runs; devices
+// initialised before the scheduler starts; parameters of the right type.
+//
+// Several devices (tf_fake_hd_add_device): each has its own arm, calibration, limits, force,
+// frame and counts; one scheduler runs every scheduled callback each tick, on its one thread;
+// calls without a handle act on the current device (hdInitDevice, hdMakeCurrentDevice and
+// hdBeginFrame set it), and errors carry its handle, as OpenHaptics' HDAPI documents.
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -132,6 +138,7 @@ constexpr double kUncalibratedOffsetMm = 20.0;           // an uncalibrated devi
 constexpr double kVelocityCutoffHz = 100.0;              // the library's own velocity smoothing
 constexpr double kAutoCalibrationSweepRad = 0.5;         // each base joint's sweep that teaches auto calibration
 constexpr int kMaxCallbacks = 32;
+constexpr std::size_t kMaxDevices = 4;
 constexpr int kMaxSyncJobs = 16;
 constexpr std::size_t kErrorStackDepth = 64;
 const double kUsableWorkspace[6] = {-80.0, -65.0, -40.0, 80.0, 55.0, 30.0};  // [mm]
@@ -168,6 +175,7 @@ V3 device_from_base(const V3& b) { return {b[1] - kNeutralBase[1], b[2] - kNeutr
 double norm(const V3& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 struct Injection {
+  std::size_t device;  // index of the device it belongs to
   unsigned int code;
   int internal;
   int where;
@@ -188,13 +196,12 @@ struct SyncJob {
   bool done;
 };
 
-struct Fake {
-  std::mutex mu;
-  std::condition_variable cv_step;
-  std::condition_variable cv_done;
-
-  // configuration
-  std::string version = "3.4.0";
+/// One simulated device: its configuration, its arm, its frame and its counts. OpenHaptics
+/// keeps these per device (HHD); calls without a handle act on the current device.
+struct Dev {
+  // configuration (what Touch_Setup would have named it, and what it reports)
+  std::string name = "Default Device";
+  std::string serial = "FAKE-0001";
   double max_force_n = 3.3;  // widely quoted, unverified datasheet values (OMNI.md §3)
   double max_continuous_force_n = 0.88;
   double stiffness_n_per_mm = 1.26;
@@ -213,8 +220,6 @@ struct Fake {
   int buttons = 0;
   bool temperature_supported = true;
   double temperature_override = -1.0;
-  double callback_time_s = 50e-6;
-  bool manual = false;
 
   // device
   bool initialized = false;
@@ -225,26 +230,6 @@ struct Fake {
   bool ramping = true;
   bool software_force_limit = true;
   bool one_frame_limit = true;
-  double rate_hz = 1000.0;
-  // The error stack, fixed size so the servo thread never allocates (the oldest drop off).
-  std::array<HDErrorInfo, kErrorStackDepth> errors{};
-  std::size_t error_count = 0;
-  std::vector<Injection> injections;
-
-  // scheduler
-  std::thread thread;
-  std::thread::id scheduler_thread{};
-  bool running = false;
-  bool stop = false;
-  unsigned long pending_steps = 0;
-  unsigned int pending_overrun = 0;
-  std::array<Callback, kMaxCallbacks> callbacks{};
-  int callback_count = 0;  // slots used (inactive ones stay until reset)
-  std::array<SyncJob*, kMaxSyncJobs> sync_jobs{};
-  int sync_count = 0;
-  HDSchedulerHandle next_callback = 1;
-  std::chrono::steady_clock::time_point tick_start{};
-  double tick_dt_s = 1e-3;
   unsigned long frames_this_tick = 0;
 
   // frame
@@ -270,20 +255,65 @@ struct Fake {
   double temperature = 0.0;
 
   // statistics
-  unsigned long ticks = 0;
-  double sim_time_s = 0.0;
   unsigned long frames = 0;
   double max_force_norm = 0.0;
   unsigned long enabled_uncalibrated = 0;
   unsigned long nonzero_uncalibrated = 0;
-  unsigned long violations = 0;
-  unsigned int last_violation = 0;
-  char last_violation_call[64] = {};
-  unsigned long errors_raised = 0;
   unsigned long calibration_checks = 0;
   unsigned long calibration_updates = 0;
   unsigned long calibration_update_errors = 0;
   unsigned long calibration_updates_in_frame = 0;
+};
+
+struct Fake {
+  std::mutex mu;
+  std::condition_variable cv_step;
+  std::condition_variable cv_done;
+
+  // the library
+  std::string version = "3.4.0";
+  double callback_time_s = 50e-6;
+  bool manual = false;
+  double rate_hz = 1000.0;
+  // The devices, fixed storage (a tick never allocates); handle = index + 1. `named`: once the
+  // test configured devices, hdInitDevice matches names; before, any name opens device 0.
+  std::array<Dev, kMaxDevices> devices{};
+  std::size_t device_count = 1;
+  bool named = false;
+  std::size_t current = 0;   // hdMakeCurrentDevice / hdBeginFrame / hdInitDevice
+  std::size_t selected = 0;  // what the tf_fake_hd_* controls act on
+  Fake() {
+    for (std::size_t k = 0; k < kMaxDevices; ++k) devices[k].handle = static_cast<HHD>(k + 1);
+  }
+  Dev& current_dev() { return devices[current]; }
+  Dev& selected_dev() { return devices[selected]; }
+  // The error stack, fixed size so the servo thread never allocates (the oldest drop off).
+  std::array<HDErrorInfo, kErrorStackDepth> errors{};
+  std::size_t error_count = 0;
+  std::vector<Injection> injections;
+
+  // scheduler
+  std::thread thread;
+  std::thread::id scheduler_thread{};
+  bool running = false;
+  bool stop = false;
+  unsigned long pending_steps = 0;
+  unsigned int pending_overrun = 0;
+  std::array<Callback, kMaxCallbacks> callbacks{};
+  int callback_count = 0;  // slots used (inactive ones stay until reset)
+  std::array<SyncJob*, kMaxSyncJobs> sync_jobs{};
+  int sync_count = 0;
+  HDSchedulerHandle next_callback = 1;
+  std::chrono::steady_clock::time_point tick_start{};
+  double tick_dt_s = 1e-3;
+
+  // statistics
+  unsigned long ticks = 0;
+  double sim_time_s = 0.0;
+  unsigned long violations = 0;
+  unsigned int last_violation = 0;
+  char last_violation_call[64] = {};
+  unsigned long errors_raised = 0;
   unsigned long disable_device_calls = 0;
 };
 
@@ -299,7 +329,7 @@ void push_error(Fake& f, unsigned int code, int internal = 0) {
     std::move(f.errors.begin() + 1, f.errors.end(), f.errors.begin());
     --f.error_count;
   }
-  f.errors[f.error_count++] = HDErrorInfo{code, internal, f.handle};
+  f.errors[f.error_count++] = HDErrorInfo{code, internal, f.current_dev().handle};  // the device it concerns
   ++f.errors_raised;
 }
 
@@ -325,83 +355,83 @@ void check_thread(Fake& f, const char* call) {
 
 /// Raises the injections due at `where`; true when one of them was a force error (the
 /// library then zeroes the motors and ramps back).
-bool raise_injected(Fake& f, int where) {
+bool raise_injected(Fake& f, Dev& d, int where) {
   bool force_error = false;
   for (Injection& i : f.injections) {
-    if (i.where == where && i.remaining > 0) {
+    if (i.where == where && i.remaining > 0 && &f.devices[i.device] == &d) {
       push_error(f, i.code, i.internal);
       --i.remaining;
       if (is_force_error(i.code)) {
         force_error = true;
-        f.applied = {};
-        f.ramp_level_n = 0.0;
+        d.applied = {};
+        d.ramp_level_n = 0.0;
       }
     }
   }
   return force_error;
 }
 
-double motor_temperature(const Fake& f) {
-  return f.temperature_override >= 0.0 ? f.temperature_override : f.temperature;
+double motor_temperature(const Dev& d) {
+  return d.temperature_override >= 0.0 ? d.temperature_override : d.temperature;
 }
 
 /// What a person's actions do to a device that waits for manual input: docking the stylus in
 /// the inkwell, or sweeping the arm through its workspace (auto style), is what the device
 /// needs before an update can succeed.
-void follow_person(Fake& f) {
-  if (f.calibration != HD_CALIBRATION_NEEDS_MANUAL_INPUT) {
-    f.sweeping = false;
+void follow_person(Dev& d) {
+  if (d.calibration != HD_CALIBRATION_NEEDS_MANUAL_INPUT) {
+    d.sweeping = false;
     return;
   }
-  if ((f.calibration_styles & HD_CALIBRATION_INKWELL) != 0 && f.inkwell) {
-    f.calibration = HD_CALIBRATION_NEEDS_UPDATE;
+  if ((d.calibration_styles & HD_CALIBRATION_INKWELL) != 0 && d.inkwell) {
+    d.calibration = HD_CALIBRATION_NEEDS_UPDATE;
     return;
   }
-  if ((f.calibration_styles & HD_CALIBRATION_AUTO) != 0) {
-    const V3 q = inverse(base_from_device(f.position));
-    if (!f.sweeping) {
-      f.sweep_min = q;
-      f.sweep_max = q;
-      f.sweeping = true;
+  if ((d.calibration_styles & HD_CALIBRATION_AUTO) != 0) {
+    const V3 q = inverse(base_from_device(d.position));
+    if (!d.sweeping) {
+      d.sweep_min = q;
+      d.sweep_max = q;
+      d.sweeping = true;
     }
     bool swept = true;
     for (std::size_t i = 0; i < 3; ++i) {
-      f.sweep_min[i] = std::min(f.sweep_min[i], q[i]);
-      f.sweep_max[i] = std::max(f.sweep_max[i], q[i]);
-      swept = swept && f.sweep_max[i] - f.sweep_min[i] >= kAutoCalibrationSweepRad;
+      d.sweep_min[i] = std::min(d.sweep_min[i], q[i]);
+      d.sweep_max[i] = std::max(d.sweep_max[i], q[i]);
+      swept = swept && d.sweep_max[i] - d.sweep_min[i] >= kAutoCalibrationSweepRad;
     }
     if (swept) {
-      f.calibration = HD_CALIBRATION_NEEDS_UPDATE;
-      f.sweeping = false;
+      d.calibration = HD_CALIBRATION_NEEDS_UPDATE;
+      d.sweeping = false;
     }
   }
 }
 
 /// Reads the device as the encoders see it: quantised joint angles through the kinematics.
-void latch_reading(Fake& f) {
-  const V3 q = inverse(base_from_device(f.position));
-  for (std::size_t i = 0; i < 3; ++i) f.joints[i] = std::round(q[i] * kCountsPerRad) / kCountsPerRad;
-  const V3 p = device_from_base(forward(f.joints));
-  const double offset = f.calibration == HD_CALIBRATION_OK ? 0.0 : kUncalibratedOffsetMm;
-  for (std::size_t i = 0; i < 3; ++i) f.reported_mm[i] = p[i] * 1000.0 + offset;
-  if (f.have_reported) {
+void latch_reading(const Fake& f, Dev& d) {
+  const V3 q = inverse(base_from_device(d.position));
+  for (std::size_t i = 0; i < 3; ++i) d.joints[i] = std::round(q[i] * kCountsPerRad) / kCountsPerRad;
+  const V3 p = device_from_base(forward(d.joints));
+  const double offset = d.calibration == HD_CALIBRATION_OK ? 0.0 : kUncalibratedOffsetMm;
+  for (std::size_t i = 0; i < 3; ++i) d.reported_mm[i] = p[i] * 1000.0 + offset;
+  if (d.have_reported) {
     const double a = f.tick_dt_s / (f.tick_dt_s + 1.0 / (2.0 * kPi * kVelocityCutoffHz));
     for (std::size_t i = 0; i < 3; ++i) {
-      const double raw = (f.reported_mm[i] - f.previous_reported_mm[i]) / f.tick_dt_s;
-      f.reported_velocity_mm[i] += a * (raw - f.reported_velocity_mm[i]);
+      const double raw = (d.reported_mm[i] - d.previous_reported_mm[i]) / f.tick_dt_s;
+      d.reported_velocity_mm[i] += a * (raw - d.reported_velocity_mm[i]);
     }
   }
-  f.previous_reported_mm = f.reported_mm;
-  f.have_reported = true;
+  d.previous_reported_mm = d.reported_mm;
+  d.have_reported = true;
 }
 
 /// Advances the simulation over one tick with the motor force applied at the last frame (a
 /// zero-order hold, as a real amplifier does).
-void simulate(Fake& f, double dt) {
-  if (f.pinned) {
+void simulate(Dev& d, double dt) {
+  if (d.pinned) {
     for (std::size_t i = 0; i < 3; ++i) {
-      f.velocity[i] = (f.hand_target[i] - f.position[i]) / dt;
-      f.position[i] = f.hand_target[i];
+      d.velocity[i] = (d.hand_target[i] - d.position[i]) / dt;
+      d.position[i] = d.hand_target[i];
     }
   } else {
     constexpr int kSubsteps = 10;
@@ -409,16 +439,16 @@ void simulate(Fake& f, double dt) {
     for (int s = 0; s < kSubsteps; ++s) {
       for (std::size_t i = 0; i < 3; ++i) {
         const double force =
-            f.applied[i] + f.hand_k * (f.hand_target[i] - f.position[i]) - (f.hand_b + kDeviceDamping) * f.velocity[i];
-        f.velocity[i] += force / kMass * h;  // semi-implicit Euler
-        f.position[i] += f.velocity[i] * h;
+            d.applied[i] + d.hand_k * (d.hand_target[i] - d.position[i]) - (d.hand_b + kDeviceDamping) * d.velocity[i];
+        d.velocity[i] += force / kMass * h;  // semi-implicit Euler
+        d.position[i] += d.velocity[i] * h;
       }
     }
   }
   // Motor thermal model: warms toward (|F| / F_continuous)^2 with a 60 s time constant, so
   // the peak force can be held for seconds, not minutes.
-  const double load = norm(f.applied) / f.max_continuous_force_n;
-  f.temperature += (load * load - f.temperature) * (dt / (60.0 + dt));
+  const double load = norm(d.applied) / d.max_continuous_force_n;
+  d.temperature += (load * load - d.temperature) * (dt / (60.0 + dt));
 }
 
 // ---- the scheduler ----------------------------------------------------------------------------
@@ -427,11 +457,14 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
   const unsigned int periods = f.pending_overrun > 0 ? f.pending_overrun : 1;
   f.pending_overrun = 0;
   f.tick_dt_s = periods / f.rate_hz;
-  simulate(f, f.tick_dt_s);
-  follow_person(f);
+  for (std::size_t k = 0; k < f.device_count; ++k) {  // every arm moves, opened or not
+    Dev& d = f.devices[k];
+    simulate(d, f.tick_dt_s);
+    follow_person(d);
+    d.frames_this_tick = 0;
+  }
   f.sim_time_s += f.tick_dt_s;
   ++f.ticks;
-  f.frames_this_tick = 0;
   f.tick_start = std::chrono::steady_clock::now();
   // Active callbacks by decreasing priority (OMNI.md §2.2 item 4); fixed arrays, so a tick
   // allocates nothing and tests can count the backend's allocations on this thread.
@@ -486,9 +519,13 @@ void run_tick(Fake& f, std::unique_lock<std::mutex>& lock) {
       }
     }
   }
-  if (f.in_frame) {  // a callback left its frame open
-    violation(f, HD_FRAME_ERROR, "frame left open");
-    f.in_frame = false;
+  for (std::size_t k = 0; k < f.device_count; ++k) {
+    Dev& d = f.devices[k];
+    if (d.in_frame) {  // a callback left its frame open
+      f.current = k;
+      violation(f, HD_FRAME_ERROR, "frame left open");
+      d.in_frame = false;
+    }
   }
   if (any_done) f.cv_done.notify_all();
 }
@@ -521,132 +558,167 @@ void scheduler_main() {
 
 V3 to_v3(const double* p) { return {p[0], p[1], p[2]}; }
 
+/// The initialised device of a handle (handle = index + 1), or null.
+Dev* by_handle(Fake& f, HHD h) {
+  if (h == 0 || h > f.device_count) return nullptr;
+  Dev& d = f.devices[h - 1];
+  return d.initialized ? &d : nullptr;
+}
+
 }  // namespace
 
 // ---- the HD API ---------------------------------------------------------------------------
 
 TF_EXPORT HHD hdInitDevice(HDstring config_name) {
-  static_cast<void>(config_name);  // any configured name opens the one simulated device
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  ++f.init_calls;
+  // HD_DEFAULT_DEVICE (null) is the first configured device; before the test configured any,
+  // every name opens the one simulated device.
+  std::size_t index = 0;
+  if (f.named && config_name != nullptr && config_name[0] != '\0') {
+    index = f.device_count;
+    for (std::size_t k = 0; k < f.device_count; ++k) {
+      if (f.devices[k].name == config_name) index = k;
+    }
+    if (index == f.device_count) {
+      // No device of that name is configured. The reference does not say which code the real
+      // library raises; the configuration is what lacks it, so: HD_COMM_CONFIG_ERROR.
+      push_error(f, HD_COMM_CONFIG_ERROR);
+      return HD_INVALID_HANDLE;
+    }
+  }
+  // Devices are initialised before the one scheduler starts (OMNI.md §2.2 item 5).
+  if (f.running) violation(f, TF_FAKE_HD_INIT_WHILE_RUNNING, "hdInitDevice while the scheduler runs");
+  Dev& d = f.devices[index];
+  ++d.init_calls;
   for (Injection& i : f.injections) {
-    if (i.where == TF_FAKE_HD_AT_INIT && i.remaining > 0) {
+    if (i.where == TF_FAKE_HD_AT_INIT && i.remaining > 0 && i.device == index) {
       --i.remaining;
       push_error(f, i.code, i.internal);
       return HD_INVALID_HANDLE;
     }
   }
-  if (f.initialized) {
+  if (d.initialized) {
     push_error(f, HD_DEVICE_ALREADY_INITIATED);
     return HD_INVALID_HANDLE;
   }
-  f.initialized = true;
-  return f.handle;
+  d.initialized = true;
+  f.current = index;  // the device just opened is the current one
+  return d.handle;
 }
 
 TF_EXPORT void hdDisableDevice(HHD device) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   ++f.disable_device_calls;
-  if (!f.initialized || device != f.handle) {
+  Dev* d = by_handle(f, device);
+  if (d == nullptr) {
     violation(f, HD_BAD_HANDLE, "hdDisableDevice");
     return;
   }
-  f.initialized = false;
-  f.force_output = false;
+  d->initialized = false;
+  d->force_output = false;
 }
 
 TF_EXPORT void hdMakeCurrentDevice(HHD device) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  if (!f.initialized || device != f.handle) violation(f, HD_BAD_HANDLE, "hdMakeCurrentDevice");
+  if (by_handle(f, device) == nullptr) return violation(f, HD_BAD_HANDLE, "hdMakeCurrentDevice");
+  f.current = device - 1;
 }
 
 TF_EXPORT HHD hdGetCurrentDevice() {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  return f.initialized ? f.handle : HD_INVALID_HANDLE;
+  Dev& d = f.current_dev();
+  return d.initialized ? d.handle : HD_INVALID_HANDLE;
 }
 
 TF_EXPORT void hdBeginFrame(HHD device) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   check_thread(f, "hdBeginFrame");
-  if (!f.initialized || device != f.handle) return violation(f, HD_BAD_HANDLE, "hdBeginFrame");
-  if (f.in_frame || (f.one_frame_limit && f.frames_this_tick > 0)) {
+  if (by_handle(f, device) == nullptr) return violation(f, HD_BAD_HANDLE, "hdBeginFrame");
+  f.current = device - 1;  // hdBeginFrame makes its device current
+  Dev& d = f.current_dev();
+  if (d.in_frame || (d.one_frame_limit && d.frames_this_tick > 0)) {
     return violation(f, HD_ILLEGAL_BEGIN, "hdBeginFrame");
   }
-  f.in_frame = true;
-  f.force_set = false;
-  latch_reading(f);
-  raise_injected(f, TF_FAKE_HD_AT_BEGIN);
+  d.in_frame = true;
+  d.force_set = false;
+  latch_reading(f, d);
+  raise_injected(f, d, TF_FAKE_HD_AT_BEGIN);
 }
 
 TF_EXPORT void hdEndFrame(HHD device) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   check_thread(f, "hdEndFrame");
-  if (!f.initialized || device != f.handle) return violation(f, HD_BAD_HANDLE, "hdEndFrame");
-  if (!f.in_frame) return violation(f, HD_ILLEGAL_END, "hdEndFrame");
-  f.in_frame = false;
-  ++f.frames;
-  ++f.frames_this_tick;
+  if (by_handle(f, device) == nullptr) return violation(f, HD_BAD_HANDLE, "hdEndFrame");
+  // The frame ended is the handle's, whichever device was current (nested frames of two
+  // devices); it becomes current so that its errors carry its handle.
+  f.current = device - 1;
+  Dev& d = f.current_dev();
+  if (!d.in_frame) return violation(f, HD_ILLEGAL_END, "hdEndFrame");
+  d.in_frame = false;
+  ++d.frames;
+  ++d.frames_this_tick;
 
-  const V3 command = f.force_set ? f.command : V3{};
+  const V3 command = d.force_set ? d.command : V3{};
   const double magnitude = norm(command);
-  const bool calibrated = f.calibration == HD_CALIBRATION_OK;
-  if (f.force_output && !calibrated) ++f.enabled_uncalibrated;
-  if (magnitude > 0.0 && !calibrated) ++f.nonzero_uncalibrated;
+  const bool calibrated = d.calibration == HD_CALIBRATION_OK;
+  if (d.force_output && !calibrated) ++d.enabled_uncalibrated;
+  if (magnitude > 0.0 && !calibrated) ++d.nonzero_uncalibrated;
 
   // The library's safety checks (OMNI.md §2.3), then the motors.
   V3 applied = command;
   bool force_error = false;
-  if (f.force_output) {
-    if (magnitude > f.max_force_n) {
-      if (f.clamping) {
-        for (double& c : applied) c *= f.max_force_n / magnitude;
+  if (d.force_output) {
+    if (magnitude > d.max_force_n) {
+      if (d.clamping) {
+        for (double& c : applied) c *= d.max_force_n / magnitude;
       } else {
         push_error(f, HD_EXCEEDED_MAX_FORCE);
         force_error = true;
       }
     }
-    const V3 step{command[0] - f.previous_command[0], command[1] - f.previous_command[1],
-                  command[2] - f.previous_command[2]};
+    const V3 step{command[0] - d.previous_command[0], command[1] - d.previous_command[1],
+                  command[2] - d.previous_command[2]};
     // A kick is a large change toward a force; dropping to zero is the safe direction.
-    if (f.software_force_limit && magnitude > 1e-9 && norm(step) / (f.tick_dt_s * 1000.0) > f.impulse_limit_n_per_ms) {
+    if (d.software_force_limit && magnitude > 1e-9 && norm(step) / (f.tick_dt_s * 1000.0) > d.impulse_limit_n_per_ms) {
       push_error(f, HD_EXCEEDED_MAX_FORCE_IMPULSE);
       force_error = true;
     }
-    if (f.software_force_limit && norm(f.reported_velocity_mm) > f.velocity_limit_mm_per_s) {
+    if (d.software_force_limit && norm(d.reported_velocity_mm) > d.velocity_limit_mm_per_s) {
       push_error(f, HD_EXCEEDED_MAX_VELOCITY);
       force_error = true;
     }
     // The thermal model: warm motors refuse force until they cool.
-    if (magnitude > 0.0 && motor_temperature(f) >= 1.0) {
+    if (magnitude > 0.0 && motor_temperature(d) >= 1.0) {
       push_error(f, HD_WARM_MOTORS);
       force_error = true;
     }
   }
-  if (raise_injected(f, TF_FAKE_HD_AT_END)) force_error = true;
-  if (force_error) f.ramp_level_n = 0.0;
-  if (!f.force_output || force_error) {
+  if (raise_injected(f, d, TF_FAKE_HD_AT_END)) force_error = true;
+  if (force_error) d.ramp_level_n = 0.0;
+  if (!d.force_output || force_error) {
     applied = {};
-  } else if (f.ramping) {
-    f.ramp_level_n = std::min(f.ramp_level_n + f.ramping_rate_n_per_s * f.tick_dt_s, 1e9);
+  } else if (d.ramping) {
+    d.ramp_level_n = std::min(d.ramp_level_n + d.ramping_rate_n_per_s * f.tick_dt_s, 1e9);
     const double n = norm(applied);
-    if (n > f.ramp_level_n) {
-      for (double& c : applied) c *= f.ramp_level_n / n;
+    if (n > d.ramp_level_n) {
+      for (double& c : applied) c *= d.ramp_level_n / n;
     }
   }
-  f.applied = applied;
-  f.previous_command = command;
+  d.applied = applied;
+  d.previous_command = command;
 }
 
 TF_EXPORT HDErrorInfo hdGetError() {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  if (f.error_count == 0) return HDErrorInfo{HD_SUCCESS, 0, f.handle};
+  Dev& d = f.current_dev();
+  if (f.error_count == 0) return HDErrorInfo{HD_SUCCESS, 0, d.handle};
   return f.errors[--f.error_count];  // most recent first
 }
 
@@ -660,13 +732,13 @@ TF_EXPORT HDstring hdGetErrorString(HDerror code) {
 }
 
 namespace {
-bool* capability(Fake& f, HDenum cap) {
+bool* capability(Dev& d, HDenum cap) {
   switch (cap) {
-    case HD_FORCE_OUTPUT: return &f.force_output;
-    case HD_MAX_FORCE_CLAMPING: return &f.clamping;
-    case HD_FORCE_RAMPING: return &f.ramping;
-    case HD_SOFTWARE_FORCE_LIMIT: return &f.software_force_limit;
-    case HD_ONE_FRAME_LIMIT: return &f.one_frame_limit;
+    case HD_FORCE_OUTPUT: return &d.force_output;
+    case HD_MAX_FORCE_CLAMPING: return &d.clamping;
+    case HD_FORCE_RAMPING: return &d.ramping;
+    case HD_SOFTWARE_FORCE_LIMIT: return &d.software_force_limit;
+    case HD_ONE_FRAME_LIMIT: return &d.one_frame_limit;
     default: return nullptr;
   }
 }
@@ -675,10 +747,11 @@ bool* capability(Fake& f, HDenum cap) {
 TF_EXPORT void hdEnable(HDenum cap) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   check_thread(f, "hdEnable");
-  bool* c = capability(f, cap);
+  bool* c = capability(f.current_dev(), cap);
   if (c == nullptr) return violation(f, HD_INVALID_ENUM, "hdEnable");
-  if (cap == HD_FORCE_OUTPUT && !*c) f.ramp_level_n = 0.0;  // ramps in after (re)enabling
+  if (cap == HD_FORCE_OUTPUT && !*c) d.ramp_level_n = 0.0;  // ramps in after (re)enabling
   *c = true;
 }
 
@@ -686,7 +759,7 @@ TF_EXPORT void hdDisable(HDenum cap) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   check_thread(f, "hdDisable");
-  bool* c = capability(f, cap);
+  bool* c = capability(f.current_dev(), cap);
   if (c == nullptr) return violation(f, HD_INVALID_ENUM, "hdDisable");
   *c = false;
 }
@@ -694,7 +767,7 @@ TF_EXPORT void hdDisable(HDenum cap) {
 TF_EXPORT HDboolean hdIsEnabled(HDenum cap) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  bool* c = capability(f, cap);
+  bool* c = capability(f.current_dev(), cap);
   if (c == nullptr) {
     violation(f, HD_INVALID_ENUM, "hdIsEnabled");
     return 0;
@@ -705,8 +778,9 @@ TF_EXPORT HDboolean hdIsEnabled(HDenum cap) {
 namespace {
 /// Current-state parameters exist only between hdBeginFrame and hdEndFrame.
 bool state_read_ok(Fake& f, const char* call) {
+  const Dev& d = f.current_dev();
   check_thread(f, call);
-  if (!f.in_frame) {
+  if (!d.in_frame) {
     violation(f, HD_INVALID_OPERATION, call);
     return false;
   }
@@ -717,19 +791,20 @@ bool state_read_ok(Fake& f, const char* call) {
 TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   switch (name) {
     case HD_CURRENT_POSITION:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_POSITION)"))
-        std::copy(f.reported_mm.begin(), f.reported_mm.end(), values);
+        std::copy(d.reported_mm.begin(), d.reported_mm.end(), values);
       return;
     case HD_CURRENT_VELOCITY:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_VELOCITY)")) {
-        std::copy(f.reported_velocity_mm.begin(), f.reported_velocity_mm.end(), values);
+        std::copy(d.reported_velocity_mm.begin(), d.reported_velocity_mm.end(), values);
       }
       return;
     case HD_CURRENT_JOINT_ANGLES:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_JOINT_ANGLES)"))
-        std::copy(f.joints.begin(), f.joints.end(), values);
+        std::copy(d.joints.begin(), d.joints.end(), values);
       return;
     case HD_CURRENT_GIMBAL_ANGLES:
       if (state_read_ok(f, "hdGetDoublev(HD_CURRENT_GIMBAL_ANGLES)")) std::fill(values, values + 3, 0.0);
@@ -741,18 +816,18 @@ TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
     case HD_USABLE_WORKSPACE_DIMENSIONS: std::copy(kUsableWorkspace, kUsableWorkspace + 6, values); return;
     case HD_MAX_WORKSPACE_DIMENSIONS: std::copy(kMaxWorkspace, kMaxWorkspace + 6, values); return;
     case HD_TABLETOP_OFFSET: values[0] = 100.0; return;
-    case HD_NOMINAL_MAX_FORCE: values[0] = f.max_force_n; return;
-    case HD_NOMINAL_MAX_CONTINUOUS_FORCE: values[0] = f.max_continuous_force_n; return;
-    case HD_NOMINAL_MAX_STIFFNESS: values[0] = f.stiffness_n_per_mm; return;
-    case HD_NOMINAL_MAX_DAMPING: values[0] = f.damping_n_s_per_mm; return;
-    case HD_SOFTWARE_VELOCITY_LIMIT: values[0] = f.velocity_limit_mm_per_s; return;
-    case HD_SOFTWARE_FORCE_IMPULSE_LIMIT: values[0] = f.impulse_limit_n_per_ms; return;
-    case HD_FORCE_RAMPING_RATE: values[0] = f.ramping_rate_n_per_s; return;
+    case HD_NOMINAL_MAX_FORCE: values[0] = d.max_force_n; return;
+    case HD_NOMINAL_MAX_CONTINUOUS_FORCE: values[0] = d.max_continuous_force_n; return;
+    case HD_NOMINAL_MAX_STIFFNESS: values[0] = d.stiffness_n_per_mm; return;
+    case HD_NOMINAL_MAX_DAMPING: values[0] = d.damping_n_s_per_mm; return;
+    case HD_SOFTWARE_VELOCITY_LIMIT: values[0] = d.velocity_limit_mm_per_s; return;
+    case HD_SOFTWARE_FORCE_IMPULSE_LIMIT: values[0] = d.impulse_limit_n_per_ms; return;
+    case HD_FORCE_RAMPING_RATE: values[0] = d.ramping_rate_n_per_s; return;
     case HD_MOTOR_TEMPERATURE:
       // A device without the thermal model answers like any unsupported parameter; asking is
       // not a breach of the rules.
-      if (!f.temperature_supported) return push_error(f, HD_INVALID_ENUM);
-      std::fill(values, values + 3, motor_temperature(f));  // three base motors
+      if (!d.temperature_supported) return push_error(f, HD_INVALID_ENUM);
+      std::fill(values, values + 3, motor_temperature(d));  // three base motors
       return;
     case HD_CURRENT_BUTTONS:
     case HD_INPUT_DOF:
@@ -766,13 +841,14 @@ TF_EXPORT void hdGetDoublev(HDenum name, double* values) {
 TF_EXPORT void hdGetIntegerv(HDenum name, int* values) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   switch (name) {
     case HD_CURRENT_BUTTONS:
-      if (state_read_ok(f, "hdGetIntegerv(HD_CURRENT_BUTTONS)")) values[0] = f.buttons;
+      if (state_read_ok(f, "hdGetIntegerv(HD_CURRENT_BUTTONS)")) values[0] = d.buttons;
       return;
     case HD_INPUT_DOF: values[0] = 6; return;
     case HD_OUTPUT_DOF: values[0] = 3; return;
-    case HD_CALIBRATION_STYLE: values[0] = f.calibration_styles; return;
+    case HD_CALIBRATION_STYLE: values[0] = d.calibration_styles; return;
     case HD_CURRENT_INKWELL_SWITCH: return violation(f, HD_INVALID_INPUT_TYPE, "hdGetIntegerv(INKWELL)");
     default: return violation(f, HD_INVALID_ENUM, "hdGetIntegerv");
   }
@@ -781,9 +857,10 @@ TF_EXPORT void hdGetIntegerv(HDenum name, int* values) {
 TF_EXPORT void hdGetBooleanv(HDenum name, HDboolean* values) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   switch (name) {
     case HD_CURRENT_INKWELL_SWITCH:
-      if (state_read_ok(f, "hdGetBooleanv(HD_CURRENT_INKWELL_SWITCH)")) values[0] = f.inkwell ? 1 : 0;
+      if (state_read_ok(f, "hdGetBooleanv(HD_CURRENT_INKWELL_SWITCH)")) values[0] = d.inkwell ? 1 : 0;
       return;
     case HD_CURRENT_SAFETY_SWITCH:
       if (state_read_ok(f, "hdGetBooleanv(HD_CURRENT_SAFETY_SWITCH)")) values[0] = 1;
@@ -795,12 +872,13 @@ TF_EXPORT void hdGetBooleanv(HDenum name, HDboolean* values) {
 TF_EXPORT HDstring hdGetString(HDenum name) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   switch (name) {
     case HD_VERSION: return f.version.c_str();
-    case HD_DEVICE_MODEL_TYPE: return f.model.c_str();
+    case HD_DEVICE_MODEL_TYPE: return d.model.c_str();
     case HD_DEVICE_DRIVER_VERSION: return "0.0-fake";
     case HD_DEVICE_VENDOR: return "toonforce test double";
-    case HD_DEVICE_SERIAL_NUMBER: return "FAKE-0001";
+    case HD_DEVICE_SERIAL_NUMBER: return d.serial.c_str();
     default: violation(f, HD_INVALID_ENUM, "hdGetString"); return nullptr;
   }
 }
@@ -808,18 +886,19 @@ TF_EXPORT HDstring hdGetString(HDenum name) {
 TF_EXPORT void hdSetDoublev(HDenum name, const double* values) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.current_dev();
   switch (name) {
     case HD_CURRENT_FORCE: {
       check_thread(f, "hdSetDoublev(HD_CURRENT_FORCE)");
-      if (!f.in_frame) return violation(f, HD_INVALID_OPERATION, "hdSetDoublev(HD_CURRENT_FORCE)");
-      f.command = to_v3(values);
-      f.force_set = true;
-      f.max_force_norm = std::max(f.max_force_norm, norm(f.command));
+      if (!d.in_frame) return violation(f, HD_INVALID_OPERATION, "hdSetDoublev(HD_CURRENT_FORCE)");
+      d.command = to_v3(values);
+      d.force_set = true;
+      d.max_force_norm = std::max(d.max_force_norm, norm(d.command));
       return;
     }
-    case HD_FORCE_RAMPING_RATE: f.ramping_rate_n_per_s = values[0]; return;
-    case HD_SOFTWARE_VELOCITY_LIMIT: f.velocity_limit_mm_per_s = values[0]; return;
-    case HD_SOFTWARE_FORCE_IMPULSE_LIMIT: f.impulse_limit_n_per_ms = values[0]; return;
+    case HD_FORCE_RAMPING_RATE: d.ramping_rate_n_per_s = values[0]; return;
+    case HD_SOFTWARE_VELOCITY_LIMIT: d.velocity_limit_mm_per_s = values[0]; return;
+    case HD_SOFTWARE_FORCE_IMPULSE_LIMIT: d.impulse_limit_n_per_ms = values[0]; return;
     default: return violation(f, HD_INVALID_ENUM, "hdSetDoublev");
   }
 }
@@ -827,43 +906,45 @@ TF_EXPORT void hdSetDoublev(HDenum name, const double* values) {
 TF_EXPORT HDenum hdCheckCalibration() {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  ++f.calibration_checks;
-  follow_person(f);  // a person who docked the stylus before the scheduler ran is seen too
-  return f.calibration;
+  Dev& d = f.current_dev();
+  ++d.calibration_checks;
+  follow_person(d);  // a person who docked the stylus before the scheduler ran is seen too
+  return d.calibration;
 }
 
 TF_EXPORT void hdUpdateCalibration(HDenum style) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  ++f.calibration_updates;
-  if (f.in_frame) ++f.calibration_updates_in_frame;
-  if ((static_cast<int>(style) & f.calibration_styles) == 0 || (style & (style - 1)) != 0) {
+  Dev& d = f.current_dev();
+  ++d.calibration_updates;
+  if (d.in_frame) ++d.calibration_updates_in_frame;
+  if ((static_cast<int>(style) & d.calibration_styles) == 0 || (style & (style - 1)) != 0) {
     return violation(f, HD_INVALID_VALUE, "hdUpdateCalibration");
   }
   for (Injection& i : f.injections) {
-    if (i.where == TF_FAKE_HD_AT_CALIBRATION_UPDATE && i.remaining > 0) {
+    if (i.where == TF_FAKE_HD_AT_CALIBRATION_UPDATE && i.remaining > 0 && &f.devices[i.device] == &d) {
       --i.remaining;
-      ++f.calibration_update_errors;
+      ++d.calibration_update_errors;
       push_error(f, i.code, i.internal);
       return;
     }
   }
-  follow_person(f);
+  follow_person(d);
   const bool reset_pose = style == HD_CALIBRATION_ENCODER_RESET;
-  if (f.calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT && !reset_pose) {
+  if (d.calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT && !reset_pose) {
     // Nothing to update from yet: the device refuses (the vendor's example and the ROS node
     // update only on NEEDS_UPDATE; sawSensablePhantom reports such an error as "calibration
     // failed" and carries on).
-    ++f.calibration_update_errors;
-    push_error(f, f.calibration_update_error);
+    ++d.calibration_update_errors;
+    push_error(f, d.calibration_update_error);
     return;
   }
-  if (f.calibration != HD_CALIBRATION_OK) {
-    f.calibration = HD_CALIBRATION_OK;
+  if (d.calibration != HD_CALIBRATION_OK) {
+    d.calibration = HD_CALIBRATION_OK;
     // The offset vanishes at once; the library's velocity filter starts afresh rather than
     // reporting the jump as motion.
-    f.have_reported = false;
-    f.reported_velocity_mm = {};
+    d.have_reported = false;
+    d.reported_velocity_mm = {};
   }
 }
 
@@ -887,8 +968,13 @@ TF_EXPORT void hdStartScheduler() {
       return;
     }
   }
-  f.force_output = true;  // starting the scheduler enables forces (OMNI.md §2.2 item 5)
-  f.ramp_level_n = 0.0;
+  for (std::size_t k = 0; k < f.device_count; ++k) {
+    // Starting the one scheduler enables forces on every device (OMNI.md §2.2 item 5).
+    Dev& d = f.devices[k];
+    if (!d.initialized) continue;
+    d.force_output = true;
+    d.ramp_level_n = 0.0;
+  }
   f.stop = false;
   f.running = true;
   f.pending_steps = 0;
@@ -904,7 +990,7 @@ TF_EXPORT void hdStopScheduler() {
     if (!f.running) return;
     f.stop = true;
     f.running = false;
-    f.force_output = false;
+    for (Dev& d : f.devices) d.force_output = false;
     thread = std::move(f.thread);
   }
   f.cv_step.notify_all();
@@ -976,64 +1062,61 @@ TF_EXPORT void tf_fake_hd_reset(void) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
   f.version = "3.4.0";
-  f.max_force_n = 3.3;
-  f.max_continuous_force_n = 0.88;
-  f.stiffness_n_per_mm = 1.26;
-  f.damping_n_s_per_mm = 0.004;
-  f.velocity_limit_mm_per_s = 1000.0;
-  f.impulse_limit_n_per_ms = 3.0;
-  f.ramping_rate_n_per_s = 10.0;
-  f.calibration = HD_CALIBRATION_OK;
-  f.calibration_styles = HD_CALIBRATION_INKWELL;
-  f.calibration_update_error = HD_INVALID_OPERATION;
-  f.model = "Touch (toonforce fake libHD)";
-  f.inkwell = false;
-  f.sweeping = false;
-  f.buttons = 0;
-  f.temperature_supported = true;
-  f.temperature_override = -1.0;
   f.callback_time_s = 50e-6;
   f.manual = false;
-  f.initialized = false;
-  f.init_calls = 0;
-  f.force_output = false;
-  f.clamping = false;
-  f.ramping = true;
-  f.software_force_limit = true;
-  f.one_frame_limit = true;
   f.rate_hz = 1000.0;
+  for (std::size_t k = 0; k < kMaxDevices; ++k) {
+    f.devices[k] = Dev{};
+    f.devices[k].handle = static_cast<HHD>(k + 1);
+  }
+  f.device_count = 1;
+  f.named = false;
+  f.current = 0;
+  f.selected = 0;
   f.error_count = 0;
   f.injections.clear();
   f.pending_overrun = 0;
   f.callback_count = 0;
   f.sync_count = 0;
-  f.in_frame = false;
-  f.command = {};
-  f.previous_command = {};
-  f.applied = {};
-  f.ramp_level_n = 1e9;
-  f.pinned = true;
-  f.hand_target = {};
-  f.position = {};
-  f.velocity = {};
-  f.reported_velocity_mm = {};
-  f.have_reported = false;
-  f.temperature = 0.0;
   f.ticks = 0;
   f.sim_time_s = 0.0;
-  f.frames = 0;
-  f.max_force_norm = 0.0;
-  f.enabled_uncalibrated = 0;
-  f.nonzero_uncalibrated = 0;
   f.violations = 0;
   f.last_violation = 0;
   f.last_violation_call[0] = '\0';
   f.errors_raised = 0;
-  f.calibration_checks = 0;
-  f.calibration_updates = 0;
-  f.calibration_update_errors = 0;
-  f.calibration_updates_in_frame = 0;
   f.disable_device_calls = 0;
+}
+
+TF_EXPORT int tf_fake_hd_add_device(const char* name, const char* serial) {
+  Fake& f = fake();
+  std::lock_guard lock(f.mu);
+  if (f.running || name == nullptr || name[0] == '\0') return -1;
+  for (std::size_t k = 0; k < f.device_count && f.named; ++k) {
+    if (f.devices[k].initialized || f.devices[k].name == name) return -1;
+  }
+  std::size_t index = 0;
+  if (f.named) {
+    if (f.device_count == kMaxDevices) return -1;
+    index = f.device_count++;
+  } else if (f.devices[0].initialized) {
+    return -1;
+  }
+  f.named = true;
+  f.devices[index].name = name;
+  f.devices[index].serial = serial != nullptr ? serial : "";
+  return static_cast<int>(index);
+}
+
+TF_EXPORT int tf_fake_hd_select_device(const char* name) {
+  Fake& f = fake();
+  std::lock_guard lock(f.mu);
+  for (std::size_t k = 0; k < f.device_count; ++k) {
+    if (name == nullptr || f.devices[k].name == name) {
+      f.selected = k;
+      return static_cast<int>(k);
+    }
+  }
+  return -1;
 }
 
 TF_EXPORT void tf_fake_hd_set_manual(int on) {
@@ -1062,54 +1145,60 @@ TF_EXPORT void tf_fake_hd_set_limits(double max_force_n, double max_continuous_f
                                      double damping_n_s_per_mm) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.max_force_n = max_force_n;
-  f.max_continuous_force_n = max_continuous_force_n;
-  f.stiffness_n_per_mm = stiffness_n_per_mm;
-  f.damping_n_s_per_mm = damping_n_s_per_mm;
+  Dev& d = f.selected_dev();
+  d.max_force_n = max_force_n;
+  d.max_continuous_force_n = max_continuous_force_n;
+  d.stiffness_n_per_mm = stiffness_n_per_mm;
+  d.damping_n_s_per_mm = damping_n_s_per_mm;
 }
 
 TF_EXPORT void tf_fake_hd_set_calibration(unsigned int state, int styles) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.selected_dev();
   // The reported position jumps by the uncalibrated offset when the state crosses OK: the
   // library's velocity filter starts afresh, as after hdUpdateCalibration.
-  if ((state == HD_CALIBRATION_OK) != (f.calibration == HD_CALIBRATION_OK)) {
-    f.have_reported = false;
-    f.reported_velocity_mm = {};
+  if ((state == HD_CALIBRATION_OK) != (d.calibration == HD_CALIBRATION_OK)) {
+    d.have_reported = false;
+    d.reported_velocity_mm = {};
   }
-  f.calibration = state;
-  f.calibration_styles = styles;
-  f.sweeping = false;
+  d.calibration = state;
+  d.calibration_styles = styles;
+  d.sweeping = false;
 }
 
 TF_EXPORT void tf_fake_hd_set_calibration_update_error(unsigned int code) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.calibration_update_error = code;
+  Dev& d = f.selected_dev();
+  d.calibration_update_error = code;
 }
 
 TF_EXPORT void tf_fake_hd_set_model(const char* model) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.model = model != nullptr ? model : "";
+  Dev& d = f.selected_dev();
+  d.model = model != nullptr ? model : "";
 }
 
 TF_EXPORT void tf_fake_hd_set_inkwell(int stylus_in_inkwell) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.inkwell = stylus_in_inkwell != 0;
+  Dev& d = f.selected_dev();
+  d.inkwell = stylus_in_inkwell != 0;
 }
 
 TF_EXPORT void tf_fake_hd_set_buttons(int buttons) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.buttons = buttons;
+  Dev& d = f.selected_dev();
+  d.buttons = buttons;
 }
 
 TF_EXPORT void tf_fake_hd_inject_error(unsigned int code, int internal, int where, unsigned long count) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.injections.push_back(Injection{code, internal, where, count});
+  f.injections.push_back(Injection{f.selected, code, internal, where, count});
 }
 
 TF_EXPORT void tf_fake_hd_inject_overrun(unsigned int periods) {
@@ -1127,53 +1216,58 @@ TF_EXPORT void tf_fake_hd_set_callback_time(double seconds) {
 TF_EXPORT void tf_fake_hd_pin_hand(const double position_mm[3]) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.pinned = true;
-  for (std::size_t i = 0; i < 3; ++i) f.hand_target[i] = position_mm[i] * 1e-3;
+  Dev& d = f.selected_dev();
+  d.pinned = true;
+  for (std::size_t i = 0; i < 3; ++i) d.hand_target[i] = position_mm[i] * 1e-3;
   if (!f.running) {
-    f.position = f.hand_target;
-    f.velocity = {};
+    d.position = d.hand_target;
+    d.velocity = {};
   }
 }
 
 TF_EXPORT void tf_fake_hd_spring_hand(const double target_mm[3], double stiffness_n_per_m, double damping_n_s_per_m) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.pinned = false;
-  for (std::size_t i = 0; i < 3; ++i) f.hand_target[i] = target_mm[i] * 1e-3;
-  f.hand_k = stiffness_n_per_m;
-  f.hand_b = damping_n_s_per_m;
+  Dev& d = f.selected_dev();
+  d.pinned = false;
+  for (std::size_t i = 0; i < 3; ++i) d.hand_target[i] = target_mm[i] * 1e-3;
+  d.hand_k = stiffness_n_per_m;
+  d.hand_b = damping_n_s_per_m;
 }
 
 TF_EXPORT void tf_fake_hd_set_motor_temperature(double t) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.temperature_override = t;
+  Dev& d = f.selected_dev();
+  d.temperature_override = t;
 }
 
 TF_EXPORT void tf_fake_hd_set_temperature_supported(int supported) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
-  f.temperature_supported = supported != 0;
+  Dev& d = f.selected_dev();
+  d.temperature_supported = supported != 0;
 }
 
 TF_EXPORT void tf_fake_hd_get_stats(TfFakeHdStats* s) {
   Fake& f = fake();
   std::lock_guard lock(f.mu);
+  Dev& d = f.selected_dev();
   *s = TfFakeHdStats{};
   s->ticks = f.ticks;
   s->sim_time_s = f.sim_time_s;
-  s->frames = f.frames;
+  s->frames = d.frames;
   for (std::size_t i = 0; i < 3; ++i) {
-    s->last_force_n[i] = f.command[i];
-    s->applied_force_n[i] = f.applied[i];
-    s->position_mm[i] = f.position[i] * 1000.0;
-    s->reported_position_mm[i] = f.reported_mm[i];
-    s->joint_angles_rad[i] = f.joints[i];
+    s->last_force_n[i] = d.command[i];
+    s->applied_force_n[i] = d.applied[i];
+    s->position_mm[i] = d.position[i] * 1000.0;
+    s->reported_position_mm[i] = d.reported_mm[i];
+    s->joint_angles_rad[i] = d.joints[i];
   }
-  s->max_force_norm_n = f.max_force_norm;
-  s->force_output_enabled = f.force_output ? 1 : 0;
-  s->enabled_uncalibrated_frames = f.enabled_uncalibrated;
-  s->nonzero_uncalibrated_frames = f.nonzero_uncalibrated;
+  s->max_force_norm_n = d.max_force_norm;
+  s->force_output_enabled = d.force_output ? 1 : 0;
+  s->enabled_uncalibrated_frames = d.enabled_uncalibrated;
+  s->nonzero_uncalibrated_frames = d.nonzero_uncalibrated;
   s->protocol_violations = f.violations;
   s->last_violation = f.last_violation;
   std::memcpy(s->last_violation_call, f.last_violation_call, sizeof s->last_violation_call);
@@ -1181,15 +1275,24 @@ TF_EXPORT void tf_fake_hd_get_stats(TfFakeHdStats* s) {
   s->async_callbacks = static_cast<int>(std::count_if(f.callbacks.begin(), f.callbacks.begin() + f.callback_count,
                                                       [](const Callback& c) { return c.active; }));
   s->scheduler_running = f.running ? 1 : 0;
-  s->device_initialized = f.initialized ? 1 : 0;
-  s->init_calls = f.init_calls;
-  s->calibration_checks = f.calibration_checks;
-  s->calibration_updates = f.calibration_updates;
-  s->calibration_update_errors = f.calibration_update_errors;
-  s->calibration_updates_in_frame = f.calibration_updates_in_frame;
+  s->device_initialized = d.initialized ? 1 : 0;
+  s->init_calls = d.init_calls;
+  s->calibration_checks = d.calibration_checks;
+  s->calibration_updates = d.calibration_updates;
+  s->calibration_update_errors = d.calibration_update_errors;
+  s->calibration_updates_in_frame = d.calibration_updates_in_frame;
   s->disable_device_calls = f.disable_device_calls;
-  s->calibration = f.calibration;
-  s->motor_temperature = motor_temperature(f);
+  s->calibration = d.calibration;
+  s->motor_temperature = motor_temperature(d);
   s->scheduler_rate_hz = f.rate_hz;
+  s->handle = d.handle;
+  s->device_count = static_cast<int>(f.device_count);
+  const auto copy = [](char* out, std::size_t size, const std::string& in) {
+    const std::size_t n = std::min(in.size(), size - 1);  // cut, never overrun
+    std::memcpy(out, in.data(), n);
+    out[n] = '\0';
+  };
+  copy(s->name, sizeof s->name, d.name);
+  copy(s->serial, sizeof s->serial, d.serial);
 }
 // NOLINTEND(readability-identifier-naming)

@@ -21,8 +21,11 @@ extern "C" {
 #define TF_FAKE_HD_AT_START 3              /* hdStartScheduler fails with it */
 #define TF_FAKE_HD_AT_CALIBRATION_UPDATE 4 /* hdUpdateCalibration fails with it */
 
-/* A call that broke a documented rule (counted in protocol_violations). */
+/* A call that broke a documented rule (counted in protocol_violations) without an HD error:
+ * a frame or state call from another thread than the running scheduler's; hdInitDevice while
+ * the scheduler runs (devices are initialised before it starts). */
 #define TF_FAKE_HD_WRONG_THREAD 0xFFFFu
+#define TF_FAKE_HD_INIT_WHILE_RUNNING 0xFFFEu
 
 typedef struct TfFakeHdStats {
   unsigned long ticks;                       /* scheduler ticks run */
@@ -53,11 +56,33 @@ typedef struct TfFakeHdStats {
   double joint_angles_rad[3];                 /* encoder-quantised base joints at the last hdBeginFrame */
   double motor_temperature;                   /* the thermal model, 0 cold .. 1 warm */
   double scheduler_rate_hz;
+  unsigned int handle; /* the device's HHD (index + 1) */
+  int device_count;    /* devices configured */
+  char name[64];       /* the device's configured name */
+  char serial[32];     /* what HD_DEVICE_SERIAL_NUMBER answers for it */
 } TfFakeHdStats;
 
-/* Back to the defaults (scheduler must be stopped): calibrated (inkwell style), version
- * "3.4.0", 3.3 N nominal maximum, hand pinned at the device origin, free-running scheduler. */
+/* Back to the defaults (scheduler must be stopped): one device, "Default Device" (serial
+ * "FAKE-0001"), which hdInitDevice opens whatever name it is given; calibrated (inkwell
+ * style), version "3.4.0", 3.3 N nominal maximum, hand pinned at the device origin,
+ * free-running scheduler. */
 void tf_fake_hd_reset(void);
+
+/* Several devices, as Touch_Setup configures them by name. The first call after a reset names
+ * the one device, each further call adds one (at most 4); from the first call on, hdInitDevice
+ * opens the device of that exact name (HD_DEFAULT_DEVICE, null: the first) and answers an
+ * unknown name with HD_COMM_CONFIG_ERROR (the reference does not say which code; the name is
+ * missing from the configuration). Call before any hdInitDevice. Returns the device's index
+ * (its handle is index + 1), or -1 when the name is empty or taken, too many, or too late.
+ * Every device has its own arm, calibration, limits, force, frame and counts, all at their
+ * defaults; the one scheduler runs every scheduled callback each tick. */
+int tf_fake_hd_add_device(const char* name, const char* serial);
+/* Which device the other tf_fake_hd_* calls below (settings, the hand, injected errors,
+ * tf_fake_hd_get_stats) act on, by name (null: the first); the default after a reset is the
+ * first. Scheduler-wide settings and counts (manual mode, steps, overruns, version, rate,
+ * ticks, protocol violations, errors raised) are the library's, whichever is selected.
+ * Returns the device's index, or -1 (selection unchanged) for an unknown name. */
+int tf_fake_hd_select_device(const char* name);
 /* 1: the scheduler runs a tick only when tf_fake_hd_step asks (deterministic tests);
  * 0: it runs in real time at the scheduler rate. Set before hdStartScheduler. */
 void tf_fake_hd_set_manual(int on);
@@ -86,7 +111,8 @@ void tf_fake_hd_set_inkwell(int stylus_in_inkwell);
 /* What hdGetString(HD_DEVICE_MODEL_TYPE) answers (default "Touch (toonforce fake libHD)"). */
 void tf_fake_hd_set_model(const char* model);
 void tf_fake_hd_set_buttons(int buttons);
-/* Raises `code` (with `internal`) at `where` on each of the next `count` occasions. */
+/* Raises `code` (with `internal`) at `where` on each of the next `count` occasions, on the selected
+ * device (at scheduler start: whichever device). */
 void tf_fake_hd_inject_error(unsigned int code, int internal, int where, unsigned long count);
 /* The next tick spans `periods` scheduler periods (the ones between were skipped). */
 void tf_fake_hd_inject_overrun(unsigned int periods);

@@ -252,7 +252,7 @@ def run_world(scene: Union[str, "os.PathLike[str]", Mapping[str, Any]], duration
               cpu: int = -1, lock_memory: bool = False, allow_empty: bool = False, strict: bool = False) -> Trace:
     """``toonforce run`` of a world scene, in real time, for ``duration_s`` seconds (docs/spec/
     interfaces.md "run of a world scene"): ``device="sim"`` simulates every device, ``"scene"``
-    opens each as its ``[[device]]`` table says (Falcons by serial, one Omni through
+    opens each as its ``[[device]]`` table says (Falcons by serial, Omnis by device name through
     ``omni_library`` or libHD). ``scripts`` maps simulated devices' names to hand scripts; a
     device without one holds still. ``fail=(name, seconds)`` pulls a simulated device's cable.
     SCHED_FIFO when permitted, else normal scheduling (said in ``summary["realtime"]``). Returns

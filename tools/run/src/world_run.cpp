@@ -109,12 +109,15 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
     falcons += options.device == "scene" && d.backend == "falcon";
     omnis += options.device == "scene" && d.backend == "omni";
   }
-  if (omnis > 1) {
-    problems += fmt::format("{}: {} Omnis: one Omni per world for now (OpenHaptics serves every device of a process "
-                            "from one scheduler callback, which toonforce does not drive yet); run the others as "
-                            "worlds of their own\n",
-                            options.scene_path, omnis);
-  }
+  // Omnis to bridge once every device is open: OpenHaptics initialises each device before its
+  // one scheduler starts, and the first bridge's run starts it.
+  struct PendingOmni {
+    std::size_t index;  // in out.drivers
+    OmniDevice* omni;   // owned by out.bridged
+    double max_force_age_s;
+    std::string who;
+  };
+  std::vector<PendingOmni> pending;
   for (std::size_t i = 0; i < world.devices.size() && problems.empty(); ++i) {
     const WorldDeviceEntry& d = world.devices[i];
     const bool simulated = options.device == "sim" || d.backend == "sim";
@@ -181,8 +184,12 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
       driver = std::move(opened.value());
       out.devices.push_back(named(d.name, "falcon", driver->info().name, ""));
     } else {
-      // OpenHaptics clocks the Omni from its own servo thread; the world ticks on the host's
-      // clock: a bridge lets each go on at its own rate (control/clock_bridge.hpp).
+      if (omnis > 1 && d.select.empty()) {
+        problems += fmt::format("{}: the world has {} Omnis: give each its `select = \"<device name>\"`, the name "
+                                "Touch_Setup configured it with (OpenHaptics opens several devices by name)\n",
+                                who, omnis);
+        break;
+      }
       OmniOptions omni = options.omni;
       omni.device_name = d.select;
       omni.scheduler_rate_hz = options.rate_hz;
@@ -194,16 +201,26 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
       const double period_s = 1.0 / options.rate_hz;
       const ServoConfig own = servo_config(d.settings, period_s);
       const double max_age_s = static_cast<double>(std::max<std::int64_t>(own.safety.watchdog_periods, 3)) * period_s;
-      auto bridge = ClockBridge::start(*opened.value(), max_age_s);
-      if (!bridge) {
-        problems += fmt::format("{}: {}\n", who, bridge.error());
-        break;
-      }
+      pending.push_back(PendingOmni{out.drivers.size(), opened.value().get(), max_age_s, who});
+      out.devices.push_back(named(d.name, "omni", "", ""));  // named after its bridge, below
       out.bridged.push_back(std::move(opened.value()));
-      driver = std::move(bridge.value());
-      out.devices.push_back(named(d.name, "omni", driver->info().name, ""));
+      out.drivers.push_back(nullptr);  // its bridge, below
+      continue;
     }
     out.drivers.push_back(std::move(driver));
+  }
+  // OpenHaptics clocks each Omni from its one servo thread; the world ticks on the host's clock:
+  // a bridge per Omni lets each go on at its own rate (control/clock_bridge.hpp). The first
+  // bridge's run starts the scheduler, every further one joins it.
+  for (const PendingOmni& p : pending) {
+    if (!problems.empty()) break;
+    auto bridge = ClockBridge::start(*p.omni, p.max_force_age_s);
+    if (!bridge) {
+      problems += fmt::format("{}: {}\n", p.who, bridge.error());
+      break;
+    }
+    out.drivers[p.index] = std::move(bridge.value());
+    out.devices[p.index].device_name = out.drivers[p.index]->info().name;
   }
   if (!problems.empty()) return Error{problems};
   return out;

@@ -49,7 +49,7 @@ class Library;
 struct OmniOptions {
   /// OpenHaptics device name as configured with Touch_Setup ("Default Device"); empty:
   /// HD_DEFAULT_DEVICE. Users report that an explicit name fixes "failed to initialize"
-  /// (OMNI.md §5).
+  /// (OMNI.md §5). Several devices in one process: each its own name.
   std::string device_name;
   /// The libHD file to load; empty: $TOONFORCE_LIBHD, else libHD.so, libHD.so.3.4, libHD.so.3.0
   /// through the dynamic loader (hd_library.hpp).
@@ -188,14 +188,16 @@ class OmniDevice final : public DeviceDriver {
   Result<ClockedEnd> run_clocked(ClockedTickFn tick, void* context) override;
 
   // ---- Device-clocked run (owner thread) ----
-  /// Registers our frame with hdScheduleAsynchronous and starts the vendor scheduler; `tick`
-  /// then runs once per period in the servo thread. Fails when already running or when the
-  /// scheduler reports an error.
+  /// Registers our frame with hdScheduleAsynchronous and starts the vendor scheduler unless
+  /// another open device already did (one scheduler per process); `tick` then runs once per
+  /// period in the servo thread, which every device's frame shares. Fails when already running
+  /// or when the scheduler reports an error.
   Result<OmniStarted> start(ClockedTickFn tick, void* context);
   /// Asks the loop to end at its next frame (any thread, never blocks).
   void request_stop() noexcept;
   /// Ends the run: the next frame zeroes and disables forces and unschedules itself; waits for
-  /// it (at most `timeout`, then unschedules anyway) and stops the scheduler. Idempotent.
+  /// it (at most `timeout`, then unschedules anyway) and, if no other device still runs, stops
+  /// the scheduler. Idempotent.
   void stop(std::chrono::milliseconds timeout = std::chrono::milliseconds(200));
   /// True from start() until the frame has unscheduled itself.
   bool running() const noexcept { return running_.load(std::memory_order_acquire); }
@@ -270,7 +272,7 @@ class OmniDevice final : public DeviceDriver {
   std::atomic<bool> emergency_{false};
   std::atomic<bool> callback_done_{true};
   hd::HDSchedulerHandle schedule_handle_ = 0;
-  bool scheduler_started_ = false;
+  bool holds_scheduler_ = false;  // counted among the devices running the one scheduler
   // Why the run ended or degraded last, for last_error() (written by the servo thread).
   std::atomic<std::uint32_t> last_code_{0};
   std::atomic<std::int32_t> last_internal_{0};
@@ -286,8 +288,12 @@ class OmniDevice final : public DeviceDriver {
 bool is_firewire_stack(std::string_view hd_version, std::string_view model);
 
 /// Loads OpenHaptics, opens the device, reads its limits and calibrates what can be calibrated
-/// without the scheduler. Every failure says what to install or fix. One device at a time per
-/// process (OpenHaptics has one scheduler for all devices).
+/// without the scheduler. Every failure says what to install or fix. Several devices may be
+/// open in one process, each by its own OmniOptions::device_name (the same name twice is
+/// refused); OpenHaptics has one scheduler, at one rate, for all of them, so every device is
+/// opened before any starts (opening while one runs is refused) and all share the rate. Each
+/// started device schedules its own frame; the first start() starts the scheduler, the last
+/// stop() stops it.
 Result<std::unique_ptr<OmniDevice>> open_omni(const OmniOptions& options = {});
 
 }  // namespace toonforce
