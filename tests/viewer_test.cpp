@@ -45,6 +45,7 @@
 #include "alloc_counter.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/run/world_run.hpp"
 #include "toonforce/sim/sim_run.hpp"
 #include "toonforce/viewer/assets.hpp"
 #include "toonforce/viewer/hello.hpp"
@@ -1098,6 +1099,55 @@ TEST(ViewerWorld, TheWorldSimulationsRowsReachAPageByDevice) {
     }
   }
   EXPECT_EQ(sink.rows(), summary->ticks);
+}
+
+/// Keeps every row it is handed (the run's writer thread), and the columns begin() named.
+class KeepingRows final : public WorldRowSink {
+ public:
+  void begin(const std::vector<std::string>& c, std::int64_t) override { columns = c; }
+  void row(const std::vector<double>& values) override { rows.push_back(values); }
+  std::vector<std::string> columns;
+  std::vector<std::vector<double>> rows;
+};
+
+/// `run --view` of a world: the run's writer thread hands every trace row to the viewer's rows,
+/// the same numbers the trace has, in its columns.
+TEST(ViewerWorld, ARunHandsEveryRowOfTheTraceToTheViewer) {
+  RunOptions o;
+  o.device = "sim";
+  o.scene_path = std::string(kSource) + "/scenes/two_players.toml";
+  o.world_scripts = {{"left", std::string(kSource) + "/scenes/hands/left_push.toml"},
+                     {"right", std::string(kSource) + "/scenes/hands/right_push.toml"}};
+  o.allow_non_realtime = true;
+  o.lock_memory = false;
+  o.handle_signals = false;
+  o.interactive = false;
+  o.duration_s = 0.3;
+  static std::FILE* const messages = std::tmpfile();
+  o.messages = messages;
+  o.trace_path = ::testing::TempDir() + "/viewer_world_run.csv";
+  KeepingRows rows;
+  rows.rows.reserve(1000);
+  o.world_rows = &rows;
+  const auto summary = run_world_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_EQ(rows.rows.size(), summary->frames_written);
+  ASSERT_FALSE(rows.rows.empty());
+  auto world = load_world_file(o.scene_path);
+  ASSERT_TRUE(world);
+  EXPECT_EQ(rows.columns, world_columns(world.value()));
+  auto rec = parse_world_trace(slurp_file(o.trace_path), o.trace_path);
+  ASSERT_TRUE(rec) << rec.error();
+  ASSERT_EQ(rec->frames.size(), rows.rows.size()) << "one row a frame, the trace's";
+  auto map = WorldViewMap::make(rows.columns);
+  ASSERT_TRUE(map);
+  for (std::size_t i = 0; i < rows.rows.size(); i += 37) {
+    const ViewFrame f = map->frame(rows.rows[i], static_cast<double>(i));
+    for (const char* c : {"t", "left.x", "right.z", "left.fx", "ball.x", "held"}) {
+      const std::size_t col = column_of(rec->columns, c);
+      EXPECT_EQ(f[col], rec->frames[i][col]) << c << " at row " << i;
+    }
+  }
 }
 
 }  // namespace

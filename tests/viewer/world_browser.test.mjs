@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // A world scene (several devices in one world: scenes/two_players.toml) in the viewer page, in
 // Debian's Chromium, headless, driven by playwright-core: `toonforce sim --view` of the world live,
-// then `toonforce view` of its trace. The page draws every device's HIP (named, in its own
-// colour) where the trace has it, the ball with the scene's radius, the coupling between the two
-// HIPs, and each device's commanded force turned into the world frame: pressing the ball from
-// both sides, each is pushed back away from the middle. No console error or failed request.
+// then `toonforce view` of its trace, then `toonforce run --device sim --view` of the world. The
+// page draws every device's HIP (named, in its own colour) where the trace has it, the ball
+// with the scene's radius, the coupling between the two HIPs, and each device's commanded force
+// turned into the world frame: pressing the ball from both sides, each is pushed back away from
+// the middle. No console error or failed request.
 //
 //   node tests/viewer/world_browser.test.mjs --binary build/release/bin/toonforce [--out DIR]
 //
@@ -141,5 +142,40 @@ test("view of a world's trace: a recording of every device, scrubbed back to the
   } finally {
     run.child.kill('SIGTERM');
     await run.exited;
+  }
+});
+
+test('run --view of a world: the run process hands every frame to the page, by device', async () => {
+  const trace = path.join(os.tmpdir(), `toonforce-world-run-${process.pid}.csv`);
+  const run = startToonforce([
+    'run', '--device', 'sim', '--scene', 'scenes/two_players.toml', '--script', 'left=scenes/hands/left_push.toml',
+    '--script', 'right=scenes/hands/right_push.toml', '--duration', String(kDuration), '--trace', trace,
+    '--allow-non-rt', '--no-mlock', '--view', '0', '--quiet',
+  ]);
+  try {
+    const { page, errors } = await openIn(context, await run.url);
+    await checkWorld(page);
+    await page.waitForFunction(() => window.toonforceViewer.snapshot().ended, null, { timeout: kWaitMs });
+    await twoFrames(page);
+    const rows = fs.readFileSync(trace, 'utf8').trim().split('\n').length - 1;
+    const end = await snapshot(page);
+    // A page that came late gets the history first: every row of the trace, none lost.
+    assert.equal(end.frames, rows, 'every row of the trace reached the page');
+    assert.equal(end.missing, 0);
+    const row = lastRow(trace);
+    for (const d of end.world.devices) {
+      for (const [a, axis] of ['x', 'y', 'z'].entries()) {
+        assert.ok(Math.abs(d.hip[a] - row[`${d.name}.${axis}`]) < 1e-9, `${d.name}.${axis} as the trace has it`);
+      }
+    }
+    // The last row is the shut-down tick (zero force): the press shows on the one before.
+    await scrubTo(page, end.frames - 2);
+    checkPress(await snapshot(page));
+    assert.deepEqual(errors, [], 'no console errors or failed requests');
+    await page.close();
+  } finally {
+    run.child.kill('SIGTERM');
+    await run.exited;
+    fs.rmSync(trace, { force: true });
   }
 });

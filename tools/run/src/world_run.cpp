@@ -212,9 +212,10 @@ Result<Opened> open_world_devices(const WorldDescription& world, const RunOption
 class WorldRunConsumer {
  public:
   WorldRunConsumer(const WorldDescription& world, WorldTrace* trace, std::FILE* messages, WorldRunSummary& summary,
-                   guardian::SharedPage* page)
+                   guardian::SharedPage* page, WorldRowSink* rows = nullptr)
       : world_(world),
         trace_(trace),
+        rows_(rows),
         messages_(messages),
         summary_(summary),
         page_(page),
@@ -260,8 +261,10 @@ class WorldRunConsumer {
     }
     held_ = f.held;
     summary_.coupling_imbalance_n = std::max(summary_.coupling_imbalance_n, coupling_imbalance_n(f));
+    // One row for the trace and the viewer alike (no allocation once row_ has grown).
+    if ((trace_ != nullptr && !write_failed_) || rows_ != nullptr) world_row(f, row_);
+    if (rows_ != nullptr) rows_->row(row_);
     if (trace_ != nullptr && !write_failed_) {
-      world_row(f, row_);
       if (!trace_->write(row_)) trace_failed(f);
       // With a guardian, the trace goes to the file every 20 ms of loop time: if this process
       // dies, the guardian ends the trace after what the file holds.
@@ -292,6 +295,7 @@ class WorldRunConsumer {
   }
   const WorldDescription& world_;
   WorldTrace* trace_;
+  WorldRowSink* rows_;
   std::FILE* messages_;
   WorldRunSummary& summary_;
   guardian::SharedPage* page_;
@@ -363,7 +367,8 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
   session.interactive = options.interactive;
   session.messages = options.messages;
   session.pending_stop = options.early_stop;
-  WorldRunConsumer consumer(world, trace.get(), options.messages, summary, options.guardian);
+  if (options.world_rows != nullptr) options.world_rows->begin(world_columns(world), session.realtime.deadlines);
+  WorldRunConsumer consumer(world, trace.get(), options.messages, summary, options.guardian, options.world_rows);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;
   auto report = run_world(*run_world_object, group, consumer, session);

@@ -29,6 +29,8 @@
 #include "toonforce/hal/omni/omni_device.hpp"
 
 namespace toonforce {
+
+class WorldRowSink;  // sim/world_sim.hpp
 namespace guardian {
 struct SharedPage;
 }  // namespace guardian
@@ -93,6 +95,9 @@ struct RunOptions {
   /// Also sends every frame to this sink (the live viewer), from the writer thread that
   /// consumes the telemetry ring: the servo thread does no work for it.
   TelemetrySink* sink = nullptr;
+  /// A world scene: also sends every frame's trace row (sim/world_trace.hpp's columns) here, from
+  /// the writer thread, as `sink` for one device (the live viewer); begin() before the loop.
+  WorldRowSink* world_rows = nullptr;
   /// Live scenes: the loop takes scene updates from here (null: a loop without the live stage).
   const LiveMailboxes* live = nullptr;
   /// The page shared with `toonforce run`'s guardian process (guardian.hpp), when there is one:
