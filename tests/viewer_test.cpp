@@ -6,8 +6,9 @@
 // or allocates, and frames arrive in order with their sequence numbers. As a server:
 // the page cap under hundreds of concurrent upgrades, the bytes and resident memory they cost,
 // the accept loop out of descriptors, the Host check on other addresses and the names given.
-// Also the hello message, trace reading for `toonforce view`, and the run and sim hooks. Counts
-// and bounds only, never times.
+// Also the hello message, trace reading for `toonforce view`, and the run and sim hooks; for a
+// world (several devices), the hello naming each device, the frames by device and the world
+// simulation's rows through a server to a page. Counts and bounds only, never times.
 #include <gtest/gtest.h>
 
 #include <dirent.h>
@@ -44,12 +45,15 @@
 #include "alloc_counter.hpp"
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/run/run.hpp"
+#include "toonforce/run/world_run.hpp"
 #include "toonforce/sim/sim_run.hpp"
 #include "toonforce/viewer/assets.hpp"
 #include "toonforce/viewer/hello.hpp"
 #include "toonforce/viewer/scene_json.hpp"
 #include "toonforce/viewer/trace_file.hpp"
 #include "toonforce/viewer/viewer_server.hpp"
+#include "toonforce/viewer/world_sink.hpp"
+#include "toonforce/viewer/world_view.hpp"
 
 namespace {
 
@@ -908,6 +912,242 @@ TEST(ViewerHooks, SimWithAViewerWritesTheSameTrace) {
   const std::string plain = slurp(dir + "/viewer_plain.csv");
   EXPECT_FALSE(plain.empty());
   EXPECT_EQ(plain, slurp(dir + "/viewer_sink.csv"));
+}
+
+std::string slurp_file(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  std::string text;
+  char buffer[4096];
+  std::size_t n = 0;
+  while (f != nullptr && (n = std::fread(buffer, 1, sizeof buffer, f)) > 0) text.append(buffer, n);
+  if (f != nullptr) std::fclose(f);
+  return text;
+}
+
+std::size_t column_of(const std::vector<std::string>& columns, const std::string& name) {
+  return static_cast<std::size_t>(std::find(columns.begin(), columns.end(), name) - columns.begin());
+}
+
+WorldSimOptions two_players(const std::string& trace) {
+  WorldSimOptions w;
+  w.scene_path = std::string(kSource) + "/scenes/two_players.toml";
+  w.scripts = {{"left", std::string(kSource) + "/scenes/hands/left_push.toml"},
+               {"right", std::string(kSource) + "/scenes/hands/right_push.toml"}};
+  w.duration_s = 0.5;
+  w.trace_path = trace;
+  return w;
+}
+
+TEST(ViewerWorld, TheHelloNamesEveryDeviceTheCouplingsAndTheBall) {
+  auto world = load_world_file(std::string(kSource) + "/scenes/two_players.toml");
+  ASSERT_TRUE(world) << world.error();
+  auto map = WorldViewMap::make(world_columns(world.value()));
+  ASSERT_TRUE(map) << map.error();
+  EXPECT_EQ(map->devices(), (std::vector<std::string>{"left", "right"}));
+  ASSERT_EQ(map->columns().size(), kViewStride);
+  for (const char* c : {"t", "tick", "left.x", "left.fz", "left.state", "right.y", "right.faults", "ball.x", "held",
+                        "coupling1.fx", "right.ball_fz"}) {
+    EXPECT_LT(column_of(map->columns(), c), kViewStride) << c;
+  }
+  HelloInfo info;
+  info.source = "sim";
+  info.scene_json = scene_json(world->scene);
+  info.world_columns = map->columns();
+  info.world_json = world_json(map->devices(), &world.value());
+  const std::string hello = make_hello(info);
+  EXPECT_NE(hello.find(R"("columns":["t","tick","left.x","left.y","left.z","left.fx")"), std::string::npos) << hello;
+  // right faces left: half a turn about z, exactly.
+  EXPECT_NE(hello.find(R"("world":{"devices":["left","right"],"couplings":[[0,1]],"ball_radius":0.015,)"
+                       R"("rotations":[[[1,0,0],[0,1,0],[0,0,1]],[[-1,0,0],[0,-1,0],[0,0,1]]]})"),
+            std::string::npos)
+      << hello;
+  // One device: no world.
+  EXPECT_NE(make_hello(HelloInfo{}).find(R"("world":null)"), std::string::npos);
+}
+
+TEST(ViewerWorld, EachValueGoesToItsDevicesColumn) {
+  const std::vector<std::string> trace{"t",       "a.x",      "a.y",       "a.z",     "a.fx",     "a.fy",
+                                       "a.fz",    "a.faults", "a.latched", "a.state", "b.x",      "b.y",
+                                       "b.z",     "b.fx",     "b.fy",      "b.fz",    "b.faults", "b.latched",
+                                       "b.state", "ball.x",   "ball.y",    "ball.z",  "held"};
+  auto map = WorldViewMap::make(trace);
+  ASSERT_TRUE(map) << map.error();
+  EXPECT_EQ(map->devices(), (std::vector<std::string>{"a", "b"})) << "the ball is not a device";
+  std::vector<double> row;
+  for (std::size_t i = 0; i < trace.size(); ++i) row.push_back(100.0 + static_cast<double>(i));
+  const ViewFrame f = map->frame(row, 7.0);
+  for (std::size_t i = 0; i < trace.size(); ++i) {
+    const std::size_t c = column_of(map->columns(), trace[i]);
+    ASSERT_LT(c, kViewStride) << trace[i];
+    EXPECT_EQ(f[c], row[i]) << trace[i];
+  }
+  EXPECT_EQ(f[column_of(map->columns(), "tick")], 7.0);
+  EXPECT_TRUE(std::isnan(f[kViewStride - 1])) << "unused columns are NaN";
+  EXPECT_FALSE(WorldViewMap::make({"t", "x", "y", "z"})) << "a one-device trace is not a world's";
+}
+
+TEST(ViewerWorld, FourDevicesFitTheirHipsForcesAndStates) {
+  WorldDescription world;
+  for (const char* name : {"a", "b", "c", "d"}) {
+    WorldDeviceEntry d;
+    d.name = name;
+    world.devices.push_back(d);
+  }
+  world.couplings.resize(8);
+  world.ball = between::BallParams{};
+  auto map = WorldViewMap::make(world_columns(world));
+  ASSERT_TRUE(map) << map.error();
+  for (const char* name : {"a", "b", "c", "d"}) {
+    for (const char* v : {".x", ".y", ".z", ".fx", ".fy", ".fz", ".faults", ".state"}) {
+      EXPECT_LT(column_of(map->columns(), std::string(name) + v), kViewStride) << name << v;
+    }
+  }
+  EXPECT_LT(column_of(map->columns(), "held"), kViewStride);
+  EXPECT_LT(column_of(map->columns(), "ball.z"), kViewStride);
+}
+
+TEST(ViewerWorld, AWorldTraceReadsBackFrameForFrame) {
+  const std::string path = ::testing::TempDir() + "/viewer_world.csv";
+  auto summary = run_world_sim(two_players(path));
+  ASSERT_TRUE(summary) << summary.error();
+  const std::string text = slurp_file(path);
+  EXPECT_TRUE(is_world_trace_header(read_trace_header(path)));
+  auto rec = parse_world_trace(text, path);
+  ASSERT_TRUE(rec) << rec.error();
+  ASSERT_EQ(rec->frames.size(), static_cast<std::size_t>(summary->ticks) + 0U);
+  EXPECT_NEAR(rec->rate_hz, 1000.0, 1e-6);
+  // The last row's right.x, as the file has it.
+  const std::string header = text.substr(0, text.find('\n'));
+  std::vector<std::string> names;
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = header.find(',', start);
+    names.push_back(header.substr(start, comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  const std::string last = text.substr(text.rfind('\n', text.size() - 2) + 1);
+  std::vector<double> values;
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = last.find(',', start);
+    values.push_back(std::strtod(last.substr(start, comma - start).c_str(), nullptr));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  for (const char* c : {"right.x", "left.fz", "ball.y", "held"}) {
+    EXPECT_EQ(rec->frames.back()[column_of(rec->columns, c)], values[column_of(names, c)]) << c;
+  }
+  EXPECT_FALSE(parse_world_trace("t,x,y,z\n0,1,2,3\n", "one.csv"));
+}
+
+/// A page of a world simulation's server: the hello names the devices, and every row reaches it
+/// with each device's HIP where the trace has it; the trace is the same with the viewer.
+TEST(ViewerWorld, TheWorldSimulationsRowsReachAPageByDevice) {
+  const std::string dir = ::testing::TempDir();
+  ASSERT_TRUE(run_world_sim(two_players(dir + "/world_plain.csv")));
+  auto world = load_world_file(std::string(kSource) + "/scenes/two_players.toml");
+  ASSERT_TRUE(world);
+  auto map = WorldViewMap::make(world_columns(world.value()));
+  ASSERT_TRUE(map);
+  HelloInfo info;
+  info.world_columns = map->columns();
+  info.world_json = world_json(map->devices(), &world.value());
+  ViewerOptions options;
+  options.port = 0;
+  options.has_loop = false;
+  auto server = ViewerServer::start(options, make_hello(info));
+  ASSERT_TRUE(server) << server.error();
+  Client client(*server.value(), "http://" + host_of(*server.value()));
+  ASSERT_FALSE(client.ec);
+  std::atomic<int> stop{0};
+  WorldViewSink sink(*server.value(), std::move(map.value()), 0.0, &stop);
+  WorldSimOptions w = two_players(dir + "/world_view.csv");
+  w.rows = &sink;
+  auto summary = run_world_sim(w);
+  ASSERT_TRUE(summary) << summary.error();
+  server.value()->finish();
+  EXPECT_EQ(slurp_file(dir + "/world_plain.csv"), slurp_file(dir + "/world_view.csv"));
+  std::string text;
+  std::vector<double> values;
+  std::vector<std::vector<double>> frames;
+  std::vector<std::string> columns;
+  bool ended = false;
+  while (!ended && client.next(text, values)) {
+    if (!text.empty()) {
+      if (text.find(R"("type":"hello")") != std::string::npos) {
+        EXPECT_NE(text.find(R"("world":{"devices":["left","right"])"), std::string::npos) << text;
+        columns = info.world_columns;
+      }
+      ended = text.find(R"("ended":true)") != std::string::npos;
+      continue;
+    }
+    const auto n = static_cast<std::size_t>(values[3]);
+    for (std::size_t k = 0; k < n; ++k) {
+      frames.emplace_back(values.begin() + static_cast<std::ptrdiff_t>(4 + k * kViewStride),
+                          values.begin() + static_cast<std::ptrdiff_t>(4 + (k + 1) * kViewStride));
+    }
+  }
+  EXPECT_TRUE(ended);
+  ASSERT_EQ(frames.size(), static_cast<std::size_t>(summary->ticks)) << "every row reaches the page";
+  auto rec = parse_world_trace(slurp_file(dir + "/world_view.csv"), "world_view.csv");
+  ASSERT_TRUE(rec) << rec.error();
+  ASSERT_EQ(rec->frames.size(), frames.size());
+  for (const char* c : {"left.x", "right.x", "right.fx", "ball.x", "held"}) {
+    const std::size_t col = column_of(columns, c);
+    ASSERT_LT(col, kViewStride) << c;
+    for (std::size_t i = 0; i < frames.size(); i += 97) {
+      EXPECT_EQ(frames[i][col], rec->frames[i][col]) << c << " at frame " << i;
+    }
+  }
+  EXPECT_EQ(sink.rows(), summary->ticks);
+}
+
+/// Keeps every row it is handed (the run's writer thread), and the columns begin() named.
+class KeepingRows final : public WorldRowSink {
+ public:
+  void begin(const std::vector<std::string>& c, std::int64_t) override { columns = c; }
+  void row(const std::vector<double>& values) override { rows.push_back(values); }
+  std::vector<std::string> columns;
+  std::vector<std::vector<double>> rows;
+};
+
+/// `run --view` of a world: the run's writer thread hands every trace row to the viewer's rows,
+/// the same numbers the trace has, in its columns.
+TEST(ViewerWorld, ARunHandsEveryRowOfTheTraceToTheViewer) {
+  RunOptions o;
+  o.device = "sim";
+  o.scene_path = std::string(kSource) + "/scenes/two_players.toml";
+  o.world_scripts = {{"left", std::string(kSource) + "/scenes/hands/left_push.toml"},
+                     {"right", std::string(kSource) + "/scenes/hands/right_push.toml"}};
+  o.allow_non_realtime = true;
+  o.lock_memory = false;
+  o.handle_signals = false;
+  o.interactive = false;
+  o.duration_s = 0.3;
+  static std::FILE* const messages = std::tmpfile();
+  o.messages = messages;
+  o.trace_path = ::testing::TempDir() + "/viewer_world_run.csv";
+  KeepingRows rows;
+  rows.rows.reserve(1000);
+  o.world_rows = &rows;
+  const auto summary = run_world_servo(o);
+  ASSERT_TRUE(summary) << summary.error();
+  EXPECT_EQ(rows.rows.size(), summary->frames_written);
+  ASSERT_FALSE(rows.rows.empty());
+  auto world = load_world_file(o.scene_path);
+  ASSERT_TRUE(world);
+  EXPECT_EQ(rows.columns, world_columns(world.value()));
+  auto rec = parse_world_trace(slurp_file(o.trace_path), o.trace_path);
+  ASSERT_TRUE(rec) << rec.error();
+  ASSERT_EQ(rec->frames.size(), rows.rows.size()) << "one row a frame, the trace's";
+  auto map = WorldViewMap::make(rows.columns);
+  ASSERT_TRUE(map);
+  for (std::size_t i = 0; i < rows.rows.size(); i += 37) {
+    const ViewFrame f = map->frame(rows.rows[i], static_cast<double>(i));
+    for (const char* c : {"t", "left.x", "right.z", "left.fx", "ball.x", "held"}) {
+      const std::size_t col = column_of(rec->columns, c);
+      EXPECT_EQ(f[col], rec->frames[i][col]) << c << " at row " << i;
+    }
+  }
 }
 
 }  // namespace

@@ -43,6 +43,7 @@
 #include "toonforce/config/scene_file.hpp"
 #include "toonforce/config/toml_reader.hpp"
 #include "server_process.hpp"
+#include "toonforce/viewer/world_view.hpp"
 #include "viewer_support.hpp"
 #endif
 
@@ -133,12 +134,54 @@ std::optional<std::string> read_scene_text(const std::string& path) {
 }
 #endif
 
+#if TOONFORCE_VIEWER
+/// `run --view` of a world: each trace row (from the writer thread) as the page's row
+/// (world_view.hpp), carried to the server process in a frame's values (server_process.cpp
+/// hands them on as they are). No allocation.
+class WorldViewRows final : public WorldRowSink {
+ public:
+  WorldViewRows(TelemetrySink& sink, viewer::WorldViewMap map) : sink_(sink), map_(std::move(map)) {}
+  void begin(const std::vector<std::string>& /*columns*/, std::int64_t /*ticks*/) override {}
+  void row(const std::vector<double>& values) override {
+    const viewer::ViewFrame v = map_.frame(values, static_cast<double>(tick_));
+    frame_.t_s = v[viewer::kT];
+    frame_.tick = tick_++;
+    frame_.value_count = static_cast<std::uint16_t>(v.size());
+    std::copy(v.begin(), v.end(), frame_.values.begin());
+    sink_.publish(frame_);
+  }
+
+ private:
+  TelemetrySink& sink_;
+  viewer::WorldViewMap map_;
+  std::int64_t tick_ = 0;
+  TelemetryFrame frame_{};
+};
+
+/// What `run --view` of a world needs from the command line.
+struct WorldViewRequest {
+  const ViewFlags* view = nullptr;  ///< null or not wanted: no viewer
+  std::string server_user;
+  bool server_user_given = false;
+};
+#endif
+
 /// `run` of a world scene (run/world_run.hpp): the options one device's run takes that a world
 /// does not are refused, not ignored; the rest as for one device. The command's exit status.
 int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vector<std::string>& scripts,
-                      const std::string& fail, bool quiet) {
-  for (const char* name : {"--view", "--control", "--serial", "--falcon-index", "--falcon-calibration", "--omni-device",
-                           "--tick-pin", "--estop-pin", "--enable-pin", "--amp-enable-pin", "--led-pin"}) {
+                      const std::string& fail, bool quiet
+#if TOONFORCE_VIEWER
+                      ,
+                      const WorldViewRequest& view_request
+#endif
+) {
+  for (const char* name : {
+#if !TOONFORCE_VIEWER
+         "--view",
+#endif
+             "--control", "--serial", "--falcon-index", "--falcon-calibration", "--omni-device", "--tick-pin",
+             "--estop-pin", "--enable-pin", "--amp-enable-pin", "--led-pin"
+       }) {
     const CLI::Option* option = cmd.get_option_no_throw(name);
     if (option != nullptr && option->count() > 0) {
       fmt::print(stderr, "{}: a world scene ({}) does not take it yet{}\n", name, options.scene_path,
@@ -187,6 +230,59 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
       return 2;
     }
   }
+#if TOONFORCE_VIEWER
+  // As for one device: the server runs in a process of its own, forked here before any thread.
+  std::unique_ptr<ServerProcess> server;
+  std::optional<WorldViewRows> rows;
+  if (view_request.view != nullptr && view_request.view->wanted()) {
+    const ViewFlags& view = *view_request.view;
+    auto world = load_world_file(options.scene_path);
+    if (!world) {
+      fmt::print(stderr, "{}\n", world.error());
+      return 2;
+    }
+    auto map = viewer::WorldViewMap::make(world_columns(world.value()));
+    if (!map) {
+      fmt::print(stderr, "{}: {}\n", options.scene_path, map.error());
+      return 2;
+    }
+    ServerSetup setup;
+    if (geteuid() == 0 || view_request.server_user_given) {
+      const passwd* user = getpwnam(view_request.server_user.c_str());
+      if (user == nullptr) {
+        fmt::print(stderr,
+                   "--server-user {}: no such user (the viewer's server process runs as this user when "
+                   "`run` is started as root)\n",
+                   view_request.server_user);
+        return 2;
+      }
+      if (geteuid() == 0) setup.user = ServerUser{view_request.server_user, user->pw_uid, user->pw_gid};
+    }
+    if (options.guardian != nullptr) setup.dropped_mappings.push_back({options.guardian, sizeof(guardian::SharedPage)});
+    viewer::HelloInfo& hello = setup.hello;
+    hello.source = "run";
+    hello.title = fmt::format("{} on {}", world->scene.name, options.device);
+    hello.rate_hz = options.rate_hz;
+    hello.scene_json = viewer::scene_json(world->scene);
+    hello.world_columns = map->columns();
+    hello.world_json = viewer::world_json(map->devices(), &world.value());
+    setup.viewer.address = view.address;
+    setup.viewer.hosts = view.hosts;
+    setup.viewer.port = static_cast<std::uint16_t>(view.port);
+    auto started = ServerProcess::start(setup);
+    if (!started) {
+      if (!started.error().empty()) fmt::print(stderr, "{}\n", started.error());
+      return 2;
+    }
+    server = std::move(started.value());
+    rows.emplace(server->sink(), std::move(map.value()));
+    options.world_rows = &rows.value();
+  }
+  if (command_stop().load() != 0) {  // stopped while the viewer started
+    fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(command_stop().load()));
+    return 2;
+  }
+#endif
   const auto summary = run_world_servo(options);
   if (!summary) {
     std::fputs(summary.error().c_str(), stderr);
@@ -214,6 +310,18 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
     status = 1;
   }
   std::fflush(stdout);
+#if TOONFORCE_VIEWER
+  if (server) {
+    // As for one device: stopped from outside, the page closes with the run; else it keeps the
+    // recording until Ctrl-C.
+    const int stopped_by = summary->report.stop_signal;
+    const bool keep = status == 0 && (stopped_by == 0 || stopped_by == SIGINT || stopped_by == kStopByUser);
+    if (!keep && status == 0) {
+      fmt::print(stderr, "viewer: the run was stopped by {}; the page closes with it\n", signal_name(stopped_by));
+    }
+    server->finish(keep);
+  }
+#endif
   return status;
 }
 
@@ -424,7 +532,15 @@ void add_run(CLI::App& app) {
     options->early_stop = &command_stop();
     if (*disable_on_close != "auto") options->omni.disable_device_on_close = *disable_on_close == "yes";
     if (is_world_file(options->scene_path)) {
+#if TOONFORCE_VIEWER
+      WorldViewRequest request;
+      request.view = view.get();
+      request.server_user = *server_user;
+      request.server_user_given = server_user_option->count() > 0;
+      set_exit_code(run_world_command(*options, *cmd, *scripts, *fail, *quiet, request));
+#else
       set_exit_code(run_world_command(*options, *cmd, *scripts, *fail, *quiet));
+#endif
       return;
     }
     if (!fail->empty()) {

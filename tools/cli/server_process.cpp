@@ -13,6 +13,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <thread>
@@ -30,6 +31,8 @@
 namespace toonforce::cli {
 
 namespace {
+
+static_assert(viewer::kViewStride <= kMaxEffectValues, "a world's page row travels in a frame's values");
 
 void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
 
@@ -155,8 +158,18 @@ int serve(ServerChannel& ch, const ServerSetup& setup, pid_t loop) {
   ch.state.store(1);
   TelemetryFrame f;
   int over = 0;
+  // A world's frames come as the page's rows already (world_view.hpp), in the frame's values.
+  const bool world = !setup.hello.world_columns.empty();
+  viewer::ViewFrame row{};
   for (;;) {
-    while (ch.frames.pop(f)) server->publish(f);
+    while (ch.frames.pop(f)) {
+      if (!world) {
+        server->publish(f);
+        continue;
+      }
+      std::copy_n(f.values.begin(), row.size(), row.begin());
+      server->publish(row);
+    }
     if (over != 0) break;
     over = ch.run_over.load(std::memory_order_acquire);  // then one more drain
     if (over == 0) {

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -19,6 +20,8 @@
 #include "toonforce/sim/sim_run.hpp"
 #include "toonforce/sim/world_sim.hpp"
 #if TOONFORCE_VIEWER
+#include "toonforce/viewer/world_sink.hpp"
+#include "toonforce/viewer/world_view.hpp"
 #include "viewer_support.hpp"
 #endif
 
@@ -94,14 +97,8 @@ void add_sim(CLI::App& app) {
     };
     if (is_world_file(options->scene_path)) {
       // Options of the one-device simulation that a world does not take are refused, not ignored.
-      for (const char* name : {
-             "--plot", "--plot-kind", "--scalar", "--sine", "--sensor-noise", "--strict", "--allow-empty",
-                 "--max-output"
-#if TOONFORCE_VIEWER
-                 ,
-                 "--view", "--view-pace"
-#endif
-           }) {
+      for (const char* name : {"--plot", "--plot-kind", "--scalar", "--sine", "--sensor-noise", "--strict",
+                               "--allow-empty", "--max-output"}) {
         if (cmd->get_option(name)->count() > 0) {
           fmt::print(stderr, "{}: a world scene ({}) does not take it yet\n", name, options->scene_path);
           set_exit_code(2);
@@ -140,10 +137,68 @@ void add_sim(CLI::App& app) {
       w.seed = options->seed;
       static std::atomic<int> world_stop{0};
       world_stop.store(0);
+#if TOONFORCE_VIEWER
+      // As for one device: wait for a page, then pace the simulation to the wall clock; the
+      // page gets every row the trace gets, each value named by its device.
+      std::unique_ptr<viewer::ViewerServer> server;
+      std::optional<viewer::WorldViewSink> sink;
+      if (view->wanted()) {
+        auto world = load_world_file(w.scene_path);
+        if (!world) {
+          fmt::print(stderr, "{}\n", world.error());
+          set_exit_code(1);
+          return;
+        }
+        auto map = viewer::WorldViewMap::make(world_columns(world.value()));
+        if (!map) {
+          fmt::print(stderr, "{}: {}\n", w.scene_path, map.error());
+          set_exit_code(1);
+          return;
+        }
+        viewer::HelloInfo hello;
+        hello.source = "sim";
+        std::string scripts_text;
+        for (const auto& [name, file] : w.scripts)
+          scripts_text += fmt::format("{}{}={}", scripts_text.empty() ? "" : ", ", name, file);
+        hello.title = fmt::format("{} / {}", world->scene.name, scripts_text);
+        hello.rate_hz = w.rate_hz;
+        hello.scene_json = viewer::scene_json(world->scene);
+        hello.world_columns = map->columns();
+        hello.world_json = viewer::world_json(map->devices(), &world.value());
+        hello.pacing = options->pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", options->pace)
+                                           : "simulated time, as fast as it runs";
+        viewer::ViewerOptions vo;
+        vo.address = view->address;
+        vo.hosts = view->hosts;
+        vo.port = static_cast<std::uint16_t>(view->port);
+        vo.has_loop = false;
+        auto started = start_viewer(vo, hello);
+        if (!started) {
+          fmt::print(stderr, "{}\n", started.error());
+          set_exit_code(1);
+          return;
+        }
+        server = std::move(started.value());
+        install_command_stop_signals();
+        fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
+        std::fflush(stderr);
+        if (!server->wait_for_page(command_stop())) {
+          restore_command_stop_signals();
+          set_exit_code(1);
+          return;
+        }
+        restore_command_stop_signals();
+        sink.emplace(*server, std::move(map.value()), options->pace, &world_stop);
+        w.rows = &sink.value();
+      }
+#endif
       install_signal_handlers(world_stop, EmergencyZero{});
       w.stop = &world_stop;
       const auto summary = run_world_sim(w);
       restore_signals();
+#if TOONFORCE_VIEWER
+      if (server) server->finish();
+#endif
       if (!summary) {
         std::fputs(summary.error().c_str(), stderr);
         if (summary.error().empty() || summary.error().back() != '\n') std::fputc('\n', stderr);
@@ -154,6 +209,12 @@ void add_sim(CLI::App& app) {
         std::fputs(format_world_sim_summary(summary.value(), w).c_str(), w.trace_path == "-" ? stderr : stdout);
       }
       set_exit_code(0);
+#if TOONFORCE_VIEWER
+      if (server && summary->stop_signal == 0) {
+        std::fflush(stdout);
+        serve_until_stopped(*server, "the simulation is over");
+      }
+#endif
       return;
     }
     if (scripts->size() != 1) {

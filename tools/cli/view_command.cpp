@@ -2,6 +2,7 @@
 // toonforce view TRACE.csv [--scene S.toml] [--port P] [--address ADDR] [--host NAME ...]
 // A recorded trace (from `toonforce run --trace` or `toonforce sim --trace`) in the viewer page,
 // to play, pause and scrub; served until Ctrl-C. Only in builds with TOONFORCE_VIEWER.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -10,7 +11,9 @@
 
 #include "commands.hpp"
 #include "toonforce/config/scene_file.hpp"
+#include "toonforce/config/world_file.hpp"
 #include "toonforce/viewer/trace_file.hpp"
+#include "toonforce/viewer/world_view.hpp"
 #include "viewer_support.hpp"
 
 namespace toonforce::cli {
@@ -31,6 +34,65 @@ void add_view(CLI::App& app) {
   cmd->add_option("--address", *address, "Listen on this address instead of 127.0.0.1 (other hosts can then watch)");
   cmd->add_option("--host", *hosts, kViewHostHelp)->type_name("NAME")->allow_extra_args(false)->take_all();
   cmd->callback([=] {
+    const auto fail = [](const std::string& message) {
+      fmt::print(stderr, "{}\n", message);
+      set_exit_code(1);
+    };
+    // A world's trace (several devices: sim/world_trace.hpp) by its header; its scene is a world file.
+    const bool world_trace = viewer::is_world_trace_header(viewer::read_trace_header(*trace_path));
+    const bool world_scene = !scene_path->empty() && is_world_file(*scene_path);
+    if (world_trace || world_scene) {
+      if (!world_trace)
+        return fail(fmt::format("{}: not a world's trace, but --scene {} is a world scene", *trace_path, *scene_path));
+      if (!scene_path->empty() && !world_scene) {
+        return fail(fmt::format("{}: a world's trace, but --scene {} is a one-device scene", *trace_path, *scene_path));
+      }
+      std::optional<WorldDescription> world;
+      if (world_scene) {
+        auto loaded = load_world_file(*scene_path);
+        if (!loaded) return fail(loaded.error());
+        world = std::move(loaded.value());
+      }
+      std::string text;
+      if (std::FILE* f = std::fopen(trace_path->c_str(), "rb")) {
+        char buffer[1 << 16];
+        std::size_t n = 0;
+        while ((n = std::fread(buffer, 1, sizeof buffer, f)) > 0) text.append(buffer, n);
+        std::fclose(f);
+      }
+      auto recording = viewer::parse_world_trace(text, *trace_path);
+      if (!recording) return fail(recording.error());
+      if (!recording->note.empty()) fmt::print(stderr, "note: {}\n", recording->note);
+      if (world) {
+        for (const WorldDeviceEntry& d : world->devices) {
+          if (std::find(recording->devices.begin(), recording->devices.end(), d.name) == recording->devices.end()) {
+            return fail(fmt::format("{}: no columns of device '{}' of {}: the trace is not of this world", *trace_path,
+                                    d.name, *scene_path));
+          }
+        }
+      }
+      viewer::HelloInfo hello;
+      hello.source = "world trace";
+      hello.title = std::filesystem::path(*trace_path).filename().string();
+      hello.rate_hz = recording->rate_hz;
+      hello.live = false;
+      if (world) hello.scene_json = viewer::scene_json(world->scene);
+      hello.world_columns = recording->columns;
+      hello.world_json = viewer::world_json(recording->devices, world ? &world.value() : nullptr);
+      viewer::ViewerOptions options;
+      options.address_option = "--address";
+      options.address = *address;
+      options.hosts = *hosts;
+      options.port = static_cast<std::uint16_t>(*port);
+      options.has_loop = false;
+      const std::string what =
+          fmt::format("{}: {} frames of {} devices", *trace_path, recording->frames.size(), recording->devices.size());
+      auto server = start_viewer(options, hello, std::move(recording.value().frames), "--host");
+      if (!server) return fail(server.error());
+      serve_until_stopped(*server.value(), what.c_str());
+      set_exit_code(0);
+      return;
+    }
     auto recording = viewer::read_trace(*trace_path);
     if (!recording) {
       fmt::print(stderr, "{}\n", recording.error());

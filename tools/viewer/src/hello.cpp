@@ -21,7 +21,7 @@ std::string vec(const Vec3<double>& v) { return fmt::format("[{},{},{}]", number
 
 std::string make_hello(const HelloInfo& info) {
   std::string columns;
-  for (const std::string& c : view_columns(info.effect_values)) {
+  for (const std::string& c : info.world_columns.empty() ? view_columns(info.effect_values) : info.world_columns) {
     columns += fmt::format("{}{}", columns.empty() ? "" : ",", json_string(c));
   }
   std::string faults;
@@ -48,10 +48,10 @@ std::string make_hello(const HelloInfo& info) {
   }
   return fmt::format(
       R"({{"type":"hello","protocol":1,"source":{},"title":{},"rate_hz":{},"live":{},"pacing":{},"columns":[{}],)"
-      R"("batch_header":4,"scene":{},"workspace":{},"faults":[{}],"limits":[{}],"states":[{}],"latched_mask":{}}})",
+      R"("batch_header":4,"scene":{},"workspace":{},"world":{},"faults":[{}],"limits":[{}],"states":[{}],"latched_mask":{}}})",
       json_string(info.source), json_string(info.title), number(info.rate_hz), info.live, json_string(info.pacing),
-      columns, info.scene_json.empty() ? std::string("null") : info.scene_json, workspace, faults, limits, states,
-      kLatchedFaults);
+      columns, info.scene_json.empty() ? std::string("null") : info.scene_json, workspace,
+      info.world_json.empty() ? std::string("null") : info.world_json, faults, limits, states, kLatchedFaults);
 }
 
 }  // namespace toonforce::viewer

@@ -5,8 +5,8 @@
 // recorded trace), it plays back and can be scrubbed.
 import './style.css';
 import { FrameStore, CLIFF_LABELS, effectGroups } from './store.js';
-import { Scene3D } from './scene3d.js';
-import { Plots, drawHistogram } from './plots.js';
+import { Scene3D, DEVICE_COLOURS } from './scene3d.js';
+import { Plots, drawHistogram, worldSeries } from './plots.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -29,6 +29,7 @@ const view = {
   fpsSince: performance.now(),
   rendered: 0,
   effectGroups: [], // the effects' values, as the page lists them
+  worldRows: [], // a world's devices, as the page lists them
 };
 
 function setBadge(el, state, text) {
@@ -53,6 +54,7 @@ function onHello(hello) {
   $('source').textContent = `${hello.source}${rate ? ', ' + rate : ''}${pacing}${hello.scene ? ', scene ' + hello.scene.name : ', no scene'}`;
   if (view.scene === null) view.scene = new Scene3D($('view3d'), hello);
   buildEffectValues(hello);
+  if (hello.world) buildWorld(hello);
   setConnection(hello.live ? 'live' : 'recording', hello.live ? 'live' : 'recording');
 }
 
@@ -103,7 +105,9 @@ function names(bits, table) {
 function buildEffectValues(hello) {
   const list = $('effect-values');
   list.replaceChildren();
-  view.effectGroups = effectGroups(hello);
+  // A world's devices have their own panel: here only the rest (the ball, the couplings).
+  const devices = hello.world ? hello.world.devices : [];
+  view.effectGroups = effectGroups(hello).filter((g) => !devices.includes(g.effect));
   for (const group of view.effectGroups) {
     const dt = document.createElement('dt');
     dt.textContent = group.effect;
@@ -113,6 +117,42 @@ function buildEffectValues(hello) {
     group.element = dd;
   }
   $('effect-values-panel').hidden = view.effectGroups.length === 0;
+}
+
+/** A world: one row a device (its name in its colour), the stop's state, plots by device. */
+function buildWorld(hello) {
+  const list = $('world-devices');
+  list.replaceChildren();
+  view.worldRows = hello.world.devices.map((name, k) => {
+    const dt = document.createElement('dt');
+    dt.textContent = name;
+    dt.style.color = DEVICE_COLOURS[k % DEVICE_COLOURS.length];
+    const dd = document.createElement('dd');
+    dd.dataset.device = name;
+    list.append(dt, dd);
+    return { name, element: dd };
+  });
+  $('world-panel').hidden = false;
+  view.plots.setSeries(worldSeries(hello.world, DEVICE_COLOURS));
+}
+
+function updateWorld(i) {
+  const s = view.store;
+  const g = (name) => s.get(i, name);
+  for (const row of view.worldRows) {
+    const d = row.name;
+    const f = [g(`${d}.fx`), g(`${d}.fy`), g(`${d}.fz`)];
+    const state = g(`${d}.state`);
+    const stateName = Number.isFinite(state) ? (view.hello.states[state] ?? `state ${state}`) : 'n/a';
+    const faults = names(g(`${d}.faults`), view.hello.faults);
+    row.element.textContent =
+      `HIP [${mm(g(`${d}.x`))}, ${mm(g(`${d}.y`))}, ${mm(g(`${d}.z`))}] mm · ` +
+      `F ${fmt(Math.hypot(...f), 2)} N · ${stateName}${faults.length ? ' · faults: ' + faults.join(', ') : ''}`;
+  }
+  const held = g('held');
+  setBadge($('held'), held > 0 ? 'fault' : 'none', held > 0 ? 'held: every device at zero force' : 'not held');
+  const ball = [g('ball.x'), g('ball.y'), g('ball.z')];
+  $('hip').textContent = Number.isFinite(ball[0]) ? `ball [${ball.map(mm).join(', ')}] mm` : '–';
 }
 
 /** A value with its unit, lengths in mm and times in ms as the rest of the page shows them. */
@@ -187,6 +227,7 @@ function updatePanels(i) {
     : 'no faults so far';
 
   updateEffectValues(i);
+  if (view.hello.world) updateWorld(i);
 
   if (s.latencyCount > 0) {
     const missed = g('missed');
@@ -313,10 +354,30 @@ window.toonforceViewer = {
       cliff: $('cliff').dataset.state,
       faults: $('faults').dataset.state,
       effects: Object.fromEntries((view.effectGroups ?? []).map((g) => [g.effect, g.element.textContent])),
-      arrow: view.scene
+      arrow: view.scene && view.scene.arrow
         ? { visible: view.scene.arrow.visible, direction: view.scene.arrow.userData.direction, length: view.scene.arrow.userData.length }
         : null,
-      hip: view.scene ? view.scene.hip.position.toArray() : null,
+      hip: view.scene && view.scene.hip ? view.scene.hip.position.toArray() : null,
+      // A world: every device's HIP as drawn (null until a frame placed it), its label and colour;
+      // the ball; the couplings' lines; the stop.
+      world:
+        view.scene && view.scene.world
+          ? {
+              devices: view.scene.devices.map((d) => ({
+                name: d.name,
+                colour: d.colour,
+                drawn: d.hip.visible,
+                hip: d.hip.visible ? d.hip.position.toArray() : null,
+                arrow: { visible: d.arrow.visible, direction: d.arrow.userData.direction },
+                panel: view.worldRows.find((r) => r.name === d.name)?.element.textContent ?? '',
+              })),
+              ball: view.scene.ball && view.scene.ball.visible ? view.scene.ball.position.toArray() : null,
+              ballRadius: view.scene.ball ? view.scene.ball.geometry.parameters.radius : null,
+              couplings: view.scene.couplings.map((l) => l.visible),
+              held: $('held').dataset.state,
+              plotLabels: view.plots.series.map((p) => p.label),
+            }
+          : null,
       force: has ? [s.get(i, 'fx'), s.get(i, 'fy'), s.get(i, 'fz')] : null,
       fps: view.fps,
       rendered: view.rendered,

@@ -11,6 +11,25 @@ const SERIES = [
 ];
 const TITLES = ['HIP position [mm]', 'force [N]'];
 
+/** A world's plots (the hello's `world`): each device's HIP x and its commanded force's
+ *  magnitude, one trace a device in its colour, named. */
+export function worldSeries(world, colours) {
+  const series = [];
+  world.devices.forEach((name, k) => {
+    const colour = colours[k % colours.length];
+    series.push({ plot: 0, name: `${name}.x`, label: `${name} x`, colour, scale: 1000 });
+    series.push({
+      plot: 1,
+      name: `${name}.fx`,
+      label: `${name} |F|`,
+      colour,
+      scale: 1,
+      value: (store, i) => Math.hypot(store.get(i, `${name}.fx`), store.get(i, `${name}.fy`), store.get(i, `${name}.fz`)),
+    });
+  });
+  return { series, titles: ['HIP x, world frame [mm]', 'commanded force |F| [N]'] };
+}
+
 function niceRange(lo, hi) {
   if (!Number.isFinite(lo) || !Number.isFinite(hi)) return [-1, 1];
   if (hi - lo < 1e-9) {
@@ -26,6 +45,14 @@ export class Plots {
     this.canvas = canvas;
     this.ctx = canvas.getContext('2d');
     this.window = 4; // seconds shown
+    this.series = SERIES;
+    this.titles = TITLES;
+  }
+
+  /** Other series (a world's: worldSeries). */
+  setSeries({ series, titles }) {
+    this.series = series;
+    this.titles = titles;
   }
 
   resize() {
@@ -64,7 +91,7 @@ export class Plots {
     const width = this.w - left - right;
     for (let p = 0; p < 2; ++p) {
       const top = 8 + p * (plotH + 14);
-      const series = SERIES.filter((s) => s.plot === p);
+      const series = this.series.filter((s) => s.plot === p);
       const columns = series.map(() => ({ min: new Float64Array(width).fill(Infinity), max: new Float64Array(width).fill(-Infinity) }));
       let lo = Infinity;
       let hi = -Infinity;
@@ -72,7 +99,7 @@ export class Plots {
         const px = Math.floor(((store.time(i) - t0) / span) * (width - 1));
         if (px < 0 || px >= width) continue;
         series.forEach((s, k) => {
-          const v = store.get(i, s.name) * s.scale;
+          const v = (s.value ? s.value(store, i) : store.get(i, s.name)) * s.scale;
           if (!Number.isFinite(v)) return;
           const col = columns[k];
           if (v < col.min[px]) col.min[px] = v;
@@ -94,9 +121,16 @@ export class Plots {
       ctx.stroke();
       ctx.setLineDash([]);
       ctx.fillStyle = '#444';
-      ctx.fillText(TITLES[p], left + 4, top + 12);
+      ctx.fillText(this.titles[p], left + 4, top + 12);
       ctx.fillText(yhi.toPrecision(3), 2, top + 10);
       ctx.fillText(ylo.toPrecision(3), 2, top + plotH);
+      // Labels left to right, ending at the plot's right edge (a world's names are longer).
+      const labelAt = [];
+      let labelX = left + width - 6;
+      for (let k = series.length - 1; k >= 0; --k) {
+        labelX -= ctx.measureText(series[k].label).width + 8;
+        labelAt[k] = labelX;
+      }
       series.forEach((s, k) => {
         const col = columns[k];
         ctx.strokeStyle = s.colour;
@@ -116,7 +150,7 @@ export class Plots {
         }
         ctx.stroke();
         ctx.fillStyle = s.colour;
-        ctx.fillText(s.label, left + width - 40 + k * 20, top + 12);
+        ctx.fillText(s.label, this.series === SERIES ? left + width - 40 + k * 20 : labelAt[k], top + 12);
       });
       if (centred) {
         const x = left + ((tc - t0) / span) * (width - 1);

@@ -3,6 +3,9 @@
 // cliff's ground as two ledges with the gap between them (a bridge over the gap while the cliff
 // holds, gone when it has dropped the HIP), the HIP with a small cartoon character standing on
 // it, and the commanded force as an arrow from the HIP. Scene frame, metres, z up.
+// A world (the hello's `world`: several devices in one scene) instead: every device's HIP in its
+// own colour, labelled with its name, its commanded force as an arrow of that colour; the ball;
+// each coupling as a line between its two HIPs.
 import {
   AmbientLight,
   BoxGeometry,
@@ -21,6 +24,9 @@ import {
   Quaternion,
   Scene,
   SphereGeometry,
+  Sprite,
+  SpriteMaterial,
+  CanvasTexture,
   CylinderGeometry,
   Vector3,
   WebGLRenderer,
@@ -36,6 +42,8 @@ const KIND_COLOURS = {
 };
 const FORCE_M_PER_N = 0.007; // arrow length per newton: 8 N is 5.6 cm
 const TRAIL = 600;
+/** A world's device colours, by device index (the plots and panels use the same). */
+export const DEVICE_COLOURS = ['#d03030', '#2f6fd0', '#2a9d4a', '#b050c0'];
 
 function basisFor(normal) {
   const n = new Vector3(...normal).normalize();
@@ -67,8 +75,13 @@ export class Scene3D {
     const parts = sceneParts(hello);
     for (const s of parts.surfaces) this.#addSurface(s);
     for (const c of parts.cliffs) this.#addCliff(c);
-    this.#addHip();
-    this.#addTrail();
+    this.world = hello.world ?? null;
+    if (this.world) {
+      this.#addWorld(hello);
+    } else {
+      this.#addHip();
+      this.#addTrail();
+    }
 
     const c = this.center;
     const d = this.size * 1.45;
@@ -225,6 +238,153 @@ export class Scene3D {
     this.heading = 0;
   }
 
+  /** A force arrow (a shaft and a head along +y of its group), drawn over everything. */
+  #makeArrow(colour) {
+    const arrow = new Group();
+    const material = new MeshBasicMaterial({ color: colour, depthTest: false, transparent: true, opacity: 0.9 });
+    const shaft = new Mesh(new CylinderGeometry(0.0007, 0.0007, 1, 12), material);
+    const head = new Mesh(new CylinderGeometry(0, 0.0022, 0.006, 16), material);
+    shaft.renderOrder = 10;
+    head.renderOrder = 10;
+    arrow.add(shaft, head);
+    arrow.visible = false;
+    arrow.userData = { shaft, head, direction: [0, 0, 0], length: 0 };
+    this.scene.add(arrow);
+    return arrow;
+  }
+
+  /** Points `arrow` from `from` along force `f` [N]; hidden below 1 mN. */
+  #setArrow(arrow, from, f) {
+    const magnitude = f.length();
+    if (!(Number.isFinite(magnitude) && magnitude > 1e-3)) {
+      arrow.visible = false;
+      arrow.userData.direction = [0, 0, 0];
+      arrow.userData.length = 0;
+      return;
+    }
+    const dir = f.clone().divideScalar(magnitude);
+    const length = Math.max(0.008, magnitude * FORCE_M_PER_N);
+    const head = Math.min(0.006, length * 0.4);
+    const { shaft, head: cone } = arrow.userData;
+    arrow.position.copy(from);
+    arrow.quaternion.setFromUnitVectors(new Vector3(0, 1, 0), dir);
+    shaft.scale.set(1, length - head, 1);
+    shaft.position.set(0, (length - head) / 2, 0);
+    cone.scale.set(1, head / 0.006, 1);
+    cone.position.set(0, length - head / 2, 0);
+    arrow.visible = true;
+    arrow.userData.direction = [dir.x, dir.y, dir.z];
+    arrow.userData.length = length;
+  }
+
+  /** A text label that always faces the camera. */
+  #label(text, colour) {
+    const canvas = document.createElement('canvas');
+    canvas.width = 256;
+    canvas.height = 64;
+    const ctx = canvas.getContext('2d');
+    ctx.font = 'bold 40px system-ui, sans-serif';
+    ctx.fillStyle = colour;
+    ctx.textAlign = 'center';
+    ctx.textBaseline = 'middle';
+    ctx.fillText(text, 128, 32);
+    const sprite = new Sprite(new SpriteMaterial({ map: new CanvasTexture(canvas), depthTest: false, transparent: true }));
+    sprite.scale.set(0.024, 0.006, 1);
+    sprite.renderOrder = 11;
+    return sprite;
+  }
+
+  #addWorld(hello) {
+    const world = hello.world;
+    this.devices = world.devices.map((name, k) => {
+      const colour = DEVICE_COLOURS[k % DEVICE_COLOURS.length];
+      const hip = new Group();
+      hip.add(new Mesh(new SphereGeometry(0.003, 20, 14), new MeshLambertMaterial({ color: colour })));
+      const label = this.#label(name, colour);
+      label.position.z = 0.009;
+      hip.add(label);
+      hip.visible = false; // until a frame places it
+      this.scene.add(hip);
+      return { name, index: k, colour, hip, arrow: this.#makeArrow(colour) };
+    });
+    this.ball = null;
+    if (Number.isFinite(world.ball_radius)) {
+      this.ball = new Mesh(
+        new SphereGeometry(world.ball_radius, 32, 20),
+        new MeshLambertMaterial({ color: 0xe0a030, transparent: true, opacity: 0.85 }),
+      );
+      this.ball.visible = false;
+      this.scene.add(this.ball);
+    }
+    this.couplings = (world.couplings ?? []).map(([a, b]) => {
+      const geometry = new BufferGeometry();
+      geometry.setAttribute('position', new BufferAttribute(new Float32Array(6), 3));
+      const line = new Line(geometry, new LineBasicMaterial({ color: 0x404040 }));
+      line.frustumCulled = false;
+      line.visible = false;
+      line.userData = { a, b };
+      this.scene.add(line);
+      return line;
+    });
+    this.framed = false;
+  }
+
+  /** Device k's commanded force at frame i in the world frame: the trace has it in the device's
+   *  own frame; the hello's rotation (if the scene was given) turns it. */
+  worldForce(store, i, k) {
+    const name = this.world.devices[k];
+    const f = [store.get(i, `${name}.fx`), store.get(i, `${name}.fy`), store.get(i, `${name}.fz`)];
+    const r = this.world.rotations ? this.world.rotations[k] : null;
+    if (!r) return new Vector3(...f);
+    const row = (j) => r[j][0] * f[0] + r[j][1] * f[1] + r[j][2] * f[2];
+    return new Vector3(row(0), row(1), row(2));
+  }
+
+  #updateWorld(store, i) {
+    const g = (name) => store.get(i, name);
+    const centre = new Vector3();
+    let placed = 0;
+    for (const d of this.devices) {
+      const p = new Vector3(g(`${d.name}.x`), g(`${d.name}.y`), g(`${d.name}.z`));
+      const finite = Number.isFinite(p.x) && Number.isFinite(p.y) && Number.isFinite(p.z);
+      d.hip.visible = finite;
+      if (finite) {
+        d.hip.position.copy(p);
+        centre.add(p);
+        placed += 1;
+      }
+      this.#setArrow(d.arrow, d.hip.position, this.worldForce(store, i, d.index));
+      if (!finite) d.arrow.visible = false;
+    }
+    if (this.ball) {
+      const b = new Vector3(g('ball.x'), g('ball.y'), g('ball.z'));
+      this.ball.visible = Number.isFinite(b.x) && Number.isFinite(b.y) && Number.isFinite(b.z);
+      if (this.ball.visible) this.ball.position.copy(b);
+    }
+    for (const line of this.couplings) {
+      const a = this.devices[line.userData.a];
+      const b = this.devices[line.userData.b];
+      line.visible = Boolean(a && b && a.hip.visible && b.hip.visible);
+      if (!line.visible) continue;
+      const pos = line.geometry.attributes.position;
+      pos.setXYZ(0, a.hip.position.x, a.hip.position.y, a.hip.position.z);
+      pos.setXYZ(1, b.hip.position.x, b.hip.position.y, b.hip.position.z);
+      pos.needsUpdate = true;
+    }
+    // The first frame places the camera on the devices (a world has no one workspace).
+    if (!this.framed && placed > 0) {
+      this.framed = true;
+      centre.multiplyScalar(1 / placed);
+      let spread = 0;
+      for (const d of this.devices) if (d.hip.visible) spread = Math.max(spread, d.hip.position.distanceTo(centre));
+      const size = Math.max(0.08, spread * 2.5);
+      this.camera.position.set(centre.x + size * 0.3, centre.y - size * 1.3, centre.z + size * 0.7);
+      this.controls.target.copy(centre);
+      this.controls.update();
+    }
+    this.renderer.render(this.scene, this.camera);
+  }
+
   #addTrail() {
     this.trailPositions = new Float32Array(TRAIL * 3);
     const geometry = new BufferGeometry();
@@ -249,6 +409,10 @@ export class Scene3D {
   update(store, i) {
     if (store.count === 0) {
       this.renderer.render(this.scene, this.camera);
+      return;
+    }
+    if (this.world) {
+      this.#updateWorld(store, i);
       return;
     }
     const g = (name) => store.get(i, name);

@@ -22,6 +22,10 @@ struct HelloInfo {
   std::string pacing;                      ///< how sim time relates to wall time (sim only), for the page
   std::string scene_json;                  ///< scene_json(); empty: none, the page shows the HIP only
   std::vector<std::string> effect_values;  ///< the names of the frames' effect value columns
+  /// A world (world_view.hpp): its columns (WorldViewMap::columns, instead of the one-device
+  /// frame's) and world_json(); empty for one device.
+  std::vector<std::string> world_columns;
+  std::string world_json;
   std::optional<Vec3<double>> workspace_min_m, workspace_max_m;  ///< the device's, if known
 };
 
