@@ -526,3 +526,92 @@ TEST(WorldFile, TheSpecsExampleIsAWorldThatLoads) {
 
 }  // namespace
 }  // namespace toonforce
+
+// ---- effects that name the devices they act on ------------------------------------------------
+
+namespace toonforce {
+namespace {
+
+constexpr const char* kNamed = R"([[device]]
+name = "left"
+[[device]]
+name = "right"
+[[surface]]
+point = [0.0, 0.0, -0.03]
+normal = [0.0, 0.0, 1.0]
+stiffness = 1500.0
+devices = ["right"]
+[[surface]]
+point = [0.0, 0.0, -0.05]
+normal = [0.0, 0.0, 1.0]
+stiffness = 700.0
+[[cliff]]
+point = [0.0, 0.0, -0.02]
+normal = [0.0, 0.0, 1.0]
+axis = [1.0, 0.0, 0.0]
+gap_min = 0.0
+gap_max = 0.02
+stiffness = 1500.0
+speed_threshold = 0.08
+tau = 0.02
+devices = ["left", "right"]
+[ball]
+radius = 0.015
+devices = ["left"]
+)";
+
+TEST(WorldFile, AnEffectThatNamesDevicesActsOnThemOnlyAndTheOthersOnEvery) {
+  const auto world = parse_world(kNamed, "w.toml");
+  ASSERT_TRUE(world) << world.error();
+  const WorldDescription& w = world.value();
+  ASSERT_EQ(w.scene.of<RuntimeSurface>().size(), 2U) << "the whole scene keeps every effect";
+  const SceneDescription left = w.scene_for(0);
+  const SceneDescription right = w.scene_for(1);
+  ASSERT_EQ(left.of<RuntimeSurface>().size(), 1U);
+  EXPECT_EQ(left.of<RuntimeSurface>()[0].plane.point_m.z, -0.05) << "left does not get right's surface";
+  ASSERT_EQ(right.of<RuntimeSurface>().size(), 2U);
+  EXPECT_EQ(right.of<RuntimeSurface>()[0].plane.point_m.z, -0.03);
+  EXPECT_EQ(left.of<CartoonCliff>().size(), 1U);
+  EXPECT_EQ(right.of<CartoonCliff>().size(), 1U);
+  // The file order of what is left, renumbered within each kind: left has surface 0 then the cliff.
+  ASSERT_EQ(left.order.size(), 2U);
+  EXPECT_EQ(left.order[0].index, 0U);
+  EXPECT_EQ(left.order[0].line, 10U);  // the second [[surface]]
+  EXPECT_EQ(right.order.size(), 3U);
+  EXPECT_EQ(w.ball_devices, 1U);
+  EXPECT_EQ(world_config(w).ball_devices, 1U) << "only left touches the ball";
+}
+
+TEST(WorldFile, AnEffectsDevicesAreCheckedWithTheirLine) {
+  std::string text = kNamed;
+  const std::string right = "devices = [\"right\"]";
+  text.replace(text.find(right), right.size(), "devices = [\"middle\"]");
+  auto world = parse_world(text, "w.toml");
+  ASSERT_FALSE(world);
+  EXPECT_NE(world.error().find("w.toml:9: surface[1].devices: no [[device]] is named 'middle' (the devices: 'left', "
+                               "'right')"),
+            std::string::npos)
+      << world.error();
+  text = kNamed;
+  const std::string both = "devices = [\"left\", \"right\"]";
+  text.replace(text.find(both), both.size(), "devices = [\"left\", \"left\"]");
+  world = parse_world(text, "w.toml");
+  ASSERT_FALSE(world);
+  EXPECT_NE(world.error().find("cliff[1].devices: names 'left' twice"), std::string::npos) << world.error();
+  text = kNamed;
+  const std::string left = "devices = [\"left\"]\n";
+  text.replace(text.find(left), left.size(), "devices = []\n");
+  world = parse_world(text, "w.toml");
+  ASSERT_FALSE(world);
+  EXPECT_NE(world.error().find("ball.devices: must be a non-empty array of device names"), std::string::npos)
+      << world.error();
+  // A one-device scene has no devices to name: the key is unknown there.
+  const auto one = parse_scene("[[surface]]\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nstiffness = 100.0\n"
+                               "devices = [\"a\"]\n",
+                               "one.toml");
+  ASSERT_FALSE(one);
+  EXPECT_NE(one.error().find("devices"), std::string::npos) << one.error();
+}
+
+}  // namespace
+}  // namespace toonforce

@@ -184,6 +184,45 @@ TEST(WorldSim, AfterOneDevicesCableIsPulledEveryDeviceIsHeldAtZeroForce) {
   EXPECT_NE(summary->devices[0].latched, 0U);  // left: held (its e-stop input)
 }
 
+TEST(WorldSim, AWallThatNamesOneDeviceIsFeltByItAloneTheOtherPassesThrough) {
+  // Both hands press 1 cm down through a wall 5 mm below them; the wall names `right` only, so
+  // left's handle goes through unopposed (no coupling, no ball: nothing else pushes).
+  Dir dir;
+  WorldSimOptions o;
+  o.scene_path = dir.write("named.toml", R"([[device]]
+name = "left"
+offset = [-0.04, 0.0, 0.0]
+[[device]]
+name = "right"
+offset = [0.04, 0.0, 0.0]
+yaw = 180.0
+[[surface]]
+point = [0.0, 0.0, -0.005]
+normal = [0.0, 0.0, 1.0]
+stiffness = 500.0
+devices = ["right"]
+)");
+  const std::string down = "name = \"down\"\n[hand]\nstart = [0.0, 0.0, 0.0]\n[[segment]]\ntype = \"hold\"\n"
+                           "duration = 0.3\n[[segment]]\ntype = \"move\"\nto = [0.0, 0.0, -0.01]\nduration = 0.3\n"
+                           "[[segment]]\ntype = \"hold\"\nduration = 0.4\n";
+  o.scripts = {{"left", dir.write("l.toml", down)}, {"right", dir.write("r.toml", down)}};
+  o.trace_path = dir.file("named.csv");
+  const auto summary = run_world_sim(o);
+  ASSERT_TRUE(summary) << summary.error();
+  const Trace t = read_trace(o.trace_path);
+  double left_peak = 0.0, right_peak = 0.0, left_lowest = 0.0, right_lowest = 0.0;
+  for (const auto& row : t.rows) {
+    left_peak = std::max(left_peak, std::abs(row[t.col("left.fz")]));
+    right_peak = std::max(right_peak, std::abs(row[t.col("right.fz")]));
+    left_lowest = std::min(left_lowest, row[t.col("left.z")]);
+    right_lowest = std::min(right_lowest, row[t.col("right.z")]);
+  }
+  EXPECT_EQ(left_peak, 0.0) << "the wall does not act on left";
+  EXPECT_GT(right_peak, 0.5) << "right presses into its wall";
+  EXPECT_LT(left_lowest, -0.008) << "left's handle goes through the plane";
+  EXPECT_GT(right_lowest, left_lowest + 0.001) << "right's is held up by it";
+}
+
 TEST(WorldSim, EveryDeviceNeedsItsOwnNamedHandScript) {
   Dir dir;
   WorldSimOptions o = options_for(dir);

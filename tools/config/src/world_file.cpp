@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <type_traits>
 #include <utility>
 
 #include <fmt/format.h>
@@ -153,6 +154,46 @@ void read_between(TableReader& r, const toml::table& table, const std::vector<Wo
   }
   c.a = index[0];
   c.b = index[1];
+}
+
+/// `devices = ["a", ...]` of an effect or the ball: the devices it acts on, as a bit mask (all
+/// when the key is absent); the key is taken out of the table, which its own reader then reads
+/// as in a one-device scene. An error names the table and the devices the world has.
+std::uint32_t take_devices(toml::table& table, const std::string& path, const std::vector<WorldDeviceEntry>& devices,
+                           ErrorList& errors) {
+  const toml::node* node = table.get("devices");
+  if (node == nullptr) return kAllDevices;
+  const std::uint32_t line = node->source().begin.line;
+  std::string known;
+  for (const auto& d : devices) {
+    if (!d.name.empty()) known += fmt::format("{}'{}'", known.empty() ? "" : ", ", printable(d.name));
+  }
+  std::uint32_t mask = 0;
+  const toml::array* names = node->as_array();
+  bool ok = names != nullptr && !names->empty();
+  for (std::size_t i = 0; ok && i < names->size(); ++i) ok = (*names)[i].is_string();
+  if (!ok) {
+    errors.add(line, path + ".devices",
+               fmt::format("must be a non-empty array of device names, like [\"left\"] (the devices: {})",
+                           known.empty() ? "none named" : known));
+  } else {
+    for (const auto& entry : *names) {
+      const std::string& name = entry.as_string()->get();
+      std::size_t k = 0;
+      while (k < devices.size() && (devices[k].name.empty() || devices[k].name != name)) ++k;
+      if (k == devices.size()) {
+        errors.add(line, path + ".devices",
+                   fmt::format("no [[device]] is named '{}' (the devices: {})", printable(name),
+                               known.empty() ? "none named" : known));
+      } else if ((mask & (1U << k)) != 0) {
+        errors.add(line, path + ".devices", fmt::format("names '{}' twice", printable(name)));
+      } else {
+        mask |= 1U << k;
+      }
+    }
+  }
+  table.erase("devices");
+  return mask == 0 ? kAllDevices : mask;
 }
 
 WorldCouplingEntry read_coupling(const toml::table& table, std::size_t number,
@@ -315,9 +356,27 @@ Result<WorldDescription> describe_world(toml::table& root, ErrorList& errors, st
   for (std::size_t n = 0; n < coupling_tables.size() && n < kMaxCouplings; ++n) {
     w.couplings.push_back(read_coupling(*coupling_tables[n], n + 1, w.devices, errors));
   }
+  if (toml::table* ball = world.get_as<toml::table>("ball")) {
+    w.ball_devices = take_devices(*ball, "ball", w.devices, errors);
+  }
   if (const toml::table* ball = r.optional_table("ball")) w.ball = read_ball(*ball, errors);
   if (const toml::table* table = r.optional_table("world")) w.stop = read_world_table(*table, errors);
   r.finish();  // nothing else was moved here
+
+  // Which devices each effect acts on (`devices`, all by default): taken out of the effects'
+  // tables before the scene reader, which knows no such key.
+  for (std::size_t kind = 0; kind < BuiltinEffects::kCount; ++kind) {
+    const std::string_view key = BuiltinEffects::kKeys[kind];
+    w.effect_devices[kind].clear();
+    toml::array* tables = root.get_as<toml::array>(key);
+    if (tables == nullptr) continue;
+    for (std::size_t n = 0; n < tables->size(); ++n) {
+      toml::table* table = (*tables)[n].as_table();
+      const std::uint32_t mask =
+          table != nullptr ? take_devices(*table, fmt::format("{}[{}]", key, n + 1), w.devices, errors) : kAllDevices;
+      w.effect_devices[kind].push_back(mask);
+    }
+  }
 
   // Last: the scene reader returns every error collected so far, the world's with its own.
   auto scene = scene_reader::describe<TOONFORCE_BUILTIN_EFFECTS>(root, errors, ScalarKind::kDouble, source);
@@ -376,6 +435,36 @@ Result<WorldDescription> load_world_file(const std::string& path) {
   return describe_world(*root, errors, path);
 }
 
+SceneDescription WorldDescription::scene_for(std::size_t device) const {
+  SceneDescription out = scene;
+  const auto acts_on = [&](std::size_t kind, std::size_t index) {
+    const auto& masks = effect_devices[kind];
+    return index >= masks.size() || (masks[index] & (1U << device)) != 0;
+  };
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    (
+        [&] {
+          auto& all = out.template all<I>();
+          std::remove_reference_t<decltype(all)> kept;
+          for (std::size_t n = 0; n < all.size(); ++n) {
+            if (acts_on(I, n)) kept.push_back(all[n]);
+          }
+          all = std::move(kept);
+        }(),
+        ...);
+  }
+  (std::make_index_sequence<SceneDescription::kKinds>{});
+  // The file order of what is left, each effect renumbered within its kind.
+  std::vector<SceneEntry> order;
+  std::array<std::size_t, SceneDescription::kKinds> next{};
+  for (const SceneEntry& e : scene.order) {
+    if (!acts_on(e.kind, e.index)) continue;
+    order.push_back(SceneEntry{e.kind, next[e.kind]++, e.line});
+  }
+  out.order = std::move(order);
+  return out;
+}
+
 WorldConfig world_config(const WorldDescription& world) {
   WorldConfig c;
   c.stop = world.stop;
@@ -385,6 +474,7 @@ WorldConfig world_config(const WorldDescription& world) {
   }
   c.has_ball = world.ball.has_value();
   if (world.ball) c.ball = *world.ball;
+  c.ball_devices = world.ball_devices;
   return c;
 }
 

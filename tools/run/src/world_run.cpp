@@ -342,10 +342,12 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
                                d.line, d.name, bad)};
     }
   }
-  const RuntimeScene<double> scene = make_runtime_scene<double>(world.scene);
+  // Each device's scene: the effects that act on it (`devices`, every one by default).
+  std::vector<RuntimeScene<double>> scenes;
+  for (std::size_t i = 0; i < N; ++i) scenes.push_back(make_runtime_scene<double>(world.scene_for(i)));
   const auto members = [&]<std::size_t... I>(std::index_sequence<I...>) {
     return std::array<typename RunWorld::Member, N>{
-        typename RunWorld::Member{&refs[I], scene, world.devices[I].frame, configs[I]}...};
+        typename RunWorld::Member{&refs[I], scenes[I], world.devices[I].frame, configs[I]}...};
   }
   (std::make_index_sequence<N>{});
   WorldConfig config = world_config(world);

@@ -61,7 +61,8 @@ CheckReport check_world(const CheckOptions& o) {
     out.errors.push_back(world.error());
   } else {
     const double period_s = 1.0 / o.rate_hz;
-    for (const WorldDeviceEntry& d : world->devices) {
+    for (std::size_t index = 0; index < world->devices.size(); ++index) {
+      const WorldDeviceEntry& d = world->devices[index];
       const SimulatedWorldDevice simulated = simulated_device(d, o.device, period_s);
       const host_sim::DeviceParams& params = simulated.params;
       const std::string who = fmt::format("{}:{}: device '{}'", o.scene_path, d.line, d.name);
@@ -74,8 +75,8 @@ CheckReport check_world(const CheckOptions& o) {
                                         who, d.frame.scale));
         continue;
       }
-      SceneDescription scene = in_device_frame(world->scene, d.frame);
-      static_cast<SceneSettings&>(scene) = d.settings;  // its own limits and safety
+      SceneDescription scene = in_device_frame(world->scene_for(index), d.frame);  // what acts on it
+      static_cast<SceneSettings&>(scene) = d.settings;                             // its own limits and safety
       scene.name = world->scene.name;
       PlausibilityReport plausible =
           check_plausibility(scene, fmt::format("{} ({})", o.scene_path, d.name), params, o.rate_hz);
@@ -108,7 +109,8 @@ CheckReport check_world(const CheckOptions& o) {
         if (&world->devices[c.a] != &d && &world->devices[c.b] != &d) continue;
         port(fmt::format("coupling[{}]", j + 1), c.params.stiffness_n_per_m, c.params.damping_n_s_per_m);
       }
-      if (world->ball) port("the ball", world->ball->stiffness_n_per_m, world->ball->damping_n_s_per_m);
+      if (world->ball && (world->ball_devices & (1U << index)) != 0)
+        port("the ball", world->ball->stiffness_n_per_m, world->ball->damping_n_s_per_m);
     }
   }
   // The devices' notes that say the same (two devices of one model) are said once.

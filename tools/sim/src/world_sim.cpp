@@ -76,10 +76,12 @@ Result<WorldSimSummary> run(Prepared& p, const WorldSimOptions& options) {
     if (options.fail && options.fail->first == p.world.devices[i].name) fail_at = options.fail->second;
     devices.emplace_back(std::move(device).value(), fail_at);
   }
-  const RuntimeScene<double> scene = make_runtime_scene<double>(p.world.scene);
+  // Each device's scene: the effects that act on it (`devices`, every one by default).
+  std::vector<RuntimeScene<double>> scenes;
+  for (std::size_t i = 0; i < N; ++i) scenes.push_back(make_runtime_scene<double>(p.world.scene_for(i)));
   std::array<typename SimWorld::Member, N> members = [&]<std::size_t... I>(std::index_sequence<I...>) {
     return std::array<typename SimWorld::Member, N>{
-        typename SimWorld::Member{&devices[I], scene, p.world.devices[I].frame, p.simulated[I].config}...};
+        typename SimWorld::Member{&devices[I], scenes[I], p.world.devices[I].frame, p.simulated[I].config}...};
   }
   (std::make_index_sequence<N>{});
   WorldConfig config = world_config(p.world);

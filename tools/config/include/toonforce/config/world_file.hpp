@@ -24,6 +24,7 @@
 ///
 /// Every error names the file, the line and the key, and nothing runs while there is one.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -61,14 +62,23 @@ struct WorldCouplingEntry {
   std::uint32_t line = 0;
 };
 
+/// Every device (the bit mask of an effect that names none).
+inline constexpr std::uint32_t kAllDevices = ~0U;
+
 /// A world file, read and checked whole.
 struct WorldDescription {
-  SceneDescription scene;  ///< the effects (on every device) and the file's name
+  SceneDescription scene;  ///< every effect and the file's name
+  /// Per effect kind (BuiltinEffects order), per effect of that kind in file order: the devices
+  /// it acts on (bit i: device i), from its `devices` key; kAllDevices without one.
+  std::array<std::vector<std::uint32_t>, SceneDescription::kKinds> effect_devices;
+  std::uint32_t ball_devices = kAllDevices;  ///< the devices that touch the ball ([ball] devices)
   std::vector<WorldDeviceEntry> devices;
   std::vector<WorldCouplingEntry> couplings;
   std::optional<between::BallParams> ball;  ///< normalised (check_and_normalise passed)
   StopPolicy stop = StopPolicy::kAll;
 
+  /// The effects that act on device `device` (its scene), in file order.
+  SceneDescription scene_for(std::size_t device) const;
   /// The index of the device called `name`, or devices.size().
   std::size_t device_index(std::string_view name) const noexcept;
 };
