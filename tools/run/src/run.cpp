@@ -156,36 +156,13 @@ Result<RunSummary> run_as(const RunOptions& options, const SceneDescription& sce
     summary.live = true;
   }
 
-  SessionOptions session;
-  session.realtime.rate_hz = options.rate_hz;
-  session.realtime.deadlines =
-      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * options.rate_hz)) : 0;
-  session.realtime.priority = options.priority;
-  session.realtime.cpu = options.cpu;
-  session.realtime.allow_non_realtime = options.allow_non_realtime;
-  session.realtime.lock_memory = options.lock_memory;
-  session.realtime.watchdog_periods = config.safety.watchdog_periods;
-  if (options.guardian != nullptr) {
-    session.realtime.heartbeat = &options.guardian->heartbeat;
-    session.realtime.ended = &options.guardian->loop_ended;  // at the shut-down tick, not after the writer
-  }
-  session.handle_signals = options.handle_signals;
-  session.interactive = options.interactive;
-  session.messages = options.messages;
-  session.pending_stop = options.early_stop;
+  const SessionOptions session = session_options(options, config.safety.watchdog_periods);
   RunConsumer consumer(trace.get(), values.size(), options.messages, options.sink, summary, options.guardian);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;
 
   auto report = run_loop(*loop, driver, consumer, session);
-  // The loop commanded zero force on its way out (its shut-down tick, which told the guardian):
-  // the guardian stands down. Said again here for a run that ended before its first tick.
-  if (options.guardian != nullptr) options.guardian->loop_ended.store(1, std::memory_order_release);
-  if (options.guardian != nullptr && getppid() != options.guardian->guardian_pid) {
-    fmt::print(options.messages,
-               "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
-               options.guardian->guardian_pid);
-  }
+  after_session(options);
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
@@ -355,6 +332,51 @@ Result<RunSummary> run_servo(const RunOptions& options) {
   return std::move(result.value());
 }
 
+SessionOptions session_options(const RunOptions& options, std::int64_t watchdog_periods) {
+  SessionOptions session;
+  session.realtime.rate_hz = options.rate_hz;
+  session.realtime.deadlines =
+      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * options.rate_hz)) : 0;
+  session.realtime.priority = options.priority;
+  session.realtime.cpu = options.cpu;
+  session.realtime.allow_non_realtime = options.allow_non_realtime;
+  session.realtime.lock_memory = options.lock_memory;
+  session.realtime.watchdog_periods = watchdog_periods;
+  if (options.guardian != nullptr) {
+    session.realtime.heartbeat = &options.guardian->heartbeat;
+    session.realtime.ended = &options.guardian->loop_ended;  // at the shut-down tick, not after the writer
+  }
+  session.handle_signals = options.handle_signals;
+  session.interactive = options.interactive;
+  session.messages = options.messages;
+  session.pending_stop = options.early_stop;
+  return session;
+}
+
+void after_session(const RunOptions& options) {
+  if (options.guardian == nullptr) return;
+  // The loop commanded zero force on its way out (its shut-down tick, which told the guardian):
+  // the guardian stands down. Said again here for a run that ended before its first tick.
+  options.guardian->loop_ended.store(1, std::memory_order_release);
+  if (getppid() != options.guardian->guardian_pid) {
+    fmt::print(options.messages,
+               "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
+               options.guardian->guardian_pid);
+  }
+}
+
+std::string format_run_trace(const std::string& trace_path, const std::string& trace_error,
+                             std::uint64_t frames_written, std::uint64_t frames_dropped) {
+  if (!trace_path.empty() && !trace_error.empty())
+    return fmt::format("trace    {}: INCOMPLETE, {}\n", trace_path, trace_error);
+  if (!trace_path.empty()) {
+    return fmt::format("trace    {}: {} rows, {} frame(s) dropped (telemetry ring full)\n", trace_path, frames_written,
+                       frames_dropped);
+  }
+  if (frames_dropped != 0) return fmt::format("telemetry {} frame(s) dropped (ring full)\n", frames_dropped);
+  return {};
+}
+
 std::string format_run_timing(const RunReport& r, double rate_hz) {
   std::string text;
   std::string rt = r.setup.priority < 0 ? "the device's own servo thread (its scheduler sets the priority)"
@@ -409,14 +431,7 @@ std::string format_run_summary(const RunSummary& s, const RunOptions& o) {
                         s.fault_ticks, describe_faults(s.fault_bits), s.rearms,
                         s.latched_at_end == 0 ? "none" : describe_faults(s.latched_at_end));
   }
-  if (!o.trace_path.empty() && !s.trace_error.empty()) {
-    text += fmt::format("trace    {}: INCOMPLETE, {}\n", o.trace_path, s.trace_error);
-  } else if (!o.trace_path.empty()) {
-    text += fmt::format("trace    {}: {} rows, {} frame(s) dropped (telemetry ring full)\n", o.trace_path,
-                        s.frames_written, s.frames_dropped);
-  } else if (s.frames_dropped != 0) {
-    text += fmt::format("telemetry {} frame(s) dropped (ring full)\n", s.frames_dropped);
-  }
+  text += format_run_trace(o.trace_path, s.trace_error, s.frames_written, s.frames_dropped);
   return text;
 }
 

@@ -367,37 +367,16 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
     trace = std::move(file.value());
     trace->limit_size(options.max_output_bytes);
   }
-  SessionOptions session;
-  session.realtime.rate_hz = options.rate_hz;
-  session.realtime.deadlines =
-      options.duration_s > 0.0 ? static_cast<std::int64_t>(std::llround(options.duration_s * options.rate_hz)) : 0;
-  session.realtime.priority = options.priority;
-  session.realtime.cpu = options.cpu;
-  session.realtime.allow_non_realtime = options.allow_non_realtime;
-  session.realtime.lock_memory = options.lock_memory;
   // The heartbeat watchdog outside the loop: the most patient of the devices' own.
   std::int64_t watchdog = 0;
   for (const ServoConfig& c : configs) watchdog = std::max(watchdog, c.safety.watchdog_periods);
-  session.realtime.watchdog_periods = watchdog;
-  if (options.guardian != nullptr) {
-    session.realtime.heartbeat = &options.guardian->heartbeat;
-    session.realtime.ended = &options.guardian->loop_ended;
-  }
-  session.handle_signals = options.handle_signals;
-  session.interactive = options.interactive;
-  session.messages = options.messages;
-  session.pending_stop = options.early_stop;
+  const SessionOptions session = session_options(options, watchdog);
   if (options.world_rows != nullptr) options.world_rows->begin(world_columns(world), session.realtime.deadlines);
   WorldRunConsumer consumer(world, trace.get(), options.world_rows, options.messages, summary, options.guardian);
   consumer.set_interactive(options.interactive && isatty(STDIN_FILENO) != 0);
   consumer.trace_limit_bytes = options.max_output_bytes;
   auto report = run_world(*run_world_object, group, consumer, session);
-  if (options.guardian != nullptr) options.guardian->loop_ended.store(1, std::memory_order_release);
-  if (options.guardian != nullptr && getppid() != options.guardian->guardian_pid) {
-    fmt::print(options.messages,
-               "the guardian process (pid {}) ended during the run: the loop stopped with zero force\n",
-               options.guardian->guardian_pid);
-  }
+  after_session(options);
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
@@ -544,14 +523,7 @@ std::string format_world_run_summary(const WorldRunSummary& s, const RunOptions&
                         "frame(s) after that with any force); re-armed {} time(s)\n",
                         *s.held_at_s, s.held_by, s.forced_while_held, s.rearms);
   }
-  if (!o.trace_path.empty() && !s.trace_error.empty()) {
-    text += fmt::format("trace    {}: INCOMPLETE, {}\n", o.trace_path, s.trace_error);
-  } else if (!o.trace_path.empty()) {
-    text += fmt::format("trace    {}: {} rows, {} frame(s) dropped (telemetry ring full)\n", o.trace_path,
-                        s.frames_written, s.frames_dropped);
-  } else if (s.frames_dropped != 0) {
-    text += fmt::format("telemetry {} frame(s) dropped (ring full)\n", s.frames_dropped);
-  }
+  text += format_run_trace(o.trace_path, s.trace_error, s.frames_written, s.frames_dropped);
   return text;
 }
 

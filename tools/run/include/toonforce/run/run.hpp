@@ -146,6 +146,15 @@ Result<RunSummary> run_servo(const RunOptions& options);
 
 std::string format_run_summary(const RunSummary& summary, const RunOptions& options);
 std::string stats_json(const RunSummary& summary, const RunOptions& options);
+/// The session's options for a run of `options` (its rate, duration, scheduling, guardian,
+/// signals), with the heartbeat watchdog at `watchdog_periods`. One device's run and a world's.
+SessionOptions session_options(const RunOptions& options, std::int64_t watchdog_periods);
+/// After the session: tells the guardian the loop ended (again, for a run that never ticked), and
+/// says so if the guardian itself ended during the run.
+void after_session(const RunOptions& options);
+/// The summary's trace line: its rows and dropped frames, or why it is incomplete.
+std::string format_run_trace(const std::string& trace_path, const std::string& trace_error,
+                             std::uint64_t frames_written, std::uint64_t frames_dropped);
 /// The summary's real-time, run and timing lines.
 std::string format_run_timing(const RunReport& report, double rate_hz);
 /// A latency summary as JSON, in microseconds.
