@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -13,29 +12,12 @@
 
 #include "toonforce/config/toml_reader.hpp"
 #include "toonforce/trace/trace_writer.hpp"
+#include "trace_text.hpp"
 
 namespace toonforce::viewer {
 
-namespace {
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
-bool parse_number(std::string_view field, double& out) {
-  field = trim(field);
-  if (field.empty()) {
-    out = std::numeric_limits<double>::quiet_NaN();
-    return true;
-  }
-  if (field.front() == '+') field.remove_prefix(1);
-  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
-  return ec == std::errc() && end == field.data() + field.size();
-}
-
-}  // namespace
+using trace_text::parse_number;
+using trace_text::trim;
 
 Result<TraceRecording> parse_trace(std::string_view text, std::string_view name, std::size_t max_rows) {
   TraceRecording rec;
@@ -44,21 +26,8 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
   std::size_t line_no = 0;
   bool has_tick = false;
   std::vector<double> dts;
-  // Every writer ends each row with a newline: a last row without one was cut (a SIGKILLed run,
-  // a full disk). Leave it out and say so, rather than refuse the whole trace.
-  std::size_t cut_line = 0;
-  // A UTF-8 byte order mark (a spreadsheet's "CSV UTF-8") before the header is read past, as the
-  // motion reader does: it made the first column an invisible "\xEF\xBB\xBFt".
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
-  if (!text.empty() && text.back() != '\n') {
-    const std::size_t last_nl = text.rfind('\n');
-    if (last_nl != std::string_view::npos) {
-      cut_line = static_cast<std::size_t>(
-                     std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) +
-                 2;
-      text = text.substr(0, last_nl + 1);
-    }
-  }
+  // A cut last row is left out and said, rather than the whole trace refused.
+  const std::size_t cut_line = trace_text::drop_bom_and_cut_row(text);
   while (!text.empty()) {
     const std::size_t nl = text.find('\n');
     std::string_view line = text.substr(0, nl);
@@ -66,12 +35,7 @@ Result<TraceRecording> parse_trace(std::string_view text, std::string_view name,
     ++line_no;
     if (trim(line).empty()) continue;
     if (map.empty()) {
-      for (std::size_t start = 0;;) {
-        const std::size_t comma = line.find(',', start);
-        header.emplace_back(trim(line.substr(start, comma - start)));
-        if (comma == std::string_view::npos) break;
-        start = comma + 1;
-      }
+      header = trace_text::split_header(line);
       for (std::size_t i = 0; i < kTraceCoreColumns.size(); ++i) {
         if (i >= header.size() || header[i] != kTraceCoreColumns[i]) {
           return Error{fmt::format("{}:{}: not a toonforce trace: the header must start with "

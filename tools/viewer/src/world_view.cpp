@@ -2,15 +2,16 @@
 #include "toonforce/viewer/world_view.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <optional>
 
 #include <fmt/format.h>
 
 #include "toonforce/config/toml_reader.hpp"
 #include "toonforce/trace/json.hpp"
+#include "trace_text.hpp"
 
 namespace toonforce::viewer {
 
@@ -18,33 +19,9 @@ namespace {
 
 constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
 
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
-bool parse_number(std::string_view field, double& out) {
-  field = trim(field);
-  if (field.empty()) {
-    out = std::numeric_limits<double>::quiet_NaN();
-    return true;
-  }
-  if (field.front() == '+') field.remove_prefix(1);
-  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
-  return ec == std::errc() && end == field.data() + field.size();
-}
-
-std::vector<std::string> split_header(std::string_view line) {
-  std::vector<std::string> header;
-  for (std::size_t start = 0;;) {
-    const std::size_t comma = line.find(',', start);
-    header.emplace_back(trim(line.substr(start, comma - start)));
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
-  return header;
-}
+using trace_text::parse_number;
+using trace_text::split_header;
+using trace_text::trim;
 
 }  // namespace
 
@@ -160,17 +137,7 @@ std::vector<std::string> read_trace_header(const std::string& path) {
 
 Result<WorldRecording> parse_world_trace(std::string_view text, std::string_view name, std::size_t max_rows) {
   WorldRecording rec;
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
-  std::size_t cut_line = 0;
-  if (!text.empty() && text.back() != '\n') {
-    const std::size_t last_nl = text.rfind('\n');
-    if (last_nl != std::string_view::npos) {
-      cut_line = static_cast<std::size_t>(
-                     std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(last_nl), '\n')) +
-                 2;
-      text = text.substr(0, last_nl + 1);
-    }
-  }
+  const std::size_t cut_line = trace_text::drop_bom_and_cut_row(text);
   std::vector<std::string> header;
   std::optional<WorldViewMap> map;
   std::vector<double> row;
