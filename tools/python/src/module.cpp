@@ -510,15 +510,37 @@ py::tuple sim(const std::string& scene_path, const std::optional<std::string>& s
 /// run_world_sim's rows into Columns.
 class WorldColumns final : public WorldRowSink {
  public:
-  explicit WorldColumns(Columns& columns) : columns_(columns) {}
+  /// `run_stop`: a real-time run's (run_world): a Ctrl-C the rows hear (Columns' look) stops the
+  /// run as its stop signals would. The simulation hears it through its own stop flag.
+  explicit WorldColumns(Columns& columns, std::atomic<int>* run_stop = nullptr)
+      : columns_(columns), run_stop_(run_stop) {}
   void begin(const std::vector<std::string>& names, std::int64_t ticks) override {
-    columns_.begin(names, static_cast<std::size_t>(ticks) + 1);
+    columns_.begin(names, static_cast<std::size_t>(std::max<std::int64_t>(ticks, 0)) + 1);
   }
-  void row(const std::vector<double>& values) override { columns_.add(values); }
+  void row(const std::vector<double>& values) override {
+    columns_.add(values);
+    if (run_stop_ != nullptr) {
+      if (const int signal = run_stop_->load(); signal != 0) request_session_stop(signal);
+    }
+  }
 
  private:
   Columns& columns_;
+  std::atomic<int>* run_stop_;
 };
+
+/// A world file's errors as SceneError (file, line, key), before the run that loads it again.
+void check_world_file(const std::string& scene_path, const std::optional<std::string>& scene_text) {
+  auto world = scene_text ? parse_world(*scene_text, scene_path) : load_world_file(scene_path);
+  if (!world) raise_scene_error(world.error(), scene_path);
+}
+
+/// Each world column's SI unit.
+py::dict world_units(const Columns& columns) {
+  py::dict units;
+  for (const std::string& name : columns.names()) units[py::str(name)] = world_column_unit(name);
+  return units;
+}
 
 /// sim_world(): `toonforce sim` of a world scene through run_world_sim, the rows as columns.
 /// `scripts`: (device name, path or the name standing for it, text or None).
@@ -547,11 +569,7 @@ py::tuple sim_world(const std::string& scene_path, const std::optional<std::stri
   options.seed = seed;
   options.fail = fail;
   options.trace_path = trace_path;
-  // The world file's errors as SceneError (file, line, key); run_world_sim loads it again.
-  {
-    auto world = scene_text ? parse_world(*scene_text, scene_path) : load_world_file(scene_path);
-    if (!world) raise_scene_error(world.error(), scene_path);
-  }
+  check_world_file(scene_path, scene_text);
   std::atomic<int> stop{0};
   options.stop = &stop;
   Columns columns(stop);
@@ -564,8 +582,7 @@ py::tuple sim_world(const std::string& scene_path, const std::optional<std::stri
   }
   columns.raise_interrupt();
   if (!summary) raise_value_error(summary.error());
-  py::dict units;
-  for (const std::string& name : columns.names()) units[py::str(name)] = world_column_unit(name);
+  const py::dict units = world_units(columns);
   const WorldSimSummary& s = summary.value();
   py::dict d;
   d["scene_name"] = s.scene_name;
@@ -594,24 +611,6 @@ py::tuple sim_world(const std::string& scene_path, const std::optional<std::stri
   d["stop_signal"] = s.stop_signal;
   return py::make_tuple(arrays_of(columns), units, d, py::list());
 }
-
-/// A world run's rows into Columns; a Ctrl-C the rows hear (Columns' look) stops the run as its
-/// stop signals would.
-class WorldRunColumns final : public WorldRowSink {
- public:
-  WorldRunColumns(Columns& columns, std::atomic<int>& stop) : columns_(columns), stop_(stop) {}
-  void begin(const std::vector<std::string>& names, std::int64_t ticks) override {
-    columns_.begin(names, static_cast<std::size_t>(std::max<std::int64_t>(ticks, 0)) + 1);
-  }
-  void row(const std::vector<double>& values) override {
-    columns_.add(values);
-    if (const int signal = stop_.load(); signal != 0) request_session_stop(signal);
-  }
-
- private:
-  Columns& columns_;
-  std::atomic<int>& stop_;
-};
 
 /// run_world(): `toonforce run` of a world scene through run_world_servo, in real time, the rows
 /// as columns. `scripts` as sim_world's. Blocks until the run ends (its duration, or Ctrl-C).
@@ -644,13 +643,10 @@ py::tuple run_world(const std::string& scene_path, const std::optional<std::stri
   options.strict = strict;
   options.handle_signals = false;  // Python's: Ctrl-C is a KeyboardInterrupt, heard by the rows
   options.interactive = false;
-  {
-    auto world = scene_text ? parse_world(*scene_text, scene_path) : load_world_file(scene_path);
-    if (!world) raise_scene_error(world.error(), scene_path);
-  }
+  check_world_file(scene_path, scene_text);
   std::atomic<int> stop{0};
   Columns columns(stop);
-  WorldRunColumns sink(columns, stop);
+  WorldColumns sink(columns, &stop);
   options.world_rows = &sink;
   options.early_stop = &stop;
   Result<WorldRunSummary> summary = Error{""};
@@ -660,8 +656,7 @@ py::tuple run_world(const std::string& scene_path, const std::optional<std::stri
   }
   columns.raise_interrupt();
   if (!summary) raise_value_error(summary.error());
-  py::dict units;
-  for (const std::string& name : columns.names()) units[py::str(name)] = world_column_unit(name);
+  const py::dict units = world_units(columns);
   const WorldRunSummary& s = summary.value();
   const auto latency = [](const LatencySummary& l) {
     py::dict d;
