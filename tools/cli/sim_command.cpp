@@ -27,6 +27,46 @@
 
 namespace toonforce::cli {
 
+#if TOONFORCE_VIEWER
+namespace {
+
+/// The hello's words for the page's clock at --view-pace `pace`.
+std::string pacing(double pace) {
+  return pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", pace)
+                    : "simulated time, as fast as it runs";
+}
+
+/// The page's server for a simulation (one device or a world), once a page has connected:
+/// simulated time costs nothing, so nothing is lost by waiting for it. Null when it could not
+/// start or Ctrl-C gave up (said, and the exit status set).
+std::unique_ptr<viewer::ViewerServer> serve_simulation(const ViewFlags& view, const viewer::HelloInfo& hello) {
+  viewer::ViewerOptions vo;
+  vo.address = view.address;
+  vo.hosts = view.hosts;
+  vo.port = static_cast<std::uint16_t>(view.port);
+  vo.has_loop = false;
+  auto started = start_viewer(vo, hello);
+  if (!started) {
+    fmt::print(stderr, "{}\n", started.error());
+    set_exit_code(1);
+    return nullptr;
+  }
+  std::unique_ptr<viewer::ViewerServer> server = std::move(started.value());
+  install_command_stop_signals();
+  fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
+  std::fflush(stderr);
+  const bool connected = server->wait_for_page(command_stop());
+  restore_command_stop_signals();
+  if (!connected) {
+    set_exit_code(1);
+    return nullptr;
+  }
+  return server;
+}
+
+}  // namespace
+#endif
+
 void add_sim(CLI::App& app) {
   auto options = std::make_shared<SimOptions>();
   auto quiet = std::make_shared<bool>(false);
@@ -165,29 +205,9 @@ void add_sim(CLI::App& app) {
         hello.scene_json = viewer::scene_json(world->scene);
         hello.world_columns = map->columns();
         hello.world_json = viewer::world_json(map->devices(), &world.value());
-        hello.pacing = options->pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", options->pace)
-                                           : "simulated time, as fast as it runs";
-        viewer::ViewerOptions vo;
-        vo.address = view->address;
-        vo.hosts = view->hosts;
-        vo.port = static_cast<std::uint16_t>(view->port);
-        vo.has_loop = false;
-        auto started = start_viewer(vo, hello);
-        if (!started) {
-          fmt::print(stderr, "{}\n", started.error());
-          set_exit_code(1);
-          return;
-        }
-        server = std::move(started.value());
-        install_command_stop_signals();
-        fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
-        std::fflush(stderr);
-        if (!server->wait_for_page(command_stop())) {
-          restore_command_stop_signals();
-          set_exit_code(1);
-          return;
-        }
-        restore_command_stop_signals();
+        hello.pacing = pacing(options->pace);
+        server = serve_simulation(*view, hello);
+        if (!server) return;
         sink.emplace(*server, std::move(map.value()), options->pace, &world_stop);
         w.rows = &sink.value();
       }
@@ -259,31 +279,11 @@ void add_sim(CLI::App& app) {
         hello.scene_json = viewer::scene_json(scene.value());
         hello.effect_values = effect_value_names(make_runtime_scene<double>(scene.value()));
       }
-      hello.pacing = options->pace > 0.0 ? fmt::format("simulated time at {:g}x wall-clock time", options->pace)
-                                         : "simulated time, as fast as it runs";
+      hello.pacing = pacing(options->pace);
       hello.workspace_min_m = config.device.workspace_min_m;
       hello.workspace_max_m = config.device.workspace_max_m;
-      viewer::ViewerOptions vo;
-      vo.address = view->address;
-      vo.hosts = view->hosts;
-      vo.port = static_cast<std::uint16_t>(view->port);
-      vo.has_loop = false;
-      auto started = start_viewer(vo, hello);
-      if (!started) {
-        fmt::print(stderr, "{}\n", started.error());
-        set_exit_code(1);
-        return;
-      }
-      server = std::move(started.value());
-      install_command_stop_signals();
-      fmt::print(stderr, "viewer: waiting for a page to connect before the simulation starts (Ctrl-C to give up)\n");
-      std::fflush(stderr);
-      if (!server->wait_for_page(command_stop())) {
-        restore_command_stop_signals();
-        set_exit_code(1);
-        return;
-      }
-      restore_command_stop_signals();
+      server = serve_simulation(*view, hello);
+      if (!server) return;
       options->sink = server.get();
     }
 #endif
