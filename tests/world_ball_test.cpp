@@ -11,6 +11,7 @@
 #include <random>
 
 #include "servo_support.hpp"
+#include "world_support.hpp"
 #include "toonforce/control/world.hpp"
 #include "toonforce/effects/between.hpp"
 #include "toonforce/host_sim/device_model.hpp"
@@ -407,33 +408,6 @@ TEST(WorldBall, ThePassivityStageAtTheDevicesPortSeesTheBallsSlipperyEnergyAsThe
 }
 
 // ---- a simulated hand strikes the ball ----------------------------------------------------
-
-using SimWorld2 = World<host_sim::SimDevice, RuntimeScene<double>, 2>;
-
-/// A simulated device whose hand holds the handle at `start`, then moves it to `to` (from
-/// 0.3 s, over `move_s`) and holds it there.
-host_sim::SimDevice sim_device(const Vec3<double>& start, const Vec3<double>& to, double move_s) {
-  host_sim::HandScript script;
-  script.name = "strike";
-  script.start_m = start;
-  host_sim::HandSegment wait;
-  wait.kind = host_sim::SegmentKind::kHold;
-  wait.duration_s = 0.3;
-  host_sim::HandSegment move;
-  move.kind = host_sim::SegmentKind::kMove;
-  move.to_m = to;
-  move.duration_s = move_s;
-  host_sim::HandSegment stay;
-  stay.kind = host_sim::SegmentKind::kHold;
-  script.segments = {wait, move, stay};
-  host_sim::PlanError error;
-  auto intent = host_sim::HandIntent::plan(script, error);
-  EXPECT_TRUE(intent.has_value());
-  auto d = host_sim::SimDevice::create(host_sim::falcon_params(), *intent, {host_sim::Integrator::kRk4, 4, 1e-3});
-  EXPECT_TRUE(d) << d.error();
-  d->set_state(start, {});
-  return std::move(d).value();
-}
 
 struct Strike {
   std::vector<Vec3<double>> commanded;  ///< device 0's loop's force, after its safety chain

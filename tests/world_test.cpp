@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "servo_support.hpp"
+#include "world_support.hpp"
 #include "support/alloc_counter.hpp"
 #include "toonforce/control/world.hpp"
 #include "toonforce/effects/between.hpp"
@@ -455,33 +456,6 @@ TEST(World, ATickAllocatesNothing) {
 }
 
 // ---- two simulated hands on two simulated devices -----------------------------------------
-
-using SimWorld2 = World<host_sim::SimDevice, RuntimeScene<double>, 2>;
-
-/// A simulated device whose hand holds the handle at `start`, then moves it to `to` (from
-/// 0.3 s, over 0.5 s) and holds it there.
-host_sim::SimDevice sim_device(const Vec3<double>& start, const Vec3<double>& to) {
-  host_sim::HandScript script;
-  script.name = "apart";
-  script.start_m = start;
-  host_sim::HandSegment wait;
-  wait.kind = host_sim::SegmentKind::kHold;
-  wait.duration_s = 0.3;
-  host_sim::HandSegment move;
-  move.kind = host_sim::SegmentKind::kMove;
-  move.to_m = to;
-  move.duration_s = 0.5;
-  host_sim::HandSegment stay;
-  stay.kind = host_sim::SegmentKind::kHold;
-  script.segments = {wait, move, stay};
-  host_sim::PlanError error;
-  auto intent = host_sim::HandIntent::plan(script, error);
-  EXPECT_TRUE(intent.has_value());
-  auto d = host_sim::SimDevice::create(host_sim::falcon_params(), *intent, {host_sim::Integrator::kRk4, 4, 1e-3});
-  EXPECT_TRUE(d) << d.error();
-  d->set_state(start, {});
-  return std::move(d).value();
-}
 
 ServoConfig sim_config() {
   ServoConfig c = bare_config();

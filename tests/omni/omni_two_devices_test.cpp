@@ -36,6 +36,26 @@ class OmniTwoDevicesTest : public OmniFixture {
     return open_omni(o);
   }
 
+  /// Left (the fixture's own device) and Right (`right`), each opened by its name.
+  OmniDevice& open_left_and_right() {
+    options.device_name = "Left";
+    OmniDevice& left = open();
+    auto opened = open_named("Right");
+    EXPECT_TRUE(opened.ok()) << opened.error();
+    if (opened.ok()) right = std::move(opened).value();
+    return left;
+  }
+
+  /// Starts both, each with its probe asking for its own force.
+  void start_both(OmniDevice& left, const Vec3<double>& left_n, const Vec3<double>& right_n) {
+    probe.device = &left;
+    probe.force = left_n;
+    right_probe.device = right.get();
+    right_probe.force = right_n;
+    ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
+    ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  }
+
   /// The selected device's counts.
   TfFakeHdStats stats_of(const char* name) {
     EXPECT_GE(fake.select_device(name), 0) << name;
@@ -49,22 +69,14 @@ class OmniTwoDevicesTest : public OmniFixture {
 };
 
 TEST_F(OmniTwoDevicesTest, EachRunsByItsNameOnTheOneSchedulerWithItsOwnForce) {
-  options.device_name = "Left";
-  OmniDevice& left = open();
-  auto opened = open_named("Right");
-  ASSERT_TRUE(opened.ok()) << opened.error();
-  right = std::move(opened).value();
+  OmniDevice& left = open_left_and_right();
+  ASSERT_NE(right, nullptr);
   EXPECT_THAT(left.info().name, HasSubstr("serial FAKE-L"));
   EXPECT_THAT(right->info().name, HasSubstr("serial FAKE-R"));
   EXPECT_EQ(stats_of("Left").init_calls, 1U);
   EXPECT_EQ(stats_of("Right").init_calls, 1U);
 
-  probe.device = &left;
-  probe.force = {0.5, 0.0, 0.0};
-  right_probe.device = right.get();
-  right_probe.force = {0.0, 0.0, -0.7};
-  ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
-  ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  ASSERT_NO_FATAL_FAILURE(start_both(left, {0.5, 0.0, 0.0}, {0.0, 0.0, -0.7}));
   EXPECT_EQ(fake.stats().async_callbacks, 2) << "each device schedules its own frame";
   ASSERT_EQ(fake.step(20), 20U);
 
@@ -111,17 +123,9 @@ TEST_F(OmniTwoDevicesTest, EachDeviceIsCalibratedOnItsOwn) {
   ASSERT_GE(fake.select_device("Right"), 0);
   fake.set_calibration(hd::kCalibrationNeedsManualInput, hd::kCalibrationInkwell);
   fake.select_device(nullptr);
-  options.device_name = "Left";
-  OmniDevice& left = open();
-  auto opened = open_named("Right");
-  ASSERT_TRUE(opened.ok()) << opened.error();
-  right = std::move(opened).value();
-  probe.device = &left;
-  probe.force = {0.5, 0.0, 0.0};
-  right_probe.device = right.get();
-  right_probe.force = {0.0, 0.4, 0.0};
-  ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
-  ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  OmniDevice& left = open_left_and_right();
+  ASSERT_NE(right, nullptr);
+  ASSERT_NO_FATAL_FAILURE(start_both(left, {0.5, 0.0, 0.0}, {0.0, 0.4, 0.0}));
   ASSERT_EQ(fake.step(20), 20U);
   EXPECT_EQ(left.status().phase, OmniPhase::kRunning);
   EXPECT_EQ(left.status().force_n, probe.force);
@@ -143,17 +147,9 @@ TEST_F(OmniTwoDevicesTest, EachDeviceIsCalibratedOnItsOwn) {
 
 TEST_F(OmniTwoDevicesTest, OneDevicesErrorEndsItsRunNotTheOthers) {
   // A communication error in Right's frame: Right's loop stops, Left's goes on.
-  options.device_name = "Left";
-  OmniDevice& left = open();
-  auto opened = open_named("Right");
-  ASSERT_TRUE(opened.ok()) << opened.error();
-  right = std::move(opened).value();
-  probe.device = &left;
-  probe.force = {0.5, 0.0, 0.0};
-  right_probe.device = right.get();
-  right_probe.force = {0.0, 0.4, 0.0};
-  ASSERT_TRUE(left.start(&Probe::tick, &probe).ok());
-  ASSERT_TRUE(right->start(&Probe::tick, &right_probe).ok());
+  OmniDevice& left = open_left_and_right();
+  ASSERT_NE(right, nullptr);
+  ASSERT_NO_FATAL_FAILURE(start_both(left, {0.5, 0.0, 0.0}, {0.0, 0.4, 0.0}));
   ASSERT_EQ(fake.step(10), 10U);
   ASSERT_GE(fake.select_device("Right"), 0);
   fake.inject_error(hd::kCommError, -28, TF_FAKE_HD_AT_END, 1);
