@@ -4,6 +4,7 @@
 // scene files' own reader, so a change is refused with the very message a file would get.
 
 #include "toonforce/config/scene_editor.hpp"
+#include "toonforce/config/world_editor.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -16,6 +17,7 @@
 
 #include "toonforce/config/scene_reader.hpp"
 #include "toonforce/config/toml_reader.hpp"
+#include "world_reader.hpp"
 
 namespace toonforce {
 
@@ -90,6 +92,45 @@ std::size_t place_of(const std::vector<SceneEntry>& order, std::size_t kind, std
     if (order[i].kind == kind && order[i].index == index) return i;
   }
   return order.size();
+}
+
+/// Why `value` is no impact speed a fire of surface `name` may carry (empty: it is).
+std::string impact_problem(const SceneDescription& scene, const EffectName& name, double value, ScalarKind scalar_kind,
+                           const std::string& what) {
+  if (name.kind != Kinds::kind_index(RuntimeSurface<double>::kKey)) return {};
+  if (!scene.of<RuntimeSurface>()[name.index].impact.enabled) {
+    return fmt::format("{}: this surface has no impact table: set one first (set {}{} with [impact] keys)\n", what,
+                       name.key, name.index + 1);
+  }
+  // v_i [m/s]: what the transient scales with (spec effects.md §4). Its peak force
+  // v_i d (|k_r| + |k_osc|) must be a force the loop's scalar represents, squared too (a
+  // force's norm): beyond it the loop faulted with zero force on a speed that got "ok"
+  // (5 m/s on Q16.16 with typical gains; 1e300 in double). The smallest speed is the
+  // scalar's resolution (Q16.16: 2^-16; below it the transient is zero).
+  const auto& law = scene.of<RuntimeSurface>()[name.index].impact.law;
+  const double d = std::fabs(static_cast<double>(law.duration_s));
+  const double gain = std::fabs(static_cast<double>(law.recoil_gain_n_per_m)) +
+                      std::fabs(static_cast<double>(law.oscillation_gain_n_per_m));
+  double largest_force = std::sqrt(std::numeric_limits<double>::max());
+  double lowest = std::numeric_limits<double>::min();
+  std::string_view scalar = "double";
+  if (scalar_kind == ScalarKind::kFloat) {
+    largest_force = std::sqrt(static_cast<double>(std::numeric_limits<float>::max()));
+    lowest = static_cast<double>(std::numeric_limits<float>::min());
+    scalar = "float";
+  } else if (scalar_kind == ScalarKind::kQ16_16) {
+    largest_force = std::sqrt(32767.0);
+    lowest = 1.0 / 65536.0;
+    scalar = "q16.16";
+  }
+  const double highest = largest_force / std::max({1.0, d, d * gain});
+  if (!(std::isfinite(value) && value >= lowest && value <= highest)) {
+    return fmt::format(
+        "{}: the impact speed must be within [{:.3g}, {:.6g}] m/s on the {} loop with this impact table (its peak "
+        "force v_i d (|recoil_gain| + |oscillation_gain|) at most {:.6g} N) (got {})\n",
+        what, lowest, highest, scalar, largest_force, value);
+  }
+  return {};
 }
 
 }  // namespace
@@ -245,39 +286,8 @@ Result<SceneChange> SceneDocument::fire(std::string_view effect, std::string_vie
     return Error{
         fmt::format("{}: a {} has no event '{}' (surface: impact; cliff: look_down)\n", what, name->key, event)};
   }
-  if (name->kind == Kinds::kind_index(RuntimeSurface<double>::kKey)) {
-    if (!impl_->scene.of<RuntimeSurface>()[name->index].impact.enabled) {
-      return Error{fmt::format("{}: this surface has no impact table: set one first (set {}{} with [impact] keys)\n",
-                               what, name->key, name->index + 1)};
-    }
-    // v_i [m/s]: what the transient scales with (spec effects.md §4). Its peak force
-    // v_i d (|k_r| + |k_osc|) must be a force the loop's scalar represents, squared too (a
-    // force's norm): beyond it the loop faulted with zero force on a speed that got "ok"
-    // (5 m/s on Q16.16 with typical gains; 1e300 in double). The smallest speed is the
-    // scalar's resolution (Q16.16: 2^-16; below it the transient is zero).
-    const auto& law = impl_->scene.of<RuntimeSurface>()[name->index].impact.law;
-    const double d = std::fabs(static_cast<double>(law.duration_s));
-    const double gain = std::fabs(static_cast<double>(law.recoil_gain_n_per_m)) +
-                        std::fabs(static_cast<double>(law.oscillation_gain_n_per_m));
-    double largest_force = std::sqrt(std::numeric_limits<double>::max());
-    double lowest = std::numeric_limits<double>::min();
-    std::string_view scalar = "double";
-    if (impl_->scalar == ScalarKind::kFloat) {
-      largest_force = std::sqrt(static_cast<double>(std::numeric_limits<float>::max()));
-      lowest = static_cast<double>(std::numeric_limits<float>::min());
-      scalar = "float";
-    } else if (impl_->scalar == ScalarKind::kQ16_16) {
-      largest_force = std::sqrt(32767.0);
-      lowest = 1.0 / 65536.0;
-      scalar = "q16.16";
-    }
-    const double highest = largest_force / std::max({1.0, d, d * gain});
-    if (!(std::isfinite(value) && value >= lowest && value <= highest)) {
-      return Error{fmt::format(
-          "{}: the impact speed must be within [{:.3g}, {:.6g}] m/s on the {} loop with this impact table (its peak "
-          "force v_i d (|recoil_gain| + |oscillation_gain|) at most {:.6g} N) (got {})\n",
-          what, lowest, highest, scalar, largest_force, value)};
-    }
+  if (std::string bad = impact_problem(impl_->scene, name.value(), value, impl_->scalar, what); !bad.empty()) {
+    return Error{std::move(bad)};
   }
   SceneChange c;
   c.scene = impl_->scene;
@@ -292,6 +302,164 @@ void SceneDocument::commit(const SceneChange& change) {
   if (change.document) impl_->doc = *std::static_pointer_cast<toml::table>(change.document);
   impl_->scene = change.scene;
   ++changes_;
+}
+
+// ---- Worlds (world_editor.hpp) ----
+
+struct WorldEditor::Impl {
+  toml::table doc;
+  WorldDescription world;
+  std::string source;
+  Mailbox* mailbox = nullptr;
+  std::uint64_t changes = 0;
+
+  static bool same_layout(const std::vector<SceneEntry>& a, const std::vector<SceneEntry>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (a[i].kind != b[i].kind || a[i].index != b[i].index) return false;
+    }
+    return true;
+  }
+
+  /// The update that puts `next` on every device (its effects' states carry over), with
+  /// `events` (per device) fired after; pushed, then `next` and `candidate` are the world.
+  Result<std::uint64_t> send(WorldDescription next, toml::table candidate, const std::string& what,
+                             const std::vector<std::vector<SceneEvent>>& events) {
+    const std::size_t n = world.devices.size();
+    if (n > Update::kMaxDevices) {
+      return Error{fmt::format("{}: a live world has at most {} devices\n", what, Update::kMaxDevices)};
+    }
+    auto update = std::make_unique<Update>();  // built here, off the loop's thread
+    for (std::size_t i = 0; i < n; ++i) {
+      const SceneDescription mine = next.scene_for(i);
+      if (!same_layout(mine.order, world.scene_for(i).order)) {
+        return Error{fmt::format("{}: refused: it changes the effects of device '{}', and this run's trace and viewer "
+                                 "show each device's effects by column (docs/spec/control-protocol.md)\n",
+                                 what, world.devices[i].name)};
+      }
+      auto& part = update->devices[i];
+      part.scene = make_runtime_scene<double>(mine);
+      const std::vector<std::int16_t> continues = same_effects(mine.order);
+      for (std::size_t e = 0; e < continues.size() && e < part.continues.size(); ++e) part.continues[e] = continues[e];
+      for (std::size_t e = 0; i < events.size() && e < events[i].size() && e < part.events.size(); ++e) {
+        part.events[part.event_count++] = events[i][e];
+      }
+    }
+    update->device_count = static_cast<std::uint8_t>(n);
+    update->sequence = changes + 1;
+    if (!mailbox->push(*update)) {
+      return Error{fmt::format("{}: not applied: the loop has not yet taken the {} change(s) before it (it takes one a "
+                               "tick); try again\n",
+                               what, mailbox->capacity())};
+    }
+    world = std::move(next);
+    doc = std::move(candidate);
+    return ++changes;
+  }
+
+  /// "coupling1", "ball", "device2", "world": what a world keeps while it runs.
+  static std::string fixed_part(std::string_view effect) {
+    for (const std::string_view fixed : {"coupling", "ball", "device", "world"}) {
+      if (effect.starts_with(fixed)) {
+        return fmt::format("'{}': the devices, couplings, ball and [world] of a world are fixed while it runs (they "
+                           "are its file's); the effects (surface1, cliff1, ...) take changes\n",
+                           effect);
+      }
+    }
+    return {};
+  }
+};
+
+WorldEditor::WorldEditor(std::unique_ptr<Impl> impl) noexcept : impl_(std::move(impl)) {}
+WorldEditor::WorldEditor(WorldEditor&&) noexcept = default;
+WorldEditor& WorldEditor::operator=(WorldEditor&&) noexcept = default;
+WorldEditor::~WorldEditor() = default;
+
+Result<WorldEditor> WorldEditor::open(std::string_view text, std::string source, Mailbox& mailbox) {
+  ErrorList errors(source);
+  auto root = parse_toml_text(text, errors);
+  if (!root) return Error{errors.text()};
+  auto world = describe_world_table(*root, source);
+  if (!world) return Error{world.error()};
+  if (world->devices.size() > Update::kMaxDevices) {
+    return Error{fmt::format("{}: a live world has at most {} devices\n", source, Update::kMaxDevices)};
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->doc = std::move(*root);
+  impl->world = std::move(world.value());
+  impl->source = std::move(source);
+  impl->mailbox = &mailbox;
+  return WorldEditor(std::move(impl));
+}
+
+const WorldDescription& WorldEditor::world() const noexcept { return impl_->world; }
+std::uint64_t WorldEditor::applied() const noexcept { return impl_->mailbox->applied(); }
+
+Result<std::uint64_t> WorldEditor::set(std::string_view effect, std::string_view keys_toml) {
+  if (std::string fixed = Impl::fixed_part(effect); !fixed.empty()) return Error{std::move(fixed)};
+  auto name = parse_effect_name(effect, impl_->doc);
+  if (!name) return Error{name.error()};
+  const std::string what = fmt::format("set {}{}", name->key, name->index + 1);
+  ErrorList errors(what);
+  auto keys = parse_toml_text(keys_toml, errors);
+  if (!keys) return Error{errors.text()};
+  if (keys->contains("devices")) {
+    return Error{fmt::format("{}: 'devices' is fixed while a world runs: each device's trace and viewer columns are "
+                             "its effects'\n",
+                             what)};
+  }
+  toml::table candidate = impl_->doc;
+  merge(*(*candidate[name->key].as_array())[name->index].as_table(), keys.value());
+  auto next = describe_world_table(candidate, what);
+  if (!next) return Error{next.error()};
+  return impl_->send(std::move(next.value()), std::move(candidate), what, {});
+}
+
+Result<std::uint64_t> WorldEditor::fire(std::string_view effect, std::string_view event, double value) {
+  if (std::string fixed = Impl::fixed_part(effect); !fixed.empty()) return Error{std::move(fixed)};
+  auto name = parse_effect_name(effect, impl_->doc);
+  if (!name) return Error{name.error()};
+  const std::string what = fmt::format("fire {}{} {}", name->key, name->index + 1, event);
+  const WorldDescription& world = impl_->world;
+  const std::size_t place = place_of(world.scene.order, name->kind, name->index);
+  if (place == world.scene.order.size() || make_runtime_scene<double>(world.scene).event_index(place, event) < 0) {
+    return Error{
+        fmt::format("{}: a {} has no event '{}' (surface: impact; cliff: look_down)\n", what, name->key, event)};
+  }
+  if (std::string bad = impact_problem(world.scene, name.value(), value, ScalarKind::kDouble, what); !bad.empty()) {
+    return Error{std::move(bad)};
+  }
+  // On each device the effect acts on: its place there (each device's scene numbers its own).
+  const auto& masks = world.effect_devices[name->kind];
+  std::vector<std::vector<SceneEvent>> events(world.devices.size());
+  for (std::size_t i = 0; i < world.devices.size(); ++i) {
+    const auto acts_on = [&](std::size_t n) { return n >= masks.size() || (masks[n] & (1U << i)) != 0; };
+    if (!acts_on(name->index)) continue;
+    std::size_t mine = 0;
+    for (std::size_t n = 0; n < name->index; ++n) mine += acts_on(n) ? 1U : 0U;
+    const SceneDescription scene = world.scene_for(i);
+    const std::size_t at = place_of(scene.order, name->kind, mine);
+    const int number = make_runtime_scene<double>(scene).event_index(at, event);
+    if (at == scene.order.size() || number < 0) continue;
+    events[i].push_back(SceneEvent{static_cast<std::uint16_t>(at), static_cast<std::uint8_t>(number), value});
+  }
+  return impl_->send(world, impl_->doc, what, events);
+}
+
+Result<std::uint64_t> WorldEditor::add(std::string_view kind) {
+  return Error{fmt::format("add {}: refused: a world's list of effects is fixed while it runs (each device's trace "
+                           "and viewer columns are its effects'); move an effect out of reach or retune it instead\n",
+                           kind)};
+}
+Result<std::uint64_t> WorldEditor::remove(std::string_view effect) {
+  return Error{fmt::format("remove {}: refused: a world's list of effects is fixed while it runs (each device's trace "
+                           "and viewer columns are its effects'); move an effect out of reach or retune it instead\n",
+                           effect)};
+}
+Result<std::uint64_t> WorldEditor::load(std::string_view source) {
+  return Error{fmt::format("load {}: refused: a running world keeps its devices and its effects; stop and start with "
+                           "that scene instead\n",
+                           source)};
 }
 
 }  // namespace toonforce

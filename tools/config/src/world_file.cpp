@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "toonforce/config/world_file.hpp"
 
+#include "world_reader.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -386,6 +388,11 @@ Result<WorldDescription> describe_world(toml::table& root, ErrorList& errors, st
 }
 
 }  // namespace
+
+Result<WorldDescription> describe_world_table(toml::table root, std::string_view source) {
+  ErrorList errors{std::string(source)};
+  return describe_world(root, errors, source);
+}
 
 std::size_t WorldDescription::device_index(std::string_view name) const noexcept {
   for (std::size_t i = 0; i < devices.size(); ++i) {

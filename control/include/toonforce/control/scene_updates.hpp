@@ -80,12 +80,13 @@ struct SceneUpdate {
 struct ForgeAccess;
 
 /// The wait-free queue from one application thread to the servo loop. Its bytes are all the
-/// two sides share: the producer's side is push(); the loop's is SceneIntake, which keeps its
-/// own index and reads and writes here only through the members marked "loop".
-template <LiveSceneType SceneT, std::size_t kCapacity = 4>
-class SceneMailbox {
+/// two sides share: the producer's side is push(); the loop's is SceneIntake (or a world's
+/// WorldIntake), which keeps its own index and reads and writes here only through the members
+/// marked "loop". `UpdateT` is a fixed-size, pointer-free record (SceneUpdate, WorldUpdate).
+template <class UpdateT, std::size_t kCapacity = 4>
+class UpdateMailbox {
  public:
-  using Update = SceneUpdate<SceneT>;
+  using Update = UpdateT;
   static_assert(kCapacity >= 1);
 
   /// Application thread: copies `u` in (a scene's parameters: fixed arrays, no allocation); false (nothing pushed) when the loop has not yet taken
@@ -148,6 +149,10 @@ class SceneMailbox {
   alignas(64) std::atomic<std::uint64_t> applied_{0};
   std::atomic<std::uint64_t> refused_{0};
 };
+
+/// The mailbox of one loop's scene updates.
+template <LiveSceneType SceneT, std::size_t kCapacity = 4>
+using SceneMailbox = UpdateMailbox<SceneUpdate<SceneT>, kCapacity>;
 
 /// How the loop copies an update's bytes out of the mailbox: a memcpy. A specialisation for a
 /// scene type of its own lets a test play a writer that changes the slot during the copy.

@@ -2,7 +2,7 @@
 #pragma once
 /// The memory `run --view` shares with its server process (tools/cli/server_process.hpp): one
 /// MAP_SHARED region, mapped by the loop's process before it forks the server. Address-free:
-/// atomics, the frame ring and the live-scene mailbox's bytes (a scene's parameters are fixed
+/// atomics, the frame ring and the live-scene (or live world's) mailbox's bytes (a scene's parameters are fixed
 /// arrays: no pointer). The server process may write any bytes into all of it at any time: the
 /// loop's side keeps its own indices (SpscRing::Producer, the mailbox's consumer index) and
 /// copies and checks each update before it applies it (scene_updates.hpp), so the channel can
@@ -14,6 +14,7 @@
 
 #include "toonforce/control/scene_updates.hpp"
 #include "toonforce/control/telemetry.hpp"
+#include "toonforce/control/world_updates.hpp"
 #include "toonforce/effects/scene.hpp"
 
 namespace toonforce {
@@ -27,10 +28,11 @@ struct ServerChannel {
   std::atomic<int> run_over{0};          ///< 1: keep serving the recording, 2: close now
   alignas(64) unsigned char mailbox[1];  ///< the live-scene mailbox (mapped with room for it)
 
-  /// Room for the largest mailbox of the three scalars (only the run's is placed there).
+  /// Room for the largest mailbox of the three scalars and of a world (only the run's is
+  /// placed there).
   static constexpr std::size_t kMailboxBytes =
       std::max({sizeof(SceneMailbox<RuntimeScene<double>>), sizeof(SceneMailbox<RuntimeScene<float>>),
-                sizeof(SceneMailbox<RuntimeScene<Q16_16>>)});
+                sizeof(SceneMailbox<RuntimeScene<Q16_16>>), sizeof(WorldMailbox<RuntimeScene<double>>)});
 };
 /// The bytes to map: the channel and its mailbox.
 inline constexpr std::size_t kServerChannelBytes = sizeof(ServerChannel) + ServerChannel::kMailboxBytes;

@@ -64,6 +64,15 @@ template <class SceneT>
 struct IntakeOf<SceneT, true> {
   using type = SceneIntake<SceneT>;
 };
+/// Where a live loop keeps an update offered to it (ServoLoop::offer); nothing when not live.
+template <class SceneT, bool kLive>
+struct OfferOf {
+  using type = NoIntake;
+};
+template <class SceneT>
+struct OfferOf<SceneT, true> {
+  using type = const SceneUpdate<SceneT>*;
+};
 }  // namespace detail
 
 /// The outcome of one tick.
@@ -133,6 +142,16 @@ class ServoLoop {
   {
     mailbox_ = &mailbox;
     intake_.restart();
+  }
+  /// A live loop whose updates another checks (a World: one update for all its devices, so
+  /// that they change on the same tick): applies `checked` at its next tick, before anything
+  /// from its mailbox. `checked` passed check_update against this loop's scene() and stays in
+  /// place until that tick. Before the loop runs, or from its thread.
+  template <class U>
+  void offer(const U& checked) noexcept
+    requires(kStages.live && std::same_as<U, typename Mailbox::Update>)
+  {
+    offered_ = &checked;
   }
   // clang-format on
   /// Live loop: updates applied since the start.
@@ -353,13 +372,18 @@ class ServoLoop {
   /// reads the mailbox's one index.
   void take_update(const Gate& gate, const Hip<S>& hip, const TickTime& time) noexcept {
     if constexpr (kStages.live) {
-      if (mailbox_ == nullptr) return;
-      if (intake_.take(*mailbox_, scene_.scene()) != Intake::Taken::kChecked) return;
-      const auto& update = intake_.update();
+      const typename Mailbox::Update* update = offered_;
+      offered_ = nullptr;
+      const bool mailed = update == nullptr;
+      if (mailed) {
+        if (mailbox_ == nullptr) return;
+        if (intake_.take(*mailbox_, scene_.scene()) != Intake::Taken::kChecked) return;
+        update = &intake_.update();
+      }
       const TickInput<S> in = Stage::input(hip, time);
-      scene_.apply(update, gate.position && hip.finite ? &in : nullptr, time.now, fade_ticks_);
+      scene_.apply(*update, gate.position && hip.finite ? &in : nullptr, time.now, fade_ticks_);
       passivity_.relayout(scene_.active_slots());
-      mailbox_->report_applied(update.sequence);
+      if (mailed) mailbox_->report_applied(update->sequence);
       ++updates_applied_;
     }
   }
@@ -485,6 +509,8 @@ class ServoLoop {
   Mailbox* mailbox_ = nullptr;
   using Intake = typename detail::IntakeOf<SceneT, kStages.live>::type;
   [[no_unique_address]] Intake intake_{};  ///< live: the loop's index and copies (not shared)
+  /// Live: an update another checked for this loop (offer), applied at the next tick.
+  [[no_unique_address]] typename detail::OfferOf<SceneT, kStages.live>::type offered_{};
   std::uint64_t updates_applied_ = 0;
 
   // State between ticks: the last tick's outcome (its force is held until the next write).

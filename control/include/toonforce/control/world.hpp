@@ -36,6 +36,7 @@
 #include "toonforce/control/servo_config.hpp"
 #include "toonforce/control/servo_loop.hpp"
 #include "toonforce/control/velocity_estimator.hpp"
+#include "toonforce/control/world_updates.hpp"
 #include "toonforce/effects/between.hpp"
 #include "toonforce/effects/scene.hpp"
 #include "toonforce/hal/device.hpp"
@@ -138,6 +139,17 @@ struct WorldShare {
   std::array<ActiveForce<S>, kWorldActiveSlots> active{};
 };
 
+namespace detail {
+template <class Inner>
+constexpr std::size_t max_effects_of() noexcept {
+  if constexpr (requires { Inner::kMaxEffects; }) {
+    return Inner::kMaxEffects;
+  } else {
+    return 0;
+  }
+}
+}  // namespace detail
+
 /// A device's scene as its loop sees it: the scene's effects act in the world frame (the HIP
 /// is carried there first), the world's force for this device (`share->force_n`, in the world
 /// frame, written by the World before the loop's tick) is added to theirs, and the sum goes
@@ -154,6 +166,11 @@ class FramedScene {
   static constexpr std::size_t kActiveCapacity = Inner::kActiveCapacity + kWorldActiveSlots;
   static constexpr std::size_t kValueCapacity = Inner::kValueCapacity;
 
+  /// A live scene's (LiveSceneType) effects, when Inner is one.
+  static constexpr std::size_t kMaxEffects = detail::max_effects_of<Inner>();
+
+  /// Only as room for an update's scene (SceneUpdate): never ticked.
+  FramedScene() noexcept = default;
   FramedScene(const Inner& inner, const DeviceFrame& frame, const WorldShare<S>* share,
               std::size_t world_slots = 0) noexcept
       : inner_(inner),
@@ -178,6 +195,45 @@ class FramedScene {
 
   const Inner& inner() const noexcept { return inner_; }
   const DeviceFrame& frame() const noexcept { return frame_; }
+  /// The same device's scene with other effects: where it sits and its share of the world stay.
+  FramedScene with_inner(const Inner& inner) const noexcept {
+    FramedScene f = *this;
+    f.inner_ = inner;
+    return f;
+  }
+
+  // A live scene (scene_updates.hpp), when its effects are: every call goes to them. An update
+  // of a world's device carries effects only (World::take_update builds its scene from this
+  // one's frame and share with with_inner), so nothing here reads a frame or a pointer from
+  // another's bytes.
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
+  void carry(const State& from, State& now, const std::int16_t* continues) const noexcept
+    requires LiveSceneType<Inner>
+  {
+    inner_.carry(from, now, continues);
+  }
+  bool fire(State& s, std::size_t i, std::size_t event, double value, Instant now) const noexcept
+    requires LiveSceneType<Inner>
+  {
+    return inner_.fire(s, i, event, value, now);
+  }
+  bool assign_checked(const FramedScene& untrusted) noexcept
+    requires LiveSceneType<Inner>
+  {
+    return inner_.assign_checked(untrusted.inner_);
+  }
+  bool continues_ok(const FramedScene& previous, const std::int16_t* continues) const noexcept
+    requires LiveSceneType<Inner>
+  {
+    return inner_.continues_ok(previous.inner_, continues);
+  }
+  bool takes_event(std::size_t i, std::size_t event, double value) const noexcept
+    requires LiveSceneType<Inner>
+  {
+    return inner_.takes_event(i, event, value);
+  }
+  // clang-format on
 
  private:
   TickInput<S> to_world(const TickInput<S>& in) const noexcept {
@@ -194,10 +250,10 @@ class FramedScene {
     return frame_.force_to_device(scene_n + share_->force_n);
   }
 
-  Inner inner_;
-  DeviceFrame frame_;
-  const WorldShare<S>* share_;
-  std::size_t world_slots_;
+  Inner inner_{};
+  DeviceFrame frame_{};
+  const WorldShare<S>* share_ = nullptr;
+  std::size_t world_slots_ = 0;
 };
 
 /// A device of a world: the World reads the real device once a tick (`fetch`), and the
@@ -288,14 +344,30 @@ struct WorldStatus {
   std::size_t held_by = N;  ///< the device whose fault started the hold (N: none)
 };
 
-/// N devices of one type (a backend, or the DeviceDriver seam for a mix) in one world.
-template <ServoDevice Device, SceneType SceneT, std::size_t N>
+namespace detail {
+/// A live world's intake and the per-device updates it offers its loops; nothing otherwise.
+template <class SceneT, std::size_t N, bool kLive>
+struct WorldLive {};
+template <class SceneT, std::size_t N>
+struct WorldLive<SceneT, N, true> {
+  WorldMailbox<SceneT>* mailbox = nullptr;
+  WorldIntake<SceneT, N> intake{};
+  std::array<SceneUpdate<FramedScene<SceneT>>, N> offered{};
+  std::uint64_t applied = 0;
+};
+}  // namespace detail
+
+/// N devices of one type (a backend, or the DeviceDriver seam for a mix) in one world. With
+/// kStages.live (kLiveStages) the world takes scene updates for all its devices at once
+/// (world_updates.hpp: listen).
+template <ServoDevice Device, SceneType SceneT, std::size_t N, LoopStages kStages = kEveryStage>
 class World {
   static_assert(N >= 1 && N <= 32, "1 to 32 devices");
+  static_assert(!kStages.live || N <= kMaxWorldUpdateDevices, "a live world has at most 4 devices");
 
  public:
   using S = typename SceneT::Scalar;
-  using Loop = ServoLoop<WorldDevice<Device>, FramedScene<SceneT>, WorldPins, kEveryStage>;
+  using Loop = ServoLoop<WorldDevice<Device>, FramedScene<SceneT>, WorldPins, kStages>;
 
   /// One device of the world: the device (owned by the caller, outliving the world), its
   /// scene (the effects that act on it, in the world frame), where it sits, and its loop's
@@ -325,6 +397,7 @@ class World {
       held_.store(false, std::memory_order_release);
       for (Loop& loop : loops_) loop.request_rearm();
     }
+    if constexpr (kStages.live) offer_update();
     const std::int64_t gap = started_ && k > last_k_ ? k - last_k_ : 1;
     const double dt_s = static_cast<double>(gap) * period_s_;
     const S rate_hz = scalar_cast<S>(1.0 / dt_s);
@@ -341,6 +414,9 @@ class World {
 
     WorldStatus<N> status;
     for (std::size_t i = 0; i < N; ++i) status.devices[i] = loops_[i].tick(k);
+    if constexpr (kStages.live) {
+      if (live_.applied != 0 && live_.mailbox != nullptr) live_.mailbox->report_applied(live_.applied);
+    }
     if (config_.stop == StopPolicy::kAll && !held_.load(std::memory_order_relaxed)) {
       for (std::size_t i = 0; i < N; ++i) {
         if ((loops_[i].latched().bits() & kLatchedFaults) != 0) {
@@ -356,6 +432,25 @@ class World {
     last_k_ = k;
     return status;
   }
+
+  /// A live world takes its scene updates from `mailbox` (config/world_editor.hpp pushes them)
+  /// from the next tick on: one a tick, checked whole for every device, then applied by every
+  /// device's loop on that same tick. Before the world runs, or from its thread.
+  // clang-format 14 mangles requires-clauses and requires-expressions (see .clang-format).
+  // clang-format off
+  template <class M>
+  void listen(M& mailbox) noexcept
+    requires(kStages.live && std::same_as<M, WorldMailbox<SceneT>>)
+  {
+    live_.mailbox = &mailbox;
+  }
+  /// Live world: updates refused (torn, or failing a check of any device's part).
+  std::uint64_t updates_refused() const noexcept
+    requires(kStages.live)
+  {
+    return live_.intake.refused();
+  }
+  // clang-format on
 
   /// The last tick of a run: zero force on every device (ServoLoop::shutdown).
   void shutdown(std::int64_t k) noexcept {
@@ -411,6 +506,28 @@ class World {
     for (std::size_t j = 0; j < config_.coupling_count && j < kMaxCouplings; ++j) {
       const CouplingSpec& c = config_.couplings[j];
       coupling_step_[j] = std::min(ball_step_[c.a < N ? c.a : 0], ball_step_[c.b < N ? c.b : 0]);
+    }
+  }
+
+  /// A live world's one update a tick, if there is one: checked whole (every device's part
+  /// against that device's scene), then offered to every loop, which applies it in this tick.
+  void offer_update() noexcept {
+    if constexpr (kStages.live) {
+      if (live_.mailbox == nullptr) return;
+      const auto current = [this](std::size_t i) -> const SceneT& { return loops_[i].scene().inner(); };
+      if (live_.intake.take(*live_.mailbox, current) != decltype(live_.intake)::Taken::kChecked) return;
+      const auto& update = live_.intake.update();
+      for (std::size_t i = 0; i < N; ++i) {
+        const SceneUpdate<SceneT>& part = update.devices[i];
+        auto& offered = live_.offered[i];
+        offered.scene = loops_[i].scene().with_inner(part.scene);
+        offered.continues = part.continues;
+        offered.events = part.events;
+        offered.event_count = part.event_count;
+        offered.sequence = update.sequence;
+        loops_[i].offer(offered);
+      }
+      live_.applied = update.sequence;
     }
   }
 
@@ -510,6 +627,7 @@ class World {
   std::atomic<std::uint64_t> rearm_requests_{0};
   std::uint64_t rearms_seen_ = 0;
   bool started_ = false;
+  [[no_unique_address]] detail::WorldLive<SceneT, N, kStages.live> live_{};
   std::int64_t last_k_ = 0;
   std::array<Vec3<S>, N> world_force_n_{};
   std::array<Vec3<S>, N> coupling_sum_n_{};
