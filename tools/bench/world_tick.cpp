@@ -5,10 +5,12 @@
 // program, never a test.
 //
 //   toonforce_world_bench [Google Benchmark flags]      ns per tick, per device count
-//   toonforce_world_bench --ticks N --devices D         runs N world ticks of D devices (0: the
+//   toonforce_world_bench --ticks N --devices D [--live] runs N world ticks of D devices (0: the
 //                                                       plain loop) and exits: under callgrind,
 //                                                       the difference of two N gives
-//                                                       instructions per tick
+//                                                       instructions per tick; --live: the
+//                                                       world as `run` builds it (live stages,
+//                                                       listening to an empty mailbox)
 #include <benchmark/benchmark.h>
 
 #include <array>
@@ -76,11 +78,13 @@ const Loaded& loaded() {
   return l;
 }
 
-template <std::size_t N>
+template <std::size_t N, LoopStages kStages = kEveryStage>
 struct Bench {
-  using W = World<PathDevice, RuntimeScene<double>, N>;
+  using W = World<PathDevice, RuntimeScene<double>, N, kStages>;
   std::array<PathDevice, N> devices{};
   std::unique_ptr<W> world;
+  /// A live world listens to an empty mailbox: what `run` pays when no change comes.
+  std::unique_ptr<WorldMailbox<RuntimeScene<double>>> mailbox;
   Bench() {
     WorldConfig c;
     for (std::size_t i = 0; i + 1 < N && i < kMaxCouplings; ++i) {
@@ -97,6 +101,10 @@ struct Bench {
     (std::make_index_sequence<N>{});
     for (std::size_t i = 0; i < N; ++i) devices[i].k = 700 * i;
     world = std::make_unique<W>(members, c);
+    if constexpr (kStages.live) {
+      mailbox = std::make_unique<WorldMailbox<RuntimeScene<double>>>();
+      world->listen(*mailbox);
+    }
   }
 };
 
@@ -120,9 +128,9 @@ BENCHMARK(world_tick<1>);
 BENCHMARK(world_tick<2>);
 BENCHMARK(world_tick<4>);
 
-template <std::size_t N>
+template <std::size_t N, LoopStages kStages = kEveryStage>
 std::uint64_t run_ticks(std::int64_t ticks) {
-  Bench<N> b;
+  Bench<N, kStages> b;
   std::uint64_t sum = 0;
   for (std::int64_t k = 0; k < ticks; ++k) sum += b.world->tick(k).devices[0].limits;
   return sum;
@@ -141,16 +149,18 @@ std::uint64_t run_loop_ticks(std::int64_t ticks) {
 }  // namespace toonforce
 
 int main(int argc, char** argv) {
-  if (argc == 5 && std::strcmp(argv[1], "--ticks") == 0 && std::strcmp(argv[3], "--devices") == 0) {
+  const bool live = argc == 6 && std::strcmp(argv[5], "--live") == 0;
+  if ((argc == 5 || live) && std::strcmp(argv[1], "--ticks") == 0 && std::strcmp(argv[3], "--devices") == 0) {
+    using toonforce::kLiveStages;
     const std::int64_t ticks = std::atoll(argv[2]);
     const int devices = std::atoi(argv[4]);
     std::uint64_t sum = 0;
     switch (devices) {
       case 0: sum = toonforce::run_loop_ticks(ticks); break;  // no world: the loop alone
-      case 1: sum = toonforce::run_ticks<1>(ticks); break;
-      case 2: sum = toonforce::run_ticks<2>(ticks); break;
-      case 4: sum = toonforce::run_ticks<4>(ticks); break;
-      default: std::fputs("--devices 0 (the loop alone), 1, 2 or 4\n", stderr); return 2;
+      case 1: sum = live ? toonforce::run_ticks<1, kLiveStages>(ticks) : toonforce::run_ticks<1>(ticks); break;
+      case 2: sum = live ? toonforce::run_ticks<2, kLiveStages>(ticks) : toonforce::run_ticks<2>(ticks); break;
+      case 4: sum = live ? toonforce::run_ticks<4, kLiveStages>(ticks) : toonforce::run_ticks<4>(ticks); break;
+      default: std::fputs("--devices 0 (the loop alone), 1, 2 or 4 [--live]\n", stderr); return 2;
     }
     std::printf("%llu\n", static_cast<unsigned long long>(sum));
     return 0;

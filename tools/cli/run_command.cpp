@@ -163,6 +163,9 @@ struct WorldViewRequest {
   const ViewFlags* view = nullptr;  ///< null or not wanted: no viewer
   std::string server_user;
   bool server_user_given = false;
+  bool control = false;       ///< --control: /control changes the world's effects
+  bool control_wait = false;  ///< --control-wait
+  std::string control_token;  ///< --control-token (empty: the environment's, else a random one)
 };
 #endif
 
@@ -179,8 +182,8 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
 #if !TOONFORCE_VIEWER
          "--view",
 #endif
-             "--control", "--serial", "--falcon-index", "--falcon-calibration", "--omni-device", "--tick-pin",
-             "--estop-pin", "--enable-pin", "--amp-enable-pin", "--led-pin"
+             "--serial", "--falcon-index", "--falcon-calibration", "--omni-device", "--tick-pin", "--estop-pin",
+             "--enable-pin", "--amp-enable-pin", "--led-pin"
        }) {
     const CLI::Option* option = cmd.get_option_no_throw(name);
     if (option != nullptr && option->count() > 0) {
@@ -259,6 +262,29 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
       if (geteuid() == 0) setup.user = ServerUser{view_request.server_user, user->pw_uid, user->pw_gid};
     }
     if (options.guardian != nullptr) setup.dropped_mappings.push_back({options.guardian, sizeof(guardian::SharedPage)});
+    if (view_request.control) {
+      // The world's text, read once: the server's editor and the loop start from the same.
+      options.scene_text = read_scene_text(options.scene_path);
+      if (!options.scene_text) {
+        fmt::print(stderr, "{}: cannot be read: {}\n", options.scene_path, std::strerror(errno));
+        return 2;
+      }
+      auto same = parse_world(*options.scene_text, options.scene_path);
+      if (!same) {
+        fmt::print(stderr, "{}\n", same.error());
+        return 2;
+      }
+      setup.control = true;
+      setup.world = true;
+      setup.scene_text = *options.scene_text;
+      setup.scene_name = options.scene_path;
+      const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
+      setup.viewer.control_options.token = !view_request.control_token.empty() ? view_request.control_token
+                                           : env != nullptr && *env != '\0'    ? std::string(env)
+                                                                               : viewer::random_token();
+      if (view_request.control_token.empty() && (env == nullptr || *env == '\0'))
+        setup.token_note = " (random; set one with --control-token)";
+    }
     viewer::HelloInfo& hello = setup.hello;
     hello.source = "run";
     hello.title = fmt::format("{} on {}", world->scene.name, options.device);
@@ -277,6 +303,21 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
     server = std::move(started.value());
     rows.emplace(server->sink(), std::move(map.value()));
     options.world_rows = &rows.value();
+    if (view_request.control) options.live = &server->live();
+    if (view_request.control_wait) {
+      // Before the devices open: a session that never gets its client commands no force at all.
+      fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
+      std::fflush(stderr);
+      if (command_stop().load() != 0 || !server->wait_for_control(command_stop())) {
+        const int signo = command_stop().load();
+        const std::string gone = server->ended_early();
+        fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
+                   signo != 0      ? " (stopped by " + signal_name(signo) + ")"
+                   : !gone.empty() ? " (the server process " + gone + ")"
+                                   : std::string());
+        return 2;
+      }
+    }
   }
   if (command_stop().load() != 0) {  // stopped while the viewer started
     fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(command_stop().load()));
@@ -537,6 +578,9 @@ void add_run(CLI::App& app) {
       request.view = view.get();
       request.server_user = *server_user;
       request.server_user_given = server_user_option->count() > 0;
+      request.control = *control;
+      request.control_wait = *control_wait;
+      request.control_token = *control_token;
       set_exit_code(run_world_command(*options, *cmd, *scripts, *fail, *quiet, request));
 #else
       set_exit_code(run_world_command(*options, *cmd, *scripts, *fail, *quiet));

@@ -126,7 +126,8 @@ int serve(ServerChannel& ch, const ServerSetup& setup, pid_t loop) {
   LiveMailboxes live;
   std::unique_ptr<viewer::SceneControl> control;
   if (setup.control) {
-    auto opened = open_live_control(setup.scene_text, setup.scene_name, setup.scalar, live, ch.mailbox);
+    auto opened = setup.world ? open_world_control(setup.scene_text, setup.scene_name, live, ch.mailbox)
+                              : open_live_control(setup.scene_text, setup.scene_name, setup.scalar, live, ch.mailbox);
     if (!opened) {
       fmt::print(stderr, "--control: {}\n", opened.error());
       ch.state.store(2);
@@ -264,7 +265,9 @@ Result<std::unique_ptr<ServerProcess>> ServerProcess::start(const ServerSetup& s
     p->pid_ = -1;
     return Error{std::string()};  // it said why
   }
-  if (setup.control) {
+  if (setup.control && setup.world) {
+    p->live_.of_world = static_cast<WorldMailbox<RuntimeScene<double>>*>(static_cast<void*>(p->channel_->mailbox));
+  } else if (setup.control) {
     void* mailbox = p->channel_->mailbox;
     with_scalar(
         setup.scalar,

@@ -63,6 +63,7 @@ struct ServerSetup {
   std::string scene_text;
   std::string scene_name;
   ScalarKind scalar = ScalarKind::kDouble;
+  bool world = false;      ///< the scene is a world: its control edits every device's scene at once
   std::string token_note;  ///< appended to the "control: ..." line (e.g. "(random; ...)")
   /// Shared mappings the loop's process holds that the server must not (the guardian's page):
   /// unmapped in the child right after the fork.

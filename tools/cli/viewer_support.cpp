@@ -14,6 +14,9 @@
 
 #include <fmt/format.h>
 
+#include "toonforce/config/world_editor.hpp"
+#include "toonforce/trace/json.hpp"
+
 namespace toonforce::cli {
 
 void add_view_flags(CLI::App* cmd, ViewFlags& flags) {
@@ -90,7 +93,77 @@ class LiveControl final : public viewer::SceneControl {
   viewer::EditorControl<S> control_;
 };
 
+/// The effect kinds' keys ("surface", "cliff") by kind index.
+std::string kind_key(std::size_t kind) {
+  std::string key;
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    ((I == kind ? (key = RuntimeScene<double>::Kind<I>::kKey, 0) : 0), ...);
+  }
+  (std::make_index_sequence<RuntimeScene<double>::kind_count()>{});
+  return key;
+}
+
+/// The control protocol's SceneControl of a world: its WorldEditor and mailbox. Its scene is
+/// the viewer's scene JSON of every effect, with `devices`: each device's name and the effects
+/// that act on it.
+class WorldControl final : public viewer::SceneControl {
+ public:
+  WorldControl(std::unique_ptr<WorldEditor::Mailbox> owned, WorldEditor editor)
+      : owned_(std::move(owned)), editor_(std::move(editor)) {}
+  Result<std::uint64_t> set(std::string_view effect, std::string_view keys) override {
+    return editor_.set(effect, keys);
+  }
+  Result<std::uint64_t> add(std::string_view kind, std::string_view) override { return editor_.add(kind); }
+  Result<std::uint64_t> remove(std::string_view effect) override { return editor_.remove(effect); }
+  Result<std::uint64_t> load(std::string_view, std::string name) override { return editor_.load(name); }
+  Result<std::uint64_t> fire(std::string_view effect, std::string_view event, double value) override {
+    return editor_.fire(effect, event, value);
+  }
+  std::uint64_t applied() const override { return editor_.applied(); }
+  std::string scene_json() const override {
+    const WorldDescription& world = editor_.world();
+    std::string out = viewer::scene_json(world.scene);
+    if (out.empty() || out.back() != '}') return out;
+    out.pop_back();
+    out += R"(,"devices":[)";
+    for (std::size_t i = 0; i < world.devices.size(); ++i) {
+      std::string effects;
+      for (const SceneEntry& e : world.scene.order) {
+        const auto& masks = world.effect_devices[e.kind];
+        if (e.index < masks.size() && (masks[e.index] & (1U << i)) == 0) continue;
+        effects += fmt::format(R"({}{{"key":{},"number":{}}})", effects.empty() ? "" : ",",
+                               json_string(kind_key(e.kind)), e.index + 1);
+      }
+      out += fmt::format(R"({}{{"name":{},"backend":{},"effects":[{}]}})", i == 0 ? "" : ",",
+                         json_string(world.devices[i].name), json_string(world.devices[i].backend), effects);
+    }
+    out += "]}";
+    return out;
+  }
+
+ private:
+  std::unique_ptr<WorldEditor::Mailbox> owned_;  // before the editor that points to it (null: in shared memory)
+  WorldEditor editor_;
+};
+
 }  // namespace
+
+Result<std::unique_ptr<viewer::SceneControl>> open_world_control(const std::string& text, const std::string& name,
+                                                                 LiveMailboxes& live, void* place) {
+  std::unique_ptr<WorldEditor::Mailbox> owned;
+  WorldEditor::Mailbox* mailbox = nullptr;
+  if (place != nullptr) {
+    mailbox = new (place) WorldEditor::Mailbox();
+  } else {
+    owned = std::make_unique<WorldEditor::Mailbox>();
+    mailbox = owned.get();
+  }
+  auto editor = WorldEditor::open(text, name, *mailbox);
+  if (!editor) return Error{editor.error()};
+  live.of_world = mailbox;
+  return std::unique_ptr<viewer::SceneControl>(
+      std::make_unique<WorldControl>(std::move(owned), std::move(editor.value())));
+}
 
 Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::string& text, const std::string& name,
                                                                 ScalarKind scalar, LiveMailboxes& live, void* place) {

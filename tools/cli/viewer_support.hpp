@@ -55,6 +55,11 @@ Result<std::unique_ptr<viewer::SceneControl>> open_live_control(const std::strin
                                                                 ScalarKind scalar, LiveMailboxes& live,
                                                                 void* place = nullptr);
 
+/// The same for a world (`run --scene WORLD --control`): changes go to every device an effect
+/// acts on at once (config/world_editor.hpp); `place` as above.
+Result<std::unique_ptr<viewer::SceneControl>> open_world_control(const std::string& text, const std::string& name,
+                                                                 LiveMailboxes& live, void* place = nullptr);
+
 /// Keeps serving (the page has the whole recording) until Ctrl-C or another stop signal.
 void serve_until_stopped(const viewer::ViewerServer& server, const char* what);
 

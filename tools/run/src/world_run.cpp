@@ -328,7 +328,9 @@ class WorldRunConsumer {
 template <std::size_t N>
 Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescription& world, Opened& opened,
                                      DeviceGroup& group) {
-  using RunWorld = World<DriverRef, RuntimeScene<double>, N>;
+  // Live (the world's stages take scene updates) in every run: one atomic load a tick when no
+  // control protocol sends any (docs/performance/world.md); one instantiation per size.
+  using RunWorld = World<DriverRef, RuntimeScene<double>, N, kLiveStages>;
   const double period_s = 1.0 / options.rate_hz;
   std::vector<DriverRef> refs;
   refs.reserve(N);  // the world keeps pointers to them: no reallocation after this
@@ -354,6 +356,8 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
   if (const std::string bad = check(config, N); !bad.empty())
     return Error{fmt::format("{}: {}", options.scene_path, bad)};
   auto run_world_object = std::make_unique<RunWorld>(members, config);
+  WorldMailbox<RuntimeScene<double>>* mailbox = options.live != nullptr ? options.live->of_world : nullptr;
+  if (mailbox != nullptr) run_world_object->listen(*mailbox);
 
   WorldRunSummary summary;
   summary.scene_name = world.scene.name;
@@ -380,6 +384,11 @@ Result<WorldRunSummary> run_world_of(const RunOptions& options, const WorldDescr
   if (!report) return Error{report.error()};
   summary.report = std::move(report->report);
   summary.frames_dropped = report->frames_dropped;
+  if (mailbox != nullptr) {
+    summary.live = true;
+    summary.updates_applied = run_world_object->loop(0).updates_applied();
+    summary.updates_refused = run_world_object->updates_refused();
+  }
   for (std::size_t i = 0; i < N; ++i) {
     if (auto* bridge = dynamic_cast<ClockBridge*>(opened.drivers[i].get())) {
       bridge->stop();  // its thread's last tick writes zero; then its measures are whole
@@ -523,6 +532,11 @@ std::string format_world_run_summary(const WorldRunSummary& s, const RunOptions&
                         "frame(s) after that with any force); re-armed {} time(s)\n",
                         *s.held_at_s, s.held_by, s.forced_while_held, s.rearms);
   }
+  if (s.live) {
+    text += fmt::format("live     {} scene update(s) applied (each on every device at once), {} refused{}\n",
+                        s.updates_applied, s.updates_refused,
+                        s.updates_refused > 0 ? " (they failed the loop's checks: docs/spec/live-scenes.md)" : "");
+  }
   text += format_run_trace(o.trace_path, s.trace_error, s.frames_written, s.frames_dropped);
   return text;
 }
@@ -541,6 +555,10 @@ std::string world_stats_json(const WorldRunSummary& s, const RunOptions& o) {
   out += fmt::format("  \"held_at_s\": {},\n  \"held_by\": {},\n  \"forced_while_held\": {},\n  \"rearms\": {},\n",
                      s.held_at_s ? fmt::format("{}", *s.held_at_s) : "null", json_string(s.held_by),
                      s.forced_while_held, s.rearms);
+  if (s.live) {
+    out +=
+        fmt::format("  \"updates_applied\": {},\n  \"updates_refused\": {},\n", s.updates_applied, s.updates_refused);
+  }
   out += "  \"devices\": [";
   for (std::size_t i = 0; i < s.devices.size(); ++i) {
     const WorldRunDevice& d = s.devices[i];

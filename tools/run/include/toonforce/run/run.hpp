@@ -21,6 +21,7 @@
 #include "toonforce/control/realtime_runner.hpp"
 #include "toonforce/control/scene_updates.hpp"
 #include "toonforce/control/servo_session.hpp"
+#include "toonforce/control/world_updates.hpp"
 #include "toonforce/math/scalar_kind.hpp"
 #include "toonforce/hal/device.hpp"
 #include "toonforce/trace/telemetry_sink.hpp"
@@ -42,6 +43,8 @@ struct LiveMailboxes {
   SceneMailbox<RuntimeScene<double>>* of_double = nullptr;
   SceneMailbox<RuntimeScene<float>>* of_float = nullptr;
   SceneMailbox<RuntimeScene<Q16_16>>* of_q16 = nullptr;
+  /// A world's (`run --scene WORLD --control`): one update for all its devices (world_updates.hpp).
+  WorldMailbox<RuntimeScene<double>>* of_world = nullptr;
   template <Scalar S>
   SceneMailbox<RuntimeScene<S>>* of() const noexcept {
     if constexpr (std::same_as<S, double>) {

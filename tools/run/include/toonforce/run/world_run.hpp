@@ -52,6 +52,9 @@ struct WorldRunSummary {
   std::string held_by;                 ///< the device whose fault started it
   std::int64_t forced_while_held = 0;  ///< frames after the hold began with any device's force not zero
   std::int64_t rearms = 0;
+  bool live = false;                  ///< the world took scene updates (--control)
+  std::uint64_t updates_applied = 0;  ///< live: updates every device applied (on one tick each)
+  std::uint64_t updates_refused = 0;  ///< live: updates the world refused (a part failed its checks)
   std::string trace_error;
 };
 
