@@ -64,10 +64,13 @@ template <class SceneT>
 struct IntakeOf<SceneT, true> {
   using type = SceneIntake<SceneT>;
 };
-/// Where a live loop keeps an update offered to it (ServoLoop::offer); nothing when not live.
+/// Where a live loop keeps an update offered to it (ServoLoop::offer); nothing when not live
+/// (a type of its own: two empty members of one type may not share an address, and a byte
+/// more in the loop moved its tick's code).
+struct NoOffer {};
 template <class SceneT, bool kLive>
 struct OfferOf {
-  using type = NoIntake;
+  using type = NoOffer;
 };
 template <class SceneT>
 struct OfferOf<SceneT, true> {
