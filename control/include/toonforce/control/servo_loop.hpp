@@ -152,7 +152,7 @@ class ServoLoop {
   /// place until that tick. Before the loop runs, or from its thread.
   template <class U>
   void offer(const U& checked) noexcept
-    requires(kStages.live && std::same_as<U, typename Mailbox::Update>)
+    requires(kStages.live && std::same_as<const U*, typename detail::OfferOf<SceneT, kStages.live>::type>)
   {
     offered_ = &checked;
   }
