@@ -1,0 +1,110 @@
+// SPDX-License-Identifier: Apache-2.0
+// A DDS reader for the tests of toonforce-dds (tests/dds/dds_bridge_test.py): what a ROS 2
+// node on another host would see. It joins the domain, lists every publication discovered whose
+// topic starts with rt/toonforce/ (topic and type name as they travel in discovery, with the
+// writer's reliability), and prints each sample of one device's pose, twist, wrench and faults:
+//
+//   toonforce_dds_echo --domain D --device NAME --samples N [--timeout S]
+//
+// One CSV line per item: publication,TOPIC,TYPE,best_effort|reliable ;
+// pose,X,Y,Z,QW,FRAME_ID,STAMP_S ; twist,VX,VY,VZ ; wrench,FX,FY,FZ ; faults,BITS.
+// Exits 0 after N poses, 1 if they did not come within the timeout.
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <set>
+#include <string>
+#include <thread>
+
+#include "dds/dds.h"
+#include "ros2_msgs.h"
+
+namespace {
+
+dds_entity_t reader(dds_entity_t participant, const dds_topic_descriptor_t* type, const std::string& name) {
+  const dds_entity_t topic = dds_create_topic(participant, type, name.c_str(), nullptr, nullptr);
+  dds_qos_t* qos = dds_create_qos();
+  dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1000);
+  const dds_entity_t r = dds_create_reader(participant, topic, qos, nullptr);
+  dds_delete_qos(qos);
+  return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  unsigned domain = 0;
+  std::string device = "device";
+  long wanted = 10;
+  double timeout_s = 20.0;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string flag = argv[i];
+    if (flag == "--domain") domain = static_cast<unsigned>(std::strtoul(argv[i + 1], nullptr, 10));
+    if (flag == "--device") device = argv[i + 1];
+    if (flag == "--samples") wanted = std::strtol(argv[i + 1], nullptr, 10);
+    if (flag == "--timeout") timeout_s = std::strtod(argv[i + 1], nullptr);
+  }
+  const dds_entity_t participant = dds_create_participant(domain, nullptr, nullptr);
+  if (participant < 0) {
+    std::fprintf(stderr, "dds_echo: cannot join domain %u: %s\n", domain, dds_strretcode(participant));
+    return 2;
+  }
+  const std::string base = "rt/toonforce/" + device + "/";
+  const dds_entity_t pose = reader(participant, &geometry_msgs_msg_dds__PoseStamped__desc, base + "pose");
+  const dds_entity_t twist = reader(participant, &geometry_msgs_msg_dds__TwistStamped__desc, base + "twist");
+  const dds_entity_t wrench = reader(participant, &geometry_msgs_msg_dds__WrenchStamped__desc, base + "wrench");
+  const dds_entity_t faults = reader(participant, &std_msgs_msg_dds__UInt32__desc, base + "faults");
+  const dds_entity_t publications = dds_create_reader(participant, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, nullptr, nullptr);
+  std::set<std::string> listed;
+  long poses = 0;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (poses < wanted && std::chrono::steady_clock::now() < until) {
+    void* samples[16] = {};
+    dds_sample_info_t infos[16];
+    int n = dds_take(publications, samples, infos, 16, 16);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto* e = static_cast<const dds_builtintopic_endpoint_t*>(samples[i]);
+      const std::string topic = e->topic_name != nullptr ? e->topic_name : "";
+      if (topic.rfind("rt/toonforce/", 0) != 0 || !listed.insert(topic).second) continue;
+      dds_reliability_kind_t kind = DDS_RELIABILITY_BEST_EFFORT;
+      dds_duration_t blocking = 0;
+      dds_qget_reliability(e->qos, &kind, &blocking);
+      std::printf("publication,%s,%s,%s\n", topic.c_str(), e->type_name != nullptr ? e->type_name : "",
+                  kind == DDS_RELIABILITY_RELIABLE ? "reliable" : "best_effort");
+    }
+    if (n > 0) dds_return_loan(publications, samples, n);
+    // Loaned samples (the reader's own memory, strings included), given back after printing.
+    const auto each = [](dds_entity_t r, auto&& print) {
+      void* loaned[16] = {};
+      dds_sample_info_t info[16];
+      const int got = dds_take(r, loaned, info, 16, 16);
+      for (int i = 0; i < got; ++i) {
+        if (info[i].valid_data) print(loaned[i]);
+      }
+      if (got > 0) dds_return_loan(r, loaned, got);
+    };
+    each(pose, [&](void* s) {
+      const auto* p = static_cast<const geometry_msgs_msg_dds__PoseStamped_*>(s);
+      std::printf("pose,%.17g,%.17g,%.17g,%.17g,%s,%.9f\n", p->pose.position.x, p->pose.position.y, p->pose.position.z,
+                  p->pose.orientation.w, p->header.frame_id != nullptr ? p->header.frame_id : "",
+                  static_cast<double>(p->header.stamp.sec) + 1e-9 * static_cast<double>(p->header.stamp.nanosec));
+      ++poses;
+    });
+    each(twist, [](void* s) {
+      const auto* t = static_cast<const geometry_msgs_msg_dds__TwistStamped_*>(s);
+      std::printf("twist,%.17g,%.17g,%.17g\n", t->twist.linear.x, t->twist.linear.y, t->twist.linear.z);
+    });
+    each(wrench, [](void* s) {
+      const auto* w = static_cast<const geometry_msgs_msg_dds__WrenchStamped_*>(s);
+      std::printf("wrench,%.17g,%.17g,%.17g\n", w->wrench.force.x, w->wrench.force.y, w->wrench.force.z);
+    });
+    each(faults, [](void* s) { std::printf("faults,%u\n", static_cast<const std_msgs_msg_dds__UInt32_*>(s)->data); });
+    std::fflush(stdout);
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  dds_delete(participant);
+  return poses >= wanted ? 0 : 1;
+}
