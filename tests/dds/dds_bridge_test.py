@@ -7,9 +7,12 @@ the second, a DDS reader (tests/dds/dds_echo.cpp) as a ROS 2 node on another mac
 Checks: the publications it discovers have ROS 2's topic names (rt/toonforce/NAME/...) and type
 names (geometry_msgs::msg::dds_::PoseStamped_, ...) with best-effort reliability; every pose and
 wrench it receives is a row of the run's trace (the same device, the same tick's values); a
-world's poses are in the world frame. Needs root (namespaces); exits 77 (skipped) without."""
+world's poses are in the world frame; control messages sent over DDS reach the run's control
+protocol and their replies come back (a refused one, one that is not JSON, one the bridge
+refuses as not UTF-8, and the one after it). Needs root (namespaces); exits 77 (skipped) without."""
 
 import csv
+import json
 import os
 import re
 import signal
@@ -18,6 +21,7 @@ import sys
 import tempfile
 
 TOONFORCE, BRIDGE, ECHO, SOURCE = sys.argv[1:5]
+TOKEN = "dds-test-token"
 failures = []
 
 
@@ -60,7 +64,8 @@ def main():
              "--scene", os.path.join(SOURCE, "scenes", "two_players.toml"),
              "--script", "left=" + os.path.join(hands, "left_push.toml"),
              "--script", "right=" + os.path.join(hands, "right_push.toml"),
-             "--duration", "4", "--allow-non-rt", "--no-mlock", "--view", "0", "--trace", trace],
+             "--duration", "6", "--allow-non-rt", "--no-mlock", "--view", "0", "--control", "--control-token", TOKEN,
+             "--trace", trace],
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(run)
         url = None
@@ -74,12 +79,20 @@ def main():
         if url is None:
             return 1
         bridge = subprocess.Popen(["ip", "netns", "exec", a, BRIDGE, "--view", url, "--domain", "17", "--rate", "200",
-                                   "--duration", "8"],
+                                   "--duration", "12", "--control-token", TOKEN],
                                   stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(bridge)
-        echo = subprocess.run(["ip", "netns", "exec", b, ECHO, "--domain", "17", "--device", "left", "--samples", "100",
-                               "--timeout", "20"], capture_output=True, text=True, timeout=60)
-        print(echo.stderr)
+        sends = [b'{"type": "set", "id": "dds-1", "effect": "surface1", "keys": {"stiffness": 2000}}',
+                 b'{"type": "set", "id": "dds-2", "effect": "coupling1", "keys": {"stiffness": 1}}',
+                 b'not json', b'{"type": "status", "id": "\xff"}', b'{"type": "status", "id": "dds-5"}']
+        command = [b"ip", b"netns", b"exec", b.encode(), ECHO.encode(), b"--domain", b"17", b"--device", b"left",
+                   b"--samples", b"100", b"--timeout", b"20"]
+        for text in sends:
+            command += [b"--send", text]
+        echo = subprocess.run(command, capture_output=False, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              timeout=60)
+        echo.stdout = echo.stdout.decode("utf-8", "replace")
+        print(echo.stderr.decode("utf-8", "replace"))
         check(echo.returncode == 0, "the other host received 100 poses of device 'left'")
         lines = [line.split(",") for line in echo.stdout.splitlines()]
         publications = {p[1]: (p[2], p[3]) for p in lines if p[0] == "publication"}
@@ -90,10 +103,26 @@ def main():
                 topic = f"rt/toonforce/{name}/{what}"
                 check(publications.get(topic) == (type_name, "best_effort"),
                       f"discovered {topic} as {type_name}, best effort (got {publications.get(topic)})")
+        replies = [json.loads(line[len("reply,"):]) for line in echo.stdout.splitlines() if line.startswith("reply,")]
+        print(replies)
+        check(len(replies) == 5, "every control message sent over DDS got one reply")
+        if len(replies) == 5:
+            check(replies[0] == {"type": "ok", "id": "dds-1", "sequence": 1},
+                  "a scene change over DDS passes the control protocol's checks and is taken")
+            check(replies[1]["type"] == "error" and "fixed while it runs" in replies[1]["message"],
+                  "... one it refuses comes back with its reason")
+            check(replies[2]["type"] == "error", "a message that is not JSON gets an error reply")
+            check(replies[3]["type"] == "error" and "UTF-8" in replies[3]["message"],
+                  "one that is not UTF-8 is refused by the bridge (the control connection stays)")
+            check(replies[4].get("type") == "status" and replies[4].get("id") == "dds-5",
+                  "... and the next message still gets its reply")
         check("rt/toonforce/left/twist" not in publications,
               "no twist for a world's device (its rows carry no velocity): nothing made up")
         run.send_signal(signal.SIGTERM)  # stopped from outside, the page closes with the run
-        run.communicate(timeout=60)
+        run_out, _ = run.communicate(timeout=60)
+        print(run_out)
+        check("live     1 scene update(s) applied (each on every device at once), 0 refused" in run_out,
+              "the world applied the one change that came over DDS")
         bridge.send_signal(signal.SIGINT)
         _, bridge_err = bridge.communicate(timeout=60)
         print(bridge_err)

@@ -55,6 +55,18 @@ TEST(DdsColumns, AMissingColumnOrANameThatIsNoRosTokenIsRefusedByName) {
   EXPECT_FALSE(ros_token(""));
 }
 
+TEST(DdsControl, OnlyUtf8ThatAWebSocketTakesIsForwarded) {
+  EXPECT_TRUE(utf8(R"({"type": "status"})"));
+  EXPECT_TRUE(utf8("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80"));  // 2, 3 and 4 bytes
+  EXPECT_FALSE(utf8("\xc3"));                                      // cut short
+  EXPECT_FALSE(utf8("\xc0\xaf"));                                  // overlong '/'
+  EXPECT_FALSE(utf8("\xe0\x80\xaf"));                              // overlong, 3 bytes
+  EXPECT_FALSE(utf8("\xed\xa0\x80"));                              // a surrogate
+  EXPECT_FALSE(utf8("\xf4\x90\x80\x80"));                          // past U+10FFFF
+  EXPECT_FALSE(utf8("\xff"));
+  EXPECT_FALSE(utf8("ok\x80"));  // a continuation byte alone
+}
+
 TEST(DdsColumns, TopicsAreRos2NamesAsItsDdsMiddlewaresSpellThem) {
   EXPECT_EQ(topic_name("left", "pose"), "rt/toonforce/left/pose");
 }

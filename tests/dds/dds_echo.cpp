@@ -4,7 +4,10 @@
 // topic starts with rt/toonforce/ (topic and type name as they travel in discovery, with the
 // writer's reliability), and prints each sample of one device's pose, twist, wrench and faults:
 //
-//   toonforce_dds_echo --domain D --device NAME --samples N [--timeout S]
+//   toonforce_dds_echo --domain D --device NAME --samples N [--timeout S] [--send TEXT ...]
+//
+// With --send, it also writes each TEXT on rt/toonforce/control (reliable) once a reader of it
+// is there, in order, and prints each reply on rt/toonforce/control_reply: reply,TEXT.
 //
 // One CSV line per item: publication,TOPIC,TYPE,best_effort|reliable ;
 // pose,X,Y,Z,QW,FRAME_ID,STAMP_S ; twist,VX,VY,VZ ; wrench,FX,FY,FZ ; faults,BITS.
@@ -16,6 +19,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "dds/dds.h"
 #include "ros2_msgs.h"
@@ -39,8 +43,10 @@ int main(int argc, char** argv) {
   std::string device = "device";
   long wanted = 10;
   double timeout_s = 20.0;
+  std::vector<std::string> sends;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
+    if (flag == "--send") sends.emplace_back(argv[i + 1]);
     if (flag == "--domain") domain = static_cast<unsigned>(std::strtoul(argv[i + 1], nullptr, 10));
     if (flag == "--device") device = argv[i + 1];
     if (flag == "--samples") wanted = std::strtol(argv[i + 1], nullptr, 10);
@@ -57,10 +63,39 @@ int main(int argc, char** argv) {
   const dds_entity_t wrench = reader(participant, &geometry_msgs_msg_dds__WrenchStamped__desc, base + "wrench");
   const dds_entity_t faults = reader(participant, &std_msgs_msg_dds__UInt32__desc, base + "faults");
   const dds_entity_t publications = dds_create_reader(participant, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, nullptr, nullptr);
+  dds_entity_t control = 0;
+  dds_entity_t replies = 0;
+  if (!sends.empty()) {
+    dds_qos_t* qos = dds_create_qos();
+    dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 64);
+    control = dds_create_writer(
+        participant,
+        dds_create_topic(participant, &std_msgs_msg_dds__String__desc, "rt/toonforce/control", nullptr, nullptr), qos,
+        nullptr);
+    replies = dds_create_reader(
+        participant,
+        dds_create_topic(participant, &std_msgs_msg_dds__String__desc, "rt/toonforce/control_reply", nullptr, nullptr),
+        qos, nullptr);
+    dds_delete_qos(qos);
+  }
+  std::size_t sent = 0;
+  std::size_t replied = 0;
   std::set<std::string> listed;
   long poses = 0;
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (poses < wanted && std::chrono::steady_clock::now() < until) {
+  while ((poses < wanted || replied < sends.size()) && std::chrono::steady_clock::now() < until) {
+    if (sent < sends.size()) {
+      dds_publication_matched_status_t matched{};
+      dds_get_publication_matched_status(control, &matched);
+      if (matched.current_count > 0) {  // the bridge's reader is there: it gets every message, in order
+        for (; sent < sends.size(); ++sent) {
+          std_msgs_msg_dds__String_ message{};
+          message.data = sends[sent].data();
+          dds_write(control, &message);
+        }
+      }
+    }
     void* samples[16] = {};
     dds_sample_info_t infos[16];
     int n = dds_take(publications, samples, infos, 16, 16);
@@ -101,10 +136,17 @@ int main(int argc, char** argv) {
       const auto* w = static_cast<const geometry_msgs_msg_dds__WrenchStamped_*>(s);
       std::printf("wrench,%.17g,%.17g,%.17g\n", w->wrench.force.x, w->wrench.force.y, w->wrench.force.z);
     });
+    if (replies != 0) {
+      each(replies, [&](void* s) {
+        const char* data = static_cast<const std_msgs_msg_dds__String_*>(s)->data;
+        std::printf("reply,%s\n", data != nullptr ? data : "");
+        ++replied;
+      });
+    }
     each(faults, [](void* s) { std::printf("faults,%u\n", static_cast<const std_msgs_msg_dds__UInt32_*>(s)->data); });
     std::fflush(stdout);
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   dds_delete(participant);
-  return poses >= wanted ? 0 : 1;
+  return poses >= wanted && replied >= sends.size() ? 0 : 1;
 }

@@ -24,6 +24,10 @@ int main(int argc, char** argv) {
   app.add_option("--duration", o.max_seconds, "Stop after this many seconds (0: when the viewer closes or Ctrl-C)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e9));
+  app.add_option("--control-token", o.control_token,
+                 "The run's control token (its --control-token): relay scene changes from rt/toonforce/control to "
+                 "its control protocol, replies on rt/toonforce/control_reply. Anyone who can write to the DDS "
+                 "domain can then change the scene (docs/DDS.md)");
   CLI11_PARSE(app, argc, argv);
   return toonforce::dds::run_bridge(o);
 }

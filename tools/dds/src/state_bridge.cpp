@@ -168,6 +168,8 @@ Result<std::unique_ptr<StatePublisher>> StatePublisher::open(const std::vector<D
   return std::unique_ptr<StatePublisher>(new StatePublisher(std::move(impl)));
 }
 
+std::int32_t StatePublisher::participant() const noexcept { return impl_->participant; }
+
 void StatePublisher::offer(std::span<const double> row, double t_s) {
   Impl& m = *impl_;
   if (!(t_s >= m.last_t_s + m.period_s)) return;
@@ -231,10 +233,14 @@ using tcp = boost::asio::ip::tcp;
 std::atomic<int> g_socket{-1};
 std::atomic<int> g_stop{0};
 
+std::atomic<int> g_control_fd{-1};
+
 extern "C" void on_stop(int signo) {
   g_stop.store(signo);
-  const int fd = g_socket.load();
-  if (fd >= 0) ::shutdown(fd, SHUT_RDWR);  // async-signal-safe: the blocking read returns
+  for (const std::atomic<int>* socket : {&g_socket, &g_control_fd}) {
+    const int fd = socket->load();
+    if (fd >= 0) ::shutdown(fd, SHUT_RDWR);  // async-signal-safe: a blocking read returns
+  }
 }
 
 struct Url {
@@ -262,6 +268,147 @@ Result<Url> parse_url(std::string_view text) {
   u.path = "/ws";
   return u;
 }
+
+}  // namespace
+
+namespace {}  // namespace
+
+bool utf8(std::string_view text) noexcept {
+  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(text[i]); };
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const unsigned c = byte(i);
+    std::size_t extra = 0;
+    unsigned low = 0x80U;  // the second byte's range (RFC 3629 section 4: no overlongs, no surrogates)
+    unsigned high = 0xBFU;
+    if (c < 0x80U) {
+      extra = 0;
+    } else if (c >= 0xC2U && c <= 0xDFU) {
+      extra = 1;
+    } else if (c >= 0xE0U && c <= 0xEFU) {
+      extra = 2;
+      if (c == 0xE0U) low = 0xA0U;
+      if (c == 0xEDU) high = 0x9FU;
+    } else if (c >= 0xF0U && c <= 0xF4U) {
+      extra = 3;
+      if (c == 0xF0U) low = 0x90U;
+      if (c == 0xF4U) high = 0x8FU;
+    } else {
+      return false;
+    }
+    if (text.size() - i <= extra) return false;
+    for (std::size_t k = 1; k <= extra; ++k) {
+      const unsigned b = byte(i + k);
+      if (k == 1 ? (b < low || b > high) : (b & 0xC0U) != 0x80U) return false;
+    }
+    i += extra + 1;
+  }
+  return true;
+}
+
+namespace {
+
+std::string error_reply(std::string_view why) {
+  return nlohmann::json{{"type", "error"}, {"message", std::string(why)}}.dump();
+}
+
+/// The control protocol's messages from DDS to the run's /control and their replies back: one
+/// connection past its hello, one message at a time, in the order DDS delivered them.
+class ControlRelay {
+ public:
+  ControlRelay(boost::asio::io_context& io, dds_entity_t participant) : ws_(io), participant_(participant) {}
+
+  std::string open(const Url& url, const std::string& token) {
+    tcp::resolver resolver(ws_.get_executor());
+    beast::error_code ec;
+    const auto found = resolver.resolve(url.host, url.port, ec);
+    if (!ec) boost::asio::connect(ws_.next_layer(), found, ec);
+    if (!ec) {
+      g_control_fd.store(ws_.next_layer().native_handle());
+      ws_.handshake(url.host + ":" + url.port, "/control", ec);  // a program: no Origin
+    }
+    if (!ec)
+      ws_.write(boost::asio::buffer(nlohmann::json{{"type", "hello"}, {"version", 1}, {"token", token}}.dump()), ec);
+    beast::flat_buffer reply;
+    if (!ec) ws_.read(reply, ec);
+    if (ec) return fmt::format("the run's control protocol: {} (was the run started with --control?)", ec.message());
+    const nlohmann::json welcome = nlohmann::json::parse(beast::buffers_to_string(reply.data()), nullptr, false);
+    if (!welcome.is_object() || welcome.value("type", "") != "welcome") {
+      return fmt::format("the run's control protocol refused the hello: {} (give the run's --control-token)",
+                         welcome.is_object() ? welcome.value("message", "?") : "?");
+    }
+    dds_qos_t* qos = dds_create_qos();
+    dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 64);
+    const dds_entity_t in =
+        dds_create_topic(participant_, &std_msgs_msg_dds__String__desc, "rt/toonforce/control", nullptr, nullptr);
+    const dds_entity_t out =
+        dds_create_topic(participant_, &std_msgs_msg_dds__String__desc, "rt/toonforce/control_reply", nullptr, nullptr);
+    reader_ = in < 0 ? in : dds_create_reader(participant_, in, qos, nullptr);
+    writer_ = out < 0 ? out : dds_create_writer(participant_, out, qos, nullptr);
+    dds_delete_qos(qos);
+    if (reader_ < 0 || writer_ < 0) {
+      return fmt::format("the control topics: {}", dds_strretcode(reader_ < 0 ? reader_ : writer_));
+    }
+    return {};
+  }
+
+  /// Until `done`: each message taken, forwarded, its reply published.
+  void run(const std::atomic<bool>& done) {
+    while (!done.load()) {
+      void* loaned[8] = {};
+      dds_sample_info_t info[8];
+      const int n = dds_take(reader_, loaned, info, 8, 8);
+      for (int i = 0; i < n; ++i) {
+        if (!info[i].valid_data) continue;
+        const char* data = static_cast<const std_msgs_msg_dds__String_*>(loaned[i])->data;
+        publish(forward(data != nullptr ? data : ""));
+      }
+      if (n > 0) dds_return_loan(reader_, loaned, n);
+      if (n <= 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  }
+  std::uint64_t forwarded() const noexcept { return forwarded_; }
+  std::uint64_t refused() const noexcept { return refused_; }
+
+ private:
+  std::string forward(std::string_view text) {
+    if (closed_) return error_reply("the run's control connection is closed: nothing more is forwarded");
+    if (text.size() > 65536) {
+      ++refused_;
+      return error_reply("longer than 64 KiB (the control protocol's limit): not forwarded");
+    }
+    if (!utf8(text)) {
+      ++refused_;
+      return error_reply("not UTF-8: not forwarded");
+    }
+    beast::error_code ec;
+    ws_.text(true);
+    ws_.write(boost::asio::buffer(text.data(), text.size()), ec);
+    beast::flat_buffer reply;
+    if (!ec) ws_.read(reply, ec);
+    if (ec) {
+      closed_ = true;
+      return error_reply(fmt::format("the run's control connection closed: {}", ec.message()));
+    }
+    ++forwarded_;
+    return beast::buffers_to_string(reply.data());
+  }
+  void publish(const std::string& reply) {
+    std::string copy = reply;
+    std_msgs_msg_dds__String_ message{};
+    message.data = copy.data();
+    dds_write(writer_, &message);
+  }
+
+  websocket::stream<tcp::socket> ws_;
+  dds_entity_t participant_;
+  dds_entity_t reader_ = 0;
+  dds_entity_t writer_ = 0;
+  bool closed_ = false;
+  std::uint64_t forwarded_ = 0;
+  std::uint64_t refused_ = 0;
+};
 
 }  // namespace
 
@@ -312,6 +459,8 @@ int run_bridge(const BridgeOptions& options) {
     });
   }
   std::unique_ptr<StatePublisher> publisher;
+  std::unique_ptr<ControlRelay> relay;
+  std::thread relay_thread;
   std::size_t t_column = 0;
   std::size_t stride = 0;
   int status = 0;
@@ -351,6 +500,16 @@ int run_bridge(const BridgeOptions& options) {
       for (const DeviceColumns& d : devices.value()) names += fmt::format("{}{}", names.empty() ? "" : ", ", d.name);
       fmt::print(stderr, "toonforce-dds: {} on DDS domain {} at up to {} Hz: {}\n", message.value("title", "the run"),
                  po.domain, po.rate_hz, names);
+      if (!options.control_token.empty()) {
+        relay = std::make_unique<ControlRelay>(io, publisher->participant());
+        if (std::string bad = relay->open(url.value(), options.control_token); !bad.empty()) {
+          fmt::print(stderr, "toonforce-dds: {}\n", bad);
+          status = 2;
+          break;
+        }
+        relay_thread = std::thread([&] { relay->run(done); });
+        fmt::print(stderr, "toonforce-dds: scene changes from rt/toonforce/control go to the run's control protocol\n");
+      }
       std::fflush(stderr);
       continue;
     }
@@ -375,7 +534,13 @@ int run_bridge(const BridgeOptions& options) {
   }
   done.store(true);
   if (timer.joinable()) timer.join();
+  if (relay_thread.joinable()) relay_thread.join();
   g_socket.store(-1);
+  g_control_fd.store(-1);
+  if (relay != nullptr) {
+    fmt::print(stderr, "toonforce-dds: {} control message(s) forwarded, {} refused before forwarding\n",
+               relay->forwarded(), relay->refused());
+  }
   if (status == 0 && publisher == nullptr && g_stop.load() == 0) {
     fmt::print(stderr, "toonforce-dds: the viewer at {} closed the connection before its hello: {}\n", options.view_url,
                ec.message());

@@ -9,6 +9,12 @@
 ///   rt/toonforce/NAME/wrench  geometry_msgs/msg/WrenchStamped the commanded force [N]
 ///   rt/toonforce/NAME/faults  std_msgs/msg/UInt32             the latched fault bits (control/faults.hpp)
 ///
+/// With a control token (`--control-token`), scene changes come in too, through the control
+/// protocol and so through all its checks in the run's server process:
+///
+///   rt/toonforce/control        std_msgs/msg/String  one control protocol message (JSON), reliable
+///   rt/toonforce/control_reply  std_msgs/msg/String  its reply, in order, reliable
+///
 /// It runs in a process of its own, apart from the loop's: the network's bytes (DDS discovery
 /// and data from any host of the domain) are parsed there, never in the process that holds the
 /// device, and the loop never waits on it (the viewer's server drops frames for a slow page
@@ -50,6 +56,11 @@ std::string topic_name(std::string_view device, std::string_view what);
 /// a digit): a device name that is not cannot be a topic.
 bool ros_token(std::string_view name) noexcept;
 
+/// Whether `text` is UTF-8 without overlongs or surrogates (RFC 3629): what a WebSocket text
+/// message must be. The control server closes a connection that sends one that is not, so the
+/// relay refuses such a message itself rather than lose the connection for every later one.
+bool utf8(std::string_view text) noexcept;
+
 struct PublisherOptions {
   std::uint32_t domain = 0;
   double rate_hz = 100.0;                    ///< per topic, at most
@@ -72,6 +83,8 @@ class StatePublisher {
   /// value that is not finite where a message needs one are skipped (counted).
   void offer(std::span<const double> row, double t_s);
   std::uint64_t published() const noexcept { return published_; }
+  /// The DDS participant (for the control relay's reader and writer in the same domain).
+  std::int32_t participant() const noexcept;
   std::uint64_t skipped() const noexcept { return skipped_; }
 
  private:
@@ -87,6 +100,11 @@ struct BridgeOptions {
   std::string device_name = "device";  ///< a one-device run's device in topic names
   PublisherOptions publisher;
   double max_seconds = 0.0;  ///< stop after this long (0: when the viewer closes or a stop signal)
+  /// Set (the run's --control-token): also relay the control protocol. Each std_msgs/String on
+  /// rt/toonforce/control is one control message (docs/spec/control-protocol.md), sent to the
+  /// run's /control as it is; its reply comes back on rt/toonforce/control_reply. Empty: no
+  /// control topic at all.
+  std::string control_token;
 };
 
 /// Connects to the viewer, opens the publisher from its hello and publishes until the viewer
