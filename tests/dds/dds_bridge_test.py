@@ -9,7 +9,8 @@ names (geometry_msgs::msg::dds_::PoseStamped_, ...) with best-effort reliability
 wrench it receives is a row of the run's trace (the same device, the same tick's values); a
 world's poses are in the world frame; control messages sent over DDS reach the run's control
 protocol and their replies come back (a refused one, one that is not JSON, one the bridge
-refuses as not UTF-8, and the one after it). Needs root (namespaces); exits 77 (skipped) without."""
+refuses as not UTF-8, and the one after it); a bridge killed without a word is seen gone on the
+other host through its writers' liveliness. Needs root (namespaces); exits 77 (skipped) without."""
 
 import csv
 import json
@@ -118,15 +119,34 @@ def main():
                   "... and the next message still gets its reply")
         check("rt/toonforce/left/twist" not in publications,
               "no twist for a world's device (its rows carry no velocity): nothing made up")
+        bridge.send_signal(signal.SIGINT)
+        _, bridge_err = bridge.communicate(timeout=60)
+        print(bridge_err)
+        check(bridge.returncode == 0 and "published" in bridge_err, "the bridge ends on Ctrl-C with its count")
+        # A bridge that dies without a word (SIGKILL): the other host learns it from the writers'
+        # liveliness (automatic, a 1 s lease), not from a goodbye.
+        second = subprocess.Popen(["ip", "netns", "exec", a, BRIDGE, "--view", url, "--domain", "17", "--rate", "200"],
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        procs.append(second)
+        watch = subprocess.Popen(["ip", "netns", "exec", b, ECHO, "--domain", "17", "--device", "left",
+                                  "--samples", "1", "--until-gone", "yes", "--timeout", "60"],
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        procs.append(watch)
+        for line in watch.stdout:
+            if line.startswith("pose,"):
+                break
+        second.kill()
+        second.communicate()
+        watched, _ = watch.communicate(timeout=90)
+        gone = [line for line in watched.splitlines() if line.startswith("gone,")]
+        print(gone)
+        check(watch.returncode == 0 and len(gone) == 1,
+              "a bridge killed without a word is seen gone on the other host (its liveliness lapsed)")
         run.send_signal(signal.SIGTERM)  # stopped from outside, the page closes with the run
         run_out, _ = run.communicate(timeout=60)
         print(run_out)
         check("live     1 scene update(s) applied (each on every device at once), 0 refused" in run_out,
               "the world applied the one change that came over DDS")
-        bridge.send_signal(signal.SIGINT)
-        _, bridge_err = bridge.communicate(timeout=60)
-        print(bridge_err)
-        check(bridge.returncode == 0 and "published" in bridge_err, "the bridge ends on Ctrl-C with its count")
         with open(trace) as f:
             rows = list(csv.DictReader(f))
         hips = [(float(r["left.x"]), float(r["left.y"]), float(r["left.z"])) for r in rows if r["left.x"] != "nan"]

@@ -4,8 +4,10 @@
 // topic starts with rt/toonforce/ (topic and type name as they travel in discovery, with the
 // writer's reliability), and prints each sample of one device's pose, twist, wrench and faults:
 //
-//   toonforce_dds_echo --domain D --device NAME --samples N [--timeout S] [--send TEXT ...]
+//   toonforce_dds_echo --domain D --device NAME --samples N [--timeout S] [--until-gone yes] [--send TEXT ...]
 //
+// With --until-gone, once it has its poses it waits until the pose's writer is no longer alive
+// (its liveliness lapsed, or it was deleted) and prints gone,SECONDS_SINCE_THE_LAST_POSE.
 // With --send, it also writes each TEXT on rt/toonforce/control (reliable) once a reader of it
 // is there, in order, and prints each reply on rt/toonforce/control_reply: reply,TEXT.
 //
@@ -44,9 +46,11 @@ int main(int argc, char** argv) {
   long wanted = 10;
   double timeout_s = 20.0;
   std::vector<std::string> sends;
+  bool until_gone = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     if (flag == "--send") sends.emplace_back(argv[i + 1]);
+    if (flag == "--until-gone") until_gone = std::string(argv[i + 1]) == "yes";
     if (flag == "--domain") domain = static_cast<unsigned>(std::strtoul(argv[i + 1], nullptr, 10));
     if (flag == "--device") device = argv[i + 1];
     if (flag == "--samples") wanted = std::strtol(argv[i + 1], nullptr, 10);
@@ -147,6 +151,19 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
+  bool gone = false;
+  if (until_gone && poses >= wanted) {
+    const auto last_pose = std::chrono::steady_clock::now();
+    while (!gone && std::chrono::steady_clock::now() < until) {
+      dds_liveliness_changed_status_t alive{};
+      dds_get_liveliness_changed_status(pose, &alive);
+      if (alive.alive_count == 0) {
+        gone = true;
+        std::printf("gone,%.3f\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - last_pose).count());
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
   dds_delete(participant);
-  return poses >= wanted && replied >= sends.size() ? 0 : 1;
+  return poses >= wanted && replied >= sends.size() && (!until_gone || gone) ? 0 : 1;
 }
