@@ -158,6 +158,31 @@ class WorldViewRows final : public WorldRowSink {
   TelemetryFrame frame_{};
 };
 
+/// The control protocol's token: `given` (--control-token), else $TOONFORCE_CONTROL_TOKEN, else
+/// 128 random bits, which the "control: ..." line then says.
+void choose_control_token(ServerSetup& setup, const std::string& given) {
+  const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
+  const bool from_env = env != nullptr && *env != '\0';
+  setup.viewer.control_options.token = !given.empty() ? given : from_env ? std::string(env) : viewer::random_token();
+  if (given.empty() && !from_env) setup.token_note = " (random; set one with --control-token)";
+}
+
+/// --control-wait, before the devices open (a session that never gets its client commands no
+/// force at all): true once a control client's hello passed; false, said why, when a stop
+/// signal came or the server process ended first.
+bool wait_for_control_client(const ServerProcess& server) {
+  fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
+  std::fflush(stderr);
+  if (command_stop().load() == 0 && server.wait_for_control(command_stop())) return true;
+  const int signo = command_stop().load();
+  const std::string gone = server.ended_early();
+  fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
+             signo != 0      ? " (stopped by " + signal_name(signo) + ")"
+             : !gone.empty() ? " (the server process " + gone + ")"
+                             : std::string());
+  return false;
+}
+
 /// What `run --view` of a world needs from the command line.
 struct WorldViewRequest {
   const ViewFlags* view = nullptr;  ///< null or not wanted: no viewer
@@ -278,12 +303,7 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
       setup.world = true;
       setup.scene_text = *options.scene_text;
       setup.scene_name = options.scene_path;
-      const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
-      setup.viewer.control_options.token = !view_request.control_token.empty() ? view_request.control_token
-                                           : env != nullptr && *env != '\0'    ? std::string(env)
-                                                                               : viewer::random_token();
-      if (view_request.control_token.empty() && (env == nullptr || *env == '\0'))
-        setup.token_note = " (random; set one with --control-token)";
+      choose_control_token(setup, view_request.control_token);
     }
     viewer::HelloInfo& hello = setup.hello;
     hello.source = "run";
@@ -304,20 +324,7 @@ int run_world_command(RunOptions& options, const CLI::App& cmd, const std::vecto
     rows.emplace(server->sink(), std::move(map.value()));
     options.world_rows = &rows.value();
     if (view_request.control) options.live = &server->live();
-    if (view_request.control_wait) {
-      // Before the devices open: a session that never gets its client commands no force at all.
-      fmt::print(stderr, "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
-      std::fflush(stderr);
-      if (command_stop().load() != 0 || !server->wait_for_control(command_stop())) {
-        const int signo = command_stop().load();
-        const std::string gone = server->ended_early();
-        fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
-                   signo != 0      ? " (stopped by " + signal_name(signo) + ")"
-                   : !gone.empty() ? " (the server process " + gone + ")"
-                                   : std::string());
-        return 2;
-      }
-    }
+    if (view_request.control_wait && !wait_for_control_client(*server)) return 2;  // could not start
   }
   if (command_stop().load() != 0) {  // stopped while the viewer started
     fmt::print(stderr, "stopped by {} before the loop started\n", signal_name(command_stop().load()));
@@ -657,12 +664,7 @@ void add_run(CLI::App& app) {
         setup.scene_text = *options->scene_text;  // a scene that parsed was read
         setup.scene_name = options->scene_path;
         setup.scalar = options->scalar;
-        const char* env = std::getenv("TOONFORCE_CONTROL_TOKEN");
-        setup.viewer.control_options.token = !control_token->empty()          ? *control_token
-                                             : env != nullptr && *env != '\0' ? std::string(env)
-                                                                              : viewer::random_token();
-        if (control_token->empty() && (env == nullptr || *env == '\0'))
-          setup.token_note = " (random; set one with --control-token)";
+        choose_control_token(setup, *control_token);
       }
       auto started = ServerProcess::start(setup);
       if (!started) {
@@ -673,22 +675,9 @@ void add_run(CLI::App& app) {
       server = std::move(started.value());
       options->sink = &server->sink();
       if (*control) options->live = &server->live();
-      if (*control_wait) {
-        // Before the device opens: a session that never gets its client commands no force at all.
-        fmt::print(stderr,
-                   "control: waiting for a control client's hello before the loop starts (Ctrl-C to give up)\n");
-        std::fflush(stderr);
-        const bool connected = command_stop().load() == 0 && server->wait_for_control(command_stop());
-        if (!connected) {
-          const int signo = command_stop().load();
-          const std::string gone = server->ended_early();
-          fmt::print(stderr, "control: no control client came{}; the loop did not start\n",
-                     signo != 0      ? " (stopped by " + signal_name(signo) + ")"
-                     : !gone.empty() ? " (the server process " + gone + ")"
-                                     : std::string());
-          set_exit_code(2);  // could not start (interfaces.md: exit status)
-          return;
-        }
+      if (*control_wait && !wait_for_control_client(*server)) {
+        set_exit_code(2);  // could not start (interfaces.md: exit status)
+        return;
       }
     }
 #endif
