@@ -475,8 +475,12 @@ class CaseBuilder {
     safety();
   }
 
+  // (Each scene's name and description as variables of their own, not structured bindings: the
+  // lambdas below capture them, which clang 14 does not allow for bindings.)
   void scenes() {
-    for (const auto& [name, desc] : paper_scenes()) {
+    for (const auto& scene : paper_scenes()) {
+      const char* const name = scene.first;
+      const SceneDescription* const desc = scene.second;
       const RuntimeScene<S> runtime = make_runtime_scene<S>(*desc);
       auto inputs = scenario_inputs<S>(name);
       const std::size_t ticks = inputs.size();
@@ -502,7 +506,9 @@ class CaseBuilder {
 
   /// The whole servo loop, every stage on, for the scene composed at compile time and from its file.
   void loops() {
-    for (const auto& [name, desc] : paper_scenes()) {
+    for (const auto& scene : paper_scenes()) {
+      const char* const name = scene.first;
+      const SceneDescription* const desc = scene.second;
       const RuntimeScene<S> runtime = make_runtime_scene<S>(*desc);
       const ServoConfig config = every_stage_config(*desc, kRateHz);
       with_compiled(name, runtime, [&](const auto& compiled) {
